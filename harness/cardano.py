@@ -1,0 +1,119 @@
+"""Cardano angles of the paper (section 2.2): x-y-z sequence, A(0i) = Rx(alpha) Ry(beta) Rz(gamma).
+
+theta = (alpha, beta, gamma); A(0i) maps body components to world components (its columns are
+e1(i), e2(i), e3(i) in e(0)). The body-frame angular velocity is omega_B = D theta' (Eq. 33).
+
+Gimbal lock: where cos(beta) = 0 only alpha + gamma (sin beta = +1) or gamma - alpha
+(sin beta = -1) is determined, and D is singular. `angles_from_rotation` returns angles that are
+continuous along a time series; at a locked row it keeps alpha equal to its value at the nearest
+unlocked row (the previous one, or the next one for leading rows) and gives gamma from the
+determined combination, which is the limit of the continuous solution when the body passes
+through the lock at finite rate. Beta is not confined to [-pi/2, pi/2]: a body spinning about
+the vertical (B1 of kr500) passes through cos(beta) = 0 with beta growing through pi/2, and the
+branch (alpha + pi, pi - beta, gamma + pi) that keeps the series continuous is chosen.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+LOCK_COS_BETA = 1e-10  # |cos beta| below which alpha and gamma are not separable at all
+GIMBAL_COND_D = 100.0  # rows with cond(D) above this are flagged as near gimbal lock
+
+
+def A_0i(theta: np.ndarray) -> np.ndarray:
+    """Eq. (29): rotation matrix from Cardano angles, shape (..., 3) -> (..., 3, 3)."""
+    a, b, g = np.moveaxis(np.asarray(theta, dtype=float), -1, 0)
+    ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
+    return np.stack([
+        np.stack([cb * cg, -cb * sg, sb], axis=-1),
+        np.stack([ca * sg + sa * sb * cg, ca * cg - sa * sb * sg, -sa * cb], axis=-1),
+        np.stack([sa * sg - ca * sb * cg, sa * cg + ca * sb * sg, ca * cb], axis=-1),
+    ], axis=-2)
+
+
+def D(theta: np.ndarray) -> np.ndarray:
+    """Eq. (33): omega_B = D(theta) theta', shape (..., 3) -> (..., 3, 3)."""
+    _, b, g = np.moveaxis(np.asarray(theta, dtype=float), -1, 0)
+    cb, sb, cg, sg = np.cos(b), np.sin(b), np.cos(g), np.sin(g)
+    zero, one = np.zeros_like(b), np.ones_like(b)
+    return np.stack([
+        np.stack([cb * cg, sg, zero], axis=-1),
+        np.stack([-cb * sg, cg, zero], axis=-1),
+        np.stack([sb, zero, one], axis=-1),
+    ], axis=-2)
+
+
+def D_dot(theta: np.ndarray, theta_dot: np.ndarray) -> np.ndarray:
+    """Eq. (34): time derivative of D. The printed Eq. (34) has 1 in its last entry; the
+    derivative of the constant entry D[2, 2] = 1 is 0, which is what is used here."""
+    _, b, g = np.moveaxis(np.asarray(theta, dtype=float), -1, 0)
+    _, bd, gd = np.moveaxis(np.asarray(theta_dot, dtype=float), -1, 0)
+    cb, sb, cg, sg = np.cos(b), np.sin(b), np.cos(g), np.sin(g)
+    zero = np.zeros_like(b)
+    return np.stack([
+        np.stack([-bd * sb * cg - gd * cb * sg, gd * cg, zero], axis=-1),
+        np.stack([bd * sb * sg - gd * cb * cg, -gd * sg, zero], axis=-1),
+        np.stack([bd * cb, zero, zero], axis=-1),
+    ], axis=-2)
+
+
+def cond_D(theta: np.ndarray) -> np.ndarray:
+    """2-norm condition number of D along a series, inf where D is singular."""
+    s = np.linalg.svd(D(theta), compute_uv=False)
+    with np.errstate(divide="ignore"):
+        return np.where(s[..., -1] > 0.0, s[..., 0] / s[..., -1], np.inf)
+
+
+def angles_from_rotation(R: np.ndarray) -> np.ndarray:
+    """Continuous Cardano angles of a time series of rotation matrices, (n, 3, 3) -> (n, 3)."""
+    R = np.asarray(R, dtype=float)
+    sb = np.clip(R[:, 0, 2], -1.0, 1.0)
+    cb = np.hypot(R[:, 0, 0], R[:, 0, 1])
+    beta = np.arctan2(sb, cb)
+    alpha = np.arctan2(-R[:, 1, 2], R[:, 2, 2])
+    gamma = np.arctan2(-R[:, 0, 1], R[:, 0, 0])
+    locked = cb < LOCK_COS_BETA
+    # In lock: sin beta = +1 fixes alpha + gamma = atan2(R10, R11); -1 fixes gamma - alpha.
+    combo = np.arctan2(R[:, 1, 0], R[:, 1, 1])
+
+    out = np.empty((len(R), 3))
+    free = np.flatnonzero(~locked)
+    prev = None
+    for k in range(len(R)):
+        if locked[k]:
+            if prev is not None:
+                a = prev[0]
+            elif len(free):
+                a = alpha[free[0]]  # leading locked rows: the limit from the first free row
+            else:
+                a = 0.0
+            g = combo[k] - a if sb[k] > 0 else combo[k] + a
+            candidates = [np.array([a, beta[k], g])]
+        else:
+            first = np.array([alpha[k], beta[k], gamma[k]])
+            candidates = [first, first + np.array([np.pi, np.pi - 2.0 * beta[k], np.pi])]
+        if prev is None and not locked[k]:
+            best = candidates[0]
+        else:
+            ref = prev if prev is not None else candidates[0]
+            shifted = [c + 2.0 * np.pi * np.round((ref - c) / (2.0 * np.pi)) for c in candidates]
+            best = min(shifted, key=lambda c: float(np.sum((c - ref) ** 2)))
+        out[k] = best
+        prev = best
+    return out
+
+
+def gimbal_flags(theta: np.ndarray) -> np.ndarray:
+    """Rows near gimbal lock along a series, (n, ..., 3) -> (n, ...) bool.
+
+    A row is flagged where cond(D) > GIMBAL_COND_D (angle rates derived from omega lose more than
+    two digits there), or where cos(beta) changes sign between it and a neighbouring row (the body
+    passed through the lock between the two samples).
+    """
+    cb = np.cos(np.asarray(theta)[..., 1])
+    flags = cond_D(theta) > GIMBAL_COND_D
+    crossed = np.signbit(cb[1:]) != np.signbit(cb[:-1])
+    flags[1:] |= crossed
+    flags[:-1] |= crossed
+    return flags

@@ -1,0 +1,215 @@
+"""MuJoCo as the test bench (the part ADAMS plays in the paper, section 3).
+
+`build_mjcf` writes an MJCF model from a RobotSpec: one MuJoCo body per massive body, whose
+frame is the paper's body frame (O_ci, e(i)), with its mass and principal inertias stated
+explicitly; a massless carriage is merged into its child (MuJoCo refuses moving bodies without
+mass), its joint placed before the child's own. Every joint gets a motor (gear 1), a site at its
+point O_J on the outer body with force and torque sensors, and joint position, velocity and
+actuator-force sensors; every centre of mass gets a site with an accelerometer and gyro (site
+frame) and frame sensors (world frame: position, orientation, linear and angular velocity and
+acceleration). Contacts are disabled; no armature, damping or friction.
+
+`simulate` drives every joint along its prescribed motion by computed torque: at each step the
+engine's own inverse dynamics (mj_inverse) gives the torques for q''_cmd = q''_d + 2 w e' + w^2 e,
+applied as motor controls, then mj_step integrates. At each output row mj_forward evaluates the
+state with the controls in force, so forces, accelerations and drive torques in a row belong to
+one and the same instant.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+
+from harness.cardano import angles_from_rotation, gimbal_flags
+from harness.recording import Recording
+from harness.scenario import Scenario
+from harness.spec import WORLD, Body, Joint, RobotSpec
+
+_MJ_INTEGRATOR = {"RK4": "RK4", "Euler": "Euler", "implicitfast": "implicitfast"}
+
+
+def _fmt(v) -> str:
+    return " ".join(repr(float(x)) for x in np.ravel(v))
+
+
+def _quat(R: np.ndarray) -> np.ndarray:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).ravel())
+    return q
+
+
+def _massive_parent(spec: RobotSpec, body: Body) -> tuple[str, list[Joint]]:
+    """The nearest massive ancestor (or world) and the joints from it to `body`, inner first."""
+    chain = [spec.inner_joint(body.name)]
+    parent = chain[0].parent
+    while parent != WORLD and spec.body(parent).massless:
+        chain.insert(0, spec.inner_joint(parent))
+        parent = chain[0].parent
+    return parent, chain
+
+
+def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
+               timestep: float = 5e-4) -> str:
+    root = ET.Element("mujoco", model=spec.name)
+    ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
+    option = ET.SubElement(root, "option", gravity=_fmt(gravity_W),
+                           integrator=_MJ_INTEGRATOR[integrator], timestep=repr(float(timestep)))
+    ET.SubElement(option, "flag", contact="disable")
+    world = ET.SubElement(root, "worldbody")
+    actuators = ET.SubElement(root, "actuator")
+    sensors = ET.SubElement(root, "sensor")
+    elements = {WORLD: world}
+    frames = {WORLD: (np.eye(3), np.zeros(3))}
+
+    for body in spec.massive_bodies:
+        parent, chain = _massive_parent(spec, body)
+        R_WP, p_WP = frames[parent]
+        R_WB, p_WB = body.R_WB0, body.p_W_com0
+        el = ET.SubElement(elements[parent], "body", name=body.name,
+                           pos=_fmt(R_WP.T @ (p_WB - p_WP)), quat=_fmt(_quat(R_WP.T @ R_WB)))
+        elements[body.name], frames[body.name] = el, (R_WB, p_WB)
+        for joint in chain:
+            ET.SubElement(el, "joint", name=joint.name,
+                          type="hinge" if joint.revolute else "slide",
+                          pos=_fmt(R_WB.T @ (joint.p_W0 - p_WB)), axis=_fmt(R_WB.T @ joint.axis_W0))
+        ET.SubElement(el, "inertial", pos="0 0 0", mass=repr(body.mass),
+                      diaginertia=_fmt(body.principal_inertia))
+        if body.cylinder is not None:
+            half = body.cylinder.length / 2
+            ET.SubElement(el, "geom", type="cylinder", size=_fmt([body.cylinder.radius]),
+                          fromto=_fmt([-half, 0, 0, half, 0, 0]), contype="0", conaffinity="0")
+        ET.SubElement(el, "site", name=f"com_{body.name}", pos="0 0 0")
+        # A carriage's joint shares its point with the child's joint (checked by the spec).
+        ET.SubElement(el, "site", name=f"joint_{chain[-1].name}",
+                      pos=_fmt(R_WB.T @ (chain[-1].p_W0 - p_WB)))
+
+    for joint in spec.joints:
+        ET.SubElement(actuators, "motor", name=f"drive_{joint.name}", joint=joint.name, gear="1")
+    for joint in spec.joints:
+        site = f"joint_{_measured_at(spec, joint).name}"
+        ET.SubElement(sensors, "force", name=f"force_{joint.name}", site=site)
+        ET.SubElement(sensors, "torque", name=f"torque_{joint.name}", site=site)
+        ET.SubElement(sensors, "jointpos", name=f"q_{joint.name}", joint=joint.name)
+        ET.SubElement(sensors, "jointvel", name=f"qd_{joint.name}", joint=joint.name)
+        ET.SubElement(sensors, "jointactuatorfrc", name=f"tau_{joint.name}", joint=joint.name)
+    for body in spec.massive_bodies:
+        site = f"com_{body.name}"
+        ET.SubElement(sensors, "accelerometer", name=f"acc_{body.name}", site=site)
+        ET.SubElement(sensors, "gyro", name=f"gyro_{body.name}", site=site)
+        for kind in ("framepos", "framequat", "framelinvel", "frameangvel", "framelinacc",
+                     "frameangacc"):
+            ET.SubElement(sensors, kind, name=f"{kind}_{body.name}", objtype="site", objname=site)
+    ET.indent(root)
+    return ET.tostring(root, encoding="unicode")
+
+
+def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
+    """The joint whose site measures `joint`: itself, or for a carriage's inner joint the
+    carriage's outer joint (same point, same wrench: the carriage has no mass)."""
+    while spec.body(joint.child).massless:
+        joint = spec.outer_joints(joint.child)[0]
+    return joint
+
+
+def build_model(scenario: Scenario) -> mujoco.MjModel:
+    sim = scenario.simulation
+    xml = build_mjcf(scenario.robot, scenario.gravity_W, sim.integrator, sim.timestep)
+    return mujoco.MjModel.from_xml_string(xml)
+
+
+def _quat_to_R(quat: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions (w, x, y, z) to (..., 3, 3) rotation matrices."""
+    w, x, y, z = np.moveaxis(quat, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def simulate(scenario: Scenario) -> Recording:
+    """Forward-simulate the scenario with mj_step and record every output row."""
+    spec = scenario.robot
+    model = build_model(scenario)
+    data = mujoco.MjData(model)
+    qadr = np.array([model.joint(j).qposadr[0] for j in spec.joint_names])
+    vadr = np.array([model.joint(j).dofadr[0] for j in spec.joint_names])
+    act = np.array([model.actuator(f"drive_{j}").id for j in spec.joint_names])
+    w = scenario.simulation.tracking_bandwidth
+    dt, substeps = scenario.simulation.timestep, scenario.substeps
+    n_rows = scenario.output_steps + 1
+    n_steps = (n_rows - 1) * substeps
+    # The integrators evaluate the dynamics at whole and half steps (RK4 stages): the prescribed
+    # motion is evaluated once, batched, on that half-step grid.
+    half = dt / 2.0
+    q_d, qd_d, qdd_d = scenario.prescribed(np.arange(2 * n_steps + 2) * half)
+    qacc_cmd, tau = np.zeros(model.nv), np.zeros(model.nv)
+
+    def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        """Computed torque at the state being evaluated: tau = M q''_cmd + bias (Eq. of motion
+        with no passive or constraint forces), called by MuJoCo after the velocity stage."""
+        k = round(d.time / half)
+        e, ed = q_d[k] - d.qpos[qadr], qd_d[k] - d.qvel[vadr]
+        qacc_cmd[vadr] = qdd_d[k] + 2.0 * w * ed + w * w * e
+        mujoco.mj_mulM(m, d, tau, qacc_cmd)
+        d.ctrl[act] = tau[vadr] + d.qfrc_bias[vadr]
+
+    data.qpos[qadr], data.qvel[vadr] = q_d[0], qd_d[0]
+    sensor_rows = np.empty((n_rows, model.nsensordata))
+    qacc_rows = np.empty((n_rows, len(vadr)))
+    mujoco.set_mjcb_control(drive)
+    try:
+        for row in range(n_rows):
+            data.time = row * substeps * dt
+            mujoco.mj_forward(model, data)
+            sensor_rows[row] = data.sensordata
+            qacc_rows[row] = data.qacc[vadr]
+            if row < n_rows - 1:
+                for _ in range(substeps):
+                    mujoco.mj_step(model, data)
+    finally:
+        mujoco.set_mjcb_control(None)
+    t = np.arange(n_rows) * substeps * dt
+    q_ref, qd_ref, qdd_ref = (x[::2 * substeps] for x in (q_d, qd_d, qdd_d))
+
+    def sensor(name: str) -> np.ndarray:
+        s = model.sensor(name)
+        return sensor_rows[:, s.adr[0]: s.adr[0] + s.dim[0]]
+
+    def per_joint(kind: str) -> np.ndarray:
+        return np.stack([sensor(f"{kind}_{j}") for j in spec.joint_names], axis=1)
+
+    def per_body(kind: str) -> np.ndarray:
+        return np.stack([sensor(f"{kind}_{b.name}") for b in spec.massive_bodies], axis=1)
+
+    # Force/torque sensors report the wrench of the parent on the child about the site, in the
+    # site frame (the outer body's frame); rotate to world components.
+    site_R = np.stack([_quat_to_R(sensor(f"framequat_{_site_body(spec, j)}")) for j in spec.joints],
+                      axis=1)
+    F_W = np.einsum("njab,njb->nja", site_R, per_joint("force"))
+    M_W = np.einsum("njab,njb->nja", site_R, per_joint("torque"))
+    R_WB = _quat_to_R(per_body("framequat"))
+    theta = np.stack([angles_from_rotation(R_WB[:, b]) for b in range(R_WB.shape[1])], axis=1)
+    q, qd = per_joint("q")[..., 0], per_joint("qd")[..., 0]
+    meta = {
+        "engine": "mujoco", "engine_version": mujoco.__version__,
+        "integrator": scenario.simulation.integrator, "timestep": dt, "substeps": substeps,
+        "tracking_bandwidth": w,
+        "q_ref": q_ref, "qd_ref": qd_ref, "qdd_ref": qdd_ref,
+    }
+    return Recording(
+        t=t, joints=tuple(spec.joint_names), bodies=tuple(b.name for b in spec.massive_bodies),
+        q=q, qd=qd, qdd=qacc_rows, tau=per_joint("tau")[..., 0], F_W=F_W, M_W=M_W,
+        p_W=per_body("framepos"), theta=theta,
+        a_W=per_body("framelinacc") + scenario.gravity_W,  # framelinacc is a - g (proper)
+        omega_W=per_body("frameangvel"), omegadot_W=per_body("frameangacc"),
+        gimbal=gimbal_flags(theta), R_WB=R_WB, meta=meta,
+    )
+
+
+def _site_body(spec: RobotSpec, joint: Joint) -> str:
+    """Name of the massive body carrying the site that measures `joint`."""
+    return _measured_at(spec, joint).child

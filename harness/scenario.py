@@ -1,0 +1,134 @@
+"""Scenario: which model, how every joint moves, for how long, what is sampled; scenarios/*.toml.
+
+A scenario names its model by a path relative to the scenario file, prescribes the motion of
+every joint of that model (no joint is left implicit), and states the output grid: `duration`
+split into `output_steps` equal steps, so the recording has output_steps + 1 rows from t = 0.
+`sample_times` (the identification instants of the paper, section 3.1) must lie on that grid.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.motion import Motion, read_motion
+from harness.spec import RobotSpec, load_spec
+from harness.tomlio import InputError, Table, read_toml
+
+INTEGRATORS = ("RK4", "Euler", "implicitfast")
+_GRID_TOL = 1e-9  # relative to the output interval: a sample time on the grid, a timestep dividing it
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """How the reference engine integrates the motion.
+
+    The joints are driven by computed torque (inverse dynamics of the prescribed acceleration)
+    with a critically damped correction of bandwidth `tracking_bandwidth` rad/s on the tracking
+    error: q''_cmd = q''_d + 2 w (q'_d - q') + w^2 (q_d - q).
+    """
+
+    integrator: str = "RK4"
+    timestep: float = 5e-4
+    tracking_bandwidth: float = 20.0
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    name: str
+    description: str
+    source: Path
+    robot: RobotSpec
+    gravity_W: np.ndarray  # (3,) m/s^2, world components
+    duration: float
+    output_steps: int
+    sample_times: np.ndarray
+    motion: dict[str, Motion]  # in the robot's joint order
+    simulation: Simulation
+
+    @property
+    def output_dt(self) -> float:
+        return self.duration / self.output_steps
+
+    @property
+    def t_out(self) -> np.ndarray:
+        return np.linspace(0.0, self.duration, self.output_steps + 1)
+
+    @property
+    def sample_rows(self) -> np.ndarray:
+        """Row indices of the recording at the sample times."""
+        return np.rint(self.sample_times / self.output_dt).astype(int)
+
+    @property
+    def substeps(self) -> int:
+        """Simulation steps per output step."""
+        return round(self.output_dt / self.simulation.timestep)
+
+    def prescribed(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Prescribed (q, q', q''), each of shape (len(t), n_joints), robot joint order."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        parts = [m.evaluate(t) for m in self.motion.values()]
+        return tuple(np.stack([p[k] for p in parts], axis=-1) for k in range(3))
+
+
+def load_scenario(path: Path | str) -> Scenario:
+    """Load and validate a scenario and its model; raises `InputError` naming the file and key."""
+    path = Path(path)
+    root = Table(read_toml(path), path)
+    s = root.table("scenario")
+    description = s.string("description", default="")
+    model_rel = s.string("model")
+    gravity = s.vector("gravity", default=[0.0, 0.0, -9.80665])
+    duration = s.number("duration", positive=True)
+    output_steps = s.integer("output_steps", minimum=1)
+    sample_times = s.vector("sample_times", length=None, default=[])
+    s.finish()
+
+    model_path = Path(os.path.normpath(path.parent / model_rel))
+    if not model_path.is_file():
+        raise s.error("model", f"model file {model_rel!r} not found (looked for {model_path})")
+    robot = load_spec(model_path)
+
+    simulation = _read_simulation(root.table("simulation", default={}))
+    motion_table = root.table("motion")
+    motion = {}
+    for name in motion_table.data:
+        if name not in robot.joint_names:
+            raise motion_table.error(name, f"joint {name!r} is not in model {robot.name!r} "
+                                           f"(joints: {', '.join(robot.joint_names)})")
+    for j in robot.joint_names:
+        if j not in motion_table.data:
+            raise motion_table.error(j, f"missing: every joint of model {robot.name!r} needs a "
+                                        "motion (use type = \"locked\" to hold it)")
+        motion[j] = read_motion(motion_table.table(j))
+    motion_table.finish()
+    root.finish()
+
+    output_dt = duration / output_steps
+    for ts in sample_times:
+        if not 0.0 <= ts <= duration:
+            raise s.error("sample_times", f"sample time {ts:g} s is outside the run [0, {duration:g}] s")
+        if abs(ts / output_dt - round(ts / output_dt)) > _GRID_TOL:
+            raise s.error("sample_times", f"sample time {ts:g} s is not on the output grid "
+                                          f"(every {output_dt:g} s)")
+    ratio = output_dt / simulation.timestep
+    if ratio < 1.0 - _GRID_TOL or abs(ratio - round(ratio)) > _GRID_TOL * ratio:
+        raise InputError(path, "simulation.timestep",
+                         f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
+    return Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
+                    np.asarray(sample_times), motion, simulation)
+
+
+def _read_simulation(t: Table) -> Simulation:
+    default = Simulation()
+    sim = Simulation(
+        integrator=t.string("integrator", default=default.integrator, choices=INTEGRATORS),
+        timestep=t.number("timestep", default=default.timestep, positive=True),
+        tracking_bandwidth=t.number("tracking_bandwidth", default=default.tracking_bandwidth,
+                                    nonnegative=True),
+    )
+    t.finish()
+    return sim

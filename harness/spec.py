@@ -1,0 +1,277 @@
+"""RobotSpec: a tree of rigid bodies and one-degree-of-freedom joints, loaded from models/*.toml.
+
+Geometry is given in the world frame at the initial pose (all joint coordinates zero), the way
+the paper describes its layout (section 2.1, Figure 2): each body's centre of mass O_ci, its
+principal axes e1(i), e2(i) (e3(i) = e1(i) x e2(i)), and each joint's point O_j and axis.
+Inertias of homogeneous cylinders follow from geometry (paper section 2.2, Eq. 24):
+
+    m = rho pi R^2 l,   J11 = m R^2 / 2,   J22 = J33 = m (3 R^2 + l^2) / 12,
+
+with the cylinder's axis along e1(i). A body may also state its mass and principal moments, or be
+massless (a carriage that only carries a joint).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.tomlio import InputError, Table, read_toml
+
+WORLD = "world"
+JOINT_TYPES = ("revolute", "prismatic")
+BODY_SHAPES = ("cylinder", "explicit", "massless")
+_ORTHO_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A homogeneous cylinder whose axis is the body's e1 direction."""
+
+    length: float
+    radius: float
+    density: float
+
+    @property
+    def mass(self) -> float:
+        return self.density * np.pi * self.radius**2 * self.length
+
+    @property
+    def principal_inertia(self) -> np.ndarray:
+        """[J11, J22, J33] about the centre of mass (Eq. 24)."""
+        m, r, l = self.mass, self.radius, self.length
+        transverse = m * (3.0 * r**2 + l**2) / 12.0
+        return np.array([m * r**2 / 2.0, transverse, transverse])
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """A rigid body B_i. Frames: W is the world frame e(0), B the body frame e(i) at O_ci."""
+
+    name: str
+    mass: float  # kg; 0 only for a massless body
+    I_B: np.ndarray  # (3, 3) inertia tensor about the centre of mass, body components
+    R_WB0: np.ndarray  # (3, 3) orientation at the initial pose: columns e1(i), e2(i), e3(i)
+    p_W_com0: np.ndarray  # (3,) centre of mass O_ci at the initial pose
+    cylinder: Cylinder | None = None
+
+    @property
+    def massless(self) -> bool:
+        return self.mass == 0.0
+
+    @property
+    def principal_inertia(self) -> np.ndarray:
+        """[J11, J22, J33]: the diagonal of I_B (the body axes are principal axes)."""
+        return np.diag(self.I_B).copy()
+
+
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """A joint O_j between its inner (parent) and outer (child) body."""
+
+    name: str
+    type: str  # "revolute" or "prismatic"
+    parent: str  # body name or "world"
+    child: str
+    p_W0: np.ndarray  # (3,) joint point at the initial pose
+    axis_W0: np.ndarray  # (3,) unit axis at the initial pose
+
+    @property
+    def revolute(self) -> bool:
+        return self.type == "revolute"
+
+
+@dataclass(frozen=True, eq=False)
+class RobotSpec:
+    """A validated tree. Bodies and joints are ordered from the root outwards."""
+
+    name: str
+    description: str
+    source: Path
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+
+    def body(self, name: str) -> Body:
+        return next(b for b in self.bodies if b.name == name)
+
+    def joint(self, name: str) -> Joint:
+        return next(j for j in self.joints if j.name == name)
+
+    @property
+    def body_names(self) -> list[str]:
+        return [b.name for b in self.bodies]
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j.name for j in self.joints]
+
+    @property
+    def massive_bodies(self) -> tuple[Body, ...]:
+        """The bodies that carry mass: the paper's B_1 .. B_n."""
+        return tuple(b for b in self.bodies if not b.massless)
+
+    def inner_joint(self, body: str) -> Joint:
+        return next(j for j in self.joints if j.child == body)
+
+    def outer_joints(self, body: str) -> list[Joint]:
+        return [j for j in self.joints if j.parent == body]
+
+    def subtree(self, body: str) -> list[str]:
+        """The body and every body outboard of it, root first."""
+        out = [body]
+        for j in self.outer_joints(body):
+            out += self.subtree(j.child)
+        return out
+
+    def outboard_bodies(self, joint: str) -> list[Body]:
+        """Bodies whose motion the joint carries (the child's subtree), in tree order."""
+        names = set(self.subtree(self.joint(joint).child))
+        return [b for b in self.bodies if b.name in names]
+
+
+def load_spec(path: Path | str) -> RobotSpec:
+    """Load and validate models/*.toml; raises `InputError` naming the file and key."""
+    path = Path(path)
+    root = Table(read_toml(path), path)
+    model = root.table("model")
+    name = model.string("name")
+    description = model.string("description", default="")
+    model.finish()
+    body_tables, joint_tables = root.tables("bodies"), root.tables("joints")
+    root.finish()
+
+    bodies = [_read_body(t) for t in body_tables]
+    joints = [_read_joint(t) for t in joint_tables]
+    _check_unique([b.name for b in bodies], body_tables, "body")
+    _check_unique([j.name for j in joints], joint_tables, "joint")
+    order = _check_tree(bodies, joints, body_tables, joint_tables)
+    bodies_by_name = {b.name: b for b in bodies}
+    ordered_bodies = tuple(bodies_by_name[n] for n in order)
+    ordered_joints = tuple(sorted(joints, key=lambda j: order.index(j.child)))
+    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints)
+    _check_massless(spec, {t.data.get("name"): t for t in body_tables})
+    return spec
+
+
+def _named(table: Table, kind: str) -> str:
+    name = table.string("name")
+    if not name or name == WORLD:
+        raise table.error("name", f"{name!r} cannot name a {kind}")
+    table.path = f"{table.path.split('[')[0]}.{name}"
+    return name
+
+
+def _read_body(t: Table) -> Body:
+    name = _named(t, "body")
+    shape = t.string("shape", choices=BODY_SHAPES)
+    cylinder = None
+    if shape == "massless":
+        mass, inertia = 0.0, np.zeros(3)
+        p_W_com = t.vector("com", default=[0.0, 0.0, 0.0])
+        R_WB = np.eye(3)
+    else:
+        if shape == "cylinder":
+            cylinder = Cylinder(t.number("length", positive=True), t.number("radius", positive=True),
+                                t.number("density", positive=True))
+            mass, inertia = cylinder.mass, cylinder.principal_inertia
+        else:
+            mass = t.number("mass", positive=True)
+            inertia = t.vector("inertia")
+            if np.any(inertia <= 0.0):
+                raise t.error("inertia", f"principal moments must be positive, got {inertia.tolist()}")
+            if np.any(2.0 * inertia > inertia.sum() * (1.0 + 1e-12)):
+                raise t.error("inertia", "principal moments violate the triangle inequality "
+                                         f"(J11 <= J22 + J33 and cyclic), got {inertia.tolist()}")
+        p_W_com = t.vector("com")
+        R_WB = _frame(t)
+    t.finish()
+    return Body(name, mass, np.diag(inertia), R_WB, p_W_com, cylinder)
+
+
+def _frame(t: Table) -> np.ndarray:
+    e1 = t.vector("e1", nonzero=True)
+    e2 = t.vector("e2", nonzero=True)
+    e1, e2 = e1 / np.linalg.norm(e1), e2 / np.linalg.norm(e2)
+    if abs(e1 @ e2) > _ORTHO_TOL:
+        raise t.error("e2", f"must be perpendicular to e1 (e1 . e2 = {e1 @ e2:.3g})")
+    return np.column_stack([e1, e2, np.cross(e1, e2)])
+
+
+def _read_joint(t: Table) -> Joint:
+    name = _named(t, "joint")
+    jtype = t.string("type", choices=JOINT_TYPES)
+    parent = t.string("parent")
+    child = t.string("child")
+    point = t.vector("point")
+    axis = t.vector("axis", nonzero=True)
+    t.finish()
+    return Joint(name, jtype, parent, child, point, axis / np.linalg.norm(axis))
+
+
+def _check_unique(names: list[str], tables: list[Table], kind: str) -> None:
+    seen: set[str] = set()
+    for name, t in zip(names, tables, strict=True):
+        if name in seen:
+            raise t.error("name", f"duplicate {kind} name {name!r}")
+        seen.add(name)
+
+
+def _check_tree(bodies: list[Body], joints: list[Joint], body_tables: list[Table],
+                joint_tables: list[Table]) -> list[str]:
+    """Every body has exactly one inner joint and is reached from the world: a tree."""
+    names = {b.name for b in bodies}
+    inner: dict[str, Joint] = {}
+    for j, t in zip(joints, joint_tables, strict=True):
+        if j.parent != WORLD and j.parent not in names:
+            raise t.error("parent", f"body {j.parent!r} does not exist")
+        if j.child not in names:
+            raise t.error("child", f"body {j.child!r} does not exist")
+        if j.child == j.parent:
+            raise t.error("child", f"joint {j.name!r} connects body {j.child!r} to itself")
+        if j.child in inner:
+            raise t.error("child", f"body {j.child!r} is already the child of joint "
+                                   f"{inner[j.child].name!r}: each body has one inner joint")
+        inner[j.child] = j
+    for b, t in zip(bodies, body_tables, strict=True):
+        if b.name not in inner:
+            raise t.error("name", f"body {b.name!r} is not the child of any joint")
+    order: list[str] = []
+    frontier = [WORLD]
+    while frontier:
+        parent = frontier.pop(0)
+        children = [b.name for b in bodies if inner[b.name].parent == parent]
+        order += children
+        frontier += children
+    if len(order) < len(bodies):
+        stray = next(b.name for b in bodies if b.name not in order)
+        loop, cur = [stray], inner[stray].parent
+        while cur not in loop:
+            loop.append(cur)
+            cur = inner[cur].parent
+        t = joint_tables[joints.index(inner[stray])]
+        raise t.error("parent", "loop in the tree: " + " <- ".join(loop + [cur]))
+    return order
+
+
+def _check_massless(spec: RobotSpec, tables: dict[str, Table]) -> None:
+    """A massless body is a carriage: it carries exactly one revolute joint through its own point.
+
+    The engines merge it into its child (a body of zero mass cannot move on its own), and the
+    wrench across its inner joint is then measured about the shared point.
+    """
+    for b in spec.bodies:
+        if not b.massless:
+            continue
+        t = tables[b.name]
+        outer = spec.outer_joints(b.name)
+        if len(outer) != 1 or not outer[0].revolute:
+            raise t.error("shape", f"massless body {b.name!r} must carry exactly one revolute joint")
+        inner = spec.inner_joint(b.name)
+        if not np.allclose(inner.p_W0, outer[0].p_W0, rtol=0.0, atol=1e-12):
+            raise t.error("shape", f"massless body {b.name!r}: its inner joint {inner.name!r} and "
+                                   f"outer joint {outer[0].name!r} must share one point")
+
+
+__all__ = ["WORLD", "Body", "Cylinder", "InputError", "Joint", "RobotSpec", "load_spec"]

@@ -1,0 +1,156 @@
+"""Validated reading of the project's TOML data files (models and scenarios).
+
+Every error names the file and the dotted key at fault, so that the CLI can print one line
+and exit with status 2. A `Table` remembers which keys were read: `Table.finish()` refuses
+any key that nobody asked for, so a misspelt key is an error rather than a silent default.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+_MISSING = object()
+
+
+class InputError(Exception):
+    """Bad input: a file that cannot be read or a key whose value is not acceptable."""
+
+    def __init__(self, file: Path | str, key: str, message: str):
+        self.file = str(file)
+        self.key = key
+        self.message = message
+        super().__init__(self.one_line())
+
+    def one_line(self) -> str:
+        where = f"{self.file}: {self.key}" if self.key else self.file
+        return f"{where}: {self.message}"
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file, turning every failure into an `InputError` naming the file."""
+    try:
+        text = Path(path).read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise InputError(path, "", "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, "", f"cannot read file ({exc.__class__.__name__}: {exc})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(path, "", f"invalid TOML: {exc}") from None
+
+
+@dataclass
+class Table:
+    """One TOML table with its file and dotted path, read key by key with validation."""
+
+    data: dict[str, Any]
+    file: Path
+    path: str = ""
+
+    def __post_init__(self) -> None:
+        self._used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.path}.{name}" if self.path else name
+
+    def error(self, name: str, message: str) -> InputError:
+        return InputError(self.file, self.key(name), message)
+
+    def has(self, name: str) -> bool:
+        return name in self.data
+
+    def _raw(self, name: str, default: Any) -> Any:
+        self._used.add(name)
+        if name in self.data:
+            return self.data[name]
+        if default is _MISSING:
+            raise self.error(name, "missing key")
+        return default
+
+    def string(self, name: str, default: Any = _MISSING, choices: Sequence[str] | None = None) -> str:
+        value = self._raw(name, default)
+        if not isinstance(value, str):
+            raise self.error(name, f"expected a string, got {value!r}")
+        if choices is not None and value not in choices:
+            raise self.error(name, f"{value!r} is not one of {', '.join(choices)}")
+        return value
+
+    def boolean(self, name: str, default: Any = _MISSING) -> bool:
+        value = self._raw(name, default)
+        if not isinstance(value, bool):
+            raise self.error(name, f"expected true or false, got {value!r}")
+        return value
+
+    def integer(self, name: str, default: Any = _MISSING, minimum: int | None = None) -> int:
+        value = self._raw(name, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(name, f"expected an integer, got {value!r}")
+        if minimum is not None and value < minimum:
+            raise self.error(name, f"must be at least {minimum}, got {value}")
+        return value
+
+    def number(self, name: str, default: Any = _MISSING, positive: bool = False,
+               nonnegative: bool = False) -> float:
+        value = self._raw(name, default)
+        return _check_number(self, name, value, positive=positive, nonnegative=nonnegative)
+
+    def vector(self, name: str, length: int | None = 3, default: Any = _MISSING,
+               nonzero: bool = False) -> np.ndarray:
+        value = self._raw(name, default)
+        if not isinstance(value, list):
+            raise self.error(name, f"expected a list of numbers, got {value!r}")
+        if length is not None and len(value) != length:
+            raise self.error(name, f"expected {length} numbers, got {len(value)}")
+        out = np.array([_check_number(self, name, v) for v in value], dtype=float)
+        if nonzero and not np.any(out):
+            raise self.error(name, "must not be the zero vector")
+        return out
+
+    def rows(self, name: str, columns: int, default: Any = _MISSING) -> np.ndarray:
+        """A list of lists of `columns` numbers each, as an array of shape (n, columns)."""
+        value = self._raw(name, default)
+        if not isinstance(value, list) or not all(isinstance(v, list) for v in value):
+            raise self.error(name, f"expected a list of lists of {columns} numbers")
+        sub = Table({str(i): v for i, v in enumerate(value)}, self.file, self.key(name))
+        out = [sub.vector(str(i), length=columns) for i in range(len(value))]
+        return np.array(out, dtype=float).reshape(len(value), columns)
+
+    def table(self, name: str, default: Any = _MISSING) -> Table:
+        value = self._raw(name, default)
+        if not isinstance(value, dict):
+            raise self.error(name, f"expected a table, got {value!r}")
+        return Table(value, self.file, self.key(name))
+
+    def tables(self, name: str) -> list[Table]:
+        value = self._raw(name, _MISSING)
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            raise self.error(name, "expected an array of tables ([[...]])")
+        return [Table(v, self.file, f"{self.key(name)}[{i}]") for i, v in enumerate(value)]
+
+    def finish(self) -> None:
+        """Refuse every key that was not read: unknown keys are errors, not ignored."""
+        unknown = sorted(set(self.data) - self._used)
+        if unknown:
+            raise self.error(unknown[0], "unknown key")
+
+
+def _check_number(table: Table, name: str, value: Any, positive: bool = False,
+                  nonnegative: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise table.error(name, f"expected a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise table.error(name, f"must be a finite number, got {value}")
+    if positive and value <= 0.0:
+        raise table.error(name, f"must be positive, got {value}")
+    if nonnegative and value < 0.0:
+        raise table.error(name, f"must not be negative, got {value}")
+    return value

@@ -1,0 +1,41 @@
+"""Shared fixtures: the paper's scenario is simulated once per session, in memory and via the CLI."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from harness.cli import main
+from harness.engines.mujoco import simulate
+from harness.recording import Recording, read_csv
+from harness.scenario import Scenario, load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIOS = ROOT / "scenarios"
+MODELS = ROOT / "models"
+
+
+@pytest.fixture(scope="session")
+def kr500_rail() -> Scenario:
+    return load_scenario(SCENARIOS / "kr500_rail.toml")
+
+
+@pytest.fixture(scope="session")
+def kr500_recording(kr500_rail: Scenario) -> Recording:
+    """The recording as the engine returned it (with MuJoCo's own orientation matrices)."""
+    return simulate(kr500_rail)
+
+
+@pytest.fixture(scope="session")
+def kr500_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """`harness run` on the paper's scenario: the folder it wrote."""
+    out = tmp_path_factory.mktemp("run") / "kr500_rail"
+    assert main(["run", str(SCENARIOS / "kr500_rail.toml"), "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="session")
+def kr500_csv(kr500_run: Path) -> Recording:
+    """The recording read back from recording.csv: what a user of the file has, nothing more."""
+    return read_csv(kr500_run / "recording.csv")
