@@ -65,8 +65,10 @@ def cond_D(theta: np.ndarray) -> np.ndarray:
         return np.where(s[..., -1] > 0.0, s[..., 0] / s[..., -1], np.inf)
 
 
-def angles_from_rotation(R: np.ndarray) -> np.ndarray:
-    """Continuous Cardano angles of a time series of rotation matrices, (n, 3, 3) -> (n, 3)."""
+def angles_from_rotation(R: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
+    """Continuous Cardano angles of a time series of rotation matrices, (n, 3, 3) -> (n, 3).
+
+    `reference`: angles the first row is to be continuous with (the row before the series)."""
     R = np.asarray(R, dtype=float)
     sb = np.clip(R[:, 0, 2], -1.0, 1.0)
     cb = np.hypot(R[:, 0, 0], R[:, 0, 1])
@@ -79,7 +81,7 @@ def angles_from_rotation(R: np.ndarray) -> np.ndarray:
 
     out = np.empty((len(R), 3))
     free = np.flatnonzero(~locked)
-    prev = None
+    prev = None if reference is None else np.asarray(reference, dtype=float)
     for k in range(len(R)):
         if locked[k]:
             if prev is not None:

@@ -60,16 +60,16 @@ def _write_atomically(out: Path, files: dict[str, callable]) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from harness.engines.mujoco import simulate
+    from harness.pipeline import run
     from harness.scenario import load_scenario
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     out = args.out if args.out is not None else Path("reports") / scenario.name
-    recording = simulate(scenario)
-    results = build_results(scenario, recording)
+    output = run(scenario)
+    results = build_results(output)
     try:
         _write_atomically(out, {
-            RECORDING_FILE: recording.write_csv,
+            RECORDING_FILE: output.recording.write_csv,
             RESULTS_FILE: lambda p: write_results(p, results),
         })
     except OSError as exc:
@@ -88,6 +88,16 @@ def _print_summary(results: dict, out: Path) -> None:
     for body, times in rec["gimbal_lock_rows"].items():
         shown = ", ".join(f"{t:g}" for t in np.asarray(times)[:8]) + (" ..." if len(times) > 8 else "")
         print(f"  {body} near Cardano gimbal lock at {len(times)} rows: t = {shown} s")
+    res = results["graph"]["unconstrained_residual"]
+    print(f"  graph model vs MuJoCo, |A q'' - B| / |B|: {res['max_translational']:.1e} (forces), "
+          f"{res['max_rotational']:.1e} (moments) over {res['rows_evaluated']} body-rows; "
+          f"{len(res['rows_not_evaluated'])} body-rows near gimbal lock not evaluated")
+    ident = results["identification"]
+    digits = ident["significant_digits"]
+    print(f"  identification from {len(ident['sample_times'])} samples"
+          f"{f' at {digits} significant digits' if digits else ' (ideal measurements)'}: "
+          f"largest relative error {ident['max_abs_rel_error']:.1e}; not identifiable: "
+          f"{', '.join(ident['not_identifiable']) or 'none'}")
     print(f"  wrote {out / RECORDING_FILE} and {out / RESULTS_FILE}")
 
 

@@ -1,20 +1,27 @@
 """results.json: the one place its schema is defined.
 
-Top-level sections, in order: `schema`, `scenario`, `model`, `recording`. Later stages add their
-own sections through `build_results(..., **sections)`. Every number is finite (NaN or infinity
-is an error when writing, never a silent `NaN` token in the JSON).
+Top-level sections, in order: `schema`, `scenario`, `model`, `recording`, `graph` (the paper's
+matrices and the unconstrained-dynamics residual on the recording), `identification`. Every
+number is finite (NaN or infinity is an error when writing, never a silent `NaN` token).
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from harness.graph.dynamics import GraphModel, Residual
+from harness.graph.identification import PARAMETERS
+from harness.paper import reference_table
 from harness.recording import Recording
 from harness.scenario import Scenario
 from harness.spec import RobotSpec
+
+if TYPE_CHECKING:
+    from harness.pipeline import Identification, RunOutput
 
 SCHEMA = {"name": "harness-results", "version": 1}
 RECORDING_FILE = "recording.csv"
@@ -42,6 +49,7 @@ def scenario_section(s: Scenario) -> dict:
             "timestep": s.simulation.timestep,
             "tracking_bandwidth": s.simulation.tracking_bandwidth,
         },
+        "measurement": {"significant_digits": s.measurement.significant_digits},
     }
 
 
@@ -90,15 +98,85 @@ def recording_section(rec: Recording) -> dict:
     }
 
 
-def build_results(scenario: Scenario, recording: Recording, **sections: dict) -> dict:
-    out = {
-        "schema": SCHEMA,
-        "scenario": scenario_section(scenario),
-        "model": model_section(scenario.robot),
-        "recording": recording_section(recording),
+def graph_section(model: GraphModel, residual: Residual) -> dict:
+    top = model.topology
+    worst_t = np.nanmax(np.where(residual.evaluated, residual.translational, np.nan))
+    worst_r = np.nanmax(np.where(residual.evaluated, residual.rotational, np.nan))
+    skipped = [{"t": float(residual.t[k]), "body": top.bodies[i], "cond_D": float(residual.cond_D[k, i])}
+               for k, i in zip(*np.nonzero(~residual.evaluated), strict=True)]
+    return {
+        "bodies": list(top.bodies),
+        "joints": list(top.joints),
+        "S": top.S.tolist(),
+        "S_e": top.S_e.tolist(),
+        "unconstrained_residual": {
+            "definition": "|A_i q_i'' - B_i| / |B_i| (Eq. 36), translational and rotational parts "
+                          "separately, at every row where cond(D_i) <= 100",
+            "max_translational": float(worst_t),
+            "max_rotational": float(worst_r),
+            "rows_evaluated": int(residual.evaluated.sum()),
+            "rows_not_evaluated": skipped,
+        },
     }
-    out.update(sections)
-    return out
+
+
+def identification_section(ident: Identification, scenario: Scenario) -> dict:
+    paper = reference_table(scenario.paper_identified) if scenario.paper_identified else {}
+    paper_err = reference_table(scenario.paper_abs_error) if scenario.paper_abs_error else {}
+    rows = []
+    for i, body in enumerate(ident.bodies):
+        ls = ident.per_body[i]
+        for c, name in enumerate(PARAMETERS):
+            true, x = float(ident.true[i, c]), ls.x[c]
+            ok = bool(ls.identifiable[c])
+            rows.append({
+                "body": body, "name": name, "true": true,
+                "identified": float(x) if ok else None,
+                "abs_error": float(x - true) if ok else None,
+                "rel_error": float((x - true) / true) if ok else None,
+                "identifiable": ok, "reason": ls.reasons[c],
+                "paper_identified": paper.get((body, name)),
+                "paper_abs_error": paper_err.get((body, name)),
+            })
+    identified = [r for r in rows if r["identifiable"]]
+    sys = ident.system
+    per_body_x = np.concatenate([ls.x for ls in ident.per_body])
+    both = sys.identifiable & np.concatenate([ls.identifiable for ls in ident.per_body])
+    return {
+        "method": "least squares per body (Eq. 56) and for the whole system (Eq. 64)",
+        "sample_times": _list(ident.sample_times),
+        "significant_digits": scenario.measurement.significant_digits,
+        "measurement_resolution": ident.resolution,
+        "excitation": "a parameter is identifiable when its regressor column is at least 100 times "
+                      "what measurement error alone produces, and its column is not collinear "
+                      "with others (harness/identify.py)",
+        "max_abs_rel_error": max((abs(r["rel_error"]) for r in identified), default=None),
+        "not_identifiable": [f"{r['body']}.{r['name']}" for r in rows if not r["identifiable"]],
+        "parameters": rows,
+        "per_body": [{"body": b, "rows": ls.rows, "column_snr": _list(ls.column_snr),
+                      "singular_values": _list(ls.singular_values),
+                      "residual_norm": ls.residual_norm}
+                     for b, ls in zip(ident.bodies, ident.per_body, strict=True)],
+        "system": {
+            "rows": sys.rows,
+            "identifiable_count": int(sys.identifiable.sum()),
+            "same_verdicts_as_per_body": bool(np.array_equal(
+                sys.identifiable, np.concatenate([ls.identifiable for ls in ident.per_body]))),
+            "max_rel_difference_from_per_body": float(np.max(
+                np.abs(sys.x[both] - per_body_x[both]) / ident.true.reshape(-1)[both], initial=0.0)),
+        },
+    }
+
+
+def build_results(out: RunOutput) -> dict:
+    return {
+        "schema": SCHEMA,
+        "scenario": scenario_section(out.scenario),
+        "model": model_section(out.scenario.robot),
+        "recording": recording_section(out.recording),
+        "graph": graph_section(out.model, out.residual),
+        "identification": identification_section(out.identification, out.scenario),
+    }
 
 
 def write_results(path: Path, results: dict) -> None:

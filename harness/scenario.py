@@ -3,17 +3,21 @@
 A scenario names its model by a path relative to the scenario file, prescribes the motion of
 every joint of that model (no joint is left implicit), and states the output grid: `duration`
 split into `output_steps` equal steps, so the recording has output_steps + 1 rows from t = 0.
-`sample_times` (the identification instants of the paper, section 3.1) must lie on that grid.
+`sample_times` (the identification instants of the paper, section 3.1) must lie on that grid, or
+be "all" for every output step. `[measurement]` states what the test bench reports
+(harness.measurement); `[identification]` may name the paper's tables to compare with.
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 
+from harness.measurement import Measurement, read_measurement
 from harness.motion import Motion, read_motion
 from harness.spec import RobotSpec, load_spec
 from harness.tomlio import InputError, Table, read_toml
@@ -48,6 +52,9 @@ class Scenario:
     sample_times: np.ndarray
     motion: dict[str, Motion]  # in the robot's joint order
     simulation: Simulation
+    measurement: Measurement = field(default_factory=Measurement)
+    paper_identified: str | None = None  # reference CSV (harness/reference) of identified values
+    paper_abs_error: str | None = None  # reference CSV of the paper's absolute errors
 
     @property
     def output_dt(self) -> float:
@@ -84,7 +91,12 @@ def load_scenario(path: Path | str) -> Scenario:
     gravity = s.vector("gravity", default=[0.0, 0.0, -9.80665])
     duration = s.number("duration", positive=True)
     output_steps = s.integer("output_steps", minimum=1)
-    sample_times = s.vector("sample_times", length=None, default=[])
+    output_dt = duration / output_steps
+    if s.data.get("sample_times") == "all":
+        s.string("sample_times")
+        sample_times = np.arange(output_steps + 1) * output_dt
+    else:
+        sample_times = s.vector("sample_times", length=None, default=[])
     s.finish()
 
     model_path = Path(os.path.normpath(path.parent / model_rel))
@@ -93,6 +105,8 @@ def load_scenario(path: Path | str) -> Scenario:
     robot = load_spec(model_path)
 
     simulation = _read_simulation(root.table("simulation", default={}))
+    measurement = read_measurement(root.table("measurement", default={}))
+    paper_identified, paper_abs_error = _read_identification(root.table("identification", default={}))
     motion_table = root.table("motion")
     motion = {}
     for name in motion_table.data:
@@ -107,7 +121,6 @@ def load_scenario(path: Path | str) -> Scenario:
     motion_table.finish()
     root.finish()
 
-    output_dt = duration / output_steps
     for ts in sample_times:
         if not 0.0 <= ts <= duration:
             raise s.error("sample_times", f"sample time {ts:g} s is outside the run [0, {duration:g}] s")
@@ -119,7 +132,19 @@ def load_scenario(path: Path | str) -> Scenario:
         raise InputError(path, "simulation.timestep",
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     return Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
-                    np.asarray(sample_times), motion, simulation)
+                    np.asarray(sample_times), motion, simulation, measurement, paper_identified,
+                    paper_abs_error)
+
+
+def _read_identification(t: Table) -> tuple[str | None, str | None]:
+    names = []
+    for key in ("paper_identified", "paper_abs_error"):
+        name = t.string(key, default=None) if t.has(key) else None
+        if name is not None and not files("harness").joinpath("reference", name).is_file():
+            raise t.error(key, f"no reference table {name!r} in harness/reference")
+        names.append(name)
+    t.finish()
+    return names[0], names[1]
 
 
 def _read_simulation(t: Table) -> Simulation:

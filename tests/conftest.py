@@ -39,3 +39,21 @@ def kr500_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def kr500_csv(kr500_run: Path) -> Recording:
     """The recording read back from recording.csv: what a user of the file has, nothing more."""
     return read_csv(kr500_run / "recording.csv")
+
+
+DATA = ROOT / "tests" / "data"
+
+
+@pytest.fixture(scope="session")
+def run_scenario():
+    """The whole pipeline on a scenario file, once per session and file."""
+    from harness.pipeline import run
+
+    cache = {}
+
+    def _run(path):
+        if path not in cache:
+            cache[path] = run(load_scenario(path))
+        return cache[path]
+
+    return _run

@@ -1,0 +1,97 @@
+"""Section 2.1: the robot as a graph.
+
+The graph's vertices are the massive bodies B_1..B_n and the ground B_0; its edges are the
+joints O_j, each the inner joint of exactly one body (a tree). A massless carriage and the joint
+that carries it (kr500's rail) belong to the moving base: O_1 then connects B_1 to that base,
+which plays the part of B_0. The force elements of the paper are the joint force elements, one
+per joint, so the force-element matrices equal the joint matrices (S_e = S, C_e = C).
+
+Conventions (signs restored where the text extraction lost them, and fixed by Eqs. 25-27):
+- S_ij = +1 if O_j starts at B_i (B_i is its inner body), -1 if O_j ends at B_i (B_i is its outer
+  body), 0 otherwise (Eqs. 5-6).
+- c_ij: the vector from O_ci to joint point O_j; C_ij = S_ij c_ij (Eqs. 9-10). For kr500 every
+  non-zero C_ij is +(l_i / 2) e1(i), as printed. The joint point is the point of the outer body
+  where the force element acts; across a prismatic joint it slides along the axis relative to the
+  inner body, so there c_ij = c_ij(0) + q_j u_j^(i) for the inner body (the paper's robot has
+  revolute joints only, where c_ij is constant).
+- With F_k the force and M_k the moment (about O_k) that the inner body applies to the outer body
+  across O_k, the resultants on B_i are
+      F_i^J = -sum_k S_e,ik F_k                       (Eq. 17, force elements on B_i)
+      M_i^J = -sum_k (C_e,ik x F_k + S_ik M_k)        (Eqs. 20, 26, about O_ci)
+  and the Newton-Euler equations read m_i r_i'' = m_i g + F_i^J and
+  J_i omega_i' + omega_i x J_i omega_i = M_i^J (Eqs. 22-23).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.spec import RobotSpec
+
+
+@dataclass(frozen=True, eq=False)
+class Topology:
+    bodies: tuple[str, ...]  # B_1..B_n, massive bodies in tree order
+    joints: tuple[str, ...]  # O_1..O_n, O_j the inner joint of B_j
+    S: np.ndarray  # (n, n) incidence matrix, Eqs. 5-6
+    c_B: np.ndarray  # (n, n, 3) c_ij at the initial pose, body-i components, zero where S_ij = 0
+    slide_B: np.ndarray  # (n, n, 3) u_j^(i) for B_i the inner body of a prismatic O_j, else zero
+
+    @property
+    def S_e(self) -> np.ndarray:
+        """Eqs. 14-16: path matrix of the force elements (the joint force elements)."""
+        return self.S
+
+    def C_B(self, q: np.ndarray | None = None) -> np.ndarray:
+        """Eqs. 9-10: weighted body-joint vectors C_ij = S_ij c_ij, body-i components; with joint
+        coordinates q (N, n) for trees with prismatic joints, (N, n, n, 3)."""
+        if q is None:
+            return self.S[..., None] * self.c_B
+        return self.S[..., None] * (self.c_B + self.slide_B * q[:, None, :, None])
+
+    def C_e_B(self, q: np.ndarray | None = None) -> np.ndarray:
+        """Eq. 19: weighted force-element vectors (equal to C here)."""
+        return self.C_B(q)
+
+    @property
+    def n(self) -> int:
+        return len(self.bodies)
+
+
+def build_topology(spec: RobotSpec) -> Topology:
+    """S and c for any tree of the spec; nothing here is specific to six bodies."""
+    bodies = tuple(b.name for b in spec.massive_bodies)
+    joints = tuple(spec.inner_joint(b).name for b in bodies)
+    index = {b: i for i, b in enumerate(bodies)}
+    n = len(bodies)
+    S = np.zeros((n, n), dtype=int)
+    c_B = np.zeros((n, n, 3))
+    slide_B = np.zeros((n, n, 3))
+    for k, name in enumerate(joints):
+        joint = spec.joint(name)
+        ends = [(index[joint.child], -1)]
+        if joint.parent in index:
+            ends.append((index[joint.parent], +1))
+        for i, sign in ends:
+            body = spec.body(bodies[i])
+            S[i, k] = sign
+            c_B[i, k] = body.R_WB0.T @ (joint.p_W0 - body.p_W_com0)
+            if sign > 0 and not joint.revolute:
+                slide_B[i, k] = body.R_WB0.T @ joint.axis_W0
+    return Topology(bodies, joints, S, c_B, slide_B)
+
+
+def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarray, M_W: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Resultant force and moment (about each centre of mass) of the joints on every body.
+
+    A: (N, n, 3, 3) A(0i) per sample and body; q: (N, n) joint coordinates of O_1..O_n;
+    F_W, M_W: (N, n, 3) force and moment (about the joint point) of the inner on the outer body
+    across each joint, world components.
+    Returns F_J_W, M_J_W, each (N, n, 3), world components (Eqs. 17, 20, 26)."""
+    C_e_W = np.einsum("nilm,nikm->nikl", A, top.C_e_B(q))  # (N, n, n, 3)
+    F_J_W = -np.einsum("ik,nkl->nil", top.S_e, F_W)
+    M_J_W = -(np.cross(C_e_W, F_W[:, None, :, :]).sum(axis=2) + np.einsum("ik,nkl->nil", top.S, M_W))
+    return F_J_W, M_J_W
