@@ -21,8 +21,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.cardano import A_0i
-
 XYZ = ("x", "y", "z")
 ANGLES = ("alpha", "beta", "gamma")
 
@@ -46,10 +44,6 @@ class Recording:
     gimbal: np.ndarray  # (n, nb) bool: near Cardano gimbal lock
     R_WB: np.ndarray | None = None  # (n, nb, 3, 3) as the engine reported it, when available
     meta: dict = field(default_factory=dict)
-
-    @property
-    def R_WB_from_angles(self) -> np.ndarray:
-        return A_0i(self.theta)
 
     def joint_index(self, name: str) -> int:
         return self.joints.index(name)

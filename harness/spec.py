@@ -100,10 +100,6 @@ class RobotSpec:
         return next(j for j in self.joints if j.name == name)
 
     @property
-    def body_names(self) -> list[str]:
-        return [b.name for b in self.bodies]
-
-    @property
     def joint_names(self) -> list[str]:
         return [j.name for j in self.joints]
 
