@@ -14,7 +14,7 @@ import numpy as np
 from harness.recording import Recording
 from harness.tomlio import Table
 
-CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "theta", "a_W", "omega_W", "omegadot_W")
+CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W", "omega_W", "omegadot_W")
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,7 @@ from harness.graph.dynamics import (
 )
 from harness.graph.identification import PARAMETERS, id_Y, id_Z, stack_per_body, stack_system
 from harness.identify import LeastSquares, solve
+from harness.lagrange import LagrangeOutput, lagrange
 from harness.measurement import Measurement, dither, measure
 from harness.recording import Recording
 from harness.scenario import Scenario
@@ -71,6 +72,7 @@ class RunOutput:
     measured: Recording  # what the identification sees
     residual: Residual  # Eq. 36 on the ideal recording
     identification: Identification
+    lagrange: LagrangeOutput  # sections 2.4-2.5 on the ideal recording
 
 
 def run(scenario: Scenario) -> RunOutput:
@@ -79,4 +81,5 @@ def run(scenario: Scenario) -> RunOutput:
     measured = measure(recording, scenario.measurement)
     residual = unconstrained_residual(model, body_series(recording, model.topology))
     identification = identify(model, measured, scenario.sample_rows, scenario.measurement)
-    return RunOutput(scenario, model, recording, measured, residual, identification)
+    multipliers = lagrange(scenario, model, recording)
+    return RunOutput(scenario, model, recording, measured, residual, identification, multipliers)

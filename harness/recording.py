@@ -3,11 +3,11 @@
 SI units; world components (frame W = e(0)) unless a name says otherwise. Per joint J (robot
 order): q, q', q'' and the drive force or torque along the joint axis, and the wrench the inner
 body applies to the outer body across J: force F_W and moment M_W about the joint point O_J.
-Per massive body B: centre of mass p_W, orientation R_WB with its Cardano angles theta
-(see harness.cardano), centre-of-mass acceleration a_W, angular velocity omega_W and angular
+Per massive body B: centre of mass p_W and its velocity v_W, orientation R_WB with its Cardano
+angles theta (see harness.cardano), centre-of-mass acceleration a_W, angular velocity omega_W and angular
 acceleration omegadot_W.
 
-CSV columns (`to_frame`): t; q_J qd_J qdd_J tau_J; B_x B_y B_z; B_alpha B_beta B_gamma;
+CSV columns (`to_frame`): t; q_J qd_J qdd_J tau_J; B_x B_y B_z; B_vx B_vy B_vz; B_alpha B_beta B_gamma;
 B_ax B_ay B_az; B_wx B_wy B_wz; B_wdx B_wdy B_wdz; B_gimbal (1 where cond(D) > GIMBAL_COND_D);
 J_Fx J_Fy J_Fz; J_Mx J_My J_Mz. Floats are written with 17 significant digits, so a recording
 read back from CSV is bit-for-bit the one written.
@@ -37,6 +37,7 @@ class Recording:
     F_W: np.ndarray  # (n, nj, 3) force of the inner body on the outer body at O_J
     M_W: np.ndarray  # (n, nj, 3) moment of the inner body on the outer body about O_J
     p_W: np.ndarray  # (n, nb, 3) centre of mass
+    v_W: np.ndarray  # (n, nb, 3) centre-of-mass velocity
     theta: np.ndarray  # (n, nb, 3) Cardano angles (alpha, beta, gamma)
     a_W: np.ndarray  # (n, nb, 3) centre-of-mass acceleration
     omega_W: np.ndarray  # (n, nb, 3)
@@ -59,7 +60,8 @@ class Recording:
             cols[f"qdd_{name}"] = self.qdd[:, j]
             cols[f"tau_{name}"] = self.tau[:, j]
         for b, name in enumerate(self.bodies):
-            for groups in ((self.p_W, XYZ, ""), (self.theta, ANGLES, ""), (self.a_W, XYZ, "a"),
+            for groups in ((self.p_W, XYZ, ""), (self.v_W, XYZ, "v"), (self.theta, ANGLES, ""),
+                           (self.a_W, XYZ, "a"),
                            (self.omega_W, XYZ, "w"), (self.omegadot_W, XYZ, "wd")):
                 arr, suffixes, prefix = groups
                 for k, s in enumerate(suffixes):
@@ -95,7 +97,7 @@ def read_csv(path: Path | str) -> Recording:
         t=df["t"].to_numpy(), joints=joints, bodies=bodies,
         q=per_joint("q"), qd=per_joint("qd"), qdd=per_joint("qdd"), tau=per_joint("tau"),
         F_W=vec(joints, "{n}_F{s}"), M_W=vec(joints, "{n}_M{s}"),
-        p_W=vec(bodies, "{n}_{s}"), theta=angles(), a_W=vec(bodies, "{n}_a{s}"),
+        p_W=vec(bodies, "{n}_{s}"), v_W=vec(bodies, "{n}_v{s}"), theta=angles(), a_W=vec(bodies, "{n}_a{s}"),
         omega_W=vec(bodies, "{n}_w{s}"), omegadot_W=vec(bodies, "{n}_wd{s}"),
         gimbal=df[[f"{b}_gimbal" for b in bodies]].to_numpy().astype(bool),
     )

@@ -40,6 +40,16 @@ class Simulation:
     tracking_bandwidth: float = 20.0
 
 
+@dataclass(frozen=True)
+class Lagrange:
+    """Section 3.2 settings: the time at which the multipliers are reported (None: not reported),
+    the paper's values to set beside them, and whether to integrate the constrained model."""
+
+    time: float | None = None
+    paper_lambda: str | None = None
+    forward_simulation: bool = False
+
+
 @dataclass(frozen=True, eq=False)
 class Scenario:
     name: str
@@ -55,6 +65,7 @@ class Scenario:
     measurement: Measurement = field(default_factory=Measurement)
     paper_identified: str | None = None  # reference CSV (harness/reference) of identified values
     paper_abs_error: str | None = None  # reference CSV of the paper's absolute errors
+    lagrange: Lagrange = field(default_factory=lambda: Lagrange())
 
     @property
     def output_dt(self) -> float:
@@ -107,6 +118,7 @@ def load_scenario(path: Path | str) -> Scenario:
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))
     paper_identified, paper_abs_error = _read_identification(root.table("identification", default={}))
+    lagrange = _read_lagrange(root.table("lagrange", default={}), duration, output_steps)
     motion_table = root.table("motion")
     motion = {}
     for name in motion_table.data:
@@ -133,18 +145,31 @@ def load_scenario(path: Path | str) -> Scenario:
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     return Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                     np.asarray(sample_times), motion, simulation, measurement, paper_identified,
-                    paper_abs_error)
+                    paper_abs_error, lagrange)
+
+
+def _reference(t: Table, key: str) -> str | None:
+    name = t.string(key, default=None) if t.has(key) else None
+    if name is not None and not files("harness").joinpath("reference", name).is_file():
+        raise t.error(key, f"no reference table {name!r} in harness/reference")
+    return name
 
 
 def _read_identification(t: Table) -> tuple[str | None, str | None]:
-    names = []
-    for key in ("paper_identified", "paper_abs_error"):
-        name = t.string(key, default=None) if t.has(key) else None
-        if name is not None and not files("harness").joinpath("reference", name).is_file():
-            raise t.error(key, f"no reference table {name!r} in harness/reference")
-        names.append(name)
+    names = _reference(t, "paper_identified"), _reference(t, "paper_abs_error")
     t.finish()
-    return names[0], names[1]
+    return names
+
+
+def _read_lagrange(t: Table, duration: float, output_steps: int) -> Lagrange:
+    time = t.number("time", default=None, nonnegative=True) if t.has("time") else None
+    output_dt = duration / output_steps
+    if time is not None and (time > duration or abs(time / output_dt - round(time / output_dt)) > _GRID_TOL):
+        raise t.error("time", f"{time:g} s is not an output step of the run (every {output_dt:g} s "
+                              f"up to {duration:g} s)")
+    out = Lagrange(time, _reference(t, "paper_lambda"), t.boolean("forward_simulation", default=False))
+    t.finish()
+    return out
 
 
 def _read_simulation(t: Table) -> Simulation:

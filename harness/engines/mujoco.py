@@ -13,7 +13,8 @@ acceleration). Contacts are disabled; no armature, damping or friction.
 engine's own inverse dynamics (mj_inverse) gives the torques for q''_cmd = q''_d + 2 w e' + w^2 e,
 applied as motor controls, then mj_step integrates. At each output row mj_forward evaluates the
 state with the controls in force, so forces, accelerations and drive torques in a row belong to
-one and the same instant.
+one and the same instant. The torques of every evaluation inside each step (the four RK4 stages)
+are kept in `meta["drive_stages"]`, so that another model can be driven by exactly the same input.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import mujoco
 import numpy as np
 
 from harness.cardano import angles_from_rotation, gimbal_flags
+from harness.quaternion import to_matrix
 from harness.recording import Recording
 from harness.scenario import Scenario
 from harness.spec import WORLD, Body, Joint, RobotSpec
@@ -120,16 +122,6 @@ def build_model(scenario: Scenario) -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(xml)
 
 
-def _quat_to_R(quat: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions (w, x, y, z) to (..., 3, 3) rotation matrices."""
-    w, x, y, z = np.moveaxis(quat, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
-
-
 def simulate(scenario: Scenario) -> Recording:
     """Forward-simulate the scenario with mj_step and record every output row."""
     spec = scenario.robot
@@ -147,6 +139,8 @@ def simulate(scenario: Scenario) -> Recording:
     half = dt / 2.0
     q_d, qd_d, qdd_d = scenario.prescribed(np.arange(2 * n_steps + 2) * half)
     qacc_cmd, tau = np.zeros(model.nv), np.zeros(model.nv)
+    stages: list[np.ndarray] = []  # the drive torques of every evaluation inside mj_step
+    capture = [False]
 
     def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
         """Computed torque at the state being evaluated: tau = M q''_cmd + bias (Eq. of motion
@@ -156,6 +150,8 @@ def simulate(scenario: Scenario) -> Recording:
         qacc_cmd[vadr] = qdd_d[k] + 2.0 * w * ed + w * w * e
         mujoco.mj_mulM(m, d, tau, qacc_cmd)
         d.ctrl[act] = tau[vadr] + d.qfrc_bias[vadr]
+        if capture[0]:
+            stages.append(d.ctrl[act].copy())
 
     data.qpos[qadr], data.qvel[vadr] = q_d[0], qd_d[0]
     sensor_rows = np.empty((n_rows, model.nsensordata))
@@ -168,10 +164,14 @@ def simulate(scenario: Scenario) -> Recording:
             sensor_rows[row] = data.sensordata
             qacc_rows[row] = data.qacc[vadr]
             if row < n_rows - 1:
+                capture[0] = True
                 for _ in range(substeps):
                     mujoco.mj_step(model, data)
+                capture[0] = False
     finally:
         mujoco.set_mjcb_control(None)
+    per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[scenario.simulation.integrator]
+    drive_stages = np.array(stages).reshape(n_steps, per_step, len(act))
     t = np.arange(n_rows) * substeps * dt
     q_ref, qd_ref, qdd_ref = (x[::2 * substeps] for x in (q_d, qd_d, qdd_d))
 
@@ -187,11 +187,11 @@ def simulate(scenario: Scenario) -> Recording:
 
     # Force/torque sensors report the wrench of the parent on the child about the site, in the
     # site frame (the outer body's frame); rotate to world components.
-    site_R = np.stack([_quat_to_R(sensor(f"framequat_{_site_body(spec, j)}")) for j in spec.joints],
+    site_R = np.stack([to_matrix(sensor(f"framequat_{_site_body(spec, j)}")) for j in spec.joints],
                       axis=1)
     F_W = np.einsum("njab,njb->nja", site_R, per_joint("force"))
     M_W = np.einsum("njab,njb->nja", site_R, per_joint("torque"))
-    R_WB = _quat_to_R(per_body("framequat"))
+    R_WB = to_matrix(per_body("framequat"))
     theta = np.stack([angles_from_rotation(R_WB[:, b]) for b in range(R_WB.shape[1])], axis=1)
     q, qd = per_joint("q")[..., 0], per_joint("qd")[..., 0]
     meta = {
@@ -199,11 +199,12 @@ def simulate(scenario: Scenario) -> Recording:
         "integrator": scenario.simulation.integrator, "timestep": dt, "substeps": substeps,
         "tracking_bandwidth": w,
         "q_ref": q_ref, "qd_ref": qd_ref, "qdd_ref": qdd_ref,
+        "drive_stages": drive_stages,  # (steps, stages, joints): torques at every evaluation
     }
     return Recording(
         t=t, joints=tuple(spec.joint_names), bodies=tuple(b.name for b in spec.massive_bodies),
         q=q, qd=qd, qdd=qacc_rows, tau=per_joint("tau")[..., 0], F_W=F_W, M_W=M_W,
-        p_W=per_body("framepos"), theta=theta,
+        p_W=per_body("framepos"), v_W=per_body("framelinvel"), theta=theta,
         a_W=per_body("framelinacc") + scenario.gravity_W,  # framelinacc is a - g (proper)
         omega_W=per_body("frameangvel"), omegadot_W=per_body("frameangacc"),
         gimbal=gimbal_flags(theta), R_WB=R_WB, meta=meta,

@@ -1,0 +1,170 @@
+"""Section 2.5: the constrained dynamics with Lagrange multipliers, Eq. 111, at every sample.
+
+    [[M,    Phi_q^T], [Phi_q, 0]] [q''; lambda] = [Q; zeta]          (Eq. 111)
+
+The paper writes Eq. 110 as A q'' - B + Phi_q^T lambda = 0 with A, B of Eq. 37, whose rotational
+rows are Euler's equations in body components (moments), while Phi_theta^T lambda is a
+generalized force conjugate to the Cardano angles, D^T times a moment. The two agree only once
+the rotational rows are premultiplied by D^T (the Lagrange equations of the first kind in these
+coordinates), which is what is solved here:
+
+    M_i = blockdiag(m_i E, D_i^T J_i D_i),
+    Q_i = [m_i g + F_i^a ;  D_i^T ( -(J_i D_i' + (D_i theta')~ J_i D_i) theta' + M_i^a(i) )],
+
+with F_i^a, M_i^a the active (drive) forces and moments on B_i: the recorded drive torque tau_J
+about each revolute axis, and the rail's drive force along the rail. Everything else a joint
+transmits is constraint reaction: -Phi_q^T lambda. The blocks D^T J D are singular where
+cos(beta) = 0, so Eq. 111 is too (B1 of kr500 at t = 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.cardano import GIMBAL_COND_D, D, D_dot
+from harness.graph.constraints import ConstraintSet, State
+from harness.graph.dynamics import BodySeries, GraphModel, angle_rates, skew
+from harness.recording import Recording
+from harness.spec import RobotSpec
+
+
+def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.ndarray, r: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Drive forces and moments (about each centre of mass) on every body from the drive forces
+    and torques tau (N, joints of the spec), world components, (N, n, 3) each.
+    A: (N, n, 3, 3), r: (N, n, 3) in graph order."""
+    top_bodies = model.topology.bodies
+    index = {b: i for i, b in enumerate(top_bodies)}
+    N = tau.shape[0]
+    F = np.zeros((N, len(index), 3))
+    M = np.zeros((N, len(index), 3))
+    for jj, joint in enumerate(spec.joints):
+        tau_j = tau[:, jj]
+        carrier = joint.child
+        while carrier not in index:  # a carriage: the drive acts on the body it carries
+            carrier = spec.outer_joints(carrier)[0].child
+        j = index[carrier]
+        inner = index.get(joint.parent)
+        # a revolute axis turns with the outer body, a prismatic one with the inner body (or ground)
+        frame = j if joint.revolute else inner
+        if frame is None:
+            u = np.broadcast_to(joint.axis_W0, (N, 3))
+        else:
+            u = np.einsum("nab,b->na", A[:, frame], spec.body(top_bodies[frame]).R_WB0.T @ joint.axis_W0)
+        if joint.revolute:
+            M[:, j] += tau_j[:, None] * u
+            if inner is not None:
+                M[:, inner] -= tau_j[:, None] * u
+        else:
+            c = model.topology.c_B[j, model.topology.joints.index(spec.inner_joint(carrier).name)]
+            point = r[:, j] + np.einsum("nab,b->na", A[:, j], c)
+            force = tau_j[:, None] * u
+            F[:, j] += force
+            M[:, j] += np.cross(point - r[:, j], force)
+            if inner is not None:
+                F[:, inner] -= force
+                M[:, inner] -= np.cross(point - r[:, inner], force)
+    return F, M
+
+
+def generalized_mass(model: GraphModel, theta: np.ndarray) -> np.ndarray:
+    """blockdiag over bodies of (m_i E, D_i^T J_i D_i): (N, 6n, 6n)."""
+    N, n = theta.shape[:2]
+    Dm = D(theta)
+    blocks = np.zeros((N, n, 6, 6))
+    blocks[..., :3, :3] = model.m[:, None, None] * np.eye(3)
+    blocks[..., 3:, 3:] = np.swapaxes(Dm, -1, -2) @ (model.J[..., :, None] * Dm)
+    out = np.zeros((N, 6 * n, 6 * n))
+    for i in range(n):
+        out[:, 6 * i: 6 * i + 6, 6 * i: 6 * i + 6] = blocks[:, i]
+    return out
+
+
+def generalized_forces(model: GraphModel, theta: np.ndarray, theta_dot: np.ndarray, A: np.ndarray,
+                       F_W: np.ndarray, M_W: np.ndarray) -> np.ndarray:
+    """Q of Eq. 111 for applied forces F_W and moments M_W about the centres of mass: (N, 6n)."""
+    Dm, Dd = D(theta), D_dot(theta, theta_dot)
+    J = model.J[..., :, None]
+    omega = np.einsum("...ab,...b->...a", Dm, theta_dot)
+    gyro = np.einsum("...ab,...b->...a", J * Dd + skew(omega) @ (J * Dm), theta_dot)
+    M_B = np.einsum("...ba,...b->...a", A, M_W)
+    Q = np.concatenate([model.m[:, None] * model.g_W + F_W,
+                        np.einsum("...ba,...b->...a", Dm, M_B - gyro)], axis=-1)
+    return Q.reshape(theta.shape[0], -1)
+
+
+def kkt_matrix(M: np.ndarray, Phi_q: np.ndarray) -> np.ndarray:
+    N, p = M.shape[:2]
+    m = Phi_q.shape[1]
+    K = np.zeros((N, p + m, p + m))
+    K[:, :p, :p] = M
+    K[:, :p, p:] = np.swapaxes(Phi_q, 1, 2)
+    K[:, p:, :p] = Phi_q
+    return K
+
+
+@dataclass(frozen=True, eq=False)
+class Constrained:
+    """Eq. 111 on the recording, at the rows where every body's cond(D) <= GIMBAL_COND_D."""
+
+    t: np.ndarray  # (N,) all rows
+    evaluated: np.ndarray  # (N,) bool
+    qdd: np.ndarray  # (N, 6n), NaN where not evaluated
+    lam: np.ndarray  # (N, m)
+    acceleration_error: np.ndarray  # (N,) |[r''; omega'] - recorded| / |recorded|, per row
+    reaction_error: np.ndarray  # (N,) |-Phi_q^T lambda - recorded reactions| / |recorded|
+    cond_Phi_q: np.ndarray  # (N,) every row, both formulations' figures come from separate calls
+    cond_system: np.ndarray  # (N,) cond of the (6n + m) matrix of Eq. 111
+    rank_Phi_q: np.ndarray  # (N,)
+
+
+def _cond_rank(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    s = np.linalg.svd(X, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        cond = np.where(s[:, -1] > 0, s[:, 0] / s[:, -1], np.inf)
+    rank = np.sum(s > s[:, :1] * max(X.shape[1:]) * np.finfo(float).eps, axis=1)
+    return cond, rank
+
+
+def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: ConstraintSet,
+                      rec: Recording, s: BodySeries) -> Constrained:
+    """Solve Eq. 111 at every row (batched) and check it against what MuJoCo recorded."""
+    top = model.topology
+    b = [rec.body_index(name) for name in top.bodies]
+    theta_dot, _, cond_D = angle_rates(s.theta, s.omega_B, s.omegadot_B)
+    ok = np.all(cond_D <= GIMBAL_COND_D, axis=1)
+    thd = np.where(ok[:, None, None], theta_dot, 0.0)
+    state = State.cardano(rec.p_W[:, b], s.theta, rec.v_W[:, b], thd)
+    _, Phi_q, zeta = constraints.evaluate(state)
+    M = generalized_mass(model, s.theta)
+    tau = rec.tau[:, [rec.joint_index(j) for j in spec.joint_names]]
+    F_a, M_a = active_wrenches(spec, model, tau, s.A, state.r)
+    Q = generalized_forces(model, s.theta, thd, s.A, F_a, M_a)
+    K = kkt_matrix(M, Phi_q)
+    cond_Phi, rank_Phi = _cond_rank(Phi_q)
+    cond_K, _ = _cond_rank(K)
+
+    N, p, m = len(s.t), M.shape[1], Phi_q.shape[1]
+    qdd = np.full((N, p), np.nan)
+    lam = np.full((N, m), np.nan)
+    acc_err = np.full(N, np.nan)
+    react_err = np.full(N, np.nan)
+    if ok.any():
+        x = np.linalg.solve(K[ok], np.concatenate([Q, zeta], axis=1)[ok][..., None])[..., 0]
+        qdd[ok], lam[ok] = x[:, :p], x[:, p:]
+        qdd_b = qdd[ok].reshape(-1, top.n, 6)
+        omegadot = (np.einsum("...ab,...b->...a", D(s.theta[ok]), qdd_b[..., 3:])
+                    + np.einsum("...ab,...b->...a", D_dot(s.theta[ok], thd[ok]), thd[ok]))
+        got = np.concatenate([qdd_b[..., :3], omegadot], axis=-1).reshape(ok.sum(), -1)
+        want = np.concatenate([s.a_W[ok], s.omegadot_B[ok]], axis=-1).reshape(ok.sum(), -1)
+        acc_err[ok] = np.linalg.norm(got - want, axis=1) / np.linalg.norm(want, axis=1)
+        # recorded constraint reactions: joint resultants less the drives, generalized
+        F_c = s.F_J_W[ok] - F_a[ok]
+        M_c_B = s.M_J_B[ok] - np.einsum("...ba,...b->...a", s.A[ok], M_a[ok])
+        G = np.concatenate([F_c, np.einsum("...ba,...b->...a", D(s.theta[ok]), M_c_B)], axis=-1)
+        G = G.reshape(ok.sum(), -1)
+        reaction = -np.einsum("nmk,nm->nk", Phi_q[ok], lam[ok])
+        react_err[ok] = np.linalg.norm(reaction - G, axis=1) / np.linalg.norm(G, axis=1)
+    return Constrained(s.t, ok, qdd, lam, acc_err, react_err, cond_Phi, cond_K, rank_Phi)

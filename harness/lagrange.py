@@ -1,0 +1,101 @@
+"""Sections 2.4, 2.5 and 3.2 on a recording: constraints, Eq. 111, multipliers, conditioning and
+the forward simulation of the constrained model. Results are plain data for results.json."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.cardano import A_0i, D
+from harness.graph.constrained import Constrained, solve_constrained
+from harness.graph.constraints import ConstraintSet, State, build_constraints
+from harness.graph.dynamics import GraphModel, angle_rates, body_series
+from harness.graph.forward import ForwardResult, forward_simulate
+from harness.recording import Recording
+from harness.scenario import Scenario
+from harness.spec import RobotSpec
+
+
+@dataclass(frozen=True, eq=False)
+class Formulation:
+    constraints: ConstraintSet
+    solution: Constrained
+    max_abs_phi: float  # on the recording
+    max_abs_phi_dot: float  # Phi_q q' on the recording
+    axis_rank_deficient: dict[str, int]  # joint -> rows where its two axis rows have rank < 2
+
+
+@dataclass(frozen=True, eq=False)
+class LagrangeOutput:
+    formulations: dict[str, Formulation]  # "normal", "paper"
+    time_row: int | None
+    forward: ForwardResult | None  # with the correction
+    open_loop: ForwardResult | None  # without it, stopped once 1e-6 away
+
+
+def _formulation(scenario: Scenario, model: GraphModel, rec: Recording, name: str) -> Formulation:
+    top = model.topology
+    cs = build_constraints(scenario.robot, top, name)
+    s = body_series(rec, top)
+    sol = solve_constrained(scenario.robot, model, cs, rec, s)
+    b = [rec.body_index(x) for x in top.bodies]
+    theta_dot, _, _ = angle_rates(s.theta, s.omega_B, s.omegadot_B)
+    ok = sol.evaluated
+    state = State.cardano(rec.p_W[ok][:, b], s.theta[ok], rec.v_W[ok][:, b], theta_dot[ok])
+    phi, Phi_q, _ = cs.evaluate(state)
+    deficient = {}
+    for joint in top.joints:
+        rows = [k for k, lab in enumerate(cs.labels) if lab.startswith(f"{joint}.axis")]
+        sv = np.linalg.svd(Phi_q[:, rows], compute_uv=False)
+        deficient[joint] = int(np.sum(sv[:, -1] < 1e-8 * sv[:, 0]))
+    return Formulation(cs, sol, float(np.max(np.abs(phi))),
+                       float(np.max(np.abs(np.einsum("nmk,nk->nm", Phi_q, state.q_dot)))), deficient)
+
+
+def lagrange(scenario: Scenario, model: GraphModel, rec: Recording) -> LagrangeOutput:
+    forms = {name: _formulation(scenario, model, rec, name) for name in ("normal", "paper")}
+    lg = scenario.lagrange
+    row = None if lg.time is None else round(lg.time / scenario.output_dt)
+    forward = open_loop = None
+    if lg.forward_simulation:
+        args = (scenario.robot, model, forms["normal"].constraints, rec, rec.meta["drive_stages"],
+                scenario.simulation.timestep, scenario.substeps)
+        forward = forward_simulate(*args, reference=lambda t: scenario.prescribed(t)[:2])
+        open_loop = forward_simulate(*args, stop_above=1e-6)
+    return LagrangeOutput(forms, row, forward, open_loop)
+
+
+def reactions_at(out: LagrangeOutput, spec: RobotSpec, model: GraphModel, rec: Recording, row: int
+                 ) -> list[dict]:
+    """Per joint at one row: its multipliers (normal formulation), the constraint force and moment
+    (about the joint point) they exert on the outer body, world components, and the static weight
+    of the bodies outboard, sum m_k |g| (what the paper's lambda_i3 equal)."""
+    form = out.formulations["normal"]
+    top = model.topology
+    b = [rec.body_index(x) for x in top.bodies]
+    theta = rec.theta[row, b][None]
+    A, Dm = A_0i(theta)[0], D(theta)[0]
+    s = body_series(rec, top, np.array([row]))
+    theta_dot, _, _ = angle_rates(s.theta, s.omega_B, s.omegadot_B)
+    state = State.cardano(rec.p_W[row, b][None], theta, rec.v_W[row, b][None], theta_dot)
+    _, Phi_q, _ = form.constraints.evaluate(state)
+    lam = form.solution.lam[row]
+    labels = form.constraints.labels
+    out_rows = []
+    for k, joint in enumerate(top.joints):
+        idx = [m for m, lab in enumerate(labels) if lab.split(".")[0] == joint]
+        j = k  # O_k is the inner joint of B_k
+        gen = -(Phi_q[0, idx].T @ lam[idx]).reshape(top.n, 6)[j]  # on the outer body
+        force = gen[:3]
+        moment_cm = A[j] @ np.linalg.solve(Dm[j].T, gen[3:])  # D^-T back to a moment, world
+        arm = A[j] @ top.c_B[j, k]  # centre of mass to joint point
+        weight = sum(body.mass for body in spec.outboard_bodies(joint)) * np.linalg.norm(model.g_W)
+        out_rows.append({
+            "body": top.bodies[j], "joint": joint,
+            "labels": [labels[m].split(".")[1] for m in idx], "lambda": lam[idx].tolist(),
+            "constraint_force_W": force.tolist(),
+            "constraint_moment_W": (moment_cm - np.cross(arm, force)).tolist(),
+            "static_weight_outboard": float(weight),
+        })
+    return out_rows
