@@ -9,8 +9,8 @@ import numpy as np
 
 from harness.cardano import A_0i, D
 from harness.graph.constrained import Constrained, solve_constrained
-from harness.graph.constraints import ConstraintSet, State, build_constraints
-from harness.graph.dynamics import GraphModel, angle_rates, body_series
+from harness.graph.constraints import ConstraintSet, build_constraints
+from harness.graph.dynamics import GraphModel, body_series
 from harness.graph.forward import ForwardResult, forward_simulate
 from harness.recording import Recording
 from harness.scenario import Scenario
@@ -35,22 +35,15 @@ class LagrangeOutput:
 
 
 def _formulation(scenario: Scenario, model: GraphModel, rec: Recording, name: str) -> Formulation:
-    top = model.topology
-    cs = build_constraints(scenario.robot, top, name)
-    s = body_series(rec, top)
-    sol = solve_constrained(scenario.robot, model, cs, rec, s)
-    b = [rec.body_index(x) for x in top.bodies]
-    theta_dot, _, _ = angle_rates(s.theta, s.omega_B, s.omegadot_B)
-    ok = sol.evaluated
-    state = State.cardano(rec.p_W[ok][:, b], s.theta[ok], rec.v_W[ok][:, b], theta_dot[ok])
-    phi, Phi_q, _ = cs.evaluate(state)
+    cs = build_constraints(scenario.robot, model.topology, name)
+    sol = solve_constrained(scenario.robot, model, cs, rec, body_series(rec, model.topology))
     deficient = {}
-    for joint in top.joints:
+    for joint in model.topology.joints:
         rows = [k for k, lab in enumerate(cs.labels) if lab.startswith(f"{joint}.axis")]
-        sv = np.linalg.svd(Phi_q[:, rows], compute_uv=False)
+        sv = np.linalg.svd(sol.Phi_q[sol.evaluated][:, rows], compute_uv=False)
         deficient[joint] = int(np.sum(sv[:, -1] < 1e-8 * sv[:, 0]))
-    return Formulation(cs, sol, float(np.max(np.abs(phi))),
-                       float(np.max(np.abs(np.einsum("nmk,nk->nm", Phi_q, state.q_dot)))), deficient)
+    return Formulation(cs, sol, float(np.max(np.abs(sol.phi))),
+                       float(np.nanmax(np.abs(sol.phi_dot))), deficient)
 
 
 def lagrange(scenario: Scenario, model: GraphModel, rec: Recording) -> LagrangeOutput:
@@ -73,20 +66,15 @@ def reactions_at(out: LagrangeOutput, spec: RobotSpec, model: GraphModel, rec: R
     of the bodies outboard, sum m_k |g| (what the paper's lambda_i3 equal)."""
     form = out.formulations["normal"]
     top = model.topology
-    b = [rec.body_index(x) for x in top.bodies]
-    theta = rec.theta[row, b][None]
-    A, Dm = A_0i(theta)[0], D(theta)[0]
-    s = body_series(rec, top, np.array([row]))
-    theta_dot, _, _ = angle_rates(s.theta, s.omega_B, s.omegadot_B)
-    state = State.cardano(rec.p_W[row, b][None], theta, rec.v_W[row, b][None], theta_dot)
-    _, Phi_q, _ = form.constraints.evaluate(state)
-    lam = form.solution.lam[row]
+    theta = rec.theta[row, [rec.body_index(x) for x in top.bodies]]
+    A, Dm = A_0i(theta), D(theta)
+    Phi_q, lam = form.solution.Phi_q[row], form.solution.lam[row]
     labels = form.constraints.labels
     out_rows = []
     for k, joint in enumerate(top.joints):
         idx = [m for m, lab in enumerate(labels) if lab.split(".")[0] == joint]
         j = k  # O_k is the inner joint of B_k
-        gen = -(Phi_q[0, idx].T @ lam[idx]).reshape(top.n, 6)[j]  # on the outer body
+        gen = -(Phi_q[idx].T @ lam[idx]).reshape(top.n, 6)[j]  # on the outer body
         force = gen[:3]
         moment_cm = A[j] @ np.linalg.solve(Dm[j].T, gen[3:])  # D^-T back to a moment, world
         arm = A[j] @ top.c_B[j, k]  # centre of mass to joint point

@@ -115,7 +115,10 @@ class Constrained:
     lam: np.ndarray  # (N, m)
     acceleration_error: np.ndarray  # (N,) |[r''; omega'] - recorded| / |recorded|, per row
     reaction_error: np.ndarray  # (N,) |-Phi_q^T lambda - recorded reactions| / |recorded|
-    cond_Phi_q: np.ndarray  # (N,) every row, both formulations' figures come from separate calls
+    phi: np.ndarray  # (N, m) constraints on the recording
+    phi_dot: np.ndarray  # (N, m) Phi_q q', NaN where not evaluated (theta' needs D^-1)
+    Phi_q: np.ndarray  # (N, m, 6n)
+    cond_Phi_q: np.ndarray  # (N,) at every row
     cond_system: np.ndarray  # (N,) cond of the (6n + m) matrix of Eq. 111
     rank_Phi_q: np.ndarray  # (N,)
 
@@ -137,7 +140,8 @@ def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: Constrain
     ok = np.all(cond_D <= GIMBAL_COND_D, axis=1)
     thd = np.where(ok[:, None, None], theta_dot, 0.0)
     state = State.cardano(rec.p_W[:, b], s.theta, rec.v_W[:, b], thd)
-    _, Phi_q, zeta = constraints.evaluate(state)
+    phi, Phi_q, zeta = constraints.evaluate(state)
+    phi_dot = np.where(ok[:, None], np.einsum("nmk,nk->nm", Phi_q, state.q_dot), np.nan)
     M = generalized_mass(model, s.theta)
     tau = rec.tau[:, [rec.joint_index(j) for j in spec.joint_names]]
     F_a, M_a = active_wrenches(spec, model, tau, s.A, state.r)
@@ -167,4 +171,4 @@ def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: Constrain
         G = G.reshape(ok.sum(), -1)
         reaction = -np.einsum("nmk,nm->nk", Phi_q[ok], lam[ok])
         react_err[ok] = np.linalg.norm(reaction - G, axis=1) / np.linalg.norm(G, axis=1)
-    return Constrained(s.t, ok, qdd, lam, acc_err, react_err, cond_Phi, cond_K, rank_Phi)
+    return Constrained(s.t, ok, qdd, lam, acc_err, react_err, phi, phi_dot, Phi_q, cond_Phi, cond_K, rank_Phi)
