@@ -103,6 +103,10 @@ def _print_summary(results: dict, out: Path) -> None:
         fw = lg["forward_simulation"]
         print(f"  constrained model integrated over the run: largest joint deviation from MuJoCo "
               f"{max(fw['max_joint_deviation'].values()):.1e}, position {fw['max_position_deviation']:.1e} m")
+    tq = results["torques"]
+    pairs = ", ".join(f"{k.replace('_vs_', ' vs ')} {tq[k]['max_rel_error']:.1e}"
+                      for k in ("graph_vs_pinocchio", "graph_vs_mujoco", "pinocchio_vs_mujoco"))
+    print(f"  joint torques, largest relative error (of the joint's load): {pairs}")
     ident = results["identification"]
     digits = ident["significant_digits"]
     print(f"  identification from {len(ident['sample_times'])} samples"

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.engines.mujoco import simulate
+from harness.engines.pinocchio import InverseDynamics, rnea_on_recording
 from harness.graph.dynamics import (
     GraphModel,
     Residual,
@@ -19,6 +20,7 @@ from harness.graph.dynamics import (
     unconstrained_residual,
 )
 from harness.graph.identification import PARAMETERS, id_Y, id_Z, stack_per_body, stack_system
+from harness.graph.inverse import GraphInverse, inverse_dynamics
 from harness.identify import LeastSquares, solve
 from harness.lagrange import LagrangeOutput, lagrange
 from harness.measurement import Measurement, dither, measure
@@ -73,6 +75,8 @@ class RunOutput:
     residual: Residual  # Eq. 36 on the ideal recording
     identification: Identification
     lagrange: LagrangeOutput  # sections 2.4-2.5 on the ideal recording
+    pinocchio: InverseDynamics  # RNEA on the recorded motion
+    graph_inverse: GraphInverse  # the graph model's inverse dynamics on the recorded motion
 
 
 def run(scenario: Scenario) -> RunOutput:
@@ -82,4 +86,7 @@ def run(scenario: Scenario) -> RunOutput:
     residual = unconstrained_residual(model, body_series(recording, model.topology))
     identification = identify(model, measured, scenario.sample_rows, scenario.measurement)
     multipliers = lagrange(scenario, model, recording)
-    return RunOutput(scenario, model, recording, measured, residual, identification, multipliers)
+    pinocchio = rnea_on_recording(scenario.robot, scenario.gravity_W, recording)
+    graph_inverse = inverse_dynamics(scenario.robot, model, recording)
+    return RunOutput(scenario, model, recording, measured, residual, identification, multipliers,
+                     pinocchio, graph_inverse)

@@ -2,7 +2,8 @@
 
 Top-level sections, in order: `schema`, `scenario`, `model`, `recording`, `graph` (the paper's
 matrices and the unconstrained-dynamics residual on the recording), `identification`, `lagrange`
-(constraints, Eq. 111, multipliers, conditioning, forward simulation). Every
+(constraints, Eq. 111, multipliers, conditioning, forward simulation), `torques` (MuJoCo,
+Pinocchio RNEA and the graph model, and the joint reaction wrenches). Every
 number is finite (NaN or infinity is an error when writing, never a silent `NaN` token).
 """
 
@@ -14,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from harness.compare import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
 from harness.graph.dynamics import GraphModel, Residual
 from harness.graph.identification import PARAMETERS
 from harness.lagrange import reactions_at
@@ -236,6 +238,33 @@ def lagrange_section(out: RunOutput) -> dict:
     return section
 
 
+def torques_section(out: RunOutput) -> dict:
+    rec, spec = out.recording, out.scenario.robot
+    joints = spec.joint_names
+    mj = rec.tau[:, [rec.joint_index(j) for j in joints]]
+    sources = {"mujoco": mj, "pinocchio": out.pinocchio.tau, "graph": out.graph_inverse.tau}
+    scale = joint_load_scale(spec, rec)
+    cols = [rec.joint_index(j) for j in joints]
+    F_rec, M_rec = rec.F_W[:, cols], rec.M_W[:, cols]
+    return {
+        "joints": joints,
+        "definition": DEFINITION,
+        "load_scale": dict(zip(joints, _list(scale), strict=True)),
+        "samples": [{"t": float(t), **{k: _list(v[i]) for k, v in sources.items()}}
+                    for i, t in enumerate(rec.t)],
+        **{f"{a}_vs_{b}": pair_metrics(sources[a], sources[b], scale, rec.t, joints)
+           for a, b in (("graph", "pinocchio"), ("graph", "mujoco"), ("pinocchio", "mujoco"))},
+        "reactions": {
+            "definition": "|a - b| / largest |b| of the joint over the run, b the recorded wrench "
+                          "(force of the inner on the outer body, moment about the joint point)",
+            "pinocchio_vs_mujoco": {"force": wrench_metrics(out.pinocchio.F_W, F_rec, rec.t, joints),
+                                    "moment": wrench_metrics(out.pinocchio.M_W, M_rec, rec.t, joints)},
+            "graph_vs_mujoco": {"force": wrench_metrics(out.graph_inverse.F_W, F_rec, rec.t, joints),
+                                "moment": wrench_metrics(out.graph_inverse.M_W, M_rec, rec.t, joints)},
+        },
+    }
+
+
 def build_results(out: RunOutput) -> dict:
     return {
         "schema": SCHEMA,
@@ -245,6 +274,7 @@ def build_results(out: RunOutput) -> dict:
         "graph": graph_section(out.model, out.residual),
         "identification": identification_section(out.identification, out.scenario),
         "lagrange": lagrange_section(out),
+        "torques": torques_section(out),
     }
 
 

@@ -1,0 +1,53 @@
+"""Metrics between two sources of the same joint quantity.
+
+Relative error, defined once: for joint J at time t,
+
+    rel(J, t) = |a(J, t) - b(J, t)| / L_J,
+
+with L_J the largest load joint J carries over the run, the magnitude of the moment it transmits
+(revolute) or of the force (prismatic), taken from the recording. A drive torque that is zero by
+symmetry (O4, O6 of kr500_rail turn about the arm's own axis) still carries large constraint
+moments, and its torque is computed at their scale: dividing by the torque itself would measure
+round-off against nothing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.recording import Recording
+from harness.spec import RobotSpec
+
+DEFINITION = ("relative error = |a - b| / L_J, L_J the largest magnitude over the run of the moment "
+              "(revolute) or force (prismatic) that joint J transmits in the recording")
+
+
+def joint_load_scale(spec: RobotSpec, rec: Recording) -> np.ndarray:
+    """L_J for each joint of the spec (spec order)."""
+    out = []
+    for joint in spec.joints:
+        wrench = (rec.M_W if joint.revolute else rec.F_W)[:, rec.joint_index(joint.name)]
+        out.append(np.max(np.linalg.norm(wrench, axis=1)))
+    return np.array(out)
+
+
+def pair_metrics(a: np.ndarray, b: np.ndarray, scale: np.ndarray, t: np.ndarray,
+                 joints: list[str]) -> dict:
+    """Largest absolute and relative error of (N, joints) series, with where they occur."""
+    err = np.abs(a - b)
+    rel = err / scale
+    ka, ja = np.unravel_index(np.argmax(err), err.shape)
+    kr, jr = np.unravel_index(np.argmax(rel), rel.shape)
+    return {
+        "max_abs_error": float(err[ka, ja]), "max_abs_joint": joints[ja], "max_abs_t": float(t[ka]),
+        "max_rel_error": float(rel[kr, jr]), "max_rel_joint": joints[jr], "max_rel_t": float(t[kr]),
+        "max_rel_error_per_joint": dict(zip(joints, (float(x) for x in rel.max(axis=0)), strict=True)),
+    }
+
+
+def wrench_metrics(a: np.ndarray, b: np.ndarray, t: np.ndarray, joints: list[str]) -> dict:
+    """(N, joints, 3) wrenches: largest |a - b| relative to the largest |b| of each joint."""
+    err = np.linalg.norm(a - b, axis=-1)
+    rel = err / np.max(np.linalg.norm(b, axis=-1), axis=0)
+    k, j = np.unravel_index(np.argmax(rel), rel.shape)
+    return {"max_rel_error": float(rel[k, j]), "joint": joints[j], "t": float(t[k])}

@@ -1,0 +1,86 @@
+"""Pinocchio as the independent second opinion: a model built from the RobotSpec directly (not
+from the generated MJCF, so that a mistake in either builder shows up as a disagreement), and
+inverse dynamics by RNEA.
+
+Every joint frame sits at its joint point with world-aligned axes at the initial pose; a joint's
+axis is its world axis there. Each massive body is attached to its inner joint with its mass,
+its centre of mass relative to the joint point, and its inertia about the centre of mass rotated
+into the joint frame (R_WB0 I_B R_WB0^T). A massless carriage is a joint with no body. Gravity is
+the scenario's; no armature or damping (the spec has none).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from harness.recording import Recording
+from harness.spec import WORLD, RobotSpec
+
+
+@dataclass(frozen=True, eq=False)
+class PinocchioModel:
+    model: pin.Model
+    joint_ids: tuple[int, ...]  # Pinocchio joint index of each spec joint, spec order
+    q_index: np.ndarray  # index into q (and v) of each spec joint
+
+
+def build_model(spec: RobotSpec, gravity_W: np.ndarray) -> PinocchioModel:
+    model = pin.Model()
+    model.name = spec.name
+    ids: dict[str, int] = {}
+    for joint in spec.joints:  # root first
+        parent = 0 if joint.parent == WORLD else ids[joint.parent]
+        origin = np.zeros(3) if joint.parent == WORLD else spec.inner_joint(joint.parent).p_W0
+        jm = (pin.JointModelRevoluteUnaligned if joint.revolute else pin.JointModelPrismaticUnaligned)(
+            np.asarray(joint.axis_W0, dtype=float))
+        jid = model.addJoint(parent, jm, pin.SE3(np.eye(3), joint.p_W0 - origin), joint.name)
+        ids[joint.child] = jid
+        body = spec.body(joint.child)
+        if not body.massless:
+            I_J = body.R_WB0 @ body.I_B @ body.R_WB0.T
+            model.appendBodyToJoint(jid, pin.Inertia(body.mass, body.p_W_com0 - joint.p_W0, I_J),
+                                    pin.SE3.Identity())
+    model.gravity.linear = np.asarray(gravity_W, dtype=float)
+    joint_ids = tuple(ids[j.child] for j in spec.joints)
+    q_index = np.array([model.joints[i].idx_q for i in joint_ids])
+    return PinocchioModel(model, joint_ids, q_index)
+
+
+@dataclass(frozen=True, eq=False)
+class InverseDynamics:
+    tau: np.ndarray  # (N, joints) drive force or torque along each axis, spec order
+    F_W: np.ndarray  # (N, joints, 3) force of the inner on the outer body across each joint
+    M_W: np.ndarray  # (N, joints, 3) its moment about the joint point
+
+
+def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> InverseDynamics:
+    """RNEA at every sample (one call per state), with the joint wrenches data.f moved to world
+    components: data.f[i] is the spatial force across joint i, [linear; angular] about the joint
+    frame origin in the joint frame; oMi rotates it to the world. RNEA works with local placements
+    and leaves data.oMi as it was, so forwardKinematics sets it for the same q."""
+    model = pm.model
+    data = model.createData()
+    N, nj = q.shape
+    tau = np.empty((N, nj))
+    F = np.empty((N, nj, 3))
+    M = np.empty((N, nj, 3))
+    qq, vv, aa = (np.zeros((N, model.nq)) for _ in range(3))
+    qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    for k in range(N):
+        full = pin.rnea(model, data, qq[k], vv[k], aa[k])
+        pin.forwardKinematics(model, data, qq[k])
+        tau[k] = full[pm.q_index]
+        for j, jid in enumerate(pm.joint_ids):
+            R = data.oMi[jid].rotation
+            F[k, j] = R @ data.f[jid].linear
+            M[k, j] = R @ data.f[jid].angular
+    return InverseDynamics(tau, F, M)
+
+
+def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: Recording) -> InverseDynamics:
+    pm = build_model(spec, gravity_W)
+    cols = [rec.joint_index(j) for j in spec.joint_names]
+    return rnea(pm, rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols])

@@ -1,0 +1,68 @@
+"""Inverse dynamics by the graph-theory model: joint force elements, active moments and drive
+torques from the recorded motion alone (sections 2.1-2.2); no recorded joint force is read.
+
+Newton (Eq. 22) with Eq. 17: m_i (r_i'' - g) = -sum_k S_e,ik F_k, so F = -S_e^-1 [m (r'' - g)].
+S_e of a tree, in root-first order, is upper triangular with -1 on its diagonal, so this is back
+substitution: the outermost body first. Euler (Eq. 23) with Eqs. 20, 26:
+J_i omega_i' + omega_i x J_i omega_i = -sum_k (C_e,ik x F_k + S_ik M_k), so
+M = -S^-1 [J omega' + omega x J omega + sum_k C_e,ik x F_k], M_k the moment about O_k.
+The drive of O_k is the component of M_k (revolute) or F_k (prismatic) along its axis. A
+massless carriage transmits its child's wrench unchanged, so the rail's wrench is O1's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.cardano import A_0i
+from harness.graph.dynamics import GraphModel
+from harness.recording import Recording
+from harness.spec import RobotSpec
+
+
+@dataclass(frozen=True, eq=False)
+class GraphInverse:
+    tau: np.ndarray  # (N, joints of the spec)
+    F_W: np.ndarray  # (N, joints of the spec, 3) force element of each joint (inner on outer)
+    M_W: np.ndarray  # (N, joints of the spec, 3) moment about each joint point
+
+
+def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> GraphInverse:
+    top = model.topology
+    b = [rec.body_index(x) for x in top.bodies]
+    A = A_0i(rec.theta[:, b])  # (N, n, 3, 3)
+    a, w, wd = rec.a_W[:, b], rec.omega_W[:, b], rec.omegadot_W[:, b]
+    J_W = A @ (model.J[..., :, None] * np.swapaxes(A, -1, -2))  # A diag(J) A^T
+    S_inv = np.linalg.inv(top.S_e.astype(float))
+    F = -np.einsum("kl,nlc->nkc", S_inv, model.m[:, None] * (a - model.g_W))
+    q = rec.q[:, [rec.joint_index(j) for j in top.joints]]
+    C_e_W = np.einsum("nilm,nikm->nikl", A, top.C_e_B(q))
+    euler = np.einsum("niab,nib->nia", J_W, wd) + np.cross(w, np.einsum("niab,nib->nia", J_W, w))
+    M = -np.einsum("kl,nlc->nkc", np.linalg.inv(top.S.astype(float)),
+                   euler + np.cross(C_e_W, F[:, None]).sum(axis=2))
+
+    N = len(rec.t)
+    tau = np.empty((N, len(spec.joints)))
+    F_out, M_out = np.empty((N, len(spec.joints), 3)), np.empty((N, len(spec.joints), 3))
+    index = {name: k for k, name in enumerate(top.joints)}
+    for jj, joint in enumerate(spec.joints):
+        carried = joint
+        while carried.name not in index:  # a carriage's joint: the wrench of the joint it carries
+            carried = spec.outer_joints(carried.child)[0]
+        k = index[carried.name]
+        F_out[:, jj], M_out[:, jj] = F[:, k], M[:, k]
+        j = top.bodies.index(carried.child)
+        if joint.revolute:
+            u = np.einsum("nab,b->na", A[:, j], spec.body(carried.child).R_WB0.T @ joint.axis_W0)
+            tau[:, jj] = np.einsum("na,na->n", M[:, k], u)
+        else:
+            inner = joint.parent if joint.parent in top.bodies else None
+            if inner is None:
+                u = np.broadcast_to(joint.axis_W0, (N, 3))
+            else:
+                i = top.bodies.index(inner)
+                u = np.einsum("nab,b->na", A[:, i], spec.body(inner).R_WB0.T @ joint.axis_W0)
+            tau[:, jj] = np.einsum("na,na->n", F[:, k], u)
+    return GraphInverse(tau, F_out, M_out)

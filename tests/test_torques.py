@@ -1,0 +1,103 @@
+"""Joint torques three ways: MuJoCo (what drove the simulation), Pinocchio RNEA (built from the
+spec, not from the MJCF) and the graph-theory model (from the recorded motion alone)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from harness.cardano import A_0i
+from harness.compare import joint_load_scale, pair_metrics
+from harness.engines.pinocchio import rnea_on_recording
+from harness.graph.dynamics import build_graph_model
+from harness.graph.inverse import inverse_dynamics
+from harness.results import build_results
+from tests.conftest import DATA, SCENARIOS
+
+SCENARIO_PATHS = pytest.mark.parametrize(
+    "path", [SCENARIOS / "kr500_rail.toml", SCENARIOS / "kr500_all_joints.toml",
+             DATA / "scenarios" / "branch_sines.toml"], ids=["kr500_rail", "kr500_all_joints", "branch"])
+REL = 1e-9  # measured agreement is about 1e-14 of each joint's load
+
+
+@SCENARIO_PATHS
+def test_three_sources_agree_at_every_step_for_every_joint(run_scenario, path):
+    torques = build_results(run_scenario(path))["torques"]
+    for pair in ("graph_vs_pinocchio", "graph_vs_mujoco", "pinocchio_vs_mujoco"):
+        assert torques[pair]["max_rel_error"] <= REL, (pair, torques[pair])
+    assert len(torques["samples"]) == len(run_scenario(path).recording.t)
+
+
+@SCENARIO_PATHS
+def test_joint_reaction_wrenches_agree(run_scenario, path):
+    """Pinocchio's data.f (moved to the joint point, world components) and the graph model's
+    force elements and moments equal the wrenches MuJoCo's sensors recorded."""
+    reactions = build_results(run_scenario(path))["torques"]["reactions"]
+    for source in ("pinocchio_vs_mujoco", "graph_vs_mujoco"):
+        for part in ("force", "moment"):
+            assert reactions[source][part]["max_rel_error"] <= REL, (source, part)
+
+
+def test_all_seven_joints_move_in_the_all_joints_scenario(run_scenario):
+    rec = run_scenario(SCENARIOS / "kr500_all_joints.toml").recording
+    assert np.all(np.ptp(rec.q, axis=0) > 0.1)
+
+
+def test_graph_inverse_dynamics_does_not_read_the_recorded_joint_forces(run_scenario):
+    """Zeroing every recorded joint force and moment changes nothing in the graph model's torques."""
+    out = run_scenario(SCENARIOS / "kr500_rail.toml")
+    blind = dataclasses.replace(out.recording, F_W=np.zeros_like(out.recording.F_W),
+                                M_W=np.zeros_like(out.recording.M_W), tau=np.zeros_like(out.recording.tau))
+    again = inverse_dynamics(out.scenario.robot, out.model, blind)
+    np.testing.assert_array_equal(again.tau, out.graph_inverse.tau)
+
+
+def _with_mass(spec, body_name, factor):
+    bodies = tuple(dataclasses.replace(b, mass=b.mass * factor) if b.name == body_name else b
+                   for b in spec.bodies)
+    return dataclasses.replace(spec, bodies=bodies)
+
+
+@pytest.mark.parametrize("body", ["B2", "B4"])
+def test_a_one_percent_mass_error_shows_at_exactly_the_joints_that_carry_it(run_scenario, body):
+    """Model under test with m_k 1 % too large, against MuJoCo's recording of the true robot.
+    Torque is linear in mass, so the graph model (and Pinocchio built from the same wrong spec)
+    must be off by exactly 0.01 m_k u_J . ((r_k - O_J) x (a_k - g)) at a revolute joint J that
+    carries B_k, 0.01 m_k u_J . (a_k - g) at a prismatic one, and by nothing elsewhere: the joints
+    outboard of B_k, and O4, whose axis passes through B4's centre of mass."""
+    out = run_scenario(SCENARIOS / "kr500_rail.toml")
+    rec, spec, g = out.recording, out.scenario.robot, out.scenario.gravity_W
+    wrong = _with_mass(spec, body, 1.01)
+    graph = inverse_dynamics(wrong, build_graph_model(wrong, g), rec).tau
+    pin = rnea_on_recording(wrong, g, rec).tau
+    mj = rec.tau[:, [rec.joint_index(j) for j in spec.joint_names]]
+
+    k = rec.body_index(body)
+    dm = 0.01 * spec.body(body).mass
+    expected = np.zeros_like(mj)
+    for jj, joint in enumerate(spec.joints):
+        if body not in {b.name for b in spec.outboard_bodies(joint.name)}:
+            continue
+        carried = joint if joint.child in rec.bodies else spec.outer_joints(joint.child)[0]
+        c = rec.body_index(carried.child)
+        child = spec.body(carried.child)
+        A = A_0i(rec.theta[:, c])
+        O_J = rec.p_W[:, c] + np.einsum("nab,b->na", A, child.R_WB0.T @ (carried.p_W0 - child.p_W_com0))
+        load = dm * (rec.a_W[:, k] - g)
+        if joint.revolute:
+            u = np.einsum("nab,b->na", A, child.R_WB0.T @ joint.axis_W0)
+            expected[:, jj] = np.einsum("na,na->n", u, np.cross(rec.p_W[:, k] - O_J, load))
+        else:
+            expected[:, jj] = load @ joint.axis_W0
+    scale = joint_load_scale(spec, rec)
+    np.testing.assert_allclose((graph - mj) / scale, expected / scale, rtol=0, atol=REL)
+    np.testing.assert_allclose((pin - mj) / scale, expected / scale, rtol=0, atol=REL)
+    report = pair_metrics(graph, mj, scale, rec.t, spec.joint_names)
+    assert report["max_rel_error"] > 1e-4  # caught
+    per_joint = report["max_rel_error_per_joint"]
+    affected = {j for j, e in per_joint.items() if e > REL}
+    assert affected == {spec.joint_names[jj] for jj in range(len(spec.joints))
+                        if np.max(np.abs(expected[:, jj]) / scale[jj]) > REL}
+    assert report["max_rel_joint"] in affected
