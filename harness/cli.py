@@ -1,19 +1,31 @@
-"""The `harness` command. It only wires the data flow: scenario -> recording -> results."""
+"""The `harness` command. It only wires the data flow: scenario -> recording -> results -> report."""
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import shutil
 import sys
 import tempfile
+import time
+from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
+from harness.tomlio import InputError, Table, read_toml
 
-from harness.results import RECORDING_FILE, RESULTS_FILE, build_results, write_results
-from harness.tomlio import InputError
+EXIT_OK, EXIT_GATE_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+DEFAULT_SCENARIO = "kr500_rail"
+REPORT_FILE = "report.html"
 
-EXIT_OK, EXIT_BAD_INPUT = 0, 2
+DESCRIPTION = """\
+Validate a robot's dynamic model against reference engines. MuJoCo simulates the robot along a
+scenario's motion and records forces, accelerations and Cardano angles; the graph-theory model is
+checked against that recording, identifies the inertial parameters from it, and its joint
+torques are cross-checked with Pinocchio. Each scenario declares accuracy gates.
+
+exit status: 0 every gate passed, 1 a gate failed, 2 bad input (a one-line message names the file
+and the key)."""
 
 
 def _resolve_scenario(arg: str) -> Path:
@@ -27,23 +39,41 @@ def _resolve_scenario(arg: str) -> Path:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="harness",
-        description="Validate a robot's dynamic model against reference engines (MuJoCo, Pinocchio).")
+    parser = argparse.ArgumentParser(prog="harness", description=DESCRIPTION,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     run = sub.add_parser(
-        "run", help="simulate a scenario in MuJoCo and write its recording and results",
-        description="Replay a scenario in MuJoCo: every joint is driven along its prescribed "
-                    "motion, and forces, accelerations and Cardano angles are recorded. Writes "
-                    f"DIR/{RECORDING_FILE} (one row per output step) and DIR/{RESULTS_FILE}.")
-    run.add_argument("scenario", metavar="SCENARIO",
+        "run", help="run scenarios through the whole pipeline and write their reports",
+        description="Run each scenario through the whole pipeline: simulate it in MuJoCo, check the graph "
+                    "model's dynamics and constraints against the recording, identify the parameters, "
+                    "compare joint torques with Pinocchio, check the scenario's gates. Writes recording.csv, "
+                    "results.json and report.html into one folder per scenario and prints one line per gate. "
+                    f"With no scenario, runs {DEFAULT_SCENARIO}.")
+    run.add_argument("scenarios", metavar="SCENARIO", nargs="*",
                      help="scenario file, or the name of one in ./scenarios/ (e.g. kr500_rail)")
     run.add_argument("--out", metavar="DIR", type=Path, default=None,
-                     help="output folder (default: reports/<scenario name>)")
+                     help="output folder: with one scenario, its folder; with several, the folder that gets "
+                          "one subfolder per scenario (default: reports/<scenario name>)")
+    run.add_argument("--quiet", action="store_true", help="no progress messages")
+    report = sub.add_parser("report", help="re-render report.html from a results.json",
+                            description="Re-render the HTML report from a results.json and the recording.csv "
+                                        "beside it, without simulating again.")
+    report.add_argument("results", metavar="RESULTS.json", type=Path)
+    report.add_argument("--out", metavar="FILE", type=Path, default=None,
+                        help="where to write the report (default: report.html beside RESULTS.json)")
+    gate = sub.add_parser("gate", help="re-check the gates of one or more results.json",
+                          description="Check gates against existing results without simulating again. The gates "
+                                      "are the ones stored in each results.json, or those of --scenario FILE (for "
+                                      "example after changing a limit). Exit status 1 if any gate fails.")
+    gate.add_argument("results", metavar="RESULTS.json", type=Path, nargs="+")
+    gate.add_argument("--scenario", metavar="FILE", type=Path, default=None,
+                      help="take the gates from this scenario file instead")
+    sub.add_parser("list", help="list the models and scenarios in ./models and ./scenarios",
+                   description="One line per model and per scenario found in ./models and ./scenarios.")
     return parser
 
 
-def _write_atomically(out: Path, files: dict[str, callable]) -> None:
+def _write_atomically(out: Path, files: dict[str, Callable[[Path], object]]) -> None:
     """Write every file into a temporary folder beside `out`, then move them in: a failure leaves
     nothing half-written in `out`."""
     out = out.resolve()
@@ -59,70 +89,152 @@ def _write_atomically(out: Path, files: dict[str, callable]) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+class _Progress:
+    """Stage messages on stderr, with a percentage for long stages, once a run has taken more
+    than a moment (1 s)."""
+
+    def __init__(self, name: str, quiet: bool):
+        self.name, self.quiet, self.start, self.last = name, quiet, time.monotonic(), -1.0
+
+    def __call__(self, stage: str, fraction: float | None) -> None:
+        elapsed = time.monotonic() - self.start
+        if self.quiet or (elapsed < 1.0 and fraction is None):
+            return
+        if fraction is not None:
+            if fraction - self.last < 0.1 and fraction < 1.0:
+                return
+            self.last = fraction if fraction < 1.0 else -1.0
+            stage = f"{stage} {100 * fraction:3.0f}%"
+        print(f"  [{self.name} {elapsed:5.1f} s] {stage}", file=sys.stderr, flush=True)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from harness.pipeline import run
+    from harness.recording import Recording
+    from harness.report import render
+    from harness.results import RECORDING_FILE, RESULTS_FILE, build_results, write_results
     from harness.scenario import load_scenario
 
-    scenario = load_scenario(_resolve_scenario(args.scenario))
-    out = args.out if args.out is not None else Path("reports") / scenario.name
-    output = run(scenario)
-    results = build_results(output)
-    try:
-        _write_atomically(out, {
-            RECORDING_FILE: output.recording.write_csv,
-            RESULTS_FILE: lambda p: write_results(p, results),
-        })
-    except OSError as exc:
-        raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
-    _print_summary(results, out)
-    return EXIT_OK
+    names = args.scenarios or [DEFAULT_SCENARIO]
+    scenarios = [load_scenario(_resolve_scenario(a)) for a in names]  # all validated before any work
+    seen = set()
+    for s in scenarios:
+        if s.name in seen:
+            raise InputError(s.source, "", f"scenario {s.name!r} is named twice")
+        seen.add(s.name)
+    passed = True
+    for scenario in scenarios:
+        if args.out is None:
+            out = Path("reports") / scenario.name
+        else:
+            out = args.out if len(scenarios) == 1 else args.out / scenario.name
+        progress = _Progress(scenario.name, args.quiet)
+        output = run(scenario, progress)
+        progress("writing the report", None)
+        results = build_results(output)
+        recording: Recording = output.recording
+        try:
+            _write_atomically(out, {
+                RECORDING_FILE: recording.write_csv,
+                RESULTS_FILE: lambda p, r=results: write_results(p, r),
+                REPORT_FILE: lambda p, r=results, rec=recording: p.write_text(render(r, rec)),
+            })
+        except OSError as exc:
+            raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
+        _print_summary(results, out)
+        passed &= results["passed"]
+    return EXIT_OK if passed else EXIT_GATE_FAILED
 
 
 def _print_summary(results: dict, out: Path) -> None:
-    rec = results["recording"]
-    track = rec["tracking_error"]
-    q_err = max(v["q_max_abs_error"] for v in track.values())
-    print(f"{results['scenario']['name']}: {rec['rows']} rows over {rec['t_end']:g} s, "
-          f"MuJoCo {rec['engine_version']} {rec['integrator']} dt={rec['timestep']:g} s")
-    print(f"  largest tracking error of the prescribed motion: {q_err:.2e} (rad or m)")
-    for body, times in rec["gimbal_lock_rows"].items():
-        shown = ", ".join(f"{t:g}" for t in np.asarray(times)[:8]) + (" ..." if len(times) > 8 else "")
-        print(f"  {body} near Cardano gimbal lock at {len(times)} rows: t = {shown} s")
-    res = results["graph"]["unconstrained_residual"]
-    print(f"  graph model vs MuJoCo, |A q'' - B| / |B|: {res['max_translational']:.1e} (forces), "
-          f"{res['max_rotational']:.1e} (moments) over {res['rows_evaluated']} body-rows; "
-          f"{len(res['rows_not_evaluated'])} body-rows near gimbal lock not evaluated")
-    lg = results["lagrange"]
-    normal = lg["formulations"]["normal"]
-    print(f"  constrained dynamics (Eq. 111) vs MuJoCo: accelerations "
-          f"{normal['acceleration_check_max_rel_error']:.1e}, joint reactions "
-          f"{normal['reaction_check_max_rel_error']:.1e} over {lg['rows_evaluated']} rows; the paper's "
-          f"axis constraints leave Phi_q rank {lg['formulations']['paper']['rank_Phi_q_min']} of "
-          f"{lg['formulations']['paper']['rows']}")
-    if lg["forward_simulation"]:
-        fw = lg["forward_simulation"]
-        print(f"  constrained model integrated over the run: largest joint deviation from MuJoCo "
-              f"{max(fw['max_joint_deviation'].values()):.1e}, position {fw['max_position_deviation']:.1e} m")
-    tq = results["torques"]
-    pairs = ", ".join(f"{k.replace('_vs_', ' vs ')} {tq[k]['max_rel_error']:.1e}"
-                      for k in ("graph_vs_pinocchio", "graph_vs_mujoco", "pinocchio_vs_mujoco"))
-    print(f"  joint torques, largest relative error (of the joint's load): {pairs}")
-    ident = results["identification"]
-    digits = ident["significant_digits"]
-    print(f"  identification from {len(ident['sample_times'])} samples"
-          f"{f' at {digits} significant digits' if digits else ' (ideal measurements)'}: "
-          f"largest relative error {ident['max_abs_rel_error']:.1e}; not identifiable: "
-          f"{', '.join(ident['not_identifiable']) or 'none'}")
-    print(f"  wrote {out / RECORDING_FILE} and {out / RESULTS_FILE}")
+    name = results["scenario"]["name"]
+    verdict = "PASSED" if results["passed"] else "FAILED"
+    print(f"{name}: {verdict} ({sum(g['passed'] for g in results['gates'])} of {len(results['gates'])} gates)")
+    _print_gates(results["gates"])
+    print(f"  report: {out / REPORT_FILE}")
+
+
+def _print_gates(rows: list[dict]) -> None:
+    for g in rows:
+        sign = "<=" if g["direction"] == "at_most" else ">="
+        value = "missing" if g["value"] is None else f"{g['value']:.3g}"
+        mark = "pass" if g["passed"] else "FAIL"
+        print(f"  {mark}  {g['name']}: {value} {sign} {g['limit']:.3g}"
+              + (f"  ({g['reason']})" if g["reason"] else ""))
+
+
+def _read_results(path: Path) -> dict:
+    try:
+        results = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise InputError(path, "", "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, "", f"cannot read file ({exc})") from None
+    except json.JSONDecodeError as exc:
+        raise InputError(path, "", f"invalid JSON: {exc}") from None
+    if not isinstance(results, dict) or results.get("schema", {}).get("name") != "harness-results":
+        raise InputError(path, "schema", "not a results.json written by harness")
+    return results
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from harness.report import write_report
+
+    results = _read_results(args.results)
+    recording = args.results.parent / results.get("recording", {}).get("file", "recording.csv")
+    if not recording.is_file():
+        raise InputError(recording, "", "file not found (the report needs the recording beside results.json)")
+    out = args.out or args.results.parent / REPORT_FILE
+    try:
+        write_report(results, args.results.parent, out)
+    except (KeyError, TypeError) as exc:
+        raise InputError(args.results, str(exc).strip("'"), "missing or malformed in results.json") from None
+    print(f"wrote {out}")
+    return EXIT_OK
+
+
+def cmd_gate(args: argparse.Namespace) -> int:
+    from harness.gates import check, from_results, read_gates
+
+    gates = None
+    if args.scenario is not None:
+        root = Table(read_toml(args.scenario), args.scenario)
+        gates = read_gates(root.tables("gates")) if root.has("gates") else ()
+    passed = True
+    for path in args.results:
+        results = _read_results(path)
+        rows, ok = check(gates if gates is not None else from_results(results), results)
+        print(f"{results.get('scenario', {}).get('name', path)}: {'PASSED' if ok else 'FAILED'} "
+              f"({sum(r['passed'] for r in rows)} of {len(rows)} gates)")
+        _print_gates(rows)
+        passed &= ok
+    return EXIT_OK if passed else EXIT_GATE_FAILED
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    for folder, key in (("models", "model"), ("scenarios", "scenario")):
+        files = sorted(Path(folder).glob("*.toml"))
+        print(f"{folder}/ ({len(files)})")
+        for f in files:
+            try:
+                section = read_toml(f).get(key, {})
+                text = section.get("description", "")
+            except InputError as exc:
+                text = f"(unreadable: {exc.message})"
+            print(f"  {f.stem:<24} {text}")
+    return EXIT_OK
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
-        return {"run": cmd_run}[args.command](args)
+        return {"run": cmd_run, "report": cmd_report, "gate": cmd_gate, "list": cmd_list}[args.command](args)
     except InputError as exc:
         print(f"harness: error: {exc.one_line()}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # the reader went away (| head): stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_GATE_FAILED
 
 
 if __name__ == "__main__":  # pragma: no cover

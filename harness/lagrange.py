@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.cardano import A_0i, D
+from harness.cardano import GIMBAL_COND_D, A_0i, D, cond_D
 from harness.graph.constrained import Constrained, solve_constrained
 from harness.graph.constraints import ConstraintSet, build_constraints
 from harness.graph.dynamics import GraphModel, body_series
@@ -34,28 +34,36 @@ class LagrangeOutput:
     open_loop: ForwardResult | None  # without it, stopped once 1e-6 away
 
 
-def _formulation(scenario: Scenario, model: GraphModel, rec: Recording, name: str) -> Formulation:
-    cs = build_constraints(scenario.robot, model.topology, name)
-    sol = solve_constrained(scenario.robot, model, cs, rec, body_series(rec, model.topology))
+def _formulation(spec: RobotSpec, model: GraphModel, rec: Recording, name: str) -> Formulation:
+    cs = build_constraints(spec, model.topology, name)
+    sol = solve_constrained(spec, model, cs, rec, body_series(rec, model.topology))
+    # axis-row rank wherever Cardano angles are regular (Eq. 111 may still be singular there)
+    well = np.all(cond_D(body_series(rec, model.topology).theta) <= GIMBAL_COND_D, axis=1)
     deficient = {}
     for joint in model.topology.joints:
         rows = [k for k, lab in enumerate(cs.labels) if lab.startswith(f"{joint}.axis")]
-        sv = np.linalg.svd(sol.Phi_q[sol.evaluated][:, rows], compute_uv=False)
+        sv = np.linalg.svd(sol.Phi_q[well][:, rows], compute_uv=False)
         deficient[joint] = int(np.sum(sv[:, -1] < 1e-8 * sv[:, 0]))
     return Formulation(cs, sol, float(np.max(np.abs(sol.phi))),
-                       float(np.nanmax(np.abs(sol.phi_dot))), deficient)
+                       float(np.nanmax(np.abs(sol.phi_dot[well]))), deficient)
 
 
-def lagrange(scenario: Scenario, model: GraphModel, rec: Recording) -> LagrangeOutput:
-    forms = {name: _formulation(scenario, model, rec, name) for name in ("normal", "paper")}
+def lagrange(scenario: Scenario, model: GraphModel, rec: Recording, progress=None) -> LagrangeOutput:
+    forms = {name: _formulation(scenario.tested, model, rec, name) for name in ("normal", "paper")}
     lg = scenario.lagrange
     row = None if lg.time is None else round(lg.time / scenario.output_dt)
     forward = open_loop = None
     if lg.forward_simulation:
-        args = (scenario.robot, model, forms["normal"].constraints, rec, rec.meta["drive_stages"],
+        args = (scenario.tested, model, forms["normal"].constraints, rec, rec.meta["drive_stages"],
                 scenario.simulation.timestep, scenario.substeps)
-        forward = forward_simulate(*args, reference=lambda t: scenario.prescribed(t)[:2])
-        open_loop = forward_simulate(*args, stop_above=1e-6)
+
+        def report(what):
+            return None if progress is None else (lambda fraction: progress(what, fraction))
+
+        forward = forward_simulate(*args, reference=lambda t: scenario.prescribed(t)[:2],
+                                   on_progress=report("constrained model, forward simulation"))
+        open_loop = forward_simulate(*args, stop_above=1e-6,
+                                     on_progress=report("constrained model, open-loop replay"))
     return LagrangeOutput(forms, row, forward, open_loop)
 
 

@@ -6,6 +6,7 @@ chains them and gathers the results.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +34,7 @@ class Identification:
     bodies: tuple[str, ...]
     per_body: tuple[LeastSquares, ...]
     system: LeastSquares  # Eqs. 57-64, all bodies at once
-    true: np.ndarray  # (n, 6) the model's values (m, m, m, J11, J22, J33)
+    true: np.ndarray  # (n, 6) the true values (m, m, m, J11, J22, J33)
     sample_times: np.ndarray
     resolution: float  # relative resolution of the measurement the floors were taken at
 
@@ -47,7 +48,7 @@ def _regressor(model: GraphModel, rec: Recording, rows: np.ndarray):
 
 
 def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
-             measurement: Measurement) -> Identification:
+             measurement: Measurement, truth: GraphModel | None = None) -> Identification:
     """Section 2.3: per body (Eq. 56) and for the whole system (Eq. 64).
 
     The regressor's measurement-error floor: id_Y rebuilt from the measured channels moved within
@@ -62,7 +63,8 @@ def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
     Ks, Ls = stack_system(Y, Z)
     names = [f"{b}.{p}" for b in model.topology.bodies for p in PARAMETERS]
     system = solve(Ks, Ls, names, floor.reshape(-1))
-    true = np.column_stack([model.m, model.m, model.m, model.J])
+    truth = truth or model
+    true = np.column_stack([truth.m, truth.m, truth.m, truth.J])
     return Identification(model.topology.bodies, per_body, system, true, t, measurement.resolution)
 
 
@@ -79,14 +81,30 @@ class RunOutput:
     graph_inverse: GraphInverse  # the graph model's inverse dynamics on the recorded motion
 
 
-def run(scenario: Scenario) -> RunOutput:
+Progress = Callable[[str, float | None], None]
+
+
+def _quiet(stage: str, fraction: float | None) -> None:
+    pass
+
+
+def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
+    """The engines are built from the scenario's model (the truth, what MuJoCo simulates); the
+    graph model from the model under test. Identified parameters are compared with the truth."""
+    progress("simulating in MuJoCo", None)
     recording = simulate(scenario)
-    model = build_graph_model(scenario.robot, scenario.gravity_W)
+    g = scenario.gravity_W
+    model = build_graph_model(scenario.tested, g)
+    truth = build_graph_model(scenario.robot, g)
     measured = measure(recording, scenario.measurement)
+    progress("graph model: unconstrained dynamics", None)
     residual = unconstrained_residual(model, body_series(recording, model.topology))
-    identification = identify(model, measured, scenario.sample_rows, scenario.measurement)
-    multipliers = lagrange(scenario, model, recording)
-    pinocchio = rnea_on_recording(scenario.robot, scenario.gravity_W, recording)
-    graph_inverse = inverse_dynamics(scenario.robot, model, recording)
+    progress("identifying parameters", None)
+    identification = identify(model, measured, scenario.sample_rows, scenario.measurement, truth)
+    progress("constraints and Lagrange multipliers", None)
+    multipliers = lagrange(scenario, model, recording, progress)
+    progress("joint torques: Pinocchio RNEA and graph model", None)
+    pinocchio = rnea_on_recording(scenario.robot, g, recording)
+    graph_inverse = inverse_dynamics(scenario.tested, model, recording)
     return RunOutput(scenario, model, recording, measured, residual, identification, multipliers,
                      pinocchio, graph_inverse)

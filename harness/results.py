@@ -1,6 +1,7 @@
 """results.json: the one place its schema is defined.
 
-Top-level sections, in order: `schema`, `scenario`, `model`, `recording`, `graph` (the paper's
+Top-level sections, in order: `schema`, `passed` and `gates` (the verdict), `run` (when, with
+which versions, the scenario file's text), `scenario`, `model`, `recording`, `graph` (the paper's
 matrices and the unconstrained-dynamics residual on the recording), `identification`, `lagrange`
 (constraints, Eq. 111, multipliers, conditioning, forward simulation), `torques` (MuJoCo,
 Pinocchio RNEA and the graph model, and the joint reaction wrenches). Every
@@ -10,12 +11,15 @@ number is finite (NaN or infinity is an error when writing, never a silent `NaN`
 from __future__ import annotations
 
 import json
+import platform
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from harness.compare import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
+from harness.gates import check
 from harness.graph.dynamics import GraphModel, Residual
 from harness.graph.identification import PARAMETERS
 from harness.lagrange import reactions_at
@@ -86,6 +90,7 @@ def recording_section(rec: Recording) -> dict:
               if rec.gimbal[:, i].any()}
     return {
         "file": RECORDING_FILE,
+        "max_tracking_error": max(v["q_max_abs_error"] for v in tracking.values()),
         "rows": len(rec.t),
         "t_start": float(rec.t[0]),
         "t_end": float(rec.t[-1]),
@@ -156,6 +161,7 @@ def identification_section(ident: Identification, scenario: Scenario) -> dict:
                       "with others (harness/identify.py)",
         "max_abs_rel_error": max((abs(r["rel_error"]) for r in identified), default=None),
         "not_identifiable": [f"{r['body']}.{r['name']}" for r in rows if not r["identifiable"]],
+        "not_identifiable_count": sum(not r["identifiable"] for r in rows),
         "parameters": rows,
         "per_body": [{"body": b, "rows": ls.rows, "column_snr": _list(ls.column_snr),
                       "singular_values": _list(ls.singular_values),
@@ -192,8 +198,9 @@ def lagrange_section(out: RunOutput) -> dict:
             "cond_Phi_q": [_finite(c) for c in sol.cond_Phi_q],
             "cond_system": [_finite(c) for c in sol.cond_system],
             "axis_rows_rank_deficient": f.axis_rank_deficient,
-            "acceleration_check_max_rel_error": _finite(np.nanmax(sol.acceleration_error[ev])),
-            "reaction_check_max_rel_error": _finite(np.nanmax(sol.reaction_error[ev])),
+            "rows_solved": int(ev.sum()),
+            "acceleration_check_max_rel_error": _finite(np.max(sol.acceleration_error[ev], initial=-np.inf)),
+            "reaction_check_max_rel_error": _finite(np.max(sol.reaction_error[ev], initial=-np.inf)),
         }
     normal = lg.formulations["normal"].solution
     section = {
@@ -201,7 +208,7 @@ def lagrange_section(out: RunOutput) -> dict:
                       "constrained.py); checks: |[r''; omega'] - recorded| / |recorded| and "
                       "|-Phi_q^T lambda - recorded reactions| / |recorded reactions| per row",
         "rows_evaluated": int(normal.evaluated.sum()),
-        "rows_not_evaluated": [{"t": float(t), "reason": "a body's cond(D) > 100: Eq. 111 singular"}
+        "rows_not_evaluated": [{"t": float(t), "reason": "a body's cond(D) > 100, or Eq. 111 singular"}
                                for t in normal.t[~normal.evaluated]],
         "t": _list(normal.t),
         "formulations": forms,
@@ -226,6 +233,7 @@ def lagrange_section(out: RunOutput) -> dict:
             "method": "quaternions and omega^(i), normal constraint rows, Baumgarte 10/s, RK4 with "
                       "MuJoCo's step and stage torques, plus a correction toward the prescribed "
                       "motion (harness/graph/forward.py)",
+            "largest_joint_deviation": float(fw.q_error.max()),
             "max_joint_deviation": dict(zip(sc.robot.joint_names, _list(fw.q_error), strict=True)),
             "max_position_deviation": fw.r_error,
             "max_abs_phi": fw.max_abs_phi,
@@ -265,9 +273,31 @@ def torques_section(out: RunOutput) -> dict:
     }
 
 
-def build_results(out: RunOutput) -> dict:
+def run_section(out: RunOutput, when: str) -> dict:
+    import matplotlib
+    import mujoco
+    import pandas
+    import pinocchio
+
+    from harness import __version__
+
     return {
+        "time": when,
+        "versions": {"harness": __version__, "python": platform.python_version(), "numpy": np.__version__,
+                     "mujoco": mujoco.__version__, "pinocchio": pinocchio.__version__,
+                     "pandas": pandas.__version__, "matplotlib": matplotlib.__version__},
+        "model_under_test": str(out.scenario.tested.source),
+        "scenario_text": out.scenario.text,
+    }
+
+
+def build_results(out: RunOutput, when: str | None = None) -> dict:
+    """The whole results.json. `when` (ISO time) defaults to now; it is the only field that
+    differs between two runs of the same scenario."""
+    when = when or datetime.now(UTC).isoformat(timespec="seconds")
+    results = {
         "schema": SCHEMA,
+        "run": run_section(out, when),
         "scenario": scenario_section(out.scenario),
         "model": model_section(out.scenario.robot),
         "recording": recording_section(out.recording),
@@ -276,6 +306,9 @@ def build_results(out: RunOutput) -> dict:
         "lagrange": lagrange_section(out),
         "torques": torques_section(out),
     }
+    rows, passed = check(out.scenario.gates, results)
+    return {"schema": SCHEMA, "passed": passed, "gates": rows,
+            **{k: v for k, v in results.items() if k != "schema"}}
 
 
 def write_results(path: Path, results: dict) -> None:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.gates import Gate, read_gates
 from harness.measurement import Measurement, read_measurement
 from harness.motion import Motion, read_motion
 from harness.spec import RobotSpec, load_spec
@@ -66,6 +67,14 @@ class Scenario:
     paper_identified: str | None = None  # reference CSV (harness/reference) of identified values
     paper_abs_error: str | None = None  # reference CSV of the paper's absolute errors
     lagrange: Lagrange = field(default_factory=lambda: Lagrange())
+    gates: tuple[Gate, ...] = ()
+    model_under_test: RobotSpec | None = None  # the model checked against the engines; default: robot
+    text: str = ""  # the scenario file as read, for the report
+
+    @property
+    def tested(self) -> RobotSpec:
+        """The model under test: the graph model is built from it, the engines from `robot`."""
+        return self.model_under_test or self.robot
 
     @property
     def output_dt(self) -> float:
@@ -99,6 +108,7 @@ def load_scenario(path: Path | str) -> Scenario:
     s = root.table("scenario")
     description = s.string("description", default="")
     model_rel = s.string("model")
+    tested_rel = s.string("model_under_test", default=None) if s.has("model_under_test") else None
     gravity = s.vector("gravity", default=[0.0, 0.0, -9.80665])
     duration = s.number("duration", positive=True)
     output_steps = s.integer("output_steps", minimum=1)
@@ -114,11 +124,22 @@ def load_scenario(path: Path | str) -> Scenario:
     if not model_path.is_file():
         raise s.error("model", f"model file {model_rel!r} not found (looked for {model_path})")
     robot = load_spec(model_path)
+    tested = None
+    if tested_rel is not None:
+        tested_path = Path(os.path.normpath(path.parent / tested_rel))
+        if not tested_path.is_file():
+            raise s.error("model_under_test", f"model file {tested_rel!r} not found (looked for {tested_path})")
+        tested = load_spec(tested_path)
+        if (tested.joint_names != robot.joint_names
+                or [b.name for b in tested.bodies] != [b.name for b in robot.bodies]):
+            raise s.error("model_under_test", f"model {tested.name!r} must have the bodies and joints of "
+                                              f"{robot.name!r} (it describes the same robot)")
 
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))
     paper_identified, paper_abs_error = _read_identification(root.table("identification", default={}))
     lagrange = _read_lagrange(root.table("lagrange", default={}), duration, output_steps)
+    gates = read_gates(root.tables("gates")) if root.has("gates") else ()
     motion_table = root.table("motion")
     motion = {}
     for name in motion_table.data:
@@ -145,7 +166,7 @@ def load_scenario(path: Path | str) -> Scenario:
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     return Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                     np.asarray(sample_times), motion, simulation, measurement, paper_identified,
-                    paper_abs_error, lagrange)
+                    paper_abs_error, lagrange, gates, tested, path.read_text())
 
 
 def _reference(t: Table, key: str) -> str | None:

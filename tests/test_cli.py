@@ -15,10 +15,11 @@ from harness.cli import main
 from tests.conftest import MODELS, SCENARIOS
 
 
-def test_run_writes_recording_and_results(kr500_run):
-    assert sorted(p.name for p in kr500_run.iterdir()) == ["recording.csv", "results.json"]
+def test_run_writes_recording_results_and_report(kr500_run):
+    assert sorted(p.name for p in kr500_run.iterdir()) == ["recording.csv", "report.html", "results.json"]
     results = json.loads((kr500_run / "results.json").read_text())
-    assert list(results)[:4] == ["schema", "scenario", "model", "recording"]
+    assert list(results)[:4] == ["schema", "passed", "gates", "run"]
+    assert results["passed"] is True and all(g["passed"] for g in results["gates"])
     assert results["scenario"]["name"] == "kr500_rail"
     assert results["scenario"]["sample_times"] == [0.3, 0.6, 0.9, 1.2, 1.5]
     assert results["model"]["name"] == "kr500"

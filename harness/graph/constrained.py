@@ -107,7 +107,8 @@ def kkt_matrix(M: np.ndarray, Phi_q: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Constrained:
-    """Eq. 111 on the recording, at the rows where every body's cond(D) <= GIMBAL_COND_D."""
+    """Eq. 111 on the recording, at the rows where every body's cond(D) <= GIMBAL_COND_D and the
+    matrix of Eq. 111 is not singular to double precision (cond < 1/eps)."""
 
     t: np.ndarray  # (N,) all rows
     evaluated: np.ndarray  # (N,) bool
@@ -149,6 +150,8 @@ def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: Constrain
     K = kkt_matrix(M, Phi_q)
     cond_Phi, rank_Phi = _cond_rank(Phi_q)
     cond_K, _ = _cond_rank(K)
+    # singular to double precision: no solution is computed (the paper's axis rows in kr500_rail)
+    ok = ok & (cond_K < 1.0 / np.finfo(float).eps)
 
     N, p, m = len(s.t), M.shape[1], Phi_q.shape[1]
     qdd = np.full((N, p), np.nan)

@@ -82,7 +82,8 @@ def composite_inertia(spec: RobotSpec, model: GraphModel) -> np.ndarray:
 def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: ConstraintSet, rec: Recording,
                      drive_stages: np.ndarray, dt: float, substeps: int,
                      reference: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
-                     bandwidth: float = CORRECTION_BANDWIDTH, stop_above: float = np.inf) -> ForwardResult:
+                     bandwidth: float = CORRECTION_BANDWIDTH, stop_above: float = np.inf,
+                     on_progress: Callable[[float], None] | None = None) -> ForwardResult:
     """Integrate from the recording's first row; compare every output row with the recording.
 
     reference(t) -> (q, q') of the spec's joints enables the correction described above."""
@@ -138,6 +139,8 @@ def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: Constraint
         x = np.concatenate([r, Q / np.linalg.norm(Q, axis=1, keepdims=True), v, w], axis=1).ravel()
         if (step + 1) % substeps == 0:
             rows.append(x)
+            if on_progress is not None:
+                on_progress((step + 1) / drive_stages.shape[0])
             X = x.reshape(1, n, 13)
             q_now = joint_state(spec, model, X[..., :3], quaternion.to_matrix(X[..., 3:7]),
                                 X[..., 7:10], X[..., 10:])[0][0]

@@ -1,0 +1,66 @@
+"""report.html: one self-contained file (figures inline as SVG, no scripts, nothing fetched),
+read top to bottom: verdict and gates, model, motion, identification, torques, constraints and
+multipliers, how the run was made."""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+from harness.recording import Recording, read_csv
+from harness.report import sections
+
+STYLE = """
+body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 1rem auto; padding: 0 1rem; color: #222; }
+h1 { font-size: 1.5rem; } h2 { border-bottom: 1px solid #ccc; margin-top: 2rem; } h3 { font-size: 1rem; }
+table { border-collapse: collapse; font-size: 0.8rem; margin: 0.5rem 0; }
+th, td { border: 1px solid #ddd; padding: 0.15rem 0.4rem; text-align: right; vertical-align: top; }
+th { background: #f4f4f4; } td:first-child, th:first-child { text-align: left; }
+.verdict { font-size: 2rem; font-weight: bold; padding: 0.4rem 1rem; display: inline-block; border-radius: 0.3rem; }
+.pass { background: #d8f5d8; color: #145214; } .fail { background: #fbd9d9; color: #7a1010; }
+.ok { color: #145214; } .bad { color: #9b1111; font-weight: bold; } .warn { color: #7a4b00; }
+figure { margin: 0.8rem 0; } figure svg { max-width: 100%; height: auto; }
+figcaption { font-size: 0.8rem; color: #555; }
+pre { background: #f7f7f7; padding: 0.5rem; font-size: 0.75rem; overflow-x: auto; }
+nav a { margin-right: 0.8rem; font-size: 0.85rem; }
+"""
+
+NAV = [
+    ("verdict", "Verdict"),
+    ("model", "Model"),
+    ("motion", "Motion"),
+    ("identification", "Identification"),
+    ("torques", "Torques"),
+    ("lagrange", "Constraints"),
+    ("how", "How the run was made"),
+]
+
+
+def render(results: dict, rec: Recording) -> str:
+    name = results["scenario"]["name"]
+    body = "".join(
+        [
+            sections.verdict(results),
+            sections.model(results),
+            sections.motion(results, rec),
+            sections.identification(results),
+            sections.torques(results),
+            sections.lagrange(results, rec),
+            sections.how(results),
+        ]
+    )
+    nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in NAV)
+    return (
+        f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(name)}: '
+        f"{'PASSED' if results['passed'] else 'FAILED'}</title><style>{STYLE}</style></head><body>"
+        f"<h1>{html.escape(name)}</h1><p>{html.escape(results['scenario']['description'])}</p>"
+        f"<nav>{nav}</nav>{body}</body></html>\n"
+    )
+
+
+def write_report(results: dict, results_dir: Path, out: Path | None = None) -> Path:
+    """Render from a results.json's content and the recording.csv beside it."""
+    rec = read_csv(Path(results_dir) / results["recording"]["file"])
+    out = out or Path(results_dir) / "report.html"
+    out.write_text(render(results, rec))
+    return out

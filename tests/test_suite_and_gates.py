@@ -1,0 +1,193 @@
+"""The scenario suite, the gates, and the commands around results.json (report, gate, list)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from harness.cli import main
+from harness.gates import Gate, check
+from harness.results import build_results
+from tests.conftest import ROOT, SCENARIOS
+
+ALL_SCENARIOS = sorted(SCENARIOS.glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", ALL_SCENARIOS, ids=[p.stem for p in ALL_SCENARIOS])
+def test_every_scenario_passes_its_gates(run_scenario, path):
+    results = build_results(run_scenario(path))
+    failing = [(g["name"], g["value"], g["limit"]) for g in results["gates"] if not g["passed"]]
+    assert results["gates"], "a scenario without gates checks nothing"
+    assert results["passed"] and not failing, failing
+
+
+def test_gates_fail_closed():
+    results = {"a": {"b": 1e-12, "nan": float("nan"), "text": "x"}}
+    rows, passed = check(
+        [
+            Gate("ok", "a.b", 1e-9),
+            Gate("missing", "a.c", 1e-9),
+            Gate("nan", "a.nan", 1e-9),
+            Gate("text", "a.text", 1e-9),
+            Gate("floor", "a.b", 1e-6, "at_least"),
+        ],
+        results,
+    )
+    assert [r["passed"] for r in rows] == [True, False, False, False, False]
+    assert rows[1]["reason"] == "missing" and not passed
+
+
+def test_same_scenario_twice_gives_the_same_results_but_for_the_time(run_scenario):
+    from harness.pipeline import run
+    from harness.scenario import load_scenario
+
+    path = SCENARIOS / "kr500_rail_7digits.toml"
+    first = build_results(run_scenario(path), when="first")
+    second = build_results(run(load_scenario(path)), when="second")
+    first["run"]["time"] = second["run"]["time"] = None
+    assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
+
+
+@pytest.fixture(scope="module")
+def fast_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("fast") / "kr500_rail_7digits"
+    assert main(["run", str(SCENARIOS / "kr500_rail_7digits.toml"), "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_report_command_re_renders_the_same_report(fast_run, tmp_path):
+    again = tmp_path / "again.html"
+    assert main(["report", str(fast_run / "results.json"), "--out", str(again)]) == 0
+    assert again.read_text() == (fast_run / "report.html").read_text()
+
+
+def test_gate_command_rechecks_and_fails_on_a_missing_metric(fast_run, tmp_path, capsys):
+    assert main(["gate", str(fast_run / "results.json")]) == 0
+    edited = tmp_path / "edited.toml"
+    edited.write_text(
+        '[[gates]]\nmetric = "identification.max_abs_rel_error"\nlimit = 1e-9\n\n'
+        '[[gates]]\nmetric = "torques.no_such_metric"\nlimit = 1.0\n'
+    )
+    capsys.readouterr()
+    assert main(["gate", str(fast_run / "results.json"), "--scenario", str(edited)]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL  identification.max_abs_rel_error" in out and "FAIL  torques.no_such_metric: missing" in out
+
+
+def test_a_broken_model_fails_the_run_and_the_report_says_where(tmp_path, capsys):
+    """The model under test has B3's J11 1 % too large; MuJoCo and Pinocchio simulate the true
+    robot. The run exits 1 and the failing gates and the worst joint are in the report."""
+    (tmp_path / "models").mkdir()
+    (tmp_path / "scenarios").mkdir()
+    truth = (ROOT / "models" / "kr500.toml").read_text()
+    (tmp_path / "models" / "kr500.toml").write_text(truth)
+    start = truth.index('name = "B3"')
+    wrong = truth[:start] + truth[start:].replace(
+        'shape = "cylinder"\nlength = 1.21\nradius = 0.2\ndensity = 7801.0',
+        'shape = "explicit"\nmass = 1186.1661\ninertia = [23.96053, 156.5838, 156.5838]',
+        1,
+    )
+    assert wrong != truth
+    (tmp_path / "models" / "kr500_wrong.toml").write_text(wrong.replace('name = "kr500"', 'name = "kr500_wrong"'))
+    text = (
+        (SCENARIOS / "kr500_rail_all_steps.toml")
+        .read_text()
+        .replace(
+            'model = "../models/kr500.toml"',
+            'model = "../models/kr500.toml"\nmodel_under_test = "../models/kr500_wrong.toml"',
+        )
+    )
+    (tmp_path / "scenarios" / "broken.toml").write_text(text)
+    out = tmp_path / "out"
+    assert main(["run", str(tmp_path / "scenarios" / "broken.toml"), "--out", str(out), "--quiet"]) == 1
+    printed = capsys.readouterr().out
+    assert "broken: FAILED" in printed and "FAIL  torques: graph model vs MuJoCo" in printed
+    assert "pass  torques: Pinocchio vs MuJoCo" in printed  # the engines agree: the model is at fault
+    results = json.loads((out / "results.json").read_text())
+    worst = results["torques"]["graph_vs_mujoco"]
+    assert worst["max_rel_error"] > 1e-6 and worst["max_rel_joint"] in {"O1", "O2", "O3", "O4", "rail"}
+    report = (out / "report.html").read_text()
+    assert "FAILED" in report and "kr500_wrong.toml" in report
+
+
+def test_a_sign_flipped_in_the_graph_model_fails_the_run(tmp_path, monkeypatch, capsys):
+    """One sign flipped in the gyroscopic term of Eq. 37 (the skew matrix of the graph model)."""
+    import harness.graph.constrained
+    import harness.graph.dynamics
+
+    flipped = lambda v, f=harness.graph.dynamics.skew: -f(v)  # noqa: E731
+    monkeypatch.setattr(harness.graph.dynamics, "skew", flipped)
+    monkeypatch.setattr(harness.graph.constrained, "skew", flipped)
+    out = tmp_path / "out"
+    assert main(["run", str(SCENARIOS / "kr500_rail_all_steps.toml"), "--out", str(out), "--quiet"]) == 1
+    printed = capsys.readouterr().out
+    assert "FAIL  graph model, unconstrained dynamics: moments" in printed
+
+
+def test_list_and_help(capsys):
+    cwd = os.getcwd()
+    try:
+        os.chdir(ROOT)
+        capsys.readouterr()
+        assert main(["list"]) == 0
+        listing = capsys.readouterr().out
+    finally:
+        os.chdir(cwd)
+    for path in ALL_SCENARIOS:
+        assert path.stem in listing
+    assert "kr500" in listing
+    says = {
+        "": "exit status",
+        "run": "report.html",
+        "report": "without simulating",
+        "gate": "Exit status 1",
+        "list": "One line per model",
+    }
+    for command, phrase in says.items():
+        with pytest.raises(SystemExit) as exit_:
+            main([command, "--help"] if command else ["--help"])
+        assert exit_.value.code == 0
+        assert phrase in capsys.readouterr().out, command
+
+
+def _chromium() -> str | None:
+    return shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def test_report_renders_in_a_headless_browser(fast_run, tmp_path):
+    """Debian's Chromium opens the report offline and shows the verdict and the figures."""
+    browser = _chromium()
+    if browser is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is required in CI (.ci/run installs it)")
+        pytest.skip("chromium not installed")
+    flags = [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp_path / 'profile'}",
+    ]
+    url = (fast_run / "report.html").resolve().as_uri()
+    dom = subprocess.run(
+        [browser, *flags, "--dump-dom", url], capture_output=True, text=True, timeout=120, check=True
+    ).stdout
+    assert '<div class="verdict pass" id="verdict">PASSED</div>' in dom
+    assert dom.count("<svg") >= 6
+    shot = tmp_path / "report.png"
+    subprocess.run(
+        [browser, *flags, "--window-size=1200,3000", f"--screenshot={shot}", url],
+        capture_output=True,
+        timeout=120,
+        check=True,
+    )
+    assert shot.stat().st_size > 50_000  # a rendered page, not a blank one
