@@ -62,14 +62,17 @@ def measure(rec: Recording, m: Measurement) -> Recording:
 def dither(rec: Recording, resolution: float, rng: np.random.Generator) -> Recording:
     """A recording as different from `rec` as the measurement's resolution allows.
 
-    Every component of a vector channel (a force, an acceleration, the three angles of a body) is
-    moved by up to `resolution` times the size of its vector, drawn uniformly: the error of a
-    computed or rounded component scales with the quantity it belongs to (a component that is
-    zero in exact arithmetic comes out of an engine as round-off of that size, not as zero).
-    Scalar channels move by up to `resolution` times their own size."""
+    Every value of a channel is moved by up to `resolution` times the largest value of that
+    channel at that instant (the largest force over the joints, the largest acceleration over the
+    bodies, ...), drawn uniformly: an engine computes every body's quantities together, and a
+    component that is zero in exact arithmetic comes out as round-off of that size, not as zero.
+    Rounding to N digits moves a value by at most `resolution` times itself, which is no more."""
     moved = {}
     for c in CHANNELS:
         x = getattr(rec, c)
-        size = np.linalg.norm(x, axis=-1, keepdims=True) if x.ndim == 3 else np.abs(x)
+        if x.ndim == 3:
+            size = np.max(np.linalg.norm(x, axis=-1), axis=1)[:, None, None]
+        else:
+            size = np.max(np.abs(x), axis=1)[:, None]
         moved[c] = x + resolution * size * rng.uniform(-1.0, 1.0, x.shape)
     return dataclasses.replace(rec, R_WB=None, **moved)

@@ -120,11 +120,33 @@ class Sinusoids:
         return " + ".join([f"{self.offset:g}"] + terms)
 
 
+@dataclass(frozen=True)
+class Exponential:
+    """q = offset + amplitude exp(rate t)."""
+
+    amplitude: float
+    rate: float
+    offset: float = 0.0
+    kind: ClassVar[str] = "exponential"
+
+    @classmethod
+    def from_table(cls, t: Table) -> Exponential:
+        return cls(t.number("amplitude"), t.number("rate"), t.number("offset", default=0.0))
+
+    def evaluate(self, t):
+        e = self.amplitude * np.exp(self.rate * np.asarray(t, dtype=float))
+        return self.offset + e, self.rate * e, self.rate**2 * e
+
+    def describe(self) -> str:
+        return f"{self.offset:g} + {self.amplitude:g} exp({self.rate:g} t)"
+
+
 def _pairs(t: Table, name: str) -> tuple[tuple[float, float], ...]:
     return tuple((float(a), float(w)) for a, w in t.rows(name, columns=2, default=[]))
 
 
-MOTION_TYPES: dict[str, type] = {m.kind: m for m in (Locked, ConstantAcceleration, Polynomial, Sinusoids)}
+MOTION_TYPES: dict[str, type] = {m.kind: m for m in (Locked, ConstantAcceleration, Polynomial, Sinusoids,
+                                                      Exponential)}
 
 
 def read_motion(t: Table) -> Motion:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.claims import design_claims
 from harness.engines.mujoco import simulate
 from harness.engines.pinocchio import InverseDynamics, rnea_on_recording
 from harness.graph.dynamics import (
@@ -27,6 +28,7 @@ from harness.lagrange import LagrangeOutput, lagrange
 from harness.measurement import Measurement, dither, measure
 from harness.recording import Recording
 from harness.scenario import Scenario
+from harness.yahya2012 import audit_inertia_matrix
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +81,8 @@ class RunOutput:
     lagrange: LagrangeOutput  # sections 2.4-2.5 on the ideal recording
     pinocchio: InverseDynamics  # RNEA on the recorded motion
     graph_inverse: GraphInverse  # the graph model's inverse dynamics on the recorded motion
+    design_comparison: dict | None = None  # claims against another design on the same path
+    audit: dict | None = None  # a paper's printed inertia matrix against CRBA
 
 
 Progress = Callable[[str, float | None], None]
@@ -106,5 +110,15 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
     progress("joint torques: Pinocchio RNEA and graph model", None)
     pinocchio = rnea_on_recording(scenario.robot, g, recording)
     graph_inverse = inverse_dynamics(scenario.tested, model, recording)
+    comparison = audit = None
+    if scenario.design_comparison is not None:
+        dc = scenario.design_comparison
+        progress(f"baseline design: simulating {dc.baseline.name}", None)
+        comparison = design_claims(scenario.robot, recording, simulate(dc.baseline), list(dc.shared_motor),
+                                   dc.baseline_joint)
+        comparison["baseline"] = dc.baseline.name
+    if scenario.audit == "yahya2012":
+        progress("auditing the printed inertia matrix", None)
+        audit = audit_inertia_matrix(scenario.robot)
     return RunOutput(scenario, model, recording, measured, residual, identification, multipliers,
-                     pinocchio, graph_inverse)
+                     pinocchio, graph_inverse, comparison, audit)

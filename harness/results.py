@@ -129,9 +129,18 @@ def graph_section(model: GraphModel, residual: Residual) -> dict:
     }
 
 
+def parameter_scale(true: np.ndarray) -> np.ndarray:
+    """What a parameter's error is relative to: its true value, or, where that is zero (a thin
+    rod about its own axis, a point mass), the largest true value of its kind in the model."""
+    kinds = np.array([0, 0, 0, 1, 1, 1])
+    largest = np.array([np.max(np.abs(true[:, kinds == k])) for k in (0, 1)])[kinds]
+    return np.where(true != 0.0, np.abs(true), largest)
+
+
 def identification_section(ident: Identification, scenario: Scenario) -> dict:
     paper = reference_table(scenario.paper_identified) if scenario.paper_identified else {}
     paper_err = reference_table(scenario.paper_abs_error) if scenario.paper_abs_error else {}
+    scale = parameter_scale(ident.true)
     rows = []
     for i, body in enumerate(ident.bodies):
         ls = ident.per_body[i]
@@ -142,7 +151,7 @@ def identification_section(ident: Identification, scenario: Scenario) -> dict:
                 "body": body, "name": name, "true": true,
                 "identified": float(x) if ok else None,
                 "abs_error": float(x - true) if ok else None,
-                "rel_error": float((x - true) / true) if ok else None,
+                "rel_error": float((x - true) / scale[i, c]) if ok else None,
                 "identifiable": ok, "reason": ls.reasons[c],
                 "paper_identified": paper.get((body, name)),
                 "paper_abs_error": paper_err.get((body, name)),
@@ -153,6 +162,8 @@ def identification_section(ident: Identification, scenario: Scenario) -> dict:
     both = sys.identifiable & np.concatenate([ls.identifiable for ls in ident.per_body])
     return {
         "method": "least squares per body (Eq. 56) and for the whole system (Eq. 64)",
+        "rel_error_definition": "(identified - true) / |true|; where the true value is zero, relative to the "
+                                "largest true value of the same kind (mass or moment of inertia) in the model",
         "sample_times": _list(ident.sample_times),
         "significant_digits": scenario.measurement.significant_digits,
         "measurement_resolution": ident.resolution,
@@ -173,7 +184,7 @@ def identification_section(ident: Identification, scenario: Scenario) -> dict:
             "same_verdicts_as_per_body": bool(np.array_equal(
                 sys.identifiable, np.concatenate([ls.identifiable for ls in ident.per_body]))),
             "max_rel_difference_from_per_body": float(np.max(
-                np.abs(sys.x[both] - per_body_x[both]) / ident.true.reshape(-1)[both], initial=0.0)),
+                np.abs(sys.x[both] - per_body_x[both]) / scale.reshape(-1)[both], initial=0.0)),
         },
     }
 
@@ -306,6 +317,10 @@ def build_results(out: RunOutput, when: str | None = None) -> dict:
         "lagrange": lagrange_section(out),
         "torques": torques_section(out),
     }
+    if out.design_comparison is not None:
+        results["design_comparison"] = out.design_comparison
+    if out.audit is not None:
+        results["inertia_matrix_audit"] = out.audit
     rows, passed = check(out.scenario.gates, results)
     return {"schema": SCHEMA, "passed": passed, "gates": rows,
             **{k: v for k, v in results.items() if k != "schema"}}

@@ -52,6 +52,15 @@ class Lagrange:
 
 
 @dataclass(frozen=True, eq=False)
+class DesignComparison:
+    """Another design on the same path, and the joints that share one motor in this design."""
+
+    baseline: Scenario
+    shared_motor: tuple[str, ...]
+    baseline_joint: str
+
+
+@dataclass(frozen=True, eq=False)
 class Scenario:
     name: str
     description: str
@@ -70,6 +79,8 @@ class Scenario:
     gates: tuple[Gate, ...] = ()
     model_under_test: RobotSpec | None = None  # the model checked against the engines; default: robot
     text: str = ""  # the scenario file as read, for the report
+    design_comparison: DesignComparison | None = None
+    audit: str | None = None  # a paper's printed inertia matrix to audit ("yahya2012")
 
     @property
     def tested(self) -> RobotSpec:
@@ -140,6 +151,13 @@ def load_scenario(path: Path | str) -> Scenario:
     paper_identified, paper_abs_error = _read_identification(root.table("identification", default={}))
     lagrange = _read_lagrange(root.table("lagrange", default={}), duration, output_steps)
     gates = read_gates(root.tables("gates")) if root.has("gates") else ()
+    comparison = (_read_comparison(root.table("design_comparison"), path, robot)
+                  if root.has("design_comparison") else None)
+    audit = None
+    if root.has("audit"):
+        at = root.table("audit")
+        audit = at.string("inertia_matrix", choices=("yahya2012",))
+        at.finish()
     motion_table = root.table("motion")
     motion = {}
     for name in motion_table.data:
@@ -166,7 +184,7 @@ def load_scenario(path: Path | str) -> Scenario:
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     return Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                     np.asarray(sample_times), motion, simulation, measurement, paper_identified,
-                    paper_abs_error, lagrange, gates, tested, path.read_text())
+                    paper_abs_error, lagrange, gates, tested, path.read_text(), comparison, audit)
 
 
 def _reference(t: Table, key: str) -> str | None:
@@ -203,3 +221,19 @@ def _read_simulation(t: Table) -> Simulation:
     )
     t.finish()
     return sim
+
+
+def _read_comparison(t: Table, path: Path, robot: RobotSpec) -> DesignComparison:
+    rel = t.string("baseline")
+    base_path = Path(os.path.normpath(path.parent / rel))
+    if not base_path.is_file():
+        raise t.error("baseline", f"scenario file {rel!r} not found (looked for {base_path})")
+    if base_path.resolve() == path.resolve():
+        raise t.error("baseline", "a scenario cannot be its own baseline")
+    baseline = load_scenario(base_path)
+    if baseline.robot.joint_names != robot.joint_names:
+        raise t.error("baseline", f"{rel!r} has other joints than {robot.name!r}")
+    shared = t.strings("shared_motor", choices=tuple(robot.joint_names))
+    joint = t.string("shared_motor_baseline_joint", choices=tuple(robot.joint_names))
+    t.finish()
+    return DesignComparison(baseline, shared, joint)

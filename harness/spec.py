@@ -7,8 +7,14 @@ Inertias of homogeneous cylinders follow from geometry (paper section 2.2, Eq. 2
 
     m = rho pi R^2 l,   J11 = m R^2 / 2,   J22 = J33 = m (3 R^2 + l^2) / 12,
 
-with the cylinder's axis along e1(i). A body may also state its mass and principal moments, or be
-massless (a carriage that only carries a joint).
+with the cylinder's axis along e1(i). A body may also be a thin rod along e1(i)
+(J11 = 0, J22 = J33 = m l^2 / 12), a point mass (all moments zero), state its mass and principal
+moments, or be massless (a carriage that only carries a joint).
+
+A model may instead be given by Denavit-Hartenberg parameters (`[dh]`, standard convention
+T = Rz(theta) Tz(d) Tx(a) Rx(alpha)): link i turns about z(i-1) at the origin of frame i-1, a rod
+link spans a_i along x(i) and ends at the origin of frame i, with its centre of mass at its
+middle; a point link sits at the origin of frame i.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from harness.tomlio import InputError, Table, read_toml
 
 WORLD = "world"
 JOINT_TYPES = ("revolute", "prismatic")
-BODY_SHAPES = ("cylinder", "explicit", "massless")
+BODY_SHAPES = ("cylinder", "rod", "point", "explicit", "massless")
 _ORTHO_TOL = 1e-9
 
 
@@ -92,6 +98,7 @@ class RobotSpec:
     source: Path
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
+    dh: tuple[tuple[float, float, float, float], ...] | None = None  # (alpha, a, d, theta) when given
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -135,18 +142,22 @@ def load_spec(path: Path | str) -> RobotSpec:
     name = model.string("name")
     description = model.string("description", default="")
     model.finish()
-    body_tables, joint_tables = root.tables("bodies"), root.tables("joints")
+    dh = None
+    if root.has("dh"):
+        bodies, joints, body_tables, joint_tables, dh = _read_dh(root.table("dh"))
+    else:
+        body_tables, joint_tables = root.tables("bodies"), root.tables("joints")
+        bodies = [_read_body(t) for t in body_tables]
+        joints = [_read_joint(t) for t in joint_tables]
     root.finish()
 
-    bodies = [_read_body(t) for t in body_tables]
-    joints = [_read_joint(t) for t in joint_tables]
     _check_unique([b.name for b in bodies], body_tables, "body")
     _check_unique([j.name for j in joints], joint_tables, "joint")
     order = _check_tree(bodies, joints, body_tables, joint_tables)
     bodies_by_name = {b.name: b for b in bodies}
     ordered_bodies = tuple(bodies_by_name[n] for n in order)
     ordered_joints = tuple(sorted(joints, key=lambda j: order.index(j.child)))
-    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints)
+    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh)
     _check_massless(spec, {t.data.get("name"): t for t in body_tables})
     return spec
 
@@ -172,6 +183,10 @@ def _read_body(t: Table) -> Body:
             cylinder = Cylinder(t.number("length", positive=True), t.number("radius", positive=True),
                                 t.number("density", positive=True))
             mass, inertia = cylinder.mass, cylinder.principal_inertia
+        elif shape in ("rod", "point"):
+            mass = t.number("mass", positive=True)
+            length = t.number("length", positive=True) if shape == "rod" else 0.0
+            inertia = np.array([0.0, 1.0, 1.0]) * mass * length**2 / 12.0
         else:
             mass = t.number("mass", positive=True)
             inertia = t.vector("inertia")
@@ -181,9 +196,55 @@ def _read_body(t: Table) -> Body:
                 raise t.error("inertia", "principal moments violate the triangle inequality "
                                          f"(J11 <= J22 + J33 and cyclic), got {inertia.tolist()}")
         p_W_com = t.vector("com")
-        R_WB = _frame(t)
+        R_WB = _frame(t) if shape != "point" or t.has("e1") else np.eye(3)
     t.finish()
     return Body(name, mass, np.diag(inertia), R_WB, p_W_com, cylinder)
+
+
+def dh_transform(alpha: float, a: float, d: float, theta: float) -> np.ndarray:
+    """Standard Denavit-Hartenberg: T = Rz(theta) Tz(d) Tx(a) Rx(alpha), 4 x 4."""
+    ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
+    return np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
+                     [0.0, sa, ca, d], [0.0, 0.0, 0.0, 1.0]])
+
+
+def _read_dh(t: Table) -> tuple[list[Body], list[Joint], list[Table], list[Table], tuple]:
+    """A serial chain from DH rows; every joint revolute about z(i-1), zero at theta = 0."""
+    unit = {"degrees": np.pi / 180.0, "radians": 1.0}[t.string("angles", default="radians",
+                                                               choices=("degrees", "radians"))]
+    t.string("convention", default="standard", choices=("standard",))
+    rows = t.tables("links")
+    t.finish()
+    T = np.eye(4)
+    bodies, joints, dh = [], [], []
+    parent = WORLD
+    for row in rows:
+        name = _named(row, "body")
+        joint_name = row.string("joint")
+        alpha, a = row.number("alpha") * unit, row.number("a", nonnegative=True)
+        d, theta = row.number("d"), row.number("theta", default=0.0) * unit
+        shape = row.string("shape", choices=("rod", "point"))
+        mass = row.number("mass", positive=True)
+        row.finish()
+        dh.append((alpha, a, d, theta))
+        axis, origin = T[:3, 2].copy(), T[:3, 3].copy()
+        T = T @ dh_transform(alpha, a, d, theta)
+        if shape == "rod":
+            if a <= 0.0:
+                raise row.error("a", "a rod link needs a > 0 (its length)")
+            com = T[:3, 3] - a / 2 * T[:3, 0]
+            inertia = np.array([0.0, 1.0, 1.0]) * mass * a**2 / 12.0
+        else:
+            com, inertia = T[:3, 3].copy(), np.zeros(3)
+        bodies.append(Body(name, mass, np.diag(inertia), T[:3, :3].copy(), com))
+        joints.append(Joint(joint_name, "revolute", parent, name, origin, axis))
+        parent = name
+    names = [j.name for j in joints]
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise rows[names.index(dup, names.index(dup) + 1)].error("joint", f"duplicate joint name {dup!r}")
+    joint_tables = [Table({"name": j.name}, t.file, f"{r.path}.joint") for j, r in zip(joints, rows, strict=True)]
+    return bodies, joints, rows, joint_tables, tuple(dh)
 
 
 def _frame(t: Table) -> np.ndarray:

@@ -83,6 +83,16 @@ class Table:
             raise self.error(name, f"{value!r} is not one of {', '.join(choices)}")
         return value
 
+    def strings(self, name: str, choices: Sequence[str], default: Any = _MISSING) -> tuple[str, ...]:
+        """A non-empty list of strings, each one of `choices`."""
+        value = self._raw(name, default)
+        if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+            raise self.error(name, "expected a non-empty list of strings")
+        for v in value:
+            if v not in choices:
+                raise self.error(name, f"{v!r} is not one of {', '.join(choices)}")
+        return tuple(value)
+
     def boolean(self, name: str, default: Any = _MISSING) -> bool:
         value = self._raw(name, default)
         if not isinstance(value, bool):

@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.motion import ConstantAcceleration, Locked, Polynomial, Sinusoids
+from harness.motion import ConstantAcceleration, Exponential, Locked, Polynomial, Sinusoids
 
 MOTIONS = [
     Locked(0.3),
     ConstantAcceleration(acceleration=2.0, position=0.1, velocity=-0.4),
     Polynomial((0.5, -1.0, 0.25, 0.125, -0.0625)),
     Sinusoids(offset=0.2, sin=((0.5, 3.0), (0.1, 7.0)), cos=((0.5, 4.0),)),
+    Exponential(amplitude=1 / 150, rate=0.9, offset=0.1),
 ]
 
 

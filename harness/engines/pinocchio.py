@@ -84,3 +84,17 @@ def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: Recording) ->
     pm = build_model(spec, gravity_W)
     cols = [rec.joint_index(j) for j in spec.joint_names]
     return rnea(pm, rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols])
+
+
+def crba(pm: PinocchioModel, q: np.ndarray) -> np.ndarray:
+    """Joint-space inertia matrix (CRBA) of the spec's joints at each configuration, (N, n, n)."""
+    model = pm.model
+    data = model.createData()
+    out = np.empty((len(q), len(pm.q_index), len(pm.q_index)))
+    full = np.zeros(model.nq)
+    for k, qk in enumerate(q):
+        full[pm.q_index] = qk
+        M = pin.crba(model, data, full)
+        M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
+        out[k] = M[np.ix_(pm.q_index, pm.q_index)]
+    return out

@@ -58,6 +58,8 @@ class BodySeries:
     omegadot_B: np.ndarray  # omega'^(i)
     F_J_W: np.ndarray  # joint resultant force on B_i
     M_J_B: np.ndarray  # joint resultant moment about O_ci, body components
+    F_J_size: np.ndarray  # (N, n) sum of the sizes of the joint forces on B_i
+    M_J_size: np.ndarray  # (N, n) sum of the sizes of the joint moments (about O_ci) on B_i
 
 
 def body_series(rec: Recording, top: Topology, rows: np.ndarray | None = None) -> BodySeries:
@@ -68,12 +70,13 @@ def body_series(rec: Recording, top: Topology, rows: np.ndarray | None = None) -
     theta = rec.theta[rows][:, b]
     A = A_0i(theta)
     A_T = np.swapaxes(A, -1, -2)
-    F_J_W, M_J_W = joint_resultants(top, A, rec.q[rows][:, j], rec.F_W[rows][:, j], rec.M_W[rows][:, j])
+    F_J_W, M_J_W, F_size, M_size = joint_resultants(top, A, rec.q[rows][:, j], rec.F_W[rows][:, j],
+                                                     rec.M_W[rows][:, j])
     return BodySeries(
         t=rec.t[rows], theta=theta, A=A, a_W=rec.a_W[rows][:, b],
         omega_B=np.einsum("niab,nib->nia", A_T, rec.omega_W[rows][:, b]),
         omegadot_B=np.einsum("niab,nib->nia", A_T, rec.omegadot_W[rows][:, b]),
-        F_J_W=F_J_W, M_J_B=np.einsum("niab,nib->nia", A_T, M_J_W))
+        F_J_W=F_J_W, M_J_B=np.einsum("niab,nib->nia", A_T, M_J_W), F_J_size=F_size, M_J_size=M_size)
 
 
 def angle_rates(theta: np.ndarray, omega_B: np.ndarray, omegadot_B: np.ndarray
@@ -134,17 +137,19 @@ class Residual:
 def unconstrained_residual(model: GraphModel, s: BodySeries) -> Residual:
     """A q'' - B at every row where D is well conditioned; the others are listed with cond(D).
 
-    Relative to |B_i| (each part separately); a part whose |B_i| is below 1e-9 of its largest
-    value over the run is measured against that largest value instead."""
+    Relative, each part separately, to the size of the terms summed into B_i: gravity and the
+    joint forces on the body; the gyroscopic term and the joint moments. That is |B_i| or more; for
+    a point mass, whose B_rot vanishes, it is the size of the joint moments that cancel on it."""
     theta_dot, theta_ddot, cond = angle_rates(s.theta, s.omega_B, s.omegadot_B)
     qdd = np.concatenate([s.a_W, theta_ddot], axis=-1)
     A = unconstrained_A(model, s.theta)
     B = unconstrained_B(model, s, theta_dot)
     r = np.einsum("...ab,...b->...a", A, qdd) - B
+    gyro = np.linalg.norm(B[..., 3:] - s.M_J_B, axis=-1)
+    sizes = (np.linalg.norm(model.m[:, None] * model.g_W, axis=-1) + s.F_J_size, gyro + s.M_J_size)
     parts = []
-    for sl in (slice(0, 3), slice(3, 6)):
+    for sl, size in zip((slice(0, 3), slice(3, 6)), sizes, strict=True):
         num = np.linalg.norm(r[..., sl], axis=-1)
-        den = np.linalg.norm(B[..., sl], axis=-1)
-        floor = 1e-9 * np.nanmax(den, axis=0, keepdims=True)
-        parts.append(num / np.maximum(den, floor))
+        den = np.maximum(np.linalg.norm(B[..., sl], axis=-1), size)
+        parts.append(num / np.maximum(den, np.finfo(float).tiny))
     return Residual(s.t, parts[0], parts[1], cond, cond <= GIMBAL_COND_D)

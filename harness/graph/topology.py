@@ -90,8 +90,10 @@ def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarra
     A: (N, n, 3, 3) A(0i) per sample and body; q: (N, n) joint coordinates of O_1..O_n;
     F_W, M_W: (N, n, 3) force and moment (about the joint point) of the inner on the outer body
     across each joint, world components.
-    Returns F_J_W, M_J_W, each (N, n, 3), world components (Eqs. 17, 20, 26)."""
+    Returns F_J_W, M_J_W, each (N, n, 3), world components (Eqs. 17, 20, 26), and the sizes of the
+    terms summed into each, (N, n) each: the scale at which they cancel."""
     C_e_W = np.einsum("nilm,nikm->nikl", A, top.C_e_B(q))  # (N, n, n, 3)
-    F_J_W = -np.einsum("ik,nkl->nil", top.S_e, F_W)
-    M_J_W = -(np.cross(C_e_W, F_W[:, None, :, :]).sum(axis=2) + np.einsum("ik,nkl->nil", top.S, M_W))
-    return F_J_W, M_J_W
+    F_terms = -top.S_e[None, :, :, None] * F_W[:, None, :, :]  # (N, n, n, 3)
+    M_terms = -(np.cross(C_e_W, F_W[:, None, :, :]) + top.S[None, :, :, None] * M_W[:, None, :, :])
+    return (F_terms.sum(axis=2), M_terms.sum(axis=2),
+            np.linalg.norm(F_terms, axis=-1).sum(axis=2), np.linalg.norm(M_terms, axis=-1).sum(axis=2))

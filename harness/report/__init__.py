@@ -16,7 +16,8 @@ h1 { font-size: 1.5rem; } h2 { border-bottom: 1px solid #ccc; margin-top: 2rem; 
 table { border-collapse: collapse; font-size: 0.8rem; margin: 0.5rem 0; }
 th, td { border: 1px solid #ddd; padding: 0.15rem 0.4rem; text-align: right; vertical-align: top; }
 th { background: #f4f4f4; } td:first-child, th:first-child { text-align: left; }
-td { white-space: nowrap; } td:first-child, td small { white-space: normal; } td code { font-size: 0.7rem; }
+td { white-space: nowrap; } table.wrap td, td:first-child, td small { white-space: normal; }
+td code { font-size: 0.7rem; }
 .verdict { font-size: 2rem; font-weight: bold; padding: 0.4rem 1rem; display: inline-block; border-radius: 0.3rem; }
 .pass { background: #d8f5d8; color: #145214; } .fail { background: #fbd9d9; color: #7a1010; }
 .ok { color: #145214; } .bad { color: #9b1111; font-weight: bold; } .warn { color: #7a4b00; }
@@ -39,18 +40,18 @@ NAV = [
 
 def render(results: dict, rec: Recording) -> str:
     name = results["scenario"]["name"]
-    body = "".join(
-        [
-            sections.verdict(results),
-            sections.model(results),
-            sections.motion(results, rec),
-            sections.identification(results),
-            sections.torques(results),
-            sections.lagrange(results, rec),
-            sections.how(results),
-        ]
-    )
-    nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in NAV)
+    parts = [sections.verdict(results), sections.model(results), sections.motion(results, rec),
+             sections.identification(results), sections.torques(results)]
+    nav = NAV[:5]
+    if "design_comparison" in results:
+        parts.append(sections.design_comparison(results))
+        nav.append(("design", "Claims"))
+    if "inertia_matrix_audit" in results:
+        parts.append(sections.inertia_audit(results))
+        nav.append(("audit", "Inertia matrix audit"))
+    parts += [sections.lagrange(results, rec), sections.how(results)]
+    body = "".join(parts)
+    nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in nav + NAV[5:])
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(name)}: '
         f"{'PASSED' if results['passed'] else 'FAILED'}</title><style>{STYLE}</style></head><body>"
