@@ -35,7 +35,7 @@ from harness.yahya2012 import audit_inertia_matrix
 class Identification:
     bodies: tuple[str, ...]
     per_body: tuple[LeastSquares, ...]
-    system: LeastSquares  # Eqs. 57-64, all bodies at once
+    system: LeastSquares | None  # Eqs. 57-64, all bodies at once (None when not asked for)
     true: np.ndarray  # (n, 6) the true values (m, m, m, J11, J22, J33)
     sample_times: np.ndarray
     resolution: float  # relative resolution of the measurement the floors were taken at
@@ -49,22 +49,34 @@ def _regressor(model: GraphModel, rec: Recording, rows: np.ndarray):
     return s.t, id_Y(s, model.g_W), id_Z(s)
 
 
+def measured_rows(measured: Recording, times: np.ndarray) -> np.ndarray:
+    """Rows of a (possibly subsampled) measured recording at the given times."""
+    dt = measured.t[1] - measured.t[0] if len(measured.t) > 1 else 1.0
+    return np.array([int(np.argmin(np.abs(measured.t - ts))) for ts in times
+                     if np.min(np.abs(measured.t - ts)) <= 1e-9 * dt])
+
+
 def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
-             measurement: Measurement, truth: GraphModel | None = None) -> Identification:
+             measurement: Measurement, truth: GraphModel | None = None, with_system: bool = True) -> Identification:
     """Section 2.3: per body (Eq. 56) and for the whole system (Eq. 64).
 
     The regressor's measurement-error floor: id_Y rebuilt from the measured channels moved within
     their resolution (fixed seed, so a run is reproducible); the rms change of each column."""
     t, Y, Z = _regressor(model, measured, rows)
     rng = np.random.default_rng(0)
-    dY = np.stack([_regressor(model, dither(measured, measurement.resolution, rng), rows)[1] - Y
+    dY = np.stack([_regressor(model, dither(measured, measurement, rng), rows)[1] - Y
                    for _ in range(N_DITHER)])
     K, L = stack_per_body(Y, Z)
     floor = np.sqrt(np.mean([np.linalg.norm(stack_per_body(d, Z)[0], axis=1) ** 2 for d in dY], axis=0))
-    per_body = tuple(solve(K[i], L[i], PARAMETERS, floor[i]) for i in range(model.topology.n))
-    Ks, Ls = stack_system(Y, Z)
-    names = [f"{b}.{p}" for b in model.topology.bodies for p in PARAMETERS]
-    system = solve(Ks, Ls, names, floor.reshape(-1))
+    N, n = len(t), model.topology.n
+    sample, channel = np.repeat(np.arange(N), 6), np.tile(np.arange(6), N)  # rows of one body
+    per_body = tuple(solve(K[i], L[i], PARAMETERS, floor[i], sample, channel) for i in range(n))
+    system = None
+    if with_system:
+        Ks, Ls = stack_system(Y, Z)
+        names = [f"{b}.{p}" for b in model.topology.bodies for p in PARAMETERS]
+        system = solve(Ks, Ls, names, floor.reshape(-1), np.repeat(np.arange(N), 6 * n),
+                       np.tile(np.arange(6 * n), N))
     truth = truth or model
     true = np.column_stack([truth.m, truth.m, truth.m, truth.J])
     return Identification(model.topology.bodies, per_body, system, true, t, measurement.resolution)
@@ -104,7 +116,8 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
     progress("graph model: unconstrained dynamics", None)
     residual = unconstrained_residual(model, body_series(recording, model.topology))
     progress("identifying parameters", None)
-    identification = identify(model, measured, scenario.sample_rows, scenario.measurement, truth)
+    identification = identify(model, measured, measured_rows(measured, scenario.sample_times),
+                              scenario.measurement, truth)
     progress("constraints and Lagrange multipliers", None)
     multipliers = lagrange(scenario, model, recording, progress)
     progress("joint torques: Pinocchio RNEA and graph model", None)

@@ -178,6 +178,12 @@ def load_scenario(path: Path | str) -> Scenario:
         if abs(ts / output_dt - round(ts / output_dt)) > _GRID_TOL:
             raise s.error("sample_times", f"sample time {ts:g} s is not on the output grid "
                                           f"(every {output_dt:g} s)")
+    if measurement.every > 1:
+        for ts in sample_times:
+            k = round(ts / output_dt)
+            if k % measurement.every:
+                raise s.error("sample_times", f"sample time {ts:g} s is not measured (measurement.every = "
+                                              f"{measurement.every} keeps every {measurement.every}th output step)")
     ratio = output_dt / simulation.timestep
     if ratio < 1.0 - _GRID_TOL or abs(ratio - round(ratio)) > _GRID_TOL * ratio:
         raise InputError(path, "simulation.timestep",

@@ -183,6 +183,14 @@ def motion(r: dict, rec: Recording) -> str:
     return section("motion", "Motion", mot + "".join(figs) + "<h3>Tracking of the prescribed motion</h3>" + track)
 
 
+def _larger(p: dict) -> str:
+    """Whose absolute error is larger, ours or the paper's (Table 4), where both exist."""
+    if p["abs_error"] is None or p["paper_abs_error"] is None:
+        return "&ndash;"
+    ours, theirs = abs(p["abs_error"]), abs(p["paper_abs_error"])
+    return "ours" if ours > theirs else "paper's" if theirs > ours else "equal"
+
+
 def identification(r: dict) -> str:
     ident = r["identification"]
     rows = []
@@ -195,8 +203,11 @@ def identification(r: dict) -> str:
                 f"{p['identified']:.6f}" if p["identified"] is not None else "&ndash;",
                 num(p["abs_error"]),
                 num(p["rel_error"]),
+                num(p.get("std")),
+                "&ndash;" if not p.get("ci95") else f"[{num(p['ci95'][0])}, {num(p['ci95'][1])}]",
                 num(p["paper_identified"]),
                 num(p["paper_abs_error"]),
+                _larger(p),
                 '<span class="ok">yes</span>'
                 if p["identifiable"]
                 else f'<span class="bad">no</span> <small>{esc(p["reason"])}</small>',
@@ -211,12 +222,15 @@ def identification(r: dict) -> str:
         "Missing bars: not identifiable, or zero. Paper values from its Tables 3 and 4.",
     )
     digits = ident["significant_digits"]
+    noise = r["scenario"]["measurement"].get("noise") or {}
+    noisy = ", ".join(f"{g} {n['relative']:g} relative, {n['absolute']:g} absolute" for g, n in noise.items())
     intro = (
         f"<p>{esc(ident['method'].capitalize())}; {len(ident['sample_times'])} samples at t = "
         f"{esc(', '.join(f'{t:g}' for t in ident['sample_times'][:12]))}"
         f"{' ...' if len(ident['sample_times']) > 12 else ''} s; measurements "
-        f"{'rounded to ' + str(digits) + ' significant digits' if digits else 'ideal (double precision)'}. "
-        f"{esc(ident['excitation'])}.</p>"
+        f"{'rounded to ' + str(digits) + ' significant digits' if digits else 'not rounded'}"
+        f"{esc('; noise: ' + noisy) if noisy else ''}. {esc(ident['excitation'])}. {esc(ident['uncertainty'])}; "
+        f"{esc(ident['rel_error_definition'])}.</p>"
     )
     return section(
         "identification",
@@ -231,8 +245,11 @@ def identification(r: dict) -> str:
                 "identified",
                 "abs error",
                 "rel error",
+                "std",
+                "95 % interval",
                 "paper identified",
                 "paper abs error",
+                "larger error",
                 "identifiable",
             ],
             rows,
@@ -440,6 +457,7 @@ def design_comparison(r: dict) -> str:
         f"proposed: shared motor {' + '.join(dc['shared'])}": np.array(dc["shared_motor"]),
         f"conventional: {dc['baseline_joint']}": conv[:, joints.index(dc["baseline_joint"])],
     }
+
     def show(v):
         if isinstance(v, list):
             return ", ".join(map(str, v)) or "none"
