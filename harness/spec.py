@@ -99,6 +99,7 @@ class RobotSpec:
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
     dh: tuple[tuple[float, float, float, float], ...] | None = None  # (alpha, a, d, theta) when given
+    limits: dict[str, tuple[float, float]] | None = None  # joint position limits, when the source has them
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -142,9 +143,29 @@ def load_spec(path: Path | str) -> RobotSpec:
     name = model.string("name")
     description = model.string("description", default="")
     model.finish()
-    dh = None
+    dh = limits = None
     if root.has("dh"):
         bodies, joints, body_tables, joint_tables, dh = _read_dh(root.table("dh"))
+    elif root.has("urdf"):
+        from harness.urdf import example_robot_data_path, read_urdf
+
+        ut = root.table("urdf")
+        if ut.has("robot") == ut.has("file"):
+            raise ut.error("robot", "give either robot (from example-robot-data) or file")
+        if ut.has("robot"):
+            name_ = ut.string("robot")
+            urdf_path = example_robot_data_path(name_)
+            if urdf_path is None:
+                raise ut.error("robot", f"no robot {name_!r}: is the example-robot-data package installed "
+                                        "(pip install -e '.[robots]')?")
+        else:
+            urdf_path = path.parent / ut.string("file")
+            if not urdf_path.is_file():
+                raise ut.error("file", f"URDF file {urdf_path} not found")
+        ut.finish()
+        bodies, joints, limits = read_urdf(urdf_path, ut)
+        body_tables = [Table({"name": b.name}, path, f"urdf.{b.name}") for b in bodies]
+        joint_tables = [Table({"name": j.name}, path, f"urdf.{j.name}") for j in joints]
     else:
         body_tables, joint_tables = root.tables("bodies"), root.tables("joints")
         bodies = [_read_body(t) for t in body_tables]
@@ -157,7 +178,7 @@ def load_spec(path: Path | str) -> RobotSpec:
     bodies_by_name = {b.name: b for b in bodies}
     ordered_bodies = tuple(bodies_by_name[n] for n in order)
     ordered_joints = tuple(sorted(joints, key=lambda j: order.index(j.child)))
-    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh)
+    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh, limits)
     _check_massless(spec, {t.data.get("name"): t for t in body_tables})
     return spec
 
