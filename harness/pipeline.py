@@ -12,8 +12,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.claims import design_claims
+from harness.compare import joint_load_scale
 from harness.engines.mujoco import simulate
 from harness.engines.pinocchio import InverseDynamics, rnea_on_recording
+from harness.engines.pinocchio import build_model as build_pinocchio
 from harness.graph.dynamics import (
     GraphModel,
     Residual,
@@ -28,6 +30,7 @@ from harness.lagrange import LagrangeOutput, lagrange
 from harness.measurement import Measurement, dither, measure
 from harness.recording import Recording
 from harness.scenario import Scenario
+from harness.torque_id import TorqueIdentification, identify_from_torques
 from harness.yahya2012 import audit_inertia_matrix
 
 
@@ -95,6 +98,7 @@ class RunOutput:
     graph_inverse: GraphInverse  # the graph model's inverse dynamics on the recorded motion
     design_comparison: dict | None = None  # claims against another design on the same path
     audit: dict | None = None  # a paper's printed inertia matrix against CRBA
+    torque_identification: TorqueIdentification | None = None
 
 
 Progress = Callable[[str, float | None], None]
@@ -133,5 +137,15 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
     if scenario.audit == "yahya2012":
         progress("auditing the printed inertia matrix", None)
         audit = audit_inertia_matrix(scenario.robot)
+    torque_id = None
+    if scenario.torque_validation is not None:
+        progress(f"joint-torque identification, validated on {scenario.torque_validation.name}", None)
+        pm = build_pinocchio(scenario.tested, g)
+        cols = [measured.joint_index(j) for j in scenario.robot.joint_names]
+        val = simulate(scenario.torque_validation)
+        torque_id = identify_from_torques(
+            pm, scenario.robot.joint_names, measured.q[:, cols], measured.qd[:, cols], measured.qdd[:, cols],
+            measured.tau[:, cols], (val.q[:, cols], val.qd[:, cols], val.qdd[:, cols], val.tau[:, cols]))
+        torque_id.validation_scale = joint_load_scale(scenario.robot, val)
     return RunOutput(scenario, model, recording, measured, residual, identification, multipliers,
-                     pinocchio, graph_inverse, comparison, audit)
+                     pinocchio, graph_inverse, comparison, audit, torque_id)

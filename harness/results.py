@@ -332,6 +332,11 @@ def build_results(out: RunOutput, when: str | None = None) -> dict:
         results["design_comparison"] = out.design_comparison
     if out.audit is not None:
         results["inertia_matrix_audit"] = out.audit
+    if out.torque_identification is not None:
+        from harness.torque_id import section as torque_id_section
+
+        results["torque_identification"] = torque_id_section(out.torque_identification,
+                                                             out.scenario.torque_validation.name)
     rows, passed = check(out.scenario.gates, results)
     return {"schema": SCHEMA, "passed": passed, "gates": rows,
             **{k: v for k, v in results.items() if k != "schema"}}

@@ -81,6 +81,7 @@ class Scenario:
     text: str = ""  # the scenario file as read, for the report
     design_comparison: DesignComparison | None = None
     audit: str | None = None  # a paper's printed inertia matrix to audit ("yahya2012")
+    torque_validation: Scenario | None = None  # joint-torque identification, validated on this scenario
 
     @property
     def tested(self) -> RobotSpec:
@@ -153,6 +154,17 @@ def load_scenario(path: Path | str) -> Scenario:
     gates = read_gates(root.tables("gates")) if root.has("gates") else ()
     comparison = (_read_comparison(root.table("design_comparison"), path, robot)
                   if root.has("design_comparison") else None)
+    torque_validation = None
+    if root.has("torque_identification"):
+        ti = root.table("torque_identification")
+        rel = ti.string("validation")
+        vpath = Path(os.path.normpath(path.parent / rel))
+        if not vpath.is_file() or vpath.resolve() == path.resolve():
+            raise ti.error("validation", f"{rel!r} must be another scenario file (looked for {vpath})")
+        torque_validation = load_scenario(vpath)
+        if torque_validation.robot.joint_names != robot.joint_names:
+            raise ti.error("validation", f"{rel!r} simulates another robot than {robot.name!r}")
+        ti.finish()
     audit = None
     if root.has("audit"):
         at = root.table("audit")
@@ -190,7 +202,7 @@ def load_scenario(path: Path | str) -> Scenario:
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     return Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                     np.asarray(sample_times), motion, simulation, measurement, paper_identified,
-                    paper_abs_error, lagrange, gates, tested, path.read_text(), comparison, audit)
+                    paper_abs_error, lagrange, gates, tested, path.read_text(), comparison, audit, torque_validation)
 
 
 def _reference(t: Table, key: str) -> str | None:

@@ -1,0 +1,137 @@
+"""Identification from joint torques alone, the standard method of the literature.
+
+tau = W(q, q', q'') theta, with theta the 10 inertial parameters of every joint's body (Pinocchio's
+computeJointTorqueRegressor: m, m c, and the inertia tensor about the joint frame origin, in
+the joint frame: xx, xy, yy, xz, yz, zz). Not every parameter shows in the torques: QR with column
+pivoting of the stacked, column-scaled regressor, W P = Q R, finds its rank r (|R_ii| >= RANK_TOL
+|R_00|); the base parameters are beta = theta_1 + R11^-1 R12 theta_2 (theta_1 the r independent
+columns' parameters, theta_2 the rest), and tau = W_1 beta. Least squares gives beta from the
+recorded torques; the identified model then predicts the torques of a validation trajectory the
+identification never saw.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.linalg import qr, solve_triangular
+
+from harness.engines.pinocchio import PinocchioModel
+
+PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+RANK_TOL = 1e-8  # |R_ii| / |R_00| below this: the column depends on the others (exact data: 1e-14)
+ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off: the parameter has no
+# effect on any torque (e.g. a body's mass moment along its own joint axis); such columns sit at
+# 1e-16, every other column at 1e-3 or more. Scaling them to unit norm would make them look
+# independent.
+
+
+def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """(N * n, 10 n): the joint torque regressor of every sample, rows sample by sample in the
+    spec's joint order, columns joint by joint (the body each joint carries)."""
+    model = pm.model
+    data = model.createData()
+    n = len(pm.joint_ids)
+    cols = np.concatenate([np.arange(10 * (j - 1), 10 * j) for j in pm.joint_ids])
+    out = np.empty((len(q), n, 10 * n))
+    qq, vv, aa = (np.zeros((len(q), model.nq)) for _ in range(3))
+    qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    for k in range(len(q)):
+        Y = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])
+        out[k] = Y[np.ix_(pm.q_index, cols)]
+    return out.reshape(len(q) * n, 10 * n)
+
+
+def true_parameters(pm: PinocchioModel) -> np.ndarray:
+    return np.concatenate([pm.model.inertias[j].toDynamicParameters() for j in pm.joint_ids])
+
+
+@dataclass(frozen=True, eq=False)
+class BaseParameters:
+    independent: np.ndarray  # (r,) column indices of theta_1
+    dependent: np.ndarray  # (p - r,) column indices of theta_2
+    combination: np.ndarray  # (r, p - r): beta = theta_1 + combination theta_2
+
+    def of(self, theta: np.ndarray) -> np.ndarray:
+        return theta[self.independent] + self.combination @ theta[self.dependent]
+
+
+def base_parameters(W: np.ndarray) -> BaseParameters:
+    norms = np.linalg.norm(W, axis=0)
+    live = np.flatnonzero(norms > ZERO_COLUMN * norms.max())
+    dead = np.flatnonzero(norms <= ZERO_COLUMN * norms.max())
+    scale = norms[live]
+    _, R, P = qr(W[:, live] / scale, mode="economic", pivoting=True)
+    d = np.abs(np.diag(R))
+    r = int(np.sum(d >= RANK_TOL * d[0]))
+    comb = solve_triangular(R[:r, :r], R[:r, r:])  # in scaled columns
+    # unscale: W_s = W / s, so theta_s = s theta and beta_s = theta_1 s_1 + comb (theta_2 s_2)
+    comb = comb * scale[P[r:]][None, :] / scale[P[:r]][:, None]
+    # parameters whose column is zero enter no base parameter
+    comb = np.concatenate([comb, np.zeros((r, len(dead)))], axis=1)
+    return BaseParameters(live[P[:r]], np.concatenate([live[P[r:]], dead]), comb)
+
+
+@dataclass(eq=False)
+class TorqueIdentification:
+    names: list[str]  # parameter names, joint by joint
+    base: BaseParameters
+    beta_true: np.ndarray
+    beta: np.ndarray
+    condition_number: float  # of the column-scaled base regressor
+    validation_error: np.ndarray | None  # (N_val, n) predicted - recorded torques, validation trajectory
+    validation_scale: np.ndarray | None = None  # (n,) joint loads L_J of the validation recording
+
+
+def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau,
+                          validation: tuple | None = None) -> TorqueIdentification:
+    W = regressor(pm, q, qd, qdd)
+    base = base_parameters(W)
+    W1 = W[:, base.independent]
+    s = np.linalg.norm(W1, axis=0)
+    z, *_ = np.linalg.lstsq(W1 / s, tau.reshape(-1), rcond=None)
+    sv = np.linalg.svd(W1 / s, compute_uv=False)
+    err = None
+    if validation is not None:
+        qv, qdv, qddv, tauv = validation
+        pred = (regressor(pm, qv, qdv, qddv)[:, base.independent] @ (z / s)).reshape(tauv.shape)
+        err = pred - tauv
+    names = [f"{j}.{p}" for j in joints for p in PARAMETER_NAMES]
+    return TorqueIdentification(names, base, base.of(true_parameters(pm)), z / s, float(sv[0] / sv[-1]), err)
+
+
+def describe_base(ti: TorqueIdentification, k: int) -> str:
+    """beta_k as a combination of the physical parameters."""
+    terms = [ti.names[ti.base.independent[k]]]
+    for c, j in zip(ti.base.combination[k], ti.base.dependent, strict=True):
+        if abs(c) > 1e-12:
+            terms.append(f"{c:+.6g} {ti.names[j]}")
+    return " ".join(terms)
+
+
+BETA_FLOOR = 1e-6  # relative errors of base parameters near zero are taken against 1e-6 of the largest
+
+
+def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
+    """The results.json section."""
+    scale = np.maximum(np.abs(ti.beta_true), BETA_FLOOR * np.max(np.abs(ti.beta_true)))
+    rel = np.abs(ti.beta - ti.beta_true) / scale
+    out = {
+        "method": "joint torques only: Pinocchio's joint torque regressor, base parameters by QR with column "
+                  "pivoting, least squares (harness/torque_id.py)",
+        "parameters": len(ti.names), "base_parameters": len(ti.beta),
+        "condition_number": ti.condition_number,
+        "rel_error_definition": f"|identified - true| / max(|true|, {BETA_FLOOR:g} x largest |true|)",
+        "max_rel_error": float(rel.max()),
+        "base": [{"expression": describe_base(ti, k), "true": float(ti.beta_true[k]), "identified": float(ti.beta[k]),
+                  "rel_error": float(rel[k])} for k in range(len(ti.beta))],
+        "validation": None,
+    }
+    if ti.validation_error is not None:
+        err = np.abs(ti.validation_error) / ti.validation_scale
+        out["validation"] = {"scenario": validation_name, "max_rel_error": float(err.max()),
+                             "rms_rel_error": float(np.sqrt(np.mean(err**2))),
+                             "definition": "|predicted - recorded torque| / L_J of the validation run"}
+    return out
