@@ -35,9 +35,10 @@ from harness.cardano import A_0i, D, D_dot
 from harness.recording import Recording
 from harness.tomlio import Table
 
-CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W", "omega_W", "omegadot_W")
+CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W", "aO_W", "omega_W",
+            "omegadot_W")
 GROUPS = {
-    "forces": ("F_W",), "moments": ("M_W",), "accelerations": ("a_W",), "angular_velocities": ("omega_W",),
+    "forces": ("F_W",), "moments": ("M_W",), "accelerations": ("a_W", "aO_W"), "angular_velocities": ("omega_W",),
     "angular_accelerations": ("omegadot_W",), "angles": ("theta",), "positions": ("p_W", "v_W"),
     "joints": ("q", "qd", "qdd", "tau"),
 }

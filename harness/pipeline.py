@@ -23,6 +23,7 @@ from harness.graph.dynamics import (
     build_graph_model,
     unconstrained_residual,
 )
+from harness.graph.full import FULL_PARAMETERS, full_form
 from harness.graph.identification import PARAMETERS, id_Y, id_Z, stack_per_body, stack_system
 from harness.graph.inverse import GraphInverse, inverse_dynamics
 from harness.identify import LeastSquares, solve
@@ -86,6 +87,28 @@ def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
 
 
 @dataclass(frozen=True, eq=False)
+class FullIdentification:
+    bodies: tuple[str, ...]
+    per_body: tuple[LeastSquares, ...]
+    true: np.ndarray  # (n, 10) Pinocchio's dynamic parameters of the true robot
+
+
+def identify_full(spec, model: GraphModel, measured: Recording, rows: np.ndarray, measurement: Measurement,
+                  true: np.ndarray) -> FullIdentification:
+    """All 10 inertial parameters per body (harness/graph/full.py), with the same excitation test
+    and uncertainty as the paper's form."""
+    Y, Z = full_form(spec, model, measured, rows)
+    rng = np.random.default_rng(0)
+    dY = np.stack([full_form(spec, model, dither(measured, measurement, rng), rows)[0] - Y for _ in range(N_DITHER)])
+    K, L = stack_per_body(Y, Z)
+    floor = np.sqrt(np.mean([np.linalg.norm(stack_per_body(d, Z)[0], axis=1) ** 2 for d in dY], axis=0))
+    N, n = Y.shape[:2]
+    sample, channel = np.repeat(np.arange(N), 6), np.tile(np.arange(6), N)
+    per_body = tuple(solve(K[i], L[i], FULL_PARAMETERS, floor[i], sample, channel) for i in range(n))
+    return FullIdentification(model.topology.bodies, per_body, true)
+
+
+@dataclass(frozen=True, eq=False)
 class RunOutput:
     scenario: Scenario
     model: GraphModel
@@ -99,6 +122,7 @@ class RunOutput:
     design_comparison: dict | None = None  # claims against another design on the same path
     audit: dict | None = None  # a paper's printed inertia matrix against CRBA
     torque_identification: TorqueIdentification | None = None
+    identification_full: FullIdentification | None = None
 
 
 Progress = Callable[[str, float | None], None]
@@ -137,6 +161,12 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
     if scenario.audit == "yahya2012":
         progress("auditing the printed inertia matrix", None)
         audit = audit_inertia_matrix(scenario.robot)
+    progress("identifying all 10 inertial parameters per body", None)
+    pm_true = build_pinocchio(scenario.robot, g)
+    true10 = np.stack([pm_true.model.inertias[pm_true.joint_ids[scenario.robot.joint_names.index(
+        scenario.robot.inner_joint(b).name)]].toDynamicParameters() for b in model.topology.bodies])
+    full = identify_full(scenario.tested, model, measured, measured_rows(measured, scenario.sample_times),
+                         scenario.measurement, true10)
     torque_id = None
     if scenario.torque_validation is not None:
         progress(f"joint-torque identification, validated on {scenario.torque_validation.name}", None)
@@ -148,4 +178,4 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
             measured.tau[:, cols], (val.q[:, cols], val.qd[:, cols], val.qdd[:, cols], val.tau[:, cols]))
         torque_id.validation_scale = joint_load_scale(scenario.robot, val)
     return RunOutput(scenario, model, recording, measured, residual, identification, multipliers,
-                     pinocchio, graph_inverse, comparison, audit, torque_id)
+                     pinocchio, graph_inverse, comparison, audit, torque_id, full)

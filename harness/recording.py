@@ -8,7 +8,8 @@ angles theta (see harness.cardano), centre-of-mass acceleration a_W, angular vel
 acceleration omegadot_W.
 
 CSV columns (`to_frame`): t; q_J qd_J qdd_J tau_J; B_x B_y B_z; B_vx B_vy B_vz; B_alpha B_beta B_gamma;
-B_ax B_ay B_az; B_wx B_wy B_wz; B_wdx B_wdy B_wdz; B_gimbal (1 where cond(D) > GIMBAL_COND_D);
+B_ax B_ay B_az; B_aOx B_aOy B_aOz (the inner joint point); B_wx B_wy B_wz; B_wdx B_wdy B_wdz;
+B_gimbal (1 where cond(D) > GIMBAL_COND_D);
 J_Fx J_Fy J_Fz; J_Mx J_My J_Mz. Floats are written with 17 significant digits, so a recording
 read back from CSV is bit-for-bit the one written.
 """
@@ -40,6 +41,7 @@ class Recording:
     v_W: np.ndarray  # (n, nb, 3) centre-of-mass velocity
     theta: np.ndarray  # (n, nb, 3) Cardano angles (alpha, beta, gamma)
     a_W: np.ndarray  # (n, nb, 3) centre-of-mass acceleration
+    aO_W: np.ndarray  # (n, nb, 3) acceleration of the body's inner joint point (a sensor at a known point)
     omega_W: np.ndarray  # (n, nb, 3)
     omegadot_W: np.ndarray  # (n, nb, 3)
     gimbal: np.ndarray  # (n, nb) bool: near Cardano gimbal lock
@@ -61,7 +63,7 @@ class Recording:
             cols[f"tau_{name}"] = self.tau[:, j]
         for b, name in enumerate(self.bodies):
             for groups in ((self.p_W, XYZ, ""), (self.v_W, XYZ, "v"), (self.theta, ANGLES, ""),
-                           (self.a_W, XYZ, "a"),
+                           (self.a_W, XYZ, "a"), (self.aO_W, XYZ, "aO"),
                            (self.omega_W, XYZ, "w"), (self.omegadot_W, XYZ, "wd")):
                 arr, suffixes, prefix = groups
                 for k, s in enumerate(suffixes):
@@ -98,6 +100,7 @@ def read_csv(path: Path | str) -> Recording:
         q=per_joint("q"), qd=per_joint("qd"), qdd=per_joint("qdd"), tau=per_joint("tau"),
         F_W=vec(joints, "{n}_F{s}"), M_W=vec(joints, "{n}_M{s}"),
         p_W=vec(bodies, "{n}_{s}"), v_W=vec(bodies, "{n}_v{s}"), theta=angles(), a_W=vec(bodies, "{n}_a{s}"),
+        aO_W=vec(bodies, "{n}_aO{s}"),
         omega_W=vec(bodies, "{n}_w{s}"), omegadot_W=vec(bodies, "{n}_wd{s}"),
         gimbal=df[[f"{b}_gimbal" for b in bodies]].to_numpy().astype(bool),
     )

@@ -137,6 +137,41 @@ def parameter_scale(true: np.ndarray) -> np.ndarray:
     return np.where(true != 0.0, np.abs(true), largest)
 
 
+def full_identification_section(full) -> dict:
+    """All 10 parameters per body. Errors relative to the largest true value of the same kind (m;
+    m c, at least m times the radius of gyration; I_O) in that body: a product of inertia or a
+    centre-of-mass component that is zero up to round-off (1e-28 in the UR5 URDF) cannot be
+    recovered relative to itself."""
+    from harness.graph.full import FULL_PARAMETERS, GROUPS
+
+    rows = []
+    for i, body in enumerate(full.bodies):
+        ls, true = full.per_body[i], full.true[i]
+        kind_scale = np.zeros(10)
+        for g in GROUPS:
+            kind_scale[list(g)] = np.max(np.abs(true[list(g)]))
+        # first moments: at least m r_g, r_g = sqrt(max I / m) the radius of gyration (a centre of mass
+        # on the joint point has m c = 0, and its own largest value is round-off)
+        kind_scale[1:4] = max(kind_scale[1], np.sqrt(true[0] * kind_scale[4]))
+        for c, name in enumerate(FULL_PARAMETERS):
+            ok = bool(ls.identifiable[c])
+            scale = kind_scale[c]
+            rows.append({"body": body, "name": name, "true": float(true[c]),
+                         "identified": float(ls.x[c]) if ok else None,
+                         "rel_error": float((ls.x[c] - true[c]) / scale) if ok and scale > 0 else None,
+                         "std": float(ls.std[c]) if ok else None, "identifiable": ok, "reason": ls.reasons[c]})
+    rel = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None]
+    return {
+        "method": "10 inertial parameters per body at its inner joint point, in its joint frame "
+                  "(harness/graph/full.py); true values: Pinocchio's dynamic parameters",
+        "rel_error_definition": "(identified - true) / largest true value of the same kind in the body "
+                                "(m; m c, at least m r_g with r_g the radius of gyration; I_O)",
+        "parameters": rows,
+        "max_abs_rel_error": max(rel) if rel else None,
+        "not_identifiable": [f"{r['body']}.{r['name']}" for r in rows if not r["identifiable"]],
+    }
+
+
 def identification_section(ident: Identification, scenario: Scenario) -> dict:
     paper = reference_table(scenario.paper_identified) if scenario.paper_identified else {}
     paper_err = reference_table(scenario.paper_abs_error) if scenario.paper_abs_error else {}
@@ -332,6 +367,8 @@ def build_results(out: RunOutput, when: str | None = None) -> dict:
         results["design_comparison"] = out.design_comparison
     if out.audit is not None:
         results["inertia_matrix_audit"] = out.audit
+    if out.identification_full is not None:
+        results["identification_full"] = full_identification_section(out.identification_full)
     if out.torque_identification is not None:
         from harness.torque_id import section as torque_id_section
 

@@ -160,6 +160,6 @@ def test_rows_near_gimbal_lock_are_flagged(kr500_csv):
 
 
 def test_csv_round_trip_is_exact(kr500_recording, kr500_csv):
-    for name in ("t", "q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W", "omega_W",
+    for name in ("t", "q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W", "aO_W", "omega_W",
                  "omegadot_W", "gimbal"):
         np.testing.assert_array_equal(getattr(kr500_csv, name), getattr(kr500_recording, name), name)

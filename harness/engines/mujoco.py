@@ -105,6 +105,8 @@ def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
         ET.SubElement(sensors, "jointvel", name=f"qd_{joint.name}", joint=joint.name)
         ET.SubElement(sensors, "jointactuatorfrc", name=f"tau_{joint.name}", joint=joint.name)
     for body in spec.massive_bodies:
+        ET.SubElement(sensors, "framelinacc", name=f"jointacc_{body.name}", objtype="site",
+                      objname=f"joint_{_massive_parent(spec, body)[1][-1].name}")
         site = f"com_{body.name}"
         ET.SubElement(sensors, "accelerometer", name=f"acc_{body.name}", site=site)
         ET.SubElement(sensors, "gyro", name=f"gyro_{body.name}", site=site)
@@ -213,6 +215,7 @@ def simulate(scenario: Scenario) -> Recording:
         q=q, qd=qd, qdd=qacc_rows, tau=per_joint("tau")[..., 0], F_W=F_W, M_W=M_W,
         p_W=per_body("framepos"), v_W=per_body("framelinvel"), theta=theta,
         a_W=per_body("framelinacc") + scenario.gravity_W,  # framelinacc is a - g (proper)
+        aO_W=per_body("jointacc") + scenario.gravity_W,
         omega_W=per_body("frameangvel"), omegadot_W=per_body("frameangacc"),
         gimbal=gimbal_flags(theta), R_WB=R_WB, meta=meta,
     )

@@ -57,10 +57,11 @@ def id_Z(s: BodySeries) -> np.ndarray:
 
 
 def stack_per_body(Y: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Eqs. 53-55: id_K_i (n, 6N, 6) and id_L_i (n, 6N), samples stacked in time order."""
+    """Eqs. 53-55: id_K_i (n, 6N, p) and id_L_i (n, 6N), samples stacked in time order (p = 6 for
+    the paper's form, 10 for the full one)."""
     N, n = Y.shape[:2]
-    K = np.swapaxes(Y, 0, 1).reshape(n, N * 6, 6)
-    L = np.swapaxes(Z, 0, 1).reshape(n, N * 6)
+    K = np.swapaxes(Y, 0, 1).reshape(n, N * Y.shape[2], Y.shape[3])
+    L = np.swapaxes(Z, 0, 1).reshape(n, N * Z.shape[2])
     return K, L
 
 
