@@ -16,6 +16,7 @@ from harness.compare import joint_load_scale
 from harness.engines.mujoco import simulate
 from harness.engines.pinocchio import InverseDynamics, rnea_on_recording
 from harness.engines.pinocchio import build_model as build_pinocchio
+from harness.excitation import optimise as optimise_excitation
 from harness.graph.dynamics import (
     GraphModel,
     Residual,
@@ -123,6 +124,7 @@ class RunOutput:
     audit: dict | None = None  # a paper's printed inertia matrix against CRBA
     torque_identification: TorqueIdentification | None = None
     identification_full: FullIdentification | None = None
+    excitation: dict | None = None
 
 
 Progress = Callable[[str, float | None], None]
@@ -135,6 +137,10 @@ def _quiet(stage: str, fraction: float | None) -> None:
 def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
     """The engines are built from the scenario's model (the truth, what MuJoCo simulates); the
     graph model from the model under test. Identified parameters are compared with the truth."""
+    excitation = None
+    if scenario.excitation is not None:
+        progress("optimising the excitation (Fourier series)", None)
+        scenario, excitation = optimise_excitation(scenario, **scenario.excitation)
     progress("simulating in MuJoCo", None)
     recording = simulate(scenario)
     g = scenario.gravity_W
@@ -178,4 +184,4 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
             measured.tau[:, cols], (val.q[:, cols], val.qd[:, cols], val.qdd[:, cols], val.tau[:, cols]))
         torque_id.validation_scale = joint_load_scale(scenario.robot, val)
     return RunOutput(scenario, model, recording, measured, residual, identification, multipliers,
-                     pinocchio, graph_inverse, comparison, audit, torque_id, full)
+                     pinocchio, graph_inverse, comparison, audit, torque_id, full, excitation)

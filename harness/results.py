@@ -367,6 +367,10 @@ def build_results(out: RunOutput, when: str | None = None) -> dict:
         results["design_comparison"] = out.design_comparison
     if out.audit is not None:
         results["inertia_matrix_audit"] = out.audit
+    if out.excitation is not None:
+        results["excitation"] = out.excitation
+        results["scenario"]["motion"] = {j: {"type": m.kind, "description": m.describe()}
+                                         for j, m in out.scenario.motion.items()}
     if out.identification_full is not None:
         results["identification_full"] = full_identification_section(out.identification_full)
     if out.torque_identification is not None:

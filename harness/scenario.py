@@ -82,6 +82,7 @@ class Scenario:
     design_comparison: DesignComparison | None = None
     audit: str | None = None  # a paper's printed inertia matrix to audit ("yahya2012")
     torque_validation: Scenario | None = None  # joint-torque identification, validated on this scenario
+    excitation: dict | None = None  # Fourier-series excitation to optimise (harness/excitation.py)
 
     @property
     def tested(self) -> RobotSpec:
@@ -170,6 +171,18 @@ def load_scenario(path: Path | str) -> Scenario:
         at = root.table("audit")
         audit = at.string("inertia_matrix", choices=("yahya2012",))
         at.finish()
+    excitation = None
+    if root.has("excitation"):
+        et = root.table("excitation")
+        excitation = {"harmonics": et.integer("harmonics", default=2, minimum=1),
+                      "base_frequency": et.number("base_frequency", positive=True),
+                      "evaluations": et.integer("evaluations", default=400, minimum=10),
+                      "seed": et.integer("seed", default=0, minimum=0)}
+        et.finish()
+        if root.has("motion"):
+            raise root.error("motion", "a scenario with [excitation] gets its motion from the optimisation: "
+                                       "leave [motion] out")
+        root.data["motion"] = {j: {"type": "locked"} for j in robot.joint_names}  # replaced when run
     motion_table = root.table("motion")
     motion = {}
     for name in motion_table.data:
@@ -202,7 +215,8 @@ def load_scenario(path: Path | str) -> Scenario:
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     return Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                     np.asarray(sample_times), motion, simulation, measurement, paper_identified,
-                    paper_abs_error, lagrange, gates, tested, path.read_text(), comparison, audit, torque_validation)
+                    paper_abs_error, lagrange, gates, tested, path.read_text(), comparison, audit,
+                    torque_validation, excitation)
 
 
 def _reference(t: Table, key: str) -> str | None:

@@ -49,6 +49,12 @@ def render(results: dict, rec: Recording) -> str:
     if "inertia_matrix_audit" in results:
         parts.append(sections.inertia_audit(results))
         nav.append(("audit", "Inertia matrix audit"))
+    for key, anchor, title in (("excitation", "excitation", "Excitation"),
+                               ("identification_full", "identification_full", "10 parameters"),
+                               ("torque_identification", "torque_identification", "Torque identification")):
+        if key in results:
+            parts.append(getattr(sections, key)(results))
+            nav.append((anchor, title))
     parts += [sections.lagrange(results, rec), sections.how(results)]
     body = "".join(parts)
     nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in nav + NAV[5:])

@@ -574,3 +574,67 @@ def inertia_audit(r: dict) -> str:
             )
         ),
     )
+
+
+def identification_full(r: dict) -> str:
+    f = r["identification_full"]
+    rows = [
+        [
+            esc(p["body"]),
+            esc(p["name"]),
+            num(p["true"]),
+            num(p["identified"]),
+            num(p["rel_error"]),
+            num(p["std"]),
+            '<span class="ok">yes</span>'
+            if p["identifiable"]
+            else f'<span class="bad">no</span> <small>{esc(p["reason"])}</small>',
+        ]
+        for p in f["parameters"]
+    ]
+    return section(
+        "identification_full",
+        "All 10 inertial parameters per body",
+        (
+            f"<p>{esc(f['method'])}; {esc(f['rel_error_definition'])}. Largest relative error "
+            f"{num(f['max_abs_rel_error'])}; not identifiable: {esc(', '.join(f['not_identifiable']) or 'none')}.</p>"
+            + table(["body", "parameter", "true", "identified", "rel error", "std", "identifiable"], rows)
+        ),
+    )
+
+
+def torque_identification(r: dict) -> str:
+    t = r["torque_identification"]
+    rows = [[esc(b["expression"]), num(b["true"]), num(b["identified"]), num(b["rel_error"])] for b in t["base"]]
+    v = t["validation"]
+    val = (
+        (
+            f"Predicted torques of the validation trajectory <code>{esc(v['scenario'])}</code>: largest error "
+            f"{num(v['max_rel_error'])}, RMS {num(v['rms_rel_error'])} ({esc(v['definition'])})."
+        )
+        if v
+        else ""
+    )
+    return section(
+        "torque_identification",
+        "Identification from joint torques alone",
+        (
+            f"<p>{esc(t['method'])}. {t['base_parameters']} base parameters out of {t['parameters']}; condition number "
+            f"of the scaled base regressor {num(t['condition_number'])}; largest error {num(t['max_rel_error'])} "
+            f"({esc(t['rel_error_definition'])}). {val}</p>"
+            + table(["base parameter", "true", "identified", "rel error"], rows, "wrap")
+        ),
+    )
+
+
+def excitation(r: dict) -> str:
+    e = r["excitation"]
+    return section(
+        "excitation",
+        "Optimised excitation",
+        (
+            f"<p>{e['harmonics']}-harmonic Fourier series per joint, base frequency {num(e['base_frequency'])} rad/s, "
+            f"{e['evaluations']} evaluations of the objective ({esc(e['objective'])}). Condition number "
+            f"{num(e['initial_condition_number'])} at the start, {num(e['optimised_condition_number'])} optimised.</p>"
+        ),
+    )
