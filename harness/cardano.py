@@ -25,11 +25,11 @@ def A_0i(theta: np.ndarray) -> np.ndarray:
     """Eq. (29): rotation matrix from Cardano angles, shape (..., 3) -> (..., 3, 3)."""
     a, b, g = np.moveaxis(np.asarray(theta, dtype=float), -1, 0)
     ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
-    return np.stack([
-        np.stack([cb * cg, -cb * sg, sb], axis=-1),
-        np.stack([ca * sg + sa * sb * cg, ca * cg - sa * sb * sg, -sa * cb], axis=-1),
-        np.stack([sa * sg - ca * sb * cg, sa * cg + ca * sb * sg, ca * cb], axis=-1),
-    ], axis=-2)
+    out = np.empty(a.shape + (3, 3))
+    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2] = cb * cg, -cb * sg, sb
+    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2] = ca * sg + sa * sb * cg, ca * cg - sa * sb * sg, -sa * cb
+    out[..., 2, 0], out[..., 2, 1], out[..., 2, 2] = sa * sg - ca * sb * cg, sa * cg + ca * sb * sg, ca * cb
+    return out
 
 
 def D(theta: np.ndarray) -> np.ndarray:

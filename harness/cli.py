@@ -119,12 +119,14 @@ class _Progress:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
     from harness.pipeline import run
     from harness.recording import Recording
     from harness.report import render
     from harness.results import RECORDING_FILE, RESULTS_FILE, build_results, write_results
     from harness.scenario import load_scenario
 
+    imported = time.perf_counter() - start  # mujoco, pinocchio, numpy, scipy, pandas, matplotlib
     names = args.scenarios or [DEFAULT_SCENARIO]
     scenarios = [load_scenario(_resolve_scenario(a)) for a in names]  # all validated before any work
     seen = set()
@@ -142,6 +144,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         output = run(scenario, progress)
         progress("writing the report", None)
         results = build_results(output)
+        results["run"]["timings"] = {"importing the engines and libraries": imported, **results["run"]["timings"]}
+        imported = 0.0
         recording: Recording = output.recording
         try:
             _write_atomically(out, {

@@ -113,13 +113,22 @@ def solve(K: np.ndarray, L: np.ndarray, names: Sequence[str], column_floor: np.n
         cluster = np.arange(len(L)) if cluster is None else cluster
         Xw = Ks * w[:, None]  # K^T W r = (W K)^T r
         bread = np.linalg.pinv(Ks.T @ Xw)
-        scores = []
-        for c in np.unique(cluster):
-            rows = cluster == c
-            H = Ks[rows] @ bread @ Xw[rows].T  # leverage of the cluster on its own fit
-            r_adj = np.linalg.lstsq(np.eye(len(H)) - H, r[rows], rcond=None)[0]
-            scores.append(Xw[rows].T @ r_adj)
-        scores = np.array(scores)
+        ids, counts = np.unique(cluster, return_counts=True)
+        if np.all(counts == counts[0]) and np.array_equal(cluster, np.repeat(ids, counts[0])):
+            # equal, contiguous clusters (one sample each): all at once
+            G, k = len(ids), counts[0]
+            Kc, Xc, rc = Ks.reshape(G, k, -1), Xw.reshape(G, k, -1), r.reshape(G, k)
+            H = Kc @ bread @ np.swapaxes(Xc, 1, 2)  # leverage of each cluster on its own fit
+            r_adj = np.linalg.solve(np.eye(k) - H, rc[..., None])[..., 0]
+            scores = np.einsum("gkp,gk->gp", Xc, r_adj)
+        else:
+            scores = []
+            for c in ids:
+                rows = cluster == c
+                H = Ks[rows] @ bread @ Xw[rows].T
+                r_adj = np.linalg.lstsq(np.eye(len(H)) - H, r[rows], rcond=None)[0]
+                scores.append(Xw[rows].T @ r_adj)
+            scores = np.array(scores)
         G = len(scores)
         cov = bread @ (scores.T @ scores) @ bread
         std[cols] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) / norms[cols]

@@ -6,6 +6,8 @@ chains them and gathers the results.
 
 from __future__ import annotations
 
+import dataclasses
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -125,6 +127,7 @@ class RunOutput:
     torque_identification: TorqueIdentification | None = None
     identification_full: FullIdentification | None = None
     excitation: dict | None = None
+    timings: dict | None = None  # seconds per stage
 
 
 Progress = Callable[[str, float | None], None]
@@ -134,9 +137,33 @@ def _quiet(stage: str, fraction: float | None) -> None:
     pass
 
 
+class _Timed:
+    """Passes progress on and adds up the seconds spent in each stage."""
+
+    def __init__(self, progress: Progress):
+        self.progress, self.timings, self.stage, self.start = progress, {}, None, time.perf_counter()
+
+    def __call__(self, stage: str, fraction: float | None) -> None:
+        if fraction is None:
+            self.close()
+            self.stage, self.start = stage, time.perf_counter()
+        self.progress(stage, fraction)
+
+    def close(self) -> None:
+        if self.stage is not None:
+            self.timings[self.stage] = self.timings.get(self.stage, 0.0) + time.perf_counter() - self.start
+
+
 def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
     """The engines are built from the scenario's model (the truth, what MuJoCo simulates); the
     graph model from the model under test. Identified parameters are compared with the truth."""
+    timed = _Timed(progress)
+    out = _run(scenario, timed)
+    timed.close()
+    return dataclasses.replace(out, timings=timed.timings)
+
+
+def _run(scenario: Scenario, progress: Progress) -> RunOutput:
     excitation = None
     if scenario.excitation is not None:
         progress("optimising the excitation (Fourier series)", None)

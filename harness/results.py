@@ -344,13 +344,14 @@ def run_section(out: RunOutput, when: str) -> dict:
                      "mujoco": mujoco.__version__, "pinocchio": pinocchio.__version__,
                      "pandas": pandas.__version__, "matplotlib": matplotlib.__version__},
         "model_under_test": str(out.scenario.tested.source),
+        "timings": out.timings or {},
         "scenario_text": out.scenario.text,
     }
 
 
 def build_results(out: RunOutput, when: str | None = None) -> dict:
-    """The whole results.json. `when` (ISO time) defaults to now; it is the only field that
-    differs between two runs of the same scenario."""
+    """The whole results.json. `when` (ISO time) defaults to now; it and `run.timings` (seconds per
+    stage) are the only fields that differ between two runs of the same scenario."""
     when = when or datetime.now(UTC).isoformat(timespec="seconds")
     results = {
         "schema": SCHEMA,

@@ -148,7 +148,7 @@ def test_constrained_model_integrated_over_the_run_stays_with_mujoco(run_scenari
     constrained graph model stays within 1e-6 rad and 1e-6 m of MuJoCo over the 2 s (measured 6e-8),
     and the correction stays below 1 % of the drive (measured 6e-4). Without the correction the
     replay leaves MuJoCo's trajectory: the spinning column makes O4 and O6 unstable."""
-    lg = run_scenario(KR500).lagrange
+    lg = run_scenario(SCENARIOS / "kr500_rail_forward.toml").lagrange
     assert lg.forward.completed
     assert lg.forward.q_error.max() <= 1e-6
     assert lg.forward.r_error <= 1e-6

@@ -18,6 +18,7 @@ import numpy as np
 
 from harness.cardano import A_0i
 from harness.graph.dynamics import GraphModel
+from harness.graph.topology import joint_arms
 from harness.recording import Recording
 from harness.spec import RobotSpec
 
@@ -36,12 +37,14 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
     a, w, wd = rec.a_W[:, b], rec.omega_W[:, b], rec.omegadot_W[:, b]
     J_W = A @ (model.J[..., :, None] * np.swapaxes(A, -1, -2))  # A diag(J) A^T
     S_inv = np.linalg.inv(top.S_e.astype(float))
-    F = -np.einsum("kl,nlc->nkc", S_inv, model.m[:, None] * (a - model.g_W))
+    F = -(S_inv @ (model.m[:, None] * (a - model.g_W)))  # matmul broadcasts over samples
     q = rec.q[:, [rec.joint_index(j) for j in top.joints]]
-    C_e_W = np.einsum("nilm,nikm->nikl", A, top.C_e_B(q))
-    euler = np.einsum("niab,nib->nia", J_W, wd) + np.cross(w, np.einsum("niab,nib->nia", J_W, w))
-    M = -np.einsum("kl,nlc->nkc", np.linalg.inv(top.S.astype(float)),
-                   euler + np.cross(C_e_W, F[:, None]).sum(axis=2))
+    c_out, c_in = joint_arms(top, A, q)
+    P_out, P_in = (top.S == -1).astype(float), (top.S == 1).astype(float)
+    # sum_k C_e,ik x F_k, joint by joint: C = -c on the outer body, +c on the inner one
+    C_x_F = P_in @ np.cross(c_in, F) - P_out @ np.cross(c_out, F)
+    euler = (J_W @ wd[..., None])[..., 0] + np.cross(w, (J_W @ w[..., None])[..., 0])
+    M = -(np.linalg.inv(top.S.astype(float)) @ (euler + C_x_F))
 
     N = len(rec.t)
     tau = np.empty((N, len(spec.joints)))
@@ -55,7 +58,7 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
         F_out[:, jj], M_out[:, jj] = F[:, k], M[:, k]
         j = top.bodies.index(carried.child)
         if joint.revolute:
-            u = np.einsum("nab,b->na", A[:, j], spec.body(carried.child).R_WB0.T @ joint.axis_W0)
+            u = A[:, j] @ (spec.body(carried.child).R_WB0.T @ joint.axis_W0)
             tau[:, jj] = np.einsum("na,na->n", M[:, k], u)
         else:
             inner = joint.parent if joint.parent in top.bodies else None
@@ -63,6 +66,6 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
                 u = np.broadcast_to(joint.axis_W0, (N, 3))
             else:
                 i = top.bodies.index(inner)
-                u = np.einsum("nab,b->na", A[:, i], spec.body(inner).R_WB0.T @ joint.axis_W0)
+                u = A[:, i] @ (spec.body(inner).R_WB0.T @ joint.axis_W0)
             tau[:, jj] = np.einsum("na,na->n", F[:, k], u)
     return GraphInverse(tau, F_out, M_out)

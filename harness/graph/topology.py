@@ -83,8 +83,21 @@ def build_topology(spec: RobotSpec) -> Topology:
     return Topology(bodies, joints, S, c_B, slide_B)
 
 
-def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarray, M_W: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def joint_arms(top: Topology, A: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World vectors from each joint's outer and inner body's centre of mass to the joint point,
+    (N, n_joints, 3) each; the inner one is zero where the inner body is the ground. These are
+    the non-zero C_e,ik of Eq. 19 (with signs S_ik), gathered joint by joint."""
+    k = np.arange(top.n)
+    outer = np.argmax(top.S == -1, axis=0)
+    has_inner = np.any(top.S == 1, axis=0)
+    inner = np.where(has_inner, np.argmax(top.S == 1, axis=0), 0)
+    c_out = (A[:, outer] @ top.c_B[outer, k][..., None])[..., 0]
+    c_in_B = top.c_B[inner, k][None] + top.slide_B[inner, k][None] * q[..., None]
+    c_in = (A[:, inner] @ c_in_B[..., None])[..., 0] * has_inner[None, :, None]
+    return c_out, c_in
+
+
+def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarray, M_W: np.ndarray):
     """Resultant force and moment (about each centre of mass) of the joints on every body.
 
     A: (N, n, 3, 3) A(0i) per sample and body; q: (N, n) joint coordinates of O_1..O_n;
@@ -92,8 +105,14 @@ def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarra
     across each joint, world components.
     Returns F_J_W, M_J_W, each (N, n, 3), world components (Eqs. 17, 20, 26), and the sizes of the
     terms summed into each, (N, n) each: the scale at which they cancel."""
-    C_e_W = np.einsum("nilm,nikm->nikl", A, top.C_e_B(q))  # (N, n, n, 3)
-    F_terms = -top.S_e[None, :, :, None] * F_W[:, None, :, :]  # (N, n, n, 3)
-    M_terms = -(np.cross(C_e_W, F_W[:, None, :, :]) + top.S[None, :, :, None] * M_W[:, None, :, :])
-    return (F_terms.sum(axis=2), M_terms.sum(axis=2),
-            np.linalg.norm(F_terms, axis=-1).sum(axis=2), np.linalg.norm(M_terms, axis=-1).sum(axis=2))
+    c_out, c_in = joint_arms(top, A, q)
+    P_out, P_in = (top.S == -1).astype(float), (top.S == 1).astype(float)
+    on_outer = M_W + np.cross(c_out, F_W)  # -(C_e x F + S M) for S = -1
+    on_inner = M_W + np.cross(c_in, F_W)
+    F_J_W = -(top.S_e.astype(float) @ F_W)
+    M_J_W = P_out @ on_outer - P_in @ on_inner
+    F_norm = np.linalg.norm(F_W, axis=-1)
+    F_size = np.einsum("ik,nk->ni", P_out + P_in, F_norm)
+    M_size = (np.einsum("ik,nk->ni", P_out, np.linalg.norm(on_outer, axis=-1))
+              + np.einsum("ik,nk->ni", P_in, np.linalg.norm(on_inner, axis=-1)))
+    return F_J_W, M_J_W, F_size, M_size

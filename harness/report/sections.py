@@ -432,6 +432,8 @@ def lagrange(r: dict, rec: Recording) -> str:
 
 def how(r: dict) -> str:
     run = r["run"]
+    timings = run.get("timings") or {}
+    stages = table(["stage", "seconds"], [[esc(k), f"{v:.2f}"] for k, v in timings.items()]) if timings else ""
     versions = table(["package", "version"], [[esc(k), esc(v)] for k, v in run["versions"].items()])
     sim = r["scenario"]["simulation"]
     return section(
@@ -441,7 +443,9 @@ def how(r: dict) -> str:
             f"<p>Run at {esc(run['time'])} (UTC). MuJoCo {esc(r['recording']['engine_version'])}, integrator "
             f"{esc(sim['integrator'])}, time step {num(sim['timestep'])} s, computed-torque drive with bandwidth "
             f"{num(sim['tracking_bandwidth'])} rad/s. Scenario file <code>{esc(r['scenario']['file'])}</code>:</p>"
-            f"<pre>{esc(run['scenario_text'])}</pre>" + versions
+            f"<pre>{esc(run['scenario_text'])}</pre>"
+            + (("<h3>Time spent in each stage</h3>" + stages) if stages else "")
+            + versions
         ),
     )
 
