@@ -51,9 +51,10 @@ class Identification:
 N_DITHER = 4  # draws for the regressor's measurement-error floor (a size, not a statistic)
 
 
-def _regressor(model: GraphModel, rec: Recording, rows: np.ndarray):
+def _regressor(model: GraphModel, rec: Recording, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's identification form (Eqs. 49-51) at the given rows: id_Y, id_Z."""
     s = body_series(rec, model.topology, rows)
-    return s.t, id_Y(s, model.g_W), id_Z(s)
+    return id_Y(s, model.g_W), id_Z(s)
 
 
 def measured_rows(measured: Recording, times: np.ndarray) -> np.ndarray:
@@ -63,21 +64,28 @@ def measured_rows(measured: Recording, times: np.ndarray) -> np.ndarray:
                      if np.min(np.abs(measured.t - ts)) <= 1e-9 * dt])
 
 
-def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
-             measurement: Measurement, truth: GraphModel | None = None, with_system: bool = True) -> Identification:
-    """Section 2.3: per body (Eq. 56) and for the whole system (Eq. 64).
-
-    The regressor's measurement-error floor: id_Y rebuilt from the measured channels moved within
-    their resolution (fixed seed, so a run is reproducible); the rms change of each column."""
-    t, Y, Z = _regressor(model, measured, rows)
+def _solve_per_body(form: Callable[[Recording], tuple[np.ndarray, np.ndarray]], measured: Recording,
+                    measurement: Measurement, names: tuple[str, ...]):
+    """Per-body least squares of a regressor form Y x = Z (Y: (N, n, rows, p)), each column judged
+    against its measurement-error floor: Y rebuilt from the measured channels moved within the
+    measurement's errors (fixed seed, so a run is reproducible), the rms change of each column.
+    Returns Y, Z, the floors and the per-body solutions."""
+    Y, Z = form(measured)
     rng = np.random.default_rng(0)
-    dY = np.stack([_regressor(model, dither(measured, measurement, rng), rows)[1] - Y
-                   for _ in range(N_DITHER)])
+    dY = [form(dither(measured, measurement, rng))[0] - Y for _ in range(N_DITHER)]
     K, L = stack_per_body(Y, Z)
     floor = np.sqrt(np.mean([np.linalg.norm(stack_per_body(d, Z)[0], axis=1) ** 2 for d in dY], axis=0))
-    N, n = len(t), model.topology.n
-    sample, channel = np.repeat(np.arange(N), 6), np.tile(np.arange(6), N)  # rows of one body
-    per_body = tuple(solve(K[i], L[i], PARAMETERS, floor[i], sample, channel) for i in range(n))
+    N, n, k = Y.shape[:3]
+    sample, channel = np.repeat(np.arange(N), k), np.tile(np.arange(k), N)  # rows of one body
+    return Y, Z, floor, tuple(solve(K[i], L[i], names, floor[i], sample, channel) for i in range(n))
+
+
+def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
+             measurement: Measurement, truth: GraphModel | None = None, with_system: bool = True) -> Identification:
+    """Section 2.3: per body (Eq. 56) and for the whole system (Eq. 64)."""
+    Y, Z, floor, per_body = _solve_per_body(lambda rec: _regressor(model, rec, rows), measured, measurement,
+                                            PARAMETERS)
+    N, n = Y.shape[:2]
     system = None
     if with_system:
         Ks, Ls = stack_system(Y, Z)
@@ -86,7 +94,7 @@ def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
                        np.tile(np.arange(6 * n), N))
     truth = truth or model
     true = np.column_stack([truth.m, truth.m, truth.m, truth.J])
-    return Identification(model.topology.bodies, per_body, system, true, t, measurement.resolution)
+    return Identification(model.topology.bodies, per_body, system, true, measured.t[rows], measurement.resolution)
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,14 +108,8 @@ def identify_full(spec, model: GraphModel, measured: Recording, rows: np.ndarray
                   true: np.ndarray) -> FullIdentification:
     """All 10 inertial parameters per body (harness/graph/full.py), with the same excitation test
     and uncertainty as the paper's form."""
-    Y, Z = full_form(spec, model, measured, rows)
-    rng = np.random.default_rng(0)
-    dY = np.stack([full_form(spec, model, dither(measured, measurement, rng), rows)[0] - Y for _ in range(N_DITHER)])
-    K, L = stack_per_body(Y, Z)
-    floor = np.sqrt(np.mean([np.linalg.norm(stack_per_body(d, Z)[0], axis=1) ** 2 for d in dY], axis=0))
-    N, n = Y.shape[:2]
-    sample, channel = np.repeat(np.arange(N), 6), np.tile(np.arange(6), N)
-    per_body = tuple(solve(K[i], L[i], FULL_PARAMETERS, floor[i], sample, channel) for i in range(n))
+    *_, per_body = _solve_per_body(lambda rec: full_form(spec, model, rec, rows), measured, measurement,
+                                   FULL_PARAMETERS)
     return FullIdentification(model.topology.bodies, per_body, true)
 
 

@@ -98,11 +98,6 @@ class Scenario:
         return np.linspace(0.0, self.duration, self.output_steps + 1)
 
     @property
-    def sample_rows(self) -> np.ndarray:
-        """Row indices of the recording at the sample times."""
-        return np.rint(self.sample_times / self.output_dt).astype(int)
-
-    @property
     def substeps(self) -> int:
         """Simulation steps per output step."""
         return round(self.output_dt / self.simulation.timestep)

@@ -129,6 +129,14 @@ class RobotSpec:
             out += self.subtree(j.child)
         return out
 
+    def carried_joint(self, joint: str) -> Joint:
+        """The joint itself, or, for the inner joint of a massless carriage, the joint the carriage
+        carries: they share point and wrench, and its child is the massive body that moves."""
+        j = self.joint(joint)
+        while self.body(j.child).massless:
+            j = self.outer_joints(j.child)[0]
+        return j
+
     def outboard_bodies(self, joint: str) -> list[Body]:
         """Bodies whose motion the joint carries (the child's subtree), in tree order."""
         names = set(self.subtree(self.joint(joint).child))

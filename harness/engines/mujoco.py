@@ -120,9 +120,7 @@ def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
 def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
     """The joint whose site measures `joint`: itself, or for a carriage's inner joint the
     carriage's outer joint (same point, same wrench: the carriage has no mass)."""
-    while spec.body(joint.child).massless:
-        joint = spec.outer_joints(joint.child)[0]
-    return joint
+    return spec.carried_joint(joint.name)
 
 
 def build_model(scenario: Scenario) -> mujoco.MjModel:

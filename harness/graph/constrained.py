@@ -42,9 +42,7 @@ def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.n
     M = np.zeros((N, len(index), 3))
     for jj, joint in enumerate(spec.joints):
         tau_j = tau[:, jj]
-        carrier = joint.child
-        while carrier not in index:  # a carriage: the drive acts on the body it carries
-            carrier = spec.outer_joints(carrier)[0].child
+        carrier = spec.carried_joint(joint.name).child  # a carriage: the drive acts on the body it carries
         j = index[carrier]
         inner = index.get(joint.parent)
         # a revolute axis turns with the outer body, a prismatic one with the inner body (or ground)

@@ -182,9 +182,7 @@ def joint_state(spec: RobotSpec, model: GraphModel, r: np.ndarray, A: np.ndarray
     out = np.zeros((N, len(spec.joints)))
     rate = np.zeros((N, len(spec.joints)))
     for jj, joint in enumerate(spec.joints):
-        carrier = joint.child
-        while carrier not in index:
-            carrier = spec.outer_joints(carrier)[0].child
+        carrier = spec.carried_joint(joint.name).child
         j = index[carrier]
         k = top.joints.index(spec.inner_joint(carrier).name)
         if joint.revolute:

@@ -51,9 +51,7 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
     F_out, M_out = np.empty((N, len(spec.joints), 3)), np.empty((N, len(spec.joints), 3))
     index = {name: k for k, name in enumerate(top.joints)}
     for jj, joint in enumerate(spec.joints):
-        carried = joint
-        while carried.name not in index:  # a carriage's joint: the wrench of the joint it carries
-            carried = spec.outer_joints(carried.child)[0]
+        carried = spec.carried_joint(joint.name)  # a carriage's joint: the wrench of the joint it carries
         k = index[carried.name]
         F_out[:, jj], M_out[:, jj] = F[:, k], M[:, k]
         j = top.bodies.index(carried.child)

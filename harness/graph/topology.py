@@ -44,16 +44,10 @@ class Topology:
         """Eqs. 14-16: path matrix of the force elements (the joint force elements)."""
         return self.S
 
-    def C_B(self, q: np.ndarray | None = None) -> np.ndarray:
-        """Eqs. 9-10: weighted body-joint vectors C_ij = S_ij c_ij, body-i components; with joint
-        coordinates q (N, n) for trees with prismatic joints, (N, n, n, 3)."""
-        if q is None:
-            return self.S[..., None] * self.c_B
-        return self.S[..., None] * (self.c_B + self.slide_B * q[:, None, :, None])
-
-    def C_e_B(self, q: np.ndarray | None = None) -> np.ndarray:
-        """Eq. 19: weighted force-element vectors (equal to C here)."""
-        return self.C_B(q)
+    def C_B(self) -> np.ndarray:
+        """Eqs. 9-10 (and Eq. 19, C_e = C): weighted body-joint vectors C_ij = S_ij c_ij at the
+        initial pose, body-i components. `joint_arms` gives them in the world, sliding ones included."""
+        return self.S[..., None] * self.c_B
 
     @property
     def n(self) -> int:

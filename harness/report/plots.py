@@ -38,15 +38,19 @@ def mark_rows(ax, t: np.ndarray, flags: np.ndarray, label: str = "near gimbal lo
         first = False
 
 
-def lines(t, series: dict[str, np.ndarray], ylabel: str, title: str, logy: bool = False,
-          flags: np.ndarray | None = None, styles: dict[str, str] | None = None, height: float = 2.6) -> str:
-    fig, ax = plt.subplots(figsize=(7.5, height))
+def _draw(ax, t, series: dict[str, np.ndarray], flags, styles, logy: bool, lw: float, ms: float) -> None:
     for name, y in series.items():
-        ax.plot(t, y, (styles or {}).get(name, "-"), label=name, lw=1.2, ms=3)
+        ax.plot(t, y, (styles or {}).get(name, "-"), label=name, lw=lw, ms=ms)
     if flags is not None and flags.any():
         mark_rows(ax, t, flags)
     if logy:
         ax.set_yscale("log")
+
+
+def lines(t, series: dict[str, np.ndarray], ylabel: str, title: str, logy: bool = False,
+          flags: np.ndarray | None = None, styles: dict[str, str] | None = None, height: float = 2.6) -> str:
+    fig, ax = plt.subplots(figsize=(7.5, height))
+    _draw(ax, t, series, flags, styles, logy, lw=1.2, ms=3)
     ax.set_xlabel("t [s]")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
@@ -60,12 +64,7 @@ def grid(t, panels: list[tuple[str, dict[str, np.ndarray], np.ndarray | None]], 
     nrows = -(-len(panels) // ncols)
     fig, axes = plt.subplots(nrows, ncols, figsize=(7.5, 1.9 * nrows), sharex=True, squeeze=False)
     for ax, (title, series, flags) in zip(axes.flat, panels, strict=False):
-        for name, y in series.items():
-            ax.plot(t, y, (styles or {}).get(name, "-"), label=name, lw=1.1, ms=2.5)
-        if flags is not None and flags.any():
-            mark_rows(ax, t, flags)
-        if logy:
-            ax.set_yscale("log")
+        _draw(ax, t, series, flags, styles, logy, lw=1.1, ms=2.5)
         ax.set_title(title, fontsize=8)
         ax.set_ylabel(ylabel, fontsize=7)
     for ax in axes.flat[len(panels):]:
