@@ -29,12 +29,12 @@ sys.path.insert(0, str(ROOT))
 from harness.engines.mujoco import build_model as build_mujoco  # noqa: E402
 from harness.engines.mujoco import simulate  # noqa: E402
 from harness.engines.pinocchio import build_model as build_pinocchio  # noqa: E402
-from harness.graph.dynamics import build_graph_model  # noqa: E402
-from harness.graph.inverse import inverse_dynamics  # noqa: E402
 from harness.measurement import Measurement  # noqa: E402
-from harness.pipeline import identify  # noqa: E402
+from harness.papers.graph_theory_2021.dynamics import build_graph_model  # noqa: E402
+from harness.papers.graph_theory_2021.inverse import inverse_dynamics  # noqa: E402
+from harness.papers.graph_theory_2021.solve import identify  # noqa: E402
+from harness.papers.graph_theory_2021.sweep import run_sweep  # noqa: E402
 from harness.scenario import load_scenario  # noqa: E402
-from harness.sweep import run_sweep  # noqa: E402
 
 N = 10_000
 

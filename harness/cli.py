@@ -6,26 +6,30 @@ import argparse
 import json
 import os
 import shutil
+import signal
 import sys
 import tempfile
 import time
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from harness.tomlio import InputError, Table, read_toml
+from harness.tomlio import InputError, read_toml
 
-EXIT_OK, EXIT_GATE_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_OK, EXIT_GATE_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 DEFAULT_SCENARIO = "kr500_rail"
 REPORT_FILE = "report.html"
 
 DESCRIPTION = """\
-Validate a robot's dynamic model against reference engines. MuJoCo simulates the robot along a
-scenario's motion and records forces, accelerations and Cardano angles; the graph-theory model is
-checked against that recording, identifies the inertial parameters from it, and its joint
-torques are cross-checked with Pinocchio. Each scenario declares accuracy gates.
+Validate robot dynamic models and identification methods against reference engines. MuJoCo
+simulates the robot along a scenario's motion and records joint torques, forces, accelerations and
+Cardano angles; Pinocchio's RNEA is the second opinion. Every model under test (a plugin: Python
+code, or a parameter file through a model plugin) is compared with both, every identification
+method is judged on the same measured data, and each study the scenario asks for (the seed papers'
+are two) adds its stages. Each scenario declares accuracy gates.
 
 exit status: 0 every gate passed, 1 a gate failed, 2 bad input (a one-line message names the file
-and the key)."""
+and the key, or the plugin), 3 an internal error (one line; the traceback with --debug)."""
 
 
 def _resolve_scenario(arg: str) -> Path:
@@ -41,6 +45,7 @@ def _resolve_scenario(arg: str) -> Path:
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="harness", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--debug", action="store_true", help="on an internal error, show the traceback")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     run = sub.add_parser(
         "run", help="run scenarios through the whole pipeline and write their reports",
@@ -55,6 +60,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="output folder: with one scenario, its folder; with several, the folder that gets "
                           "one subfolder per scenario (default: reports/<scenario name>)")
     run.add_argument("--quiet", action="store_true", help="no progress messages")
+    _ci_options(run)
     report = sub.add_parser("report", help="re-render report.html from a results.json",
                             description="Re-render the HTML report from a results.json and the recording.csv "
                                         "beside it, without simulating again.")
@@ -68,6 +74,7 @@ def _parser() -> argparse.ArgumentParser:
     gate.add_argument("results", metavar="RESULTS.json", type=Path, nargs="+")
     gate.add_argument("--scenario", metavar="FILE", type=Path, default=None,
                       help="take the gates from this scenario file instead")
+    _ci_options(gate)
     sweep = sub.add_parser(
         "sweep", help="repeat a scenario's noisy measurement N times: error distributions and coverage",
         description="Simulate the scenario once, then draw its measurement noise N times (seeds from the scenario's "
@@ -81,6 +88,36 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("list", help="list the models and scenarios in ./models and ./scenarios",
                    description="One line per model and per scenario found in ./models and ./scenarios.")
     return parser
+
+
+def _ci_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--junit-xml", metavar="FILE", type=Path, default=None,
+                   help="also write the verdict as JUnit XML: one test case per gate, a failure for each failing gate")
+    p.add_argument("--summary", metavar="FILE", type=Path, default=None,
+                   help="also write a Markdown table of the gates (for a CI job summary)")
+
+
+def _write_ci(args: argparse.Namespace, verdicts: list[tuple[str, list[dict]]]) -> None:
+    from harness.ci import junit_xml, markdown_summary
+
+    for path, text in ((args.junit_xml, junit_xml), (args.summary, markdown_summary)):
+        if path is not None:
+            try:
+                _write_file_atomically(path, text(verdicts))
+            except OSError as exc:
+                raise InputError(path, "", f"cannot write ({exc.strerror or exc})") from None
+
+
+def _write_file_atomically(path: Path, text: str) -> None:
+    path = path.resolve()
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
 
 
 def _write_atomically(out: Path, files: dict[str, Callable[[Path], object]]) -> None:
@@ -120,10 +157,9 @@ class _Progress:
 
 def cmd_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
-    from harness.pipeline import run
-    from harness.recording import Recording
+    from harness.api import run
     from harness.report import render
-    from harness.results import RECORDING_FILE, RESULTS_FILE, build_results, write_results
+    from harness.results import RECORDING_FILE, RESULTS_FILE, write_results
     from harness.scenario import load_scenario
 
     imported = time.perf_counter() - start  # mujoco, pinocchio, numpy, scipy, pandas, matplotlib
@@ -134,29 +170,30 @@ def cmd_run(args: argparse.Namespace) -> int:
         if s.name in seen:
             raise InputError(s.source, "", f"scenario {s.name!r} is named twice")
         seen.add(s.name)
-    passed = True
+    passed, verdicts = True, []
     for scenario in scenarios:
         if args.out is None:
             out = Path("reports") / scenario.name
         else:
             out = args.out if len(scenarios) == 1 else args.out / scenario.name
         progress = _Progress(scenario.name, args.quiet)
-        output = run(scenario, progress)
+        result = run(scenario, progress)
         progress("writing the report", None)
-        results = build_results(output)
+        results = result.results
         results["run"]["timings"] = {"importing the engines and libraries": imported, **results["run"]["timings"]}
         imported = 0.0
-        recording: Recording = output.recording
         try:
             _write_atomically(out, {
-                RECORDING_FILE: recording.write_csv,
+                RECORDING_FILE: result.recording.write_csv,
                 RESULTS_FILE: lambda p, r=results: write_results(p, r),
-                REPORT_FILE: lambda p, r=results, rec=recording: p.write_text(render(r, rec)),
+                REPORT_FILE: lambda p, r=results, rec=result.recording: p.write_text(render(r, rec)),
             })
         except OSError as exc:
             raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
         _print_summary(results, out)
         passed &= results["passed"]
+        verdicts.append((scenario.name, results["gates"]))
+    _write_ci(args, verdicts)
     return EXIT_OK if passed else EXIT_GATE_FAILED
 
 
@@ -195,7 +232,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     from harness.report import write_report
 
     results = _read_results(args.results)
-    recording = args.results.parent / results.get("recording", {}).get("file", "recording.csv")
+    rec_name = results.get("recording", {}).get("file", "recording.csv") if isinstance(results.get("recording"),
+                                                                                        dict) else None
+    if not isinstance(rec_name, str) or Path(rec_name).name != rec_name:
+        raise InputError(args.results, "recording.file", "must name a file beside results.json")
+    recording = args.results.parent / rec_name
     if not recording.is_file():
         raise InputError(recording, "", "file not found (the report needs the recording beside results.json)")
     out = args.out or args.results.parent / REPORT_FILE
@@ -208,29 +249,35 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_gate(args: argparse.Namespace) -> int:
-    from harness.gates import check, from_results, read_gates
+    from harness.gates import from_results, verdict
+    from harness.scenario import load_scenario
 
-    gates = None
-    if args.scenario is not None:
-        root = Table(read_toml(args.scenario), args.scenario)
-        gates = read_gates(root.tables("gates")) if root.has("gates") else ()
-    passed = True
+    gates = None if args.scenario is None else load_scenario(args.scenario).gates
+    passed, verdicts = True, []
     for path in args.results:
         results = _read_results(path)
-        rows, ok = check(gates if gates is not None else from_results(results), results)
-        print(f"{results.get('scenario', {}).get('name', path)}: {'PASSED' if ok else 'FAILED'} "
-              f"({sum(r['passed'] for r in rows)} of {len(rows)} gates)")
+        checked = verdict(gates if gates is not None else from_results(results, path), results,
+                          args.scenario or path)
+        rows, ok = checked["gates"], checked["passed"]
+        name = results.get("scenario", {}).get("name", str(path)) if isinstance(results.get("scenario"), dict) \
+            else str(path)
+        print(f"{name}: {'PASSED' if ok else 'FAILED'} ({sum(r['passed'] for r in rows)} of {len(rows)} gates)")
         _print_gates(rows)
         passed &= ok
+        verdicts.append((name, rows))
+    _write_ci(args, verdicts)
     return EXIT_OK if passed else EXIT_GATE_FAILED
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from harness.report.sweep import render_sweep
+    from harness.progress import Bar
     from harness.scenario import load_scenario
-    from harness.sweep import Bar, run_sweep
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
+    study = next((s for s, _ in scenario.studies if s.sweep is not None), None)
+    if study is None:
+        raise InputError(scenario.source, "studies", "no study of this scenario can be swept (the graph-theory "
+                                                     "study can: [studies.graph_theory_2021])")
     if args.trials < 2:
         raise InputError(args.scenario, "--trials", f"needs at least 2 trials, got {args.trials}")
     if args.jobs < 1:
@@ -238,10 +285,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if scenario.measurement.ideal:
         raise InputError(scenario.source, "measurement", "the scenario measures ideally: there is nothing to sweep")
     out = args.out or Path("reports") / scenario.name
-    sweep = run_sweep(scenario, args.trials, args.jobs, Bar(f"{scenario.name} sweep"))
+    sweep = study.sweep(scenario, args.trials, args.jobs, Bar(f"{scenario.name} sweep"))
     try:
         _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(sweep, indent=1) + "\n"),
-                                "sweep.html": lambda p: p.write_text(render_sweep(sweep))})
+                                "sweep.html": lambda p: p.write_text(study.render_sweep(sweep))})
     except OSError as exc:
         raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
     print(f"{scenario.name}: {args.trials} trials; coverage of the 95 % intervals {sweep['coverage_min']:.3f} to "
@@ -264,17 +311,38 @@ def cmd_list(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _on_sigterm(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
+    from harness.plugins import PluginError
+
     args = _parser().parse_args(argv)
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _on_sigterm)  # unwind, so that no temporary folder is left
     try:
         return {"run": cmd_run, "report": cmd_report, "gate": cmd_gate, "sweep": cmd_sweep,
                 "list": cmd_list}[args.command](args)
     except InputError as exc:
         print(f"harness: error: {exc.one_line()}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except PluginError as exc:
+        print(f"harness: error: plugin {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except BrokenPipeError:  # the reader went away (| head): stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_GATE_FAILED
+    except KeyboardInterrupt:
+        print("harness: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        if args.debug:
+            raise
+        where = traceback.extract_tb(exc.__traceback__)[-1]
+        print(f"harness: internal error: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''} "
+              f"(at {Path(where.filename).name}:{where.lineno}; --debug shows the traceback)", file=sys.stderr)
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -6,7 +6,15 @@
     direction = "at_most"                                 # or "at_least"; default at_most
     name = "graph torques agree with Pinocchio"           # optional; default the metric
 
-Gates fail closed: a metric that is missing, not a number, or not finite fails its gate.
+A gate set is a file of gates that many scenarios share, included with `[scenario] gate_sets`:
+
+    [gate_set]
+    description = "..."
+    [[gates]]
+    ...
+
+Gates fail closed: a metric that is null, not a number, or not finite fails its gate. A metric
+that names no result at all is bad input (a misspelt path must not pass or fail quietly).
 """
 
 from __future__ import annotations
@@ -14,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from harness.tomlio import Table
+from harness.tomlio import InputError, Table
 
 DIRECTIONS = ("at_most", "at_least")
 
@@ -43,8 +51,11 @@ def read_gates(tables: list[Table]) -> tuple[Gate, ...]:
     return tuple(gates)
 
 
-def lookup(results: dict, metric: str):
-    """The value at a dotted path (list elements by index), or None where there is none."""
+MISSING = object()  # what lookup returns for a path that names nothing
+
+
+def lookup(results: dict, metric: str, missing=None):
+    """The value at a dotted path (list elements by index), or `missing` where there is none."""
     node = results
     for part in metric.split("."):
         if isinstance(node, dict) and part in node:
@@ -52,8 +63,25 @@ def lookup(results: dict, metric: str):
         elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
             node = node[int(part)]
         else:
-            return None
+            return missing
     return node
+
+
+def unknown_metrics(gates, results: dict) -> list[int]:
+    """Indices of the gates whose metric names no result."""
+    return [i for i, g in enumerate(gates) if lookup(results, g.metric, MISSING) is MISSING]
+
+
+def verdict(gates, results: dict, source) -> dict:
+    """results with the verdict: `passed` and one row per gate, first in the file. A gate whose
+    metric names no result is an InputError naming `source` and the gate."""
+    bad = unknown_metrics(gates, results)
+    if bad:
+        g = gates[bad[0]]
+        raise InputError(source, f"gates: {g.name}", f"metric {g.metric!r} names no result of this run")
+    rows, passed = check(gates, results)
+    head = {"schema": results.get("schema"), "passed": passed, "gates": rows}
+    return {**head, **{k: v for k, v in results.items() if k not in head}}
 
 
 def check(gates: tuple[Gate, ...] | list[Gate], results: dict) -> tuple[list[dict], bool]:
@@ -72,7 +100,16 @@ def check(gates: tuple[Gate, ...] | list[Gate], results: dict) -> tuple[list[dic
     return rows, all(r["passed"] for r in rows)
 
 
-def from_results(results: dict) -> tuple[Gate, ...]:
-    """The gate definitions stored in a results.json."""
-    return tuple(Gate(r["name"], r["metric"], r["limit"], r.get("direction", "at_most"))
-                 for r in results.get("gates", []))
+def from_results(results: dict, source) -> tuple[Gate, ...]:
+    """The gate definitions stored in a results.json, validated: a results file without gates, or
+    with a gate row that is not complete, is bad input."""
+    rows = results.get("gates")
+    if not isinstance(rows, list) or not rows:
+        raise InputError(source, "gates", "no gates in this results file (nothing to check cannot pass)")
+    out = []
+    for i, r in enumerate(rows):
+        if not isinstance(r, dict):
+            raise InputError(source, f"gates[{i}]", "expected an object")
+        t = Table({k: r[k] for k in ("name", "metric", "limit", "direction") if k in r}, source, f"gates[{i}]")
+        out.extend(read_gates([t]))
+    return tuple(out)

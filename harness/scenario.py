@@ -5,21 +5,41 @@ every joint of that model (no joint is left implicit), and states the output gri
 split into `output_steps` equal steps, so the recording has output_steps + 1 rows from t = 0.
 `sample_times` (the identification instants of the paper, section 3.1) must lie on that grid, or
 be "all" for every output step. `[measurement]` states what the test bench reports
-(harness.measurement); `[identification]` may name the paper's tables to compare with.
+(harness.measurement).
+
+What is judged is named, never implied: `[model_under_test]` (one table, or `[[model_under_test]]`
+for several) names each model under test, `[identification]` each identification method, both
+plugins (harness/plugins.py); `[studies.NAME]` asks for a study's stages (a paper's, or a user's)
+and holds its settings. `[scenario] gate_sets` includes shared gate files; the scenario's own
+`[[gates]]` add to them and replace an included gate on the same metric.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass, field
-from importlib.resources import files
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from harness.gates import Gate, read_gates
 from harness.measurement import Measurement, read_measurement
 from harness.motion import Motion, read_motion
+from harness.plugins import (
+    METHOD_GROUP,
+    MODEL_GROUP,
+    IdentificationMethod,
+    ModelUnderTest,
+    PluginError,
+    Study,
+    call_factory,
+    check_protocol,
+    load_entry_point,
+    load_reference,
+    load_study,
+)
 from harness.spec import RobotSpec, load_spec
 from harness.tomlio import InputError, Table, read_toml
 
@@ -41,23 +61,15 @@ class Simulation:
     tracking_bandwidth: float = 20.0
 
 
-@dataclass(frozen=True)
-class Lagrange:
-    """Section 3.2 settings: the time at which the multipliers are reported (None: not reported),
-    the paper's values to set beside them, and whether to integrate the constrained model."""
-
-    time: float | None = None
-    paper_lambda: str | None = None
-    forward_simulation: bool = False
-
-
 @dataclass(frozen=True, eq=False)
-class DesignComparison:
-    """Another design on the same path, and the joints that share one motor in this design."""
+class PluginEntry:
+    """A model under test or an identification method, as the scenario names it, built."""
 
-    baseline: Scenario
-    shared_motor: tuple[str, ...]
-    baseline_joint: str
+    name: str  # names its metrics: torques.<name>_vs_mujoco
+    reference: str  # "module:attribute" or the entry point's name
+    robot: RobotSpec  # the description it was built from
+    instance: Any  # what the factory returned (checked against the protocol)
+    validation: Scenario | None = None  # identification methods: the trajectory they are judged on
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,21 +85,16 @@ class Scenario:
     motion: dict[str, Motion]  # in the robot's joint order
     simulation: Simulation
     measurement: Measurement = field(default_factory=Measurement)
-    paper_identified: str | None = None  # reference CSV (harness/reference) of identified values
-    paper_abs_error: str | None = None  # reference CSV of the paper's absolute errors
-    lagrange: Lagrange = field(default_factory=lambda: Lagrange())
     gates: tuple[Gate, ...] = ()
-    model_under_test: RobotSpec | None = None  # the model checked against the engines; default: robot
     text: str = ""  # the scenario file as read, for the report
-    design_comparison: DesignComparison | None = None
-    audit: str | None = None  # a paper's printed inertia matrix to audit ("yahya2012")
     torque_validation: Scenario | None = None  # joint-torque identification, validated on this scenario
     excitation: dict | None = None  # Fourier-series excitation to optimise (harness/excitation.py)
+    models: tuple[PluginEntry, ...] = ()  # models under test
+    methods: tuple[PluginEntry, ...] = ()  # identification methods under test
+    studies: tuple[tuple[Study, Any], ...] = ()  # (study, its configuration), in the file's order
 
-    @property
-    def tested(self) -> RobotSpec:
-        """The model under test: the graph model is built from it, the engines from `robot`."""
-        return self.model_under_test or self.robot
+    def model(self, name: str) -> PluginEntry:
+        return next(m for m in self.models if m.name == name)
 
     @property
     def output_dt(self) -> float:
@@ -109,14 +116,46 @@ class Scenario:
         return tuple(np.stack([p[k] for p in parts], axis=-1) for k in range(3))
 
 
+def _relative_file(t: Table, key: str, rel: str, base: Path) -> Path:
+    """A file named relative to the scenario file; it must exist."""
+    path = Path(os.path.normpath(base.parent / rel))
+    if not path.is_file():
+        raise t.error(key, f"file {rel!r} not found (looked for {path})")
+    return path
+
+
+_LOADING: list[Path] = []  # the scenarios being loaded, outermost first: a cycle is refused
+
+
+def load_related(t: Table, key: str, path: Path) -> Scenario:
+    """Another scenario that the scenario at `path` names under `key` of table `t`, relative to
+    it (a validation trajectory, a baseline design)."""
+    other = _relative_file(t, key, t.string(key), path)
+    if other.resolve() in _LOADING:
+        chain = " -> ".join(p.name for p in (*_LOADING, other.resolve()))
+        raise t.error(key, f"scenarios name each other in a cycle ({chain})")
+    return load_scenario(other)
+
+
 def load_scenario(path: Path | str) -> Scenario:
-    """Load and validate a scenario and its model; raises `InputError` naming the file and key."""
+    """Load and validate a scenario, its model and its plugins; raises `InputError` naming the
+    file and key (a plugin that cannot be imported or built is named in the message)."""
     path = Path(path)
+    _LOADING.append(path.resolve())
+    try:
+        return _load(path)
+    finally:
+        _LOADING.pop()
+
+
+def _load(path: Path) -> Scenario:
     root = Table(read_toml(path), path)
     s = root.table("scenario")
     description = s.string("description", default="")
     model_rel = s.string("model")
-    tested_rel = s.string("model_under_test", default=None) if s.has("model_under_test") else None
+    if s.has("model_under_test"):
+        raise s.error("model_under_test", "a model under test is a table of its own: [model_under_test] with "
+                                          "name, python (or plugin) and model (see README, 'Plugging in')")
     gravity = s.vector("gravity", default=[0.0, 0.0, -9.80665])
     duration = s.number("duration", positive=True)
     output_steps = s.integer("output_steps", minimum=1)
@@ -126,46 +165,21 @@ def load_scenario(path: Path | str) -> Scenario:
         sample_times = np.arange(output_steps + 1) * output_dt
     else:
         sample_times = s.vector("sample_times", length=None, default=[])
+    gate_files = [_relative_file(s, "gate_sets", rel, path)
+                  for rel in (s.strings("gate_sets", choices=None) if s.has("gate_sets") else ())]
     s.finish()
 
-    model_path = Path(os.path.normpath(path.parent / model_rel))
-    if not model_path.is_file():
-        raise s.error("model", f"model file {model_rel!r} not found (looked for {model_path})")
-    robot = load_spec(model_path)
-    tested = None
-    if tested_rel is not None:
-        tested_path = Path(os.path.normpath(path.parent / tested_rel))
-        if not tested_path.is_file():
-            raise s.error("model_under_test", f"model file {tested_rel!r} not found (looked for {tested_path})")
-        tested = load_spec(tested_path)
-        if (tested.joint_names != robot.joint_names
-                or [b.name for b in tested.bodies] != [b.name for b in robot.bodies]):
-            raise s.error("model_under_test", f"model {tested.name!r} must have the bodies and joints of "
-                                              f"{robot.name!r} (it describes the same robot)")
-
+    robot = load_spec(_relative_file(s, "model", model_rel, path))
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))
-    paper_identified, paper_abs_error = _read_identification(root.table("identification", default={}))
-    lagrange = _read_lagrange(root.table("lagrange", default={}), duration, output_steps)
-    gates = read_gates(root.tables("gates")) if root.has("gates") else ()
-    comparison = (_read_comparison(root.table("design_comparison"), path, robot)
-                  if root.has("design_comparison") else None)
+    gates = _read_all_gates(root, gate_files)
     torque_validation = None
     if root.has("torque_identification"):
         ti = root.table("torque_identification")
-        rel = ti.string("validation")
-        vpath = Path(os.path.normpath(path.parent / rel))
-        if not vpath.is_file() or vpath.resolve() == path.resolve():
-            raise ti.error("validation", f"{rel!r} must be another scenario file (looked for {vpath})")
-        torque_validation = load_scenario(vpath)
+        torque_validation = load_related(ti, "validation", path)
         if torque_validation.robot.joint_names != robot.joint_names:
-            raise ti.error("validation", f"{rel!r} simulates another robot than {robot.name!r}")
+            raise ti.error("validation", f"{ti.data['validation']!r} simulates another robot than {robot.name!r}")
         ti.finish()
-    audit = None
-    if root.has("audit"):
-        at = root.table("audit")
-        audit = at.string("inertia_matrix", choices=("yahya2012",))
-        at.finish()
     excitation = None
     if root.has("excitation"):
         et = root.table("excitation")
@@ -190,7 +204,6 @@ def load_scenario(path: Path | str) -> Scenario:
                                         "motion (use type = \"locked\" to hold it)")
         motion[j] = read_motion(motion_table.table(j))
     motion_table.finish()
-    root.finish()
 
     for ts in sample_times:
         if not 0.0 <= ts <= duration:
@@ -208,34 +221,89 @@ def load_scenario(path: Path | str) -> Scenario:
     if ratio < 1.0 - _GRID_TOL or abs(ratio - round(ratio)) > _GRID_TOL * ratio:
         raise InputError(path, "simulation.timestep",
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
-    return Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
-                    np.asarray(sample_times), motion, simulation, measurement, paper_identified,
-                    paper_abs_error, lagrange, gates, tested, path.read_text(), comparison, audit,
-                    torque_validation, excitation)
+    scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
+                        np.asarray(sample_times), motion, simulation, measurement, gates, path.read_text(),
+                        torque_validation, excitation)
+    models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
+                   for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
+    methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)
+                    for t in (root.one_or_many("identification") if root.has("identification") else ()))
+    for kind, entries in (("model_under_test", models), ("identification", methods)):
+        names = [e.name for e in entries]
+        for i, n in enumerate(names):
+            if n in names[:i] or n in ("mujoco", "pinocchio"):
+                raise InputError(path, f"{kind}.name", f"{n!r} is used twice, or names a reference engine")
+    studies = []
+    if root.has("studies"):
+        st = root.table("studies")
+        for name in list(st.data):
+            table = st.table(name)
+            ref = table.string("python", default=None) if table.has("python") else None
+            try:
+                study = load_reference(ref, path.parent) if ref else load_study(name)
+            except PluginError as exc:
+                raise table.error("python" if ref else "", exc.message if ref else str(exc)) from None
+            if not isinstance(study, Study):
+                raise table.error("python", f"{ref!r} must be a harness.plugins.Study")
+            studies.append((study, study.configure(table, scenario)))
+            table.finish()
+        st.finish()
+    root.finish()
+    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
 
 
-def _reference(t: Table, key: str) -> str | None:
-    name = t.string(key, default=None) if t.has(key) else None
-    if name is not None and not files("harness").joinpath("reference", name).is_file():
-        raise t.error(key, f"no reference table {name!r} in harness/reference")
-    return name
+def _read_all_gates(root: Table, gate_files: list[Path]) -> tuple[Gate, ...]:
+    """The included gate sets, then the scenario's own gates, which replace an included gate on the
+    same metric. A scenario must declare at least one gate."""
+    included: list[Gate] = []
+    for f in gate_files:
+        t = Table(read_toml(f), f)
+        head = t.table("gate_set")
+        head.string("description", default="")
+        head.finish()
+        included += read_gates(t.tables("gates"))
+        t.finish()
+    own = read_gates(root.tables("gates")) if root.has("gates") else ()
+    mine = {g.metric for g in own}
+    gates = tuple(g for g in included if g.metric not in mine) + tuple(own)
+    if not gates:
+        raise root.error("gates", "the scenario declares no gates: add [[gates]] or [scenario] gate_sets "
+                                  "(a run with nothing to check cannot pass)")
+    return gates
 
 
-def _read_identification(t: Table) -> tuple[str | None, str | None]:
-    names = _reference(t, "paper_identified"), _reference(t, "paper_abs_error")
+def _read_plugin(t: Table, path: Path, scenario: Scenario, group: str, protocol: type) -> PluginEntry:
+    """[model_under_test] / [identification]: name; python = "module:attribute" or plugin = entry
+    point name; model = a robot description file to build it from (default: the scenario's robot);
+    validation = another scenario (identification methods); any further keys are passed to the
+    factory as `parameters`."""
+    name = t.string("name")
+    if not name.isidentifier():
+        raise t.error("name", f"{name!r} must be a plain identifier (letters, digits, _): it names metrics")
+    if t.has("python") == t.has("plugin"):
+        raise t.error("python", "give exactly one of python = \"module:attribute\" or plugin = \"name\"")
+    key = "python" if t.has("python") else "plugin"
+    ref = t.string(key)
+    robot = scenario.robot
+    if t.has("model"):
+        robot = load_spec(_relative_file(t, "model", t.string("model"), path))
+        if (robot.joint_names != scenario.robot.joint_names
+                or [b.name for b in robot.bodies] != [b.name for b in scenario.robot.bodies]):
+            raise t.error("model", f"model {robot.name!r} must have the bodies and joints of "
+                                   f"{scenario.robot.name!r} (it describes the same robot)")
+    validation = load_related(t, "validation", path) if t.has("validation") else None
+    if validation is not None and validation.robot.joint_names != scenario.robot.joint_names:
+        raise t.error("validation", "simulates another robot")
+    parameters = {k: v for k, v in t.data.items() if k not in ("name", "python", "plugin", "model", "validation")}
+    t._used.update(parameters)
+    try:
+        factory = load_reference(ref, path.parent) if key == "python" else load_entry_point(ref, group)
+        instance = call_factory(ref, factory, robot, gravity_W=scenario.gravity_W.copy(), parameters=parameters)
+        check_protocol(ref, instance, protocol, robot.joint_names)
+    except PluginError as exc:
+        raise t.error(key, f"plugin {exc}") from None
     t.finish()
-    return names
-
-
-def _read_lagrange(t: Table, duration: float, output_steps: int) -> Lagrange:
-    time = t.number("time", default=None, nonnegative=True) if t.has("time") else None
-    output_dt = duration / output_steps
-    if time is not None and (time > duration or abs(time / output_dt - round(time / output_dt)) > _GRID_TOL):
-        raise t.error("time", f"{time:g} s is not an output step of the run (every {output_dt:g} s "
-                              f"up to {duration:g} s)")
-    out = Lagrange(time, _reference(t, "paper_lambda"), t.boolean("forward_simulation", default=False))
-    t.finish()
-    return out
+    return PluginEntry(name, ref, robot, instance, validation)
 
 
 def _read_simulation(t: Table) -> Simulation:
@@ -248,19 +316,3 @@ def _read_simulation(t: Table) -> Simulation:
     )
     t.finish()
     return sim
-
-
-def _read_comparison(t: Table, path: Path, robot: RobotSpec) -> DesignComparison:
-    rel = t.string("baseline")
-    base_path = Path(os.path.normpath(path.parent / rel))
-    if not base_path.is_file():
-        raise t.error("baseline", f"scenario file {rel!r} not found (looked for {base_path})")
-    if base_path.resolve() == path.resolve():
-        raise t.error("baseline", "a scenario cannot be its own baseline")
-    baseline = load_scenario(base_path)
-    if baseline.robot.joint_names != robot.joint_names:
-        raise t.error("baseline", f"{rel!r} has other joints than {robot.name!r}")
-    shared = t.strings("shared_motor", choices=tuple(robot.joint_names))
-    joint = t.string("shared_motor_baseline_joint", choices=tuple(robot.joint_names))
-    t.finish()
-    return DesignComparison(baseline, shared, joint)

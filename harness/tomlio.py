@@ -83,13 +83,13 @@ class Table:
             raise self.error(name, f"{value!r} is not one of {', '.join(choices)}")
         return value
 
-    def strings(self, name: str, choices: Sequence[str], default: Any = _MISSING) -> tuple[str, ...]:
-        """A non-empty list of strings, each one of `choices`."""
+    def strings(self, name: str, choices: Sequence[str] | None, default: Any = _MISSING) -> tuple[str, ...]:
+        """A non-empty list of strings, each one of `choices` (any string when None)."""
         value = self._raw(name, default)
         if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
             raise self.error(name, "expected a non-empty list of strings")
         for v in value:
-            if v not in choices:
+            if choices is not None and v not in choices:
                 raise self.error(name, f"{v!r} is not one of {', '.join(choices)}")
         return tuple(value)
 
@@ -144,6 +144,12 @@ class Table:
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
             raise self.error(name, "expected an array of tables ([[...]])")
         return [Table(v, self.file, f"{self.key(name)}[{i}]") for i, v in enumerate(value)]
+
+    def one_or_many(self, name: str) -> list[Table]:
+        """A table ([name]) or an array of tables ([[name]]), as a list."""
+        if isinstance(self.data.get(name), dict):
+            return [self.table(name)]
+        return self.tables(name)
 
     def finish(self) -> None:
         """Refuse every key that was not read: unknown keys are errors, not ignored."""

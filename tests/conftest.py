@@ -57,3 +57,25 @@ def run_scenario():
         return cache[path]
 
     return _run
+
+
+def results_of(out, when: str | None = None) -> dict:
+    """results.json of a pipeline run, with its verdict."""
+    from harness.gates import verdict
+    from harness.results import build_results
+
+    return verdict(out.scenario.gates, build_results(out, when), out.scenario.source)
+
+
+def graph_model(out):
+    """The graph-theory model of a run's robot (the study's model when the scenario names none)."""
+    from harness.papers.graph_theory_2021.dynamics import build_graph_model
+
+    return build_graph_model(out.scenario.robot, out.scenario.gravity_W)
+
+
+def copy_gate_sets(scenarios_folder: Path) -> None:
+    """The shared gate sets beside a scenario copied into a temporary folder."""
+    import shutil
+
+    shutil.copytree(SCENARIOS / "gates", scenarios_folder / "gates", dirs_exist_ok=True)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from harness.cli import main
-from tests.conftest import MODELS, SCENARIOS
+from tests.conftest import MODELS, SCENARIOS, copy_gate_sets
 
 
 def test_run_writes_recording_results_and_report(kr500_run):
@@ -33,6 +33,7 @@ def _copy_inputs(tmp_path: Path, model_edit=None, scenario_edit=None) -> Path:
     """A model and scenario pair in tmp_path, each optionally edited as text."""
     (tmp_path / "models").mkdir()
     (tmp_path / "scenarios").mkdir()
+    copy_gate_sets(tmp_path / "scenarios")
     model = (MODELS / "kr500.toml").read_text()
     scenario = (SCENARIOS / "kr500_rail.toml").read_text()
     (tmp_path / "models" / "kr500.toml").write_text(model_edit(model) if model_edit else model)

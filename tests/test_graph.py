@@ -8,9 +8,9 @@ import pytest
 
 from harness.cardano import GIMBAL_COND_D, D, D_dot, angles_from_rotation
 from harness.engines.mujoco import build_model
-from harness.graph.dynamics import angle_rates, body_series
-from harness.graph.topology import build_topology
-from tests.conftest import DATA, SCENARIOS
+from harness.papers.graph_theory_2021.dynamics import angle_rates, body_series
+from harness.papers.graph_theory_2021.topology import build_topology
+from tests.conftest import DATA, SCENARIOS, graph_model
 
 # Eqs. 7 and 16 as printed for the 6R robot (the extraction lost the signs of S; S_e keeps them):
 # O_i ends at B_i (-1) and O_(i+1) starts at B_i (+1).
@@ -81,7 +81,7 @@ def test_angle_rates_through_D_match_finite_differences_of_the_engines_orientati
     truncation is about h^4 w^6 / 90 ~ 1e-6 rad/s^2 and the round-off 30 eps |theta| / (12 h^2)
     ~ 1e-8: 1e-6 of the largest value is a bound with room, and far below any error in D."""
     out = run_scenario(scenario_path)
-    s = body_series(out.recording, out.model.topology)
+    s = body_series(out.recording, graph_model(out).topology)
     theta_dot, theta_ddot, cond = angle_rates(s.theta, s.omega_B, s.omegadot_B)
     h = 1e-3
     f = {k: _engine_angles(out.scenario, s.t + k * h, s.theta) for k in (-2, -1, 1, 2)}
@@ -107,7 +107,7 @@ def test_angle_rates_through_D_match_finite_differences_of_the_engines_orientati
 def test_unconstrained_dynamics_residual_vanishes_on_the_recording(run_scenario, scenario_path):
     """Eq. 36, A q'' - B = 0, at every row where D is well conditioned: at most 1e-9 of |B|
     (measured: about 2e-12, the cancellation of joint forces of 1e6 N into body resultants)."""
-    res = run_scenario(scenario_path).residual
+    res = run_scenario(scenario_path)["graph"]
     assert np.nanmax(np.where(res.evaluated, res.translational, np.nan)) <= 1e-9
     assert np.nanmax(np.where(res.evaluated, res.rotational, np.nan)) <= 1e-9
 
@@ -116,7 +116,7 @@ def test_rows_near_gimbal_lock_are_listed_with_cond_D(run_scenario):
     """kr500: the only rows not evaluated are B1's first ones, where cond(D) > 100; B1 starts in
     lock (cond(D) ~ 1e16 at t = 0)."""
     out = run_scenario(SCENARIOS / "kr500_rail.toml")
-    res = out.residual
+    res = out["graph"]
     skipped = np.argwhere(~res.evaluated)
     assert set(skipped[:, 1]) == {0}  # B1 only
     np.testing.assert_allclose(res.t[skipped[:, 0]], [0.0, 0.02, 0.04, 0.06], atol=1e-12)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.graph.identification import PARAMETERS, id_S
 from harness.measurement import Measurement, round_significant
+from harness.papers.graph_theory_2021.identification import PARAMETERS, id_S
 from tests.conftest import DATA, SCENARIOS
 
 NOT_EXCITED_KR500 = {("B1", "m_e2"), ("B1", "J22"), ("B1", "J33")}
@@ -40,7 +40,7 @@ def test_ideal_measurements_identify_every_excited_parameter_to_1e9(run_scenario
     """With the engine's double-precision data every identifiable parameter is within 1e-9 of the
     true value (measured: below 1e-12); B1's mass along e2(0) and its J22, J33 are reported as not
     identifiable, because the paper's motion never excites them."""
-    ident = run_scenario(SCENARIOS / f"{name}.toml").identification
+    ident = run_scenario(SCENARIOS / f"{name}.toml")["identification"]
     verdicts, true = _verdicts(ident), _true(ident)
     assert {k for k, v in verdicts.items() if not v[0]} == NOT_EXCITED_KR500
     for key, (ok, x, reason) in verdicts.items():
@@ -51,14 +51,14 @@ def test_ideal_measurements_identify_every_excited_parameter_to_1e9(run_scenario
 
 
 def test_all_steps_scenario_uses_every_output_step(run_scenario):
-    ident = run_scenario(SCENARIOS / "kr500_rail_all_steps.toml").identification
+    ident = run_scenario(SCENARIOS / "kr500_rail_all_steps.toml")["identification"]
     assert len(ident.sample_times) == 101
     assert ident.per_body[0].rows == 6 * 101
 
 
 def test_whole_system_least_squares_agrees_with_per_body(run_scenario):
     """Eq. 64 (block-diagonal system) and Eq. 56 (body by body) are the same problem."""
-    ident = run_scenario(SCENARIOS / "kr500_rail.toml").identification
+    ident = run_scenario(SCENARIOS / "kr500_rail.toml")["identification"]
     per_body_ok = np.concatenate([ls.identifiable for ls in ident.per_body])
     np.testing.assert_array_equal(ident.system.identifiable, per_body_ok)
     per_body_x = np.concatenate([ls.x for ls in ident.per_body])
@@ -68,7 +68,7 @@ def test_whole_system_least_squares_agrees_with_per_body(run_scenario):
 def test_a_different_tree_is_identified_by_the_same_code(run_scenario):
     """The branched test tree (tilted axes, a prismatic joint, explicit inertias) moves every
     joint: all 24 parameters are identifiable, each within 1e-9 (measured: 3e-14)."""
-    ident = run_scenario(DATA / "scenarios" / "branch_sines.toml").identification
+    ident = run_scenario(DATA / "scenarios" / "branch_sines.toml")["identification"]
     verdicts, true = _verdicts(ident), _true(ident)
     assert all(ok for ok, _, _ in verdicts.values())
     for key, (_, x, _) in verdicts.items():
@@ -80,8 +80,8 @@ def test_seven_digit_measurements_keep_the_verdicts_and_show_the_papers_error_le
     parameters identifiable: rounding noise does not turn B1's J22, J33 into numbers. The errors
     are no longer round-off: the rounding resolution 5e-7 of each channel, amplified by the
     regressor, gives up to about 3e-4 relative; 1e-3 bounds it with room."""
-    ideal = _verdicts(run_scenario(SCENARIOS / "kr500_rail.toml").identification)
-    ident = run_scenario(SCENARIOS / "kr500_rail_7digits.toml").identification
+    ideal = _verdicts(run_scenario(SCENARIOS / "kr500_rail.toml")["identification"])
+    ident = run_scenario(SCENARIOS / "kr500_rail_7digits.toml")["identification"]
     rounded, true = _verdicts(ident), _true(ident)
     assert {k: v[0] for k, v in rounded.items()} == {k: v[0] for k, v in ideal.items()}
     errors = np.array([abs(x - true[k]) / true[k] for k, (ok, x, _) in rounded.items() if ok])

@@ -10,8 +10,8 @@ import pytest
 
 from harness.engines.mujoco import simulate
 from harness.measurement import Measurement, Noise, measure
+from harness.papers.graph_theory_2021.sweep import run_sweep
 from harness.scenario import load_scenario
-from harness.sweep import run_sweep
 from tests.conftest import SCENARIOS
 
 

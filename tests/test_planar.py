@@ -7,10 +7,9 @@ import numpy as np
 import pytest
 
 from harness.engines.pinocchio import build_model, crba
-from harness.results import build_results
+from harness.papers.yahya2012.audit import audit_inertia_matrix, corrected_M12, dh_symbols, printed_inertia_matrix
 from harness.spec import dh_transform, load_spec
-from harness.yahya2012 import audit_inertia_matrix, corrected_M12, dh_symbols, printed_inertia_matrix
-from tests.conftest import MODELS, SCENARIOS
+from tests.conftest import MODELS, SCENARIOS, copy_gate_sets, results_of
 
 DESIGNS = ("conventional", "proposed")
 # the paper's Table 2, grams -> kg
@@ -44,6 +43,7 @@ def test_a_rod_link_needs_a_length(tmp_path, capsys):
     text = (MODELS / "planar6_proposed.toml").read_text().replace("a = 0.19", "a = 0.0")
     (tmp_path / "models").mkdir()
     (tmp_path / "scenarios").mkdir()
+    copy_gate_sets(tmp_path / "scenarios")
     (tmp_path / "models" / "planar6_proposed.toml").write_text(text)
     (tmp_path / "scenarios" / "s.toml").write_text(
         (SCENARIOS / "planar6_case1_conventional.toml").read_text().replace("planar6_conventional", "planar6_proposed"))
@@ -57,7 +57,7 @@ CASES = [f"planar6_case{c}_{d}" for c in (1, 2) for d in DESIGNS]
 @pytest.mark.parametrize("name", CASES)
 def test_torques_agree_three_ways_and_joints_3_to_6_share_one_angle(run_scenario, name):
     out = run_scenario(SCENARIOS / f"{name}.toml")
-    torques = build_results(out)["torques"]
+    torques = results_of(out)["torques"]
     for pair in ("graph_vs_pinocchio", "graph_vs_mujoco", "pinocchio_vs_mujoco"):
         assert torques[pair]["max_rel_error"] <= 1e-9, pair
     q = out.recording.q
@@ -71,7 +71,7 @@ def test_the_papers_claims_are_checked_with_their_numbers(run_scenario, case):
     claims 2 and 3 are the paper's, and hold in both cases. The shared motor's torque is the
     sum of the torques of the joints it drives (virtual work at one common speed)."""
     out = run_scenario(SCENARIOS / f"planar6_case{case}_proposed.toml")
-    dc = out.design_comparison
+    dc = out["design_comparison"]
     equal, fewer, motor = dc["claims"]
     assert equal["holds"] and equal["numbers"]["max_rel_difference"] <= 1e-9
     assert fewer["holds"] and fewer["numbers"]["equal_at"] == ["J6"] and not fewer["numbers"]["larger_at"]

@@ -13,7 +13,7 @@ from tests.conftest import MODELS
 
 
 def table2() -> dict[str, dict[str, float]]:
-    text = files("harness").joinpath("reference/kr500_table2_true_parameters.csv").read_text()
+    text = files("harness.papers.graph_theory_2021").joinpath("reference/kr500_table2_true_parameters.csv").read_text()
     return {row["body"]: {k: float(v) for k, v in row.items() if k != "body"}
             for row in csv.DictReader(text.splitlines())}
 

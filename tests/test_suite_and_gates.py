@@ -12,15 +12,14 @@ import pytest
 
 from harness.cli import main
 from harness.gates import Gate, check
-from harness.results import build_results
-from tests.conftest import ROOT, SCENARIOS
+from tests.conftest import ROOT, SCENARIOS, results_of
 
 ALL_SCENARIOS = sorted(SCENARIOS.glob("*.toml"))
 
 
 @pytest.mark.parametrize("path", ALL_SCENARIOS, ids=[p.stem for p in ALL_SCENARIOS])
 def test_every_scenario_passes_its_gates(run_scenario, path):
-    results = build_results(run_scenario(path))
+    results = results_of(run_scenario(path))
     failing = [(g["name"], g["value"], g["limit"]) for g in results["gates"] if not g["passed"]]
     assert results["gates"], "a scenario without gates checks nothing"
     assert results["passed"] and not failing, failing
@@ -47,8 +46,8 @@ def test_same_scenario_twice_gives_the_same_results_but_for_the_time(run_scenari
     from harness.scenario import load_scenario
 
     path = SCENARIOS / "kr500_rail_7digits.toml"
-    first = build_results(run_scenario(path), when="first")
-    second = build_results(run(load_scenario(path)), when="second")
+    first = results_of(run_scenario(path), when="first")
+    second = results_of(run(load_scenario(path)), when="second")
     first["run"]["time"] = second["run"]["time"] = first["run"]["timings"] = second["run"]["timings"] = None
     assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
 
@@ -66,17 +65,24 @@ def test_report_command_re_renders_the_same_report(fast_run, tmp_path):
     assert again.read_text() == (fast_run / "report.html").read_text()
 
 
-def test_gate_command_rechecks_and_fails_on_a_missing_metric(fast_run, tmp_path, capsys):
+def test_gate_command_rechecks_with_new_limits_and_refuses_a_metric_that_names_nothing(fast_run, tmp_path, capsys):
     assert main(["gate", str(fast_run / "results.json")]) == 0
-    edited = tmp_path / "edited.toml"
-    edited.write_text(
-        '[[gates]]\nmetric = "identification.max_abs_rel_error"\nlimit = 1e-9\n\n'
-        '[[gates]]\nmetric = "torques.no_such_metric"\nlimit = 1.0\n'
-    )
+    source = (SCENARIOS / "kr500_rail_7digits.toml").read_text()
+    tighter = tmp_path / "kr500_rail_7digits.toml"
+    tighter.write_text(source.replace('metric = "identification.max_abs_rel_error"\nlimit = 1e-3',
+                                      'metric = "identification.max_abs_rel_error"\nlimit = 1e-9'))
+    (tmp_path / "gates").mkdir()
+    for f in (SCENARIOS / "gates").glob("*.toml"):
+        shutil.copy(f, tmp_path / "gates" / f.name)
+    shutil.copytree(ROOT / "models", tmp_path.parent / "models", dirs_exist_ok=True)
     capsys.readouterr()
-    assert main(["gate", str(fast_run / "results.json"), "--scenario", str(edited)]) == 1
-    out = capsys.readouterr().out
-    assert "FAIL  identification.max_abs_rel_error" in out and "FAIL  torques.no_such_metric: missing" in out
+    assert main(["gate", str(fast_run / "results.json"), "--scenario", str(tighter)]) == 1
+    assert "FAIL  identification at 7 digits" in capsys.readouterr().out
+    misspelt = tmp_path / "misspelt.toml"
+    misspelt.write_text(tighter.read_text() + '\n[[gates]]\nmetric = "torques.no_such_metric"\nlimit = 1.0\n')
+    assert main(["gate", str(fast_run / "results.json"), "--scenario", str(misspelt)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "torques.no_such_metric" in err and "names no result" in err
 
 
 def test_a_broken_model_fails_the_run_and_the_report_says_where(tmp_path, capsys):
@@ -98,10 +104,13 @@ def test_a_broken_model_fails_the_run_and_the_report_says_where(tmp_path, capsys
         (SCENARIOS / "kr500_rail_all_steps.toml")
         .read_text()
         .replace(
-            'model = "../models/kr500.toml"',
-            'model = "../models/kr500.toml"\nmodel_under_test = "../models/kr500_wrong.toml"',
+            'plugin = "graph_theory_2021"',
+            'plugin = "graph_theory_2021"\nmodel = "../models/kr500_wrong.toml"',
         )
     )
+    (tmp_path / "scenarios" / "gates").mkdir()
+    for f in (SCENARIOS / "gates").glob("*.toml"):
+        shutil.copy(f, tmp_path / "scenarios" / "gates" / f.name)
     (tmp_path / "scenarios" / "broken.toml").write_text(text)
     out = tmp_path / "out"
     assert main(["run", str(tmp_path / "scenarios" / "broken.toml"), "--out", str(out), "--quiet"]) == 1
@@ -113,16 +122,21 @@ def test_a_broken_model_fails_the_run_and_the_report_says_where(tmp_path, capsys
     assert worst["max_rel_error"] > 1e-6 and worst["max_rel_joint"] in {"O1", "O2", "O3", "O4", "rail"}
     report = (out / "report.html").read_text()
     assert "FAILED" in report and "kr500_wrong.toml" in report
+    differs = results["torques"]["parameter_differences"]["graph"]
+    assert {d["body"] for d in differs} == {"B3"}
+    # J11 is 1 % off; mass, J22 and J33 differ only by the rounding of the explicit values (about 1e-8)
+    assert {d["parameter"] for d in differs if abs(d["rel_difference"]) > 1e-6} == {"J11"}
+    assert "Parameters of graph that differ from the robot" in report
 
 
 def test_a_sign_flipped_in_the_graph_model_fails_the_run(tmp_path, monkeypatch, capsys):
     """One sign flipped in the gyroscopic term of Eq. 37 (the skew matrix of the graph model)."""
-    import harness.graph.constrained
-    import harness.graph.dynamics
+    import harness.papers.graph_theory_2021.constrained
+    import harness.papers.graph_theory_2021.dynamics
 
-    flipped = lambda v, f=harness.graph.dynamics.skew: -f(v)  # noqa: E731
-    monkeypatch.setattr(harness.graph.dynamics, "skew", flipped)
-    monkeypatch.setattr(harness.graph.constrained, "skew", flipped)
+    flipped = lambda v, f=harness.papers.graph_theory_2021.dynamics.skew: -f(v)  # noqa: E731
+    monkeypatch.setattr(harness.papers.graph_theory_2021.dynamics, "skew", flipped)
+    monkeypatch.setattr(harness.papers.graph_theory_2021.constrained, "skew", flipped)
     out = tmp_path / "out"
     assert main(["run", str(SCENARIOS / "kr500_rail_all_steps.toml"), "--out", str(out), "--quiet"]) == 1
     printed = capsys.readouterr().out

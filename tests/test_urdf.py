@@ -9,10 +9,9 @@ import pytest
 
 from harness.cli import main
 from harness.engines.pinocchio import build_model, crba
-from harness.results import build_results
 from harness.spec import load_spec
 from harness.urdf import example_robot_data_path
-from tests.conftest import MODELS, SCENARIOS
+from tests.conftest import MODELS, SCENARIOS, copy_gate_sets, results_of
 
 ARMS = ("panda", "ur5")
 
@@ -44,7 +43,7 @@ def test_ten_parameters_per_body_are_recovered(run_scenario, robot):
     """Ideal measurements: every identifiable parameter within 1e-8 of the truth (measured ~1e-12).
     The first link only spins about the vertical axis through its joint, so its m c_z, Ixx, Ixy,
     Iyy leave no trace in its forces and moments: exactly those are not identifiable."""
-    results = build_results(run_scenario(SCENARIOS / f"{robot}_sines.toml"))
+    results = results_of(run_scenario(SCENARIOS / f"{robot}_sines.toml"))
     full = results["identification_full"]
     assert full["max_abs_rel_error"] <= 1e-8
     first = load_spec(MODELS / f"{robot}.toml").bodies[0].name
@@ -54,7 +53,7 @@ def test_ten_parameters_per_body_are_recovered(run_scenario, robot):
 @pytest.mark.parametrize("robot", ARMS)
 def test_joint_torque_identification_recovers_base_parameters_and_predicts_validation(run_scenario, robot):
     out = run_scenario(SCENARIOS / f"{robot}_sines.toml")
-    ti = build_results(out)["torque_identification"]
+    ti = results_of(out)["torque_identification"]
     assert ti["max_rel_error"] <= 1e-8
     assert ti["validation"]["max_rel_error"] <= 1e-8
     # the base parameters reproduce the full model's torques: W theta = W_1 beta on the validation data
@@ -62,7 +61,7 @@ def test_joint_torque_identification_recovers_base_parameters_and_predicts_valid
 
 
 def test_optimised_excitation_is_better_conditioned(run_scenario):
-    ex = build_results(run_scenario(SCENARIOS / "ur5_excitation.toml"))["excitation"]
+    ex = results_of(run_scenario(SCENARIOS / "ur5_excitation.toml"))["excitation"]
     assert ex["optimised_condition_number"] < ex["initial_condition_number"]
 
 
@@ -73,12 +72,14 @@ def test_an_arm_never_seen_goes_through_harness_run(tmp_path, capsys, robot):
     spec_text = f'[model]\nname = "{robot}"\n\n[urdf]\nrobot = "{robot}"\n'
     (tmp_path / "models").mkdir()
     (tmp_path / "scenarios").mkdir()
+    copy_gate_sets(tmp_path / "scenarios")
     (tmp_path / "models" / f"{robot}.toml").write_text(spec_text)
     spec = load_spec(tmp_path / "models" / f"{robot}.toml")
     motion = "".join(f'\n[motion.{j}]\ntype = "sinusoids"\nsin = [[0.3, {1.1 + 0.3 * k}]]\n'
                      for k, j in enumerate(spec.joint_names))
     (tmp_path / "scenarios" / "s.toml").write_text(
         f'[scenario]\nmodel = "../models/{robot}.toml"\nduration = 1.0\noutput_steps = 50\nsample_times = "all"\n'
+        + '\n[model_under_test]\nname = "graph"\nplugin = "graph_theory_2021"\n'
         + motion + '\n[[gates]]\nmetric = "torques.graph_vs_pinocchio.max_rel_error"\nlimit = 1e-9\n'
         + '\n[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
     assert main(["run", str(tmp_path / "scenarios" / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0

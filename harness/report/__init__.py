@@ -1,6 +1,6 @@
 """report.html: one self-contained file (figures inline as SVG, no scripts, nothing fetched),
-read top to bottom: verdict and gates, model, motion, identification, torques, constraints and
-multipliers, how the run was made."""
+read top to bottom: verdict and gates, model, motion, one section per stage that ran (the core's,
+then each study's, drawn by the stage's own renderer), how the run was made."""
 
 from __future__ import annotations
 
@@ -27,37 +27,36 @@ pre { background: #f7f7f7; padding: 0.5rem; font-size: 0.75rem; overflow-x: auto
 nav a { margin-right: 0.8rem; font-size: 0.85rem; }
 """
 
-NAV = [
-    ("verdict", "Verdict"),
-    ("model", "Model"),
-    ("motion", "Motion"),
-    ("identification", "Identification"),
-    ("torques", "Torques"),
-    ("lagrange", "Constraints"),
-    ("how", "How the run was made"),
-]
+def _renderers(results: dict) -> list:
+    """(key, title, render) of every stage with a report section: the core's, then those of the
+    studies that ran (found through the same registry the run used)."""
+    from harness.plugins import PluginError, load_study
+    from harness.stages import core_stages
+
+    stages = list(core_stages())
+    for name in results["run"].get("studies", []):
+        try:
+            stages += load_study(name).stages
+        except PluginError:
+            continue  # a study no longer installed: its sections are left out, the rest is drawn
+    return [(s.key, s.title, s.render) for s in stages if s.render is not None]
 
 
 def render(results: dict, rec: Recording) -> str:
     name = results["scenario"]["name"]
-    parts = [sections.verdict(results), sections.model(results), sections.motion(results, rec),
-             sections.identification(results), sections.torques(results)]
-    nav = NAV[:5]
-    if "design_comparison" in results:
-        parts.append(sections.design_comparison(results))
-        nav.append(("design", "Claims"))
-    if "inertia_matrix_audit" in results:
-        parts.append(sections.inertia_audit(results))
-        nav.append(("audit", "Inertia matrix audit"))
-    for key, anchor, title in (("excitation", "excitation", "Excitation"),
-                               ("identification_full", "identification_full", "10 parameters"),
-                               ("torque_identification", "torque_identification", "Torque identification")):
+    parts = [sections.verdict(results), sections.model(results), sections.motion(results, rec)]
+    nav = [("verdict", "Verdict"), ("model", "Model"), ("motion", "Motion")]
+    if "excitation" in results:
+        parts.append(sections.excitation(results))
+        nav.append(("excitation", "Excitation"))
+    for key, title, draw in _renderers(results):
         if key in results:
-            parts.append(getattr(sections, key)(results))
-            nav.append((anchor, title))
-    parts += [sections.lagrange(results, rec), sections.how(results)]
+            parts.append(draw(results, rec))
+            nav.append((key, title))
+    parts.append(sections.how(results))
+    nav.append(("how", "How the run was made"))
     body = "".join(parts)
-    nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in nav + NAV[5:])
+    nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in nav)
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(name)}: '
         f"{'PASSED' if results['passed'] else 'FAILED'}</title><style>{STYLE}</style></head><body>"

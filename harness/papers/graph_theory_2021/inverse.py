@@ -17,8 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import A_0i
-from harness.graph.dynamics import GraphModel
-from harness.graph.topology import joint_arms
+from harness.kinematics import forward_kinematics
+from harness.papers.graph_theory_2021.dynamics import GraphModel
+from harness.papers.graph_theory_2021.topology import joint_arms
 from harness.recording import Recording
 from harness.spec import RobotSpec
 
@@ -31,14 +32,36 @@ class GraphInverse:
 
 
 def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> GraphInverse:
+    """From a recording: Cardano angles, centre-of-mass accelerations, angular velocities and
+    accelerations as measured, and the joint coordinates."""
     top = model.topology
     b = [rec.body_index(x) for x in top.bodies]
-    A = A_0i(rec.theta[:, b])  # (N, n, 3, 3)
-    a, w, wd = rec.a_W[:, b], rec.omega_W[:, b], rec.omegadot_W[:, b]
+    q = rec.q[:, [rec.joint_index(j) for j in top.joints]]
+    return newton_euler(spec, model, q, A_0i(rec.theta[:, b]), rec.a_W[:, b], rec.omega_W[:, b],
+                        rec.omegadot_W[:, b])
+
+
+def inverse_dynamics_of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray,
+                               qdd: np.ndarray) -> GraphInverse:
+    """From joint coordinates alone (spec joint order, (N, n)): the body motion by forward
+    kinematics of the tree (harness/kinematics.py), then Newton-Euler as on a recording."""
+    kin = forward_kinematics(spec, q, qd, qdd)
+    top = model.topology
+    b = [kin.body_index(x) for x in top.bodies]
+    cols = [spec.joint_names.index(j) for j in top.joints]
+    return newton_euler(spec, model, np.atleast_2d(q)[:, cols], kin.R_WB[:, b], kin.a_W_com[:, b],
+                        kin.omega_W[:, b], kin.omegadot_W[:, b])
+
+
+def newton_euler(spec: RobotSpec, model: GraphModel, q: np.ndarray, A: np.ndarray, a: np.ndarray,
+                 w: np.ndarray, wd: np.ndarray) -> GraphInverse:
+    """Eqs. 22-23 solved for the force elements and joint moments, all samples at once. Inputs in
+    the graph's order: q (N, joints), A = A(0i) (N, n, 3, 3), and world components of r_i'',
+    omega_i, omega_i' (N, n, 3)."""
+    top = model.topology
     J_W = A @ (model.J[..., :, None] * np.swapaxes(A, -1, -2))  # A diag(J) A^T
     S_inv = np.linalg.inv(top.S_e.astype(float))
     F = -(S_inv @ (model.m[:, None] * (a - model.g_W)))  # matmul broadcasts over samples
-    q = rec.q[:, [rec.joint_index(j) for j in top.joints]]
     c_out, c_in = joint_arms(top, A, q)
     P_out, P_in = (top.S == -1).astype(float), (top.S == 1).astype(float)
     # sum_k C_e,ik x F_k, joint by joint: C = -c on the outer body, +c on the inner one
@@ -46,7 +69,7 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
     euler = (J_W @ wd[..., None])[..., 0] + np.cross(w, (J_W @ w[..., None])[..., 0])
     M = -(np.linalg.inv(top.S.astype(float)) @ (euler + C_x_F))
 
-    N = len(rec.t)
+    N = len(q)
     tau = np.empty((N, len(spec.joints)))
     F_out, M_out = np.empty((N, len(spec.joints), 3)), np.empty((N, len(spec.joints), 3))
     index = {name: k for k, name in enumerate(top.joints)}

@@ -10,18 +10,15 @@ fewer trials, at scaled noise levels, for the error against noise level.
 from __future__ import annotations
 
 import multiprocessing
-import sys
-import time
 from collections.abc import Callable
 
 import numpy as np
 
 from harness.engines.mujoco import simulate
-from harness.graph.dynamics import build_graph_model
-from harness.graph.identification import PARAMETERS
 from harness.measurement import Measurement, measure
-from harness.pipeline import identify, measured_rows
-from harness.results import parameter_scale
+from harness.papers.graph_theory_2021.dynamics import build_graph_model
+from harness.papers.graph_theory_2021.identification import PARAMETERS
+from harness.papers.graph_theory_2021.solve import identify, measured_rows, parameter_scale
 from harness.scenario import Scenario
 
 LEVELS = (0.25, 0.5, 1.0, 2.0, 4.0)
@@ -29,8 +26,10 @@ _STATE: dict = {}  # per worker process: recording, models, scenario
 
 
 def _init(scenario: Scenario, recording) -> None:
+    from harness.papers.graph_theory_2021.study import config_of
+
     _STATE.update(scenario=scenario, recording=recording,
-                  model=build_graph_model(scenario.tested, scenario.gravity_W),
+                  model=build_graph_model(config_of(scenario).tested, scenario.gravity_W),
                   truth=build_graph_model(scenario.robot, scenario.gravity_W))
 
 
@@ -110,23 +109,3 @@ def run_sweep(scenario: Scenario, trials: int, jobs: int = 1,
         "coverage_max": max(covered) if covered else None,
         "parameters": rows, "levels": by_level,
     }
-
-
-class Bar:
-    """A progress bar on stderr, redrawn in place on a terminal, every 10 % otherwise."""
-
-    def __init__(self, label: str):
-        self.label, self.start, self.last = label, time.monotonic(), -1
-        self.tty = sys.stderr.isatty()
-
-    def __call__(self, done: int, total: int) -> None:
-        tenth = 10 * done // total
-        if not self.tty and tenth == self.last and done < total:
-            return
-        self.last = tenth
-        width = 30
-        filled = width * done // total
-        line = (f"{self.label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total} "
-                f"{time.monotonic() - self.start:5.1f} s")
-        print(("\r" if self.tty else "") + line, end="" if self.tty and done < total else "\n",
-              file=sys.stderr, flush=True)

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import GIMBAL_COND_D, D, D_dot
-from harness.graph.constraints import ConstraintSet, State
-from harness.graph.dynamics import BodySeries, GraphModel, angle_rates, skew
+from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
+from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, skew
 from harness.recording import Recording
 from harness.spec import RobotSpec
 

@@ -4,7 +4,7 @@ Cardano angles cannot be integrated through gimbal lock, which B1 of kr500 meets
 six times more in kr500_rail. While integrating, each body's orientation is therefore carried as
 a unit quaternion and its rates as omega^(i) (quasi-velocities); the equations keep the paper's
 structure: per body Newton-Euler (Eqs. 22-23, here with D = E), the same joint constraint rows
-(harness.graph.constraints, "normal" formulation) and Lagrange multipliers:
+(harness.papers.graph_theory_2021.constraints, "normal" formulation) and Lagrange multipliers:
 
     [[M0, G^T], [G, 0]] [(r'', omega'); lambda] = [Q0; zeta - 2 a Phi' - b^2 Phi],
     M0 = blockdiag(m_i E, J_i),  Q0 = [m_i g + F_i^a ; M_i^a(i) - omega x J_i omega],
@@ -31,9 +31,9 @@ import numpy as np
 
 from harness import quaternion
 from harness.cardano import A_0i
-from harness.graph.constrained import active_wrenches
-from harness.graph.constraints import ConstraintSet, State
-from harness.graph.dynamics import GraphModel
+from harness.papers.graph_theory_2021.constrained import active_wrenches
+from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
+from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.recording import Recording
 from harness.spec import RobotSpec
 

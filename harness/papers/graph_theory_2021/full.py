@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from harness.cardano import A_0i
-from harness.graph.dynamics import GraphModel, skew
+from harness.papers.graph_theory_2021.dynamics import GraphModel, skew
 from harness.recording import Recording
 from harness.spec import RobotSpec
 

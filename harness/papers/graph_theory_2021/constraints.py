@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import A_0i, D, D_dot
-from harness.graph.topology import Topology
+from harness.papers.graph_theory_2021.topology import Topology
 from harness.spec import WORLD, RobotSpec
 
 FORMULATIONS = ("paper", "normal")

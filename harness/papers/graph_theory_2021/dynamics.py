@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import GIMBAL_COND_D, A_0i, D, D_dot, cond_D
-from harness.graph.topology import Topology, build_topology, joint_resultants
+from harness.papers.graph_theory_2021.topology import Topology, build_topology, joint_resultants
 from harness.recording import Recording
 from harness.spec import RobotSpec
 

@@ -8,10 +8,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import GIMBAL_COND_D, A_0i, D, cond_D
-from harness.graph.constrained import Constrained, solve_constrained
-from harness.graph.constraints import ConstraintSet, build_constraints
-from harness.graph.dynamics import GraphModel, body_series
-from harness.graph.forward import ForwardResult, forward_simulate
+from harness.papers.graph_theory_2021.constrained import Constrained, solve_constrained
+from harness.papers.graph_theory_2021.constraints import ConstraintSet, build_constraints
+from harness.papers.graph_theory_2021.dynamics import GraphModel, body_series
+from harness.papers.graph_theory_2021.forward import ForwardResult, forward_simulate
 from harness.recording import Recording
 from harness.scenario import Scenario
 from harness.spec import RobotSpec
@@ -48,13 +48,24 @@ def _formulation(spec: RobotSpec, model: GraphModel, rec: Recording, name: str) 
                        float(np.nanmax(np.abs(sol.phi_dot[well]))), deficient)
 
 
-def lagrange(scenario: Scenario, model: GraphModel, rec: Recording, progress=None) -> LagrangeOutput:
-    forms = {name: _formulation(scenario.tested, model, rec, name) for name in ("normal", "paper")}
-    lg = scenario.lagrange
+@dataclass(frozen=True)
+class Settings:
+    """Section 3.2 settings: the time at which the multipliers are reported (None: not reported),
+    the paper's values to set beside them, and whether to integrate the constrained model."""
+
+    time: float | None = None
+    paper_lambda: str | None = None
+    forward_simulation: bool = False
+
+
+def lagrange(scenario: Scenario, spec: RobotSpec, lg: Settings, model: GraphModel, rec: Recording,
+             progress=None) -> LagrangeOutput:
+    """Sections 2.4-2.5 on the recording of `scenario`, for the graph model of `spec`."""
+    forms = {name: _formulation(spec, model, rec, name) for name in ("normal", "paper")}
     row = None if lg.time is None else round(lg.time / scenario.output_dt)
     forward = open_loop = None
     if lg.forward_simulation:
-        args = (scenario.tested, model, forms["normal"].constraints, rec, rec.meta["drive_stages"],
+        args = (spec, model, forms["normal"].constraints, rec, rec.meta["drive_stages"],
                 scenario.simulation.timestep, scenario.substeps)
 
         def report(what):

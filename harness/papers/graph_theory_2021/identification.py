@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import block_diag
 
-from harness.graph.dynamics import BodySeries
+from harness.papers.graph_theory_2021.dynamics import BodySeries
 
 PARAMETERS = ("m_e1", "m_e2", "m_e3", "J11", "J22", "J33")
 

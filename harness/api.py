@@ -1,0 +1,73 @@
+"""The public API: what a user's script, notebook or test suite calls.
+
+    import harness
+    result = harness.run("scenarios/my_arm.toml")
+    result.passed                   # every gate passed
+    for g in result.gates:          # name, metric, value, limit, direction, passed, reason
+        print(g.name, g.value, g.limit, g.passed)
+    result.results                  # the content of results.json
+    result.recording                # the recording (harness.recording.Recording)
+
+`harness.load_scenario(path)` and `harness.load_model(path)` load and validate a scenario or a
+robot description (TOML or URDF model file) without running anything. Bad input raises
+harness.InputError (file, key, message); a plugin that breaks its protocol raises
+harness.PluginError.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from harness.recording import Recording
+from harness.scenario import Scenario
+from harness.scenario import load_scenario as _load_scenario
+from harness.spec import RobotSpec, load_spec
+
+
+@dataclass(frozen=True)
+class GateRow:
+    name: str
+    metric: str
+    value: float | None  # None: the result is null, not a number or not finite (the gate fails)
+    limit: float
+    direction: str  # "at_most" or "at_least"
+    passed: bool
+    reason: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class Result:
+    scenario: str
+    passed: bool
+    gates: tuple[GateRow, ...]
+    results: dict  # results.json
+    recording: Recording
+    output: Any = None  # the pipeline's typed results (harness.pipeline.RunOutput)
+
+    @property
+    def failed(self) -> tuple[GateRow, ...]:
+        return tuple(g for g in self.gates if not g.passed)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    return _load_scenario(Path(path))
+
+
+def load_model(path: str | Path) -> RobotSpec:
+    return load_spec(Path(path))
+
+
+def run(scenario: str | Path | Scenario, progress=None) -> Result:
+    """Run one scenario (a path, or a loaded Scenario) through the whole pipeline and check its
+    gates. Nothing is written to disk."""
+    from harness.gates import verdict
+    from harness.pipeline import run as run_pipeline
+    from harness.results import build_results
+
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    out = run_pipeline(sc, progress) if progress is not None else run_pipeline(sc)
+    results = verdict(sc.gates, build_results(out), sc.source)
+    rows = tuple(GateRow(**r) for r in results["gates"])
+    return Result(sc.name, results["passed"], rows, results, out.recording, out)

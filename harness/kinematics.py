@@ -1,0 +1,89 @@
+"""Forward kinematics of a tree, for all samples at once: each body's orientation, centre-of-mass
+position, velocity and acceleration, and angular velocity and acceleration, from (q, q', q'').
+
+The spec gives every body and joint in world coordinates at the initial pose (q = 0). A body's
+displacement from that pose is its parent's followed by its inner joint's, both written in
+initial-pose world coordinates: x = R_B x0 + t_B with R_B = R_P R_J and
+t_B = R_P (p_J0 - R_J p_J0 + s u_J0) + t_P (R_J = I, s = q for a prismatic joint; R_J the
+rotation by q about u_J0, s = 0 for a revolute one). Velocities and accelerations are the usual
+rigid-body recursions in world components:
+
+    revolute:  w_B = w_P + u q',   w'_B = w'_P + u q'' + w_P x u q',
+               a_Bc = a_P(O_J) + w'_B x r + w_B x (w_B x r),   r = c_B - O_J
+    prismatic: w_B = w_P,          w'_B = w'_P,
+               a_Bc = a_P(c_B) + u q'' + 2 w_P x u q'
+
+with a_P(x) = a_Pc + w'_P x (x - c_P) + w_P x (w_P x (x - c_P)) the acceleration of the point of P
+at x, and u = R_P u_J0 the joint axis now.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from harness.spec import WORLD, RobotSpec
+
+
+@dataclass(frozen=True, eq=False)
+class TreeKinematics:
+    """Every body of the spec (spec order), each array (N, n_bodies, ...), world components."""
+
+    bodies: tuple[str, ...]
+    R_WB: np.ndarray  # (N, n, 3, 3) body frame e(i) in world
+    p_W_com: np.ndarray  # centre of mass O_ci
+    v_W_com: np.ndarray
+    a_W_com: np.ndarray
+    omega_W: np.ndarray
+    omegadot_W: np.ndarray
+    axis_W: np.ndarray  # (N, n_joints, 3) each joint's axis now (spec joint order)
+    p_W_joint: np.ndarray  # (N, n_joints, 3) each joint's point now, fixed in its inner body
+
+    def body_index(self, name: str) -> int:
+        return self.bodies.index(name)
+
+
+def _point_acceleration(a_c, wd, w, r):
+    return a_c + np.cross(wd, r) + np.cross(w, np.cross(w, r))
+
+
+def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> TreeKinematics:
+    """(q, q', q'') of shape (N, n_joints) in spec joint order -> TreeKinematics."""
+    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+    N = q.shape[0]
+    zero3, eye = np.zeros((N, 3)), np.broadcast_to(np.eye(3), (N, 3, 3))
+    # per body: displacement (R, t), centre of mass c, v, a, omega, omega'
+    state = {WORLD: (eye, zero3, zero3, zero3, zero3, zero3, zero3)}
+    axes, points = np.empty((N, len(spec.joints), 3)), np.empty((N, len(spec.joints), 3))
+    for k, joint in enumerate(spec.joints):
+        R_P, t_P, c_P, v_P, a_P, w_P, wd_P = state[joint.parent]
+        body = spec.body(joint.child)
+        u = R_P @ joint.axis_W0
+        O_J = R_P @ joint.p_W0 + t_P
+        s, sd, sdd = q[:, k], qd[:, k], qdd[:, k]
+        if joint.revolute:
+            R_J = Rotation.from_rotvec(np.outer(s, joint.axis_W0)).as_matrix()
+            R_B = R_P @ R_J
+            t_B = (R_P @ (joint.p_W0 - R_J @ joint.p_W0)[..., None])[..., 0] + t_P
+            c_B = R_B @ body.p_W_com0 + t_B
+            w_B = w_P + u * sd[:, None]
+            wd_B = wd_P + u * sdd[:, None] + np.cross(w_P, u) * sd[:, None]
+            r = c_B - O_J
+            v_B = v_P + np.cross(w_P, O_J - c_P) + np.cross(w_B, r)
+            a_B = _point_acceleration(_point_acceleration(a_P, wd_P, w_P, O_J - c_P), wd_B, w_B, r)
+        else:
+            R_B = R_P
+            t_B = (R_P @ joint.axis_W0) * s[:, None] + t_P
+            c_B = R_B @ body.p_W_com0 + t_B
+            w_B, wd_B = w_P, wd_P
+            v_B = v_P + np.cross(w_P, c_B - c_P) + u * sd[:, None]
+            a_B = (_point_acceleration(a_P, wd_P, w_P, c_B - c_P) + u * sdd[:, None]
+                   + 2.0 * np.cross(w_P, u) * sd[:, None])
+        state[body.name] = (R_B, t_B, c_B, v_B, a_B, w_B, wd_B)
+        axes[:, k], points[:, k] = u, O_J
+    names = tuple(b.name for b in spec.bodies)
+    stack = lambda i: np.stack([state[b][i] for b in names], axis=1)  # noqa: E731
+    R_WB = np.stack([state[b][0] @ spec.body(b).R_WB0 for b in names], axis=1)
+    return TreeKinematics(names, R_WB, stack(2), stack(3), stack(4), stack(5), stack(6), axes, points)

@@ -1,0 +1,37 @@
+"""The graph-theory model as a model under test (harness/plugins.py, ModelUnderTest): joint
+torques and joint wrenches from (q, q', q'') by the paper's Newton-Euler equations (Eqs. 17-23)
+solved with the incidence matrix (harness/papers/graph_theory_2021/inverse.py), the body motion
+from the tree's forward kinematics."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.papers.graph_theory_2021.dynamics import build_graph_model
+from harness.papers.graph_theory_2021.inverse import GraphInverse, inverse_dynamics_of_motion
+from harness.spec import RobotSpec
+
+STANDARD_GRAVITY_W = np.array([0.0, 0.0, -9.80665])
+
+
+class GraphTheoryModel:
+    """m_i and the principal J_i of every body come from the robot description it is built from."""
+
+    def __init__(self, spec: RobotSpec, gravity_W: np.ndarray):
+        self.spec = spec
+        self.graph = build_graph_model(spec, gravity_W)
+        self.joint_names = list(spec.joint_names)
+
+    def solve(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> GraphInverse:
+        return inverse_dynamics_of_motion(self.spec, self.graph, q, qd, qdd)
+
+    def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        return self.solve(q, qd, qdd).tau
+
+    def joint_wrenches(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        out = self.solve(q, qd, qdd)
+        return out.F_W, out.M_W
+
+
+def make(robot: RobotSpec, gravity_W: np.ndarray = STANDARD_GRAVITY_W) -> GraphTheoryModel:
+    return GraphTheoryModel(robot, np.asarray(gravity_W, dtype=float))

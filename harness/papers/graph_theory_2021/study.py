@@ -1,0 +1,161 @@
+"""The paper's study as stages of a run, asked for by a scenario:
+
+    [studies.graph_theory_2021]
+    model = "../models/kr500.toml"          # optional: the graph model's parameters (default: the robot)
+    paper_identified = "kr500_table3_identified_by_paper.csv"   # optional: Table 3, set beside ours
+    paper_abs_error = "kr500_table4_paper_abs_errors.csv"        # optional: Table 4
+    lagrange = { time = 1.5, paper_lambda = "kr500_lambda_at_1p5s_paper.csv", forward_simulation = false }
+
+Stages: the unconstrained dynamics on the recording (section 2.2, Eq. 36), the identification of
+section 2.3 at the scenario's sample times, all 10 inertial parameters per body, and constraints,
+Eq. 111 and the multipliers (sections 2.4, 2.5, 3.2). Table names are files of this package's
+reference/ folder.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.engines.pinocchio import build_model as build_pinocchio
+from harness.papers.graph_theory_2021 import report
+from harness.papers.graph_theory_2021.dynamics import (
+    GraphModel,
+    body_series,
+    build_graph_model,
+    unconstrained_residual,
+)
+from harness.papers.graph_theory_2021.lagrange import Settings, lagrange
+from harness.papers.graph_theory_2021.solve import (
+    PACKAGE,
+    full_identification_section,
+    graph_section,
+    identification_section,
+    identify,
+    identify_full,
+    lagrange_section,
+    measured_rows,
+)
+from harness.plugins import Stage, Study
+from harness.reference import has_reference_table
+from harness.spec import RobotSpec, load_spec
+from harness.tomlio import Table
+
+_GRID_TOL = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class Config:
+    tested: RobotSpec  # the graph model is built from it; the engines from the scenario's robot
+    paper_identified: str | None
+    paper_abs_error: str | None
+    lagrange: Settings
+
+
+def _table_name(t: Table, key: str) -> str | None:
+    name = t.string(key, default=None) if t.has(key) else None
+    if name is not None and not has_reference_table(PACKAGE, name):
+        raise t.error(key, f"no reference table {name!r} in {PACKAGE}'s reference folder")
+    return name
+
+
+def configure(t: Table, scenario) -> Config:
+    robot = scenario.robot
+    tested = robot
+    if t.has("model"):
+        rel = t.string("model")
+        path = Path(os.path.normpath(scenario.source.parent / rel))
+        if not path.is_file():
+            raise t.error("model", f"model file {rel!r} not found (looked for {path})")
+        tested = load_spec(path)
+        if (tested.joint_names != robot.joint_names
+                or [b.name for b in tested.bodies] != [b.name for b in robot.bodies]):
+            raise t.error("model", f"model {tested.name!r} must have the bodies and joints of {robot.name!r} "
+                                   "(it describes the same robot)")
+    lt = t.table("lagrange", default={})
+    time = lt.number("time", default=None, nonnegative=True) if lt.has("time") else None
+    dt = scenario.output_dt
+    if time is not None and (time > scenario.duration or abs(time / dt - round(time / dt)) > _GRID_TOL):
+        raise lt.error("time", f"{time:g} s is not an output step of the run (every {dt:g} s up to "
+                               f"{scenario.duration:g} s)")
+    settings = Settings(time, _table_name(lt, "paper_lambda"), lt.boolean("forward_simulation", default=False))
+    lt.finish()
+    return Config(tested, _table_name(t, "paper_identified"), _table_name(t, "paper_abs_error"), settings)
+
+
+def config_of(scenario) -> Config:
+    """This study's configuration in a scenario that asks for it."""
+    return next(c for s, c in scenario.studies if s.name == "graph_theory_2021")
+
+
+def _models(ctx, config: Config) -> tuple[GraphModel, GraphModel]:
+    """The graph model of the model's parameters, and of the robot (the truth)."""
+    key = ("graph models", id(config))
+    if key not in ctx.done:
+        g = ctx.scenario.gravity_W
+        ctx.done[key] = build_graph_model(config.tested, g), build_graph_model(ctx.scenario.robot, g)
+    return ctx.done[key]
+
+
+def _residual(ctx, config):
+    model, _ = _models(ctx, config)
+    return unconstrained_residual(model, body_series(ctx.recording, model.topology))
+
+
+def _identification(ctx, config):
+    model, truth = _models(ctx, config)
+    sc = ctx.scenario
+    return identify(model, ctx.measured, measured_rows(ctx.measured, sc.sample_times), sc.measurement, truth)
+
+
+def _identification_full(ctx, config):
+    model, _ = _models(ctx, config)
+    sc = ctx.scenario
+    pm = build_pinocchio(sc.robot, sc.gravity_W)
+    true10 = np.stack([pm.model.inertias[pm.joint_ids[sc.robot.joint_names.index(
+        sc.robot.inner_joint(b).name)]].toDynamicParameters() for b in model.topology.bodies])
+    return identify_full(config.tested, model, ctx.measured, measured_rows(ctx.measured, sc.sample_times),
+                         sc.measurement, true10)
+
+
+def _lagrange(ctx, config):
+    model, _ = _models(ctx, config)
+    return lagrange(ctx.scenario, config.tested, config.lagrange, model, ctx.recording, ctx.progress)
+
+
+def _sweep(scenario, trials, jobs, progress):
+    from harness.papers.graph_theory_2021.sweep import run_sweep
+
+    return run_sweep(scenario, trials, jobs, progress)
+
+
+def _render_sweep(sweep: dict) -> str:
+    from harness.papers.graph_theory_2021.report_sweep import render_sweep
+
+    return render_sweep(sweep)
+
+
+STUDY = Study(
+    name="graph_theory_2021",
+    configure=configure,
+    stages=(
+        Stage("graph", "graph model: unconstrained dynamics", _residual,
+              lambda r, ctx, c: graph_section(_models(ctx, c)[0], r)),
+        Stage("identification", "identifying parameters (section 2.3)", _identification,
+              lambda r, ctx, c: identification_section(r, c.paper_identified, c.paper_abs_error,
+                                                       ctx.scenario.measurement.significant_digits),
+              "Identification", lambda res, rec: report.identification(res)),
+        Stage("identification_full", "identifying all 10 inertial parameters per body", _identification_full,
+              lambda r, ctx, c: full_identification_section(r), "10 parameters",
+              lambda res, rec: report.identification_full(res)),
+        Stage("lagrange", "constraints and Lagrange multipliers", _lagrange,
+              lambda r, ctx, c: lagrange_section(r, c.lagrange.paper_lambda, c.tested, _models(ctx, c)[0],
+                                                 ctx.recording),
+              "Constraints", report.lagrange),
+    ),
+    sweep=_sweep,
+    render_sweep=_render_sweep,
+)

@@ -1,0 +1,212 @@
+"""The doors through which code plugs into the harness: models under test, identification methods
+and studies. The paper packages (harness/papers/) use these doors exactly as a user's code does.
+
+A plugin is named in a scenario by `python = "module:attribute"` (the module is looked for beside
+the scenario file first, then on the import path) or by `plugin = "name"`, the name of an entry
+point that an installed package declares:
+
+    [project.entry-points."harness.models"]          # a model under test
+    my_arm = "my_package.model:make"
+    [project.entry-points."harness.identification"]  # an identification method
+    [project.entry-points."harness.studies"]         # a study: its own stages and report sections
+
+Model under test: the attribute is called with the robot description (a `harness.spec.RobotSpec`)
+and, if its signature accepts them, keyword arguments `gravity_W` (the scenario's gravity, world
+components, m/s^2) and `parameters` (the scenario's table for this model, as a dict). It returns an
+object with
+
+    joint_names: sequence of str                 the order of its columns
+    inverse_dynamics(q, qd, qdd) -> tau          arrays (N, n), SI units: N m, or N for a prismatic joint
+
+and optionally
+    joint_wrenches(q, qd, qdd) -> (F_W, M_W)     (N, n, 3) each: the force of the inner body on the outer
+                                                 one and its moment about the joint point, world components
+    mass_matrix(q) -> M                          (N, n, n)
+
+Identification method: the attribute is called in the same way and returns an object with
+`joint_names` and `fit(q, qd, qdd, tau)` (arrays (N, n), measured) returning the identified model: an
+object with `inverse_dynamics` as above and, optionally, `parameters`: (n, 10) per joint, the child
+body's [m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] in the joint's frame about its
+origin (Pinocchio's dynamic parameters), which are judged where the data determine them.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import inspect
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+MODEL_GROUP = "harness.models"
+METHOD_GROUP = "harness.identification"
+STUDY_GROUP = "harness.studies"
+
+
+@runtime_checkable
+class ModelUnderTest(Protocol):
+    joint_names: Sequence[str]
+
+    def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray: ...
+
+
+@runtime_checkable
+class IdentificationMethod(Protocol):
+    joint_names: Sequence[str]
+
+    def fit(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray) -> ModelUnderTest: ...
+
+
+class PluginError(Exception):
+    """A plugin could not be loaded, or broke its protocol or raised while running. The CLI turns
+    it into one line naming the plugin and exit status 2."""
+
+    def __init__(self, plugin: str, message: str):
+        super().__init__(f"{plugin}: {message}")
+        self.plugin, self.message = plugin, message
+
+
+def _exception(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {exc}".strip().splitlines()[0]
+
+
+def _import_beside(module: str, folder: Path):
+    """Import `module` from `folder` if it is there (a file or a package), else from the path."""
+    head = module.split(".")[0]
+    local = folder / f"{head}.py"
+    package = folder / head / "__init__.py"
+    if local.is_file() or package.is_file():
+        origin = (local if local.is_file() else package).resolve()
+        loaded = sys.modules.get(head)
+        if loaded is not None and Path(getattr(loaded, "__file__", "") or "").resolve() != origin:
+            for name in [m for m in sys.modules if m == head or m.startswith(head + ".")]:
+                del sys.modules[name]  # another folder's module of the same name
+        sys.path.insert(0, str(folder))
+        try:
+            return importlib.import_module(module)
+        finally:
+            sys.path.remove(str(folder))
+    return importlib.import_module(module)
+
+
+def load_reference(ref: str, folder: Path) -> Any:
+    """`module:attribute` (attribute may be dotted) -> the object. Raises PluginError."""
+    module, sep, attr = ref.partition(":")
+    if not sep or not module or not attr:
+        raise PluginError(ref, "expected 'module:attribute'")
+    try:
+        obj = _import_beside(module, folder)
+    except Exception as exc:  # a user's module may raise anything while importing
+        raise PluginError(ref, f"cannot import module {module!r} ({_exception(exc)})") from None
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise PluginError(ref, f"module {module!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    return obj
+
+
+def load_entry_point(name: str, group: str) -> Any:
+    found = [ep for ep in entry_points(group=group) if ep.name == name]
+    if not found:
+        known = sorted(ep.name for ep in entry_points(group=group))
+        raise PluginError(name, f"no installed plugin of that name in {group!r} (installed: "
+                                f"{', '.join(known) or 'none'})")
+    try:
+        return found[0].load()
+    except Exception as exc:
+        raise PluginError(name, f"cannot load entry point {found[0].value!r} ({_exception(exc)})") from None
+
+
+def call_factory(plugin: str, factory: Callable, robot, **options) -> Any:
+    """Call a plugin's factory with the robot and those keyword options its signature accepts."""
+    if not callable(factory):
+        raise PluginError(plugin, "is not callable")
+    try:
+        params = inspect.signature(factory).parameters
+        takes_all = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
+        kwargs = {k: v for k, v in options.items() if takes_all or k in params}
+        return factory(robot, **kwargs)
+    except Exception as exc:
+        raise PluginError(plugin, f"raised while being built ({_exception(exc)})") from None
+
+
+def check_protocol(plugin: str, obj: Any, protocol: type, joint_names: Sequence[str]) -> None:
+    """The object has the protocol's members and names exactly the robot's joints."""
+    missing = [m for m in ("joint_names", *(n for n in protocol.__dict__ if not n.startswith("_")
+                                             and callable(protocol.__dict__[n])))
+               if not hasattr(obj, m)]
+    if missing:
+        raise PluginError(plugin, f"the object it returned has no {', '.join(missing)} "
+                                  f"(see the {protocol.__name__} protocol in harness/plugins.py)")
+    names = list(obj.joint_names)
+    if sorted(names) != sorted(joint_names) or len(set(names)) != len(names):
+        raise PluginError(plugin, f"joint_names {names} must be the robot's joints {list(joint_names)}, "
+                                  "each once, in any order")
+
+
+def invoke(plugin: str, what: str, fn: Callable, *args) -> Any:
+    """Call one of a plugin's methods; whatever it raises becomes a PluginError naming it."""
+    try:
+        return fn(*args)
+    except Exception as exc:
+        raise PluginError(plugin, f"{what} raised {_exception(exc)}") from None
+
+
+def check_array(plugin: str, what: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """What a plugin returned must be a finite array of the shape."""
+    try:
+        out = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise PluginError(plugin, f"{what} returned something that is not an array ({_exception(exc)})") from None
+    if out.shape != shape:
+        raise PluginError(plugin, f"{what} returned shape {out.shape}, expected {shape}")
+    if not np.all(np.isfinite(out)):
+        raise PluginError(plugin, f"{what} returned values that are not finite")
+    return out
+
+
+def call(plugin: str, what: str, fn: Callable, *args, shape: tuple[int, ...]) -> np.ndarray:
+    return check_array(plugin, what, invoke(plugin, what, fn, *args), shape)
+
+
+@dataclass(frozen=True, eq=False)
+class Stage:
+    """One step of a run. `run(context, config)` returns a typed result, or None when the stage has
+    nothing to do for this scenario; `serialise(result, context, config)` turns it into its part of
+    results.json, under `key`. `render(results, recording)` draws that part of the report, titled
+    `title` in the report's navigation. `context` is a harness.stages.Context."""
+
+    key: str
+    progress: str
+    run: Callable[[Any, Any], Any]
+    serialise: Callable[[Any, Any, Any], dict]
+    title: str = ""
+    render: Callable[[dict, Any], str] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Study:
+    """A package of stages that a scenario asks for by name (`[studies.NAME]`): `configure(table,
+    scenario_file, robot)` validates the scenario's table (raising harness.tomlio.InputError) and
+    returns the configuration its stages receive. `sweep`, when given, repeats the study's
+    identification under measurement noise (`harness sweep`)."""
+
+    name: str
+    configure: Callable[[Any, Path, Any], Any]
+    stages: tuple[Stage, ...]
+    sweep: Callable | None = None
+    render_sweep: Callable[[dict], str] | None = None
+    notes: dict[str, str] = field(default_factory=dict)
+
+
+def load_study(name: str) -> Study:
+    study = load_entry_point(name, STUDY_GROUP)
+    if not isinstance(study, Study):
+        raise PluginError(name, f"entry point must name a harness.plugins.Study, found {type(study).__name__}")
+    return study

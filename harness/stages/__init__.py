@@ -1,0 +1,31 @@
+"""The generic stages of a run, registered in the order they run. A study (a paper's package, or a
+user's) adds its own stages through harness.plugins.Study; the pipeline treats both alike."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from harness.plugins import Stage
+from harness.recording import Recording
+from harness.scenario import Scenario
+
+Progress = Callable[[str, float | None], None]
+
+
+@dataclass(frozen=True, eq=False)
+class Context:
+    """What every stage may read: the scenario, the ideal recording (the truth), what the
+    measurement gives, and the results of the stages that ran before it, by key."""
+
+    scenario: Scenario
+    recording: Recording
+    measured: Recording
+    progress: Progress
+    done: dict[str, object] = field(default_factory=dict)
+
+
+def core_stages() -> tuple[Stage, ...]:
+    from harness.stages import identification, torques
+
+    return (torques.STAGE, identification.TORQUE_STAGE, identification.METHODS_STAGE)

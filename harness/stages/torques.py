@@ -1,0 +1,166 @@
+"""Joint torques of every model under test against the reference engines, on the recorded motion.
+
+References: MuJoCo's torques (what drove the simulation) and Pinocchio's RNEA on a model built
+from the same robot description. Each model under test (harness/plugins.py) gets the recorded
+(q, q', q'') and returns its torques; the three are compared pairwise with one definition of
+relative error (harness/compare.py). Its joint wrenches and mass matrix are compared too when
+the model offers them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.compare import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
+from harness.engines.pinocchio import build_model, crba, rnea
+from harness.plugins import PluginError, Stage, call, check_array, invoke
+
+MASS_MATRIX_SAMPLES = 20  # configurations of the recording at which a model's M(q) is compared
+
+
+@dataclass(frozen=True, eq=False)
+class ModelTorques:
+    name: str
+    reference: str  # how the scenario named it
+    model_file: str  # the robot description it was built from
+    tau: np.ndarray  # (N, n) robot joint order
+    F_W: np.ndarray | None  # (N, n, 3) joint forces, when the model gives them
+    M_W: np.ndarray | None
+    mass_matrix_rel_error: float | None  # largest |M - M_pin| / max |M_pin|, when given
+
+
+@dataclass(frozen=True, eq=False)
+class TorqueComparison:
+    joints: list[str]
+    t: np.ndarray
+    load_scale: np.ndarray  # L_J, from the recording
+    mujoco: np.ndarray  # (N, n)
+    pinocchio: np.ndarray
+    F_pin: np.ndarray  # (N, n, 3) Pinocchio's joint wrenches, world components
+    M_pin: np.ndarray
+    F_rec: np.ndarray  # recorded joint wrenches
+    M_rec: np.ndarray
+    models: tuple[ModelTorques, ...]
+
+    def sources(self) -> dict[str, np.ndarray]:
+        return {"mujoco": self.mujoco, "pinocchio": self.pinocchio, **{m.name: m.tau for m in self.models}}
+
+
+def _reorder(names: list[str], joints: list[str]) -> list[int]:
+    return [list(names).index(j) for j in joints]
+
+
+def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows) -> ModelTorques:
+    """One model under test on the recorded motion, in its own column order, brought to the robot's."""
+    inst, plugin = entry.instance, entry.reference
+    order = _reorder(list(inst.joint_names), joints)  # robot joint k is the model's column order[k]
+    to_model = [joints.index(j) for j in inst.joint_names]
+    N, n = q.shape
+    tau = call(plugin, "inverse_dynamics", inst.inverse_dynamics, q[:, to_model], qd[:, to_model],
+               qdd[:, to_model], shape=(N, n))[:, order]
+    F = M = None
+    if callable(getattr(inst, "joint_wrenches", None)):
+        out = invoke(plugin, "joint_wrenches", inst.joint_wrenches, q[:, to_model], qd[:, to_model],
+                     qdd[:, to_model])
+        if not isinstance(out, tuple | list) or len(out) != 2:
+            raise PluginError(plugin, "joint_wrenches must return (F_W, M_W)")
+        F = check_array(plugin, "joint_wrenches (forces)", out[0], (N, n, 3))[:, order]
+        M = check_array(plugin, "joint_wrenches (moments)", out[1], (N, n, 3))[:, order]
+    mm = None
+    if callable(getattr(inst, "mass_matrix", None)):
+        Mq = call(plugin, "mass_matrix", inst.mass_matrix, q[rows][:, to_model], shape=(len(rows), n, n))
+        Mq = Mq[:, order][:, :, order]
+        ref = M_pin_at()
+        mm = float(np.max(np.abs(Mq - ref)) / np.max(np.abs(ref)))
+    return ModelTorques(entry.name, plugin, str(entry.robot.source), tau, F, M, mm)
+
+
+def run(ctx, config) -> TorqueComparison:
+    sc, rec = ctx.scenario, ctx.recording
+    joints = sc.robot.joint_names
+    cols = [rec.joint_index(j) for j in joints]
+    q, qd, qdd = rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols]
+    pm = build_model(sc.robot, sc.gravity_W)
+    pin = rnea(pm, q, qd, qdd)
+    rows = np.unique(np.linspace(0, len(rec.t) - 1, MASS_MATRIX_SAMPLES).round().astype(int))
+    cache = {}
+
+    def M_pin_at():
+        if "M" not in cache:
+            cache["M"] = crba(pm, q[rows])
+        return cache["M"]
+
+    models = tuple(_model_torques(e, q, qd, qdd, joints, M_pin_at, rows) for e in sc.models)
+    return TorqueComparison(joints, rec.t, joint_load_scale(sc.robot, rec), rec.tau[:, cols], pin.tau,
+                            pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models)
+
+
+def _list(v) -> list[float]:
+    return [float(x) for x in np.ravel(v)]
+
+
+DIFFERENCE_TOL = 1e-12  # relative: parameters that differ by less are the same number written twice
+
+
+def parameter_differences(model, robot) -> list[dict]:
+    """Mass, centre of mass and principal moments of every body where a model's description
+    differs from the robot's. `identification_name` is the name identification stages give it."""
+    out = []
+    for b_ref in robot.bodies:
+        b = model.body(b_ref.name)
+        values = [("mass", "m", b.mass, b_ref.mass)]
+        values += [(f"J{k + 1}{k + 1}", f"J{k + 1}{k + 1}", b.principal_inertia[k], b_ref.principal_inertia[k])
+                   for k in range(3)]
+        values += [(f"com_{a}", f"com_{a}", b.p_W_com0[k], b_ref.p_W_com0[k]) for k, a in enumerate("xyz")]
+        for label, ident, v, ref in values:
+            size = max(abs(v), abs(ref))
+            if size > 0 and abs(v - ref) > DIFFERENCE_TOL * size:
+                out.append({"body": b.name, "parameter": label, "identification_name": ident, "model": float(v),
+                            "reference": float(ref), "rel_difference": float((v - ref) / ref) if ref else None})
+    return out
+
+
+def serialise(tc: TorqueComparison, ctx, config) -> dict:
+    sources, joints, t = tc.sources(), tc.joints, tc.t
+    pairs = [(m.name, ref) for m in tc.models for ref in ("pinocchio", "mujoco")] + [("pinocchio", "mujoco")]
+    reactions = {"pinocchio_vs_mujoco": {"force": wrench_metrics(tc.F_pin, tc.F_rec, t, joints),
+                                         "moment": wrench_metrics(tc.M_pin, tc.M_rec, t, joints)}}
+    for m in tc.models:
+        if m.F_W is not None:
+            reactions[f"{m.name}_vs_mujoco"] = {"force": wrench_metrics(m.F_W, tc.F_rec, t, joints),
+                                                "moment": wrench_metrics(m.M_W, tc.M_rec, t, joints)}
+    return {
+        "joints": joints,
+        "definition": DEFINITION,
+        "load_scale": dict(zip(joints, _list(tc.load_scale), strict=True)),
+        "models": {m.name: {"plugin": m.reference, "model_file": m.model_file,
+                            "joint_wrenches": m.F_W is not None,
+                            "mass_matrix": m.mass_matrix_rel_error is not None} for m in tc.models},
+        "parameter_differences": {e.name: parameter_differences(e.robot, ctx.scenario.robot)
+                                  for e in ctx.scenario.models if e.robot is not ctx.scenario.robot},
+        "samples": [{"t": float(ti), **{k: _list(v[i]) for k, v in sources.items()}} for i, ti in enumerate(t)],
+        **{f"{a}_vs_{b}": pair_metrics(sources[a], sources[b], tc.load_scale, t, joints) for a, b in pairs},
+        "reactions": {
+            "definition": "|a - b| / largest |b| of the joint over the run, b the recorded wrench "
+                          "(force of the inner on the outer body, moment about the joint point)",
+            **reactions,
+        },
+        "mass_matrix": {
+            "definition": f"largest |M - M_pinocchio| / largest |M_pinocchio| at {MASS_MATRIX_SAMPLES} rows "
+                          "of the recording (Pinocchio's CRBA)",
+            **{f"{m.name}_vs_pinocchio": {"max_rel_error": m.mass_matrix_rel_error}
+               for m in tc.models if m.mass_matrix_rel_error is not None},
+        },
+    }
+
+
+def _render(results: dict, rec) -> str:
+    from harness.report.sections import torques
+
+    return torques(results)
+
+
+STAGE = Stage("torques", "joint torques: reference engines and models under test", run, serialise,
+              "Torques", _render)
