@@ -26,12 +26,13 @@ import pinocchio as pin
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from harness.bench import record  # noqa: E402
 from harness.engines.mujoco import build_model as build_mujoco  # noqa: E402
-from harness.engines.mujoco import simulate  # noqa: E402
 from harness.engines.pinocchio import build_model as build_pinocchio  # noqa: E402
 from harness.measurement import Measurement  # noqa: E402
 from harness.papers.graph_theory_2021.dynamics import build_graph_model  # noqa: E402
 from harness.papers.graph_theory_2021.inverse import inverse_dynamics  # noqa: E402
+from harness.papers.graph_theory_2021.model import make as make_graph_model  # noqa: E402
 from harness.papers.graph_theory_2021.solve import identify  # noqa: E402
 from harness.papers.graph_theory_2021.sweep import run_sweep  # noqa: E402
 from harness.scenario import load_scenario  # noqa: E402
@@ -53,13 +54,15 @@ def main() -> None:
     # 10,000 states of kr500 with every joint moving: their body kinematics come from MuJoCo
     sc = load_scenario(ROOT / "scenarios" / "kr500_all_joints.toml")
     sc = dataclasses.replace(sc, duration=20.0, output_steps=N - 1, sample_times=np.linspace(0, 20.0, N))
-    rec = simulate(sc)
+    rec = record(sc)
     spec = sc.robot
     model = build_graph_model(spec, sc.gravity_W)
     cols = [rec.joint_index(j) for j in spec.joint_names]
     q, qd, qdd = rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols]
 
     t_graph = best_of(lambda: inverse_dynamics(spec, model, rec))
+    plugin = make_graph_model(spec, sc.gravity_W)  # as a model under test: (q, q', q'') in, kinematics its own
+    t_plugin = best_of(lambda: plugin.inverse_dynamics(q, qd, qdd))
     pm = build_pinocchio(spec, sc.gravity_W)
     data = pm.model.createData()
     qq, vv, aa = (np.zeros((N, pm.model.nq)) for _ in range(3))
@@ -69,7 +72,7 @@ def main() -> None:
         for k in range(N):
             pin.rnea(pm.model, data, qq[k], vv[k], aa[k])
 
-    mm = build_mujoco(sc)
+    mm = build_mujoco(sc.robot, sc.gravity_W, sc.simulation)
     md = mujoco.MjData(mm)
     qadr = [mm.joint(j).qposadr[0] for j in spec.joint_names]
     vadr = [mm.joint(j).dofadr[0] for j in spec.joint_names]
@@ -82,6 +85,7 @@ def main() -> None:
     t_pin, t_mj = best_of(pinocchio_loop), best_of(mujoco_loop)
     figures["torques_us_per_state"] = {
         "graph_batched": 1e6 * t_graph / N,
+        "graph_plugin_with_kinematics": 1e6 * t_plugin / N,
         "pinocchio_rnea": 1e6 * t_pin / N,
         "mujoco_mj_inverse": 1e6 * t_mj / N,
     }
@@ -115,7 +119,8 @@ def main() -> None:
     out.write_text(json.dumps(figures, indent=2) + "\n")
     t = figures["torques_us_per_state"]
     print(
-        f"joint torques, {N} states of kr500 (us per state): graph model batched {t['graph_batched']:.2f}, "
+        f"joint torques, {N} states of kr500 (us per state): graph model batched {t['graph_batched']:.2f} "
+        f"(as a plugin, with its forward kinematics: {t['graph_plugin_with_kinematics']:.2f}), "
         f"Pinocchio rnea {t['pinocchio_rnea']:.2f}, MuJoCo mj_inverse {t['mujoco_mj_inverse']:.2f}"
     )
     print(f"identification of {N} samples: {t_id:.3f} s")

@@ -49,11 +49,12 @@ def _parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     run = sub.add_parser(
         "run", help="run scenarios through the whole pipeline and write their reports",
-        description="Run each scenario through the whole pipeline: simulate it in MuJoCo, check the graph "
-                    "model's dynamics and constraints against the recording, identify the parameters, "
-                    "compare joint torques with Pinocchio, check the scenario's gates. Writes recording.csv, "
-                    "results.json and report.html into one folder per scenario and prints one line per gate. "
-                    f"With no scenario, runs {DEFAULT_SCENARIO}.")
+        description="Run each scenario through the whole pipeline: simulate it in MuJoCo, compare every model under "
+                    "test with MuJoCo and Pinocchio, judge every identification method, run the stages of each "
+                    "study the scenario asks for, check the scenario's gates. Writes recording.csv, results.json "
+                    "and report.html into one folder per scenario and prints one line per gate. A model under "
+                    "test is a plugin: [model_under_test] name = \"mine\", python = \"my_arm:make\" (see README, "
+                    f"'Plugging in'). With no scenario, runs {DEFAULT_SCENARIO}.")
     run.add_argument("scenarios", metavar="SCENARIO", nargs="*",
                      help="scenario file, or the name of one in ./scenarios/ (e.g. kr500_rail)")
     run.add_argument("--out", metavar="DIR", type=Path, default=None,
@@ -85,8 +86,9 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--trials", type=int, default=200, metavar="N", help="number of trials (default 200)")
     sweep.add_argument("--jobs", type=int, default=1, metavar="K", help="worker processes (default 1)")
     sweep.add_argument("--out", metavar="DIR", type=Path, default=None, help="default: reports/<scenario name>")
-    sub.add_parser("list", help="list the models and scenarios in ./models and ./scenarios",
-                   description="One line per model and per scenario found in ./models and ./scenarios.")
+    sub.add_parser("list", help="list the models, scenarios and installed plugins",
+                   description="One line per model and per scenario found in ./models and ./scenarios, and per "
+                               "plugin (model, identification method, study) installed by entry point.")
     return parser
 
 
@@ -158,6 +160,7 @@ class _Progress:
 def cmd_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     from harness.api import run
+    from harness.pipeline import stages_of
     from harness.report import render
     from harness.results import RECORDING_FILE, RESULTS_FILE, write_results
     from harness.scenario import load_scenario
@@ -182,11 +185,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         results = result.results
         results["run"]["timings"] = {"importing the engines and libraries": imported, **results["run"]["timings"]}
         imported = 0.0
+        page = render(results, result.recording, [stage for stage, _ in stages_of(result.output.scenario)])
         try:
             _write_atomically(out, {
                 RECORDING_FILE: result.recording.write_csv,
                 RESULTS_FILE: lambda p, r=results: write_results(p, r),
-                REPORT_FILE: lambda p, r=results, rec=result.recording: p.write_text(render(r, rec)),
+                REPORT_FILE: lambda p, text=page: p.write_text(text),
             })
         except OSError as exc:
             raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
@@ -308,6 +312,16 @@ def cmd_list(args: argparse.Namespace) -> int:
             except InputError as exc:
                 text = f"(unreadable: {exc.message})"
             print(f"  {f.stem:<24} {text}")
+    from importlib.metadata import entry_points
+
+    from harness.plugins import METHOD_GROUP, MODEL_GROUP, STUDY_GROUP
+
+    for title, group in (("model plugins", MODEL_GROUP), ("identification plugins", METHOD_GROUP),
+                         ("studies", STUDY_GROUP)):
+        found = sorted(entry_points(group=group), key=lambda ep: ep.name)
+        print(f"{title} installed ({len(found)})")
+        for ep in found:
+            print(f"  {ep.name:<24} {ep.value}")
     return EXIT_OK
 
 

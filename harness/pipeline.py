@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from harness.engines.mujoco import simulate
+from harness.bench import record
 from harness.excitation import optimise as optimise_excitation
 from harness.measurement import measure
 from harness.plugins import Stage
@@ -63,6 +63,11 @@ class _Timed:
             self.timings[self.stage] = self.timings.get(self.stage, 0.0) + time.perf_counter() - self.start
             self.stage = None
 
+    def drop(self, stage: str) -> None:
+        """Forget a stage that turned out to have nothing to do for this scenario."""
+        if self.stage == stage:
+            self.stage = None
+
 
 def stages_of(scenario: Scenario) -> Iterator[tuple[Stage, Any]]:
     """The stages a scenario runs, with their configuration: the core's, then each study's."""
@@ -82,7 +87,7 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
         timed("optimising the excitation (Fourier series)", None)
         scenario, excitation = optimise_excitation(scenario, **scenario.excitation)
     timed("simulating in MuJoCo", None)
-    recording = simulate(scenario)
+    recording = record(scenario)
     measured = measure(recording, scenario.measurement)
     ctx = Context(scenario, recording, measured, timed)
     outputs: dict[str, StageOutput] = {}
@@ -90,7 +95,9 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
         timed(stage.progress, None)
         result = stage.run(ctx, config)
         ctx.done[stage.key] = result
-        if result is not None:
+        if result is None:
+            timed.drop(stage.progress)
+        else:
             outputs[stage.key] = StageOutput(stage, config, result)
     timed.close()
     return RunOutput(scenario, recording, measured, ctx, outputs, excitation, timed.timings)

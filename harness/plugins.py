@@ -25,9 +25,12 @@ and optionally
 
 Identification method: the attribute is called in the same way and returns an object with
 `joint_names` and `fit(q, qd, qdd, tau)` (arrays (N, n), measured) returning the identified model: an
-object with `inverse_dynamics` as above and, optionally, `parameters`: (n, 10) per joint, the child
-body's [m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] in the joint's frame about its
-origin (Pinocchio's dynamic parameters), which are judged where the data determine them.
+object with `joint_names`, `inverse_dynamics` as above and, optionally, `parameters`: (n, 10), one row
+per joint in the fitted model's `joint_names` order, the child body's
+[m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] about the joint point, in world axes at
+the initial pose (all q = 0) (Pinocchio's dynamic parameters of a frame at the joint point with
+those axes). They are judged where the data determine them: reduced to the base parameters of the
+training data's regressor and compared with the robot's.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ import importlib.util
 import inspect
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
@@ -150,6 +153,13 @@ def check_protocol(plugin: str, obj: Any, protocol: type, joint_names: Sequence[
                                   "each once, in any order")
 
 
+def column_maps(plugin_joints: Sequence[str], joints: Sequence[str]) -> tuple[list[int], list[int]]:
+    """Index lists between the robot's joint order and a plugin's: x[:, to_plugin] gives a plugin
+    its columns, y[:, to_robot] brings its output back to the robot's order."""
+    plugin_joints, joints = list(plugin_joints), list(joints)
+    return [joints.index(j) for j in plugin_joints], [plugin_joints.index(j) for j in joints]
+
+
 def invoke(plugin: str, what: str, fn: Callable, *args) -> Any:
     """Call one of a plugin's methods; whatever it raises becomes a PluginError naming it."""
     try:
@@ -202,7 +212,6 @@ class Study:
     stages: tuple[Stage, ...]
     sweep: Callable | None = None
     render_sweep: Callable[[dict], str] | None = None
-    notes: dict[str, str] = field(default_factory=dict)
 
 
 def load_study(name: str) -> Study:

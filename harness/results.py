@@ -100,6 +100,7 @@ def recording_section(rec: Recording) -> dict:
         "substeps_per_row": meta["substeps"],
         "tracking_bandwidth": meta["tracking_bandwidth"],
         "tracking_error": tracking,
+        "engine_warnings": list(meta.get("warnings", [])),
         "gimbal_lock_rows": gimbal,
     }
 

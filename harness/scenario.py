@@ -93,9 +93,6 @@ class Scenario:
     methods: tuple[PluginEntry, ...] = ()  # identification methods under test
     studies: tuple[tuple[Study, Any], ...] = ()  # (study, its configuration), in the file's order
 
-    def model(self, name: str) -> PluginEntry:
-        return next(m for m in self.models if m.name == name)
-
     @property
     def output_dt(self) -> float:
         return self.duration / self.output_steps
@@ -135,6 +132,19 @@ def load_related(t: Table, key: str, path: Path) -> Scenario:
         chain = " -> ".join(p.name for p in (*_LOADING, other.resolve()))
         raise t.error(key, f"scenarios name each other in a cycle ({chain})")
     return load_scenario(other)
+
+
+def load_variant(t: Table, key: str, scenario: Scenario) -> RobotSpec:
+    """Another description of the scenario's robot (same bodies and joints, other parameters),
+    named under `key` of table `t` relative to the scenario file; the robot itself without it."""
+    if not t.has(key):
+        return scenario.robot
+    variant = load_spec(_relative_file(t, key, t.string(key), scenario.source))
+    if (variant.joint_names != scenario.robot.joint_names
+            or [b.name for b in variant.bodies] != [b.name for b in scenario.robot.bodies]):
+        raise t.error(key, f"model {variant.name!r} must have the bodies and joints of {scenario.robot.name!r} "
+                           "(it describes the same robot)")
+    return variant
 
 
 def load_scenario(path: Path | str) -> Scenario:
@@ -284,18 +294,11 @@ def _read_plugin(t: Table, path: Path, scenario: Scenario, group: str, protocol:
         raise t.error("python", "give exactly one of python = \"module:attribute\" or plugin = \"name\"")
     key = "python" if t.has("python") else "plugin"
     ref = t.string(key)
-    robot = scenario.robot
-    if t.has("model"):
-        robot = load_spec(_relative_file(t, "model", t.string("model"), path))
-        if (robot.joint_names != scenario.robot.joint_names
-                or [b.name for b in robot.bodies] != [b.name for b in scenario.robot.bodies]):
-            raise t.error("model", f"model {robot.name!r} must have the bodies and joints of "
-                                   f"{scenario.robot.name!r} (it describes the same robot)")
+    robot = load_variant(t, "model", scenario)
     validation = load_related(t, "validation", path) if t.has("validation") else None
     if validation is not None and validation.robot.joint_names != scenario.robot.joint_names:
         raise t.error("validation", "simulates another robot")
-    parameters = {k: v for k, v in t.data.items() if k not in ("name", "python", "plugin", "model", "validation")}
-    t._used.update(parameters)
+    parameters = t.remaining(exclude=("python", "plugin"))
     try:
         factory = load_reference(ref, path.parent) if key == "python" else load_entry_point(ref, group)
         instance = call_factory(ref, factory, robot, gravity_W=scenario.gravity_W.copy(), parameters=parameters)

@@ -145,6 +145,13 @@ class Table:
             raise self.error(name, "expected an array of tables ([[...]])")
         return [Table(v, self.file, f"{self.key(name)}[{i}]") for i, v in enumerate(value)]
 
+    def remaining(self, exclude: Sequence[str] = ()) -> dict[str, Any]:
+        """Every key not read yet (nor excluded), marked as read: a table that passes its other
+        keys on (to a plugin) takes them as they are."""
+        rest = {k: v for k, v in self.data.items() if k not in self._used and k not in exclude}
+        self._used.update(rest)
+        return rest
+
     def one_or_many(self, name: str) -> list[Table]:
         """A table ([name]) or an array of tables ([[name]]), as a list."""
         if isinstance(self.data.get(name), dict):

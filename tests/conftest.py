@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from harness.bench import record
 from harness.cli import main
-from harness.engines.mujoco import simulate
 from harness.recording import Recording, read_csv
 from harness.scenario import Scenario, load_scenario
 
@@ -24,7 +24,7 @@ def kr500_rail() -> Scenario:
 @pytest.fixture(scope="session")
 def kr500_recording(kr500_rail: Scenario) -> Recording:
     """The recording as the engine returned it (with MuJoCo's own orientation matrices)."""
-    return simulate(kr500_rail)
+    return record(kr500_rail)
 
 
 @pytest.fixture(scope="session")

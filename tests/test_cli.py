@@ -155,3 +155,21 @@ def test_console_script_refuses_bad_input_without_traceback(tmp_path):
     assert proc.stderr.count("\n") == 1 and "motion.O7" in proc.stderr
     assert "Traceback" not in proc.stderr
     assert not out.exists()
+
+
+def test_sigterm_stops_a_run_in_one_line_and_leaves_nothing_behind(tmp_path):
+    """Terminated while it works (after its first progress line, inside the constrained model's
+    forward simulation): one line, exit status 130, no output folder and no temporary one."""
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "harness.cli", "run", str(SCENARIOS / "kr500_rail_forward.toml"),
+                             "--out", str(tmp_path / "out")], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    first = proc.stderr.readline()  # the handler is installed before any progress is printed
+    proc.send_signal(signal.SIGTERM)
+    _, rest = proc.communicate(timeout=120)
+    assert "[kr500_rail_forward" in first
+    assert proc.returncode == 130 and rest.splitlines()[-1] == "harness: interrupted"
+    assert not list(tmp_path.iterdir())

@@ -56,7 +56,7 @@ def test_branched_tree_incidence():
 def _engine_angles(scenario, t, reference):
     """Cardano angles of every body at times t, from MuJoCo's kinematics of the prescribed joint
     positions, continuous with `reference` (N, n, 3)."""
-    model = build_model(scenario)
+    model = build_model(scenario.robot, scenario.gravity_W, scenario.simulation)
     data = mujoco.MjData(model)
     q, _, _ = scenario.prescribed(t)
     qadr = [model.joint(j).qposadr[0] for j in scenario.robot.joint_names]

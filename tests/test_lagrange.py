@@ -159,13 +159,13 @@ def test_constrained_model_integrated_over_the_run_stays_with_mujoco(run_scenari
 def test_stable_tree_is_reproduced_open_loop():
     """The branched test tree has no such instability: the recorded stage torques alone drive the
     constrained model along MuJoCo's trajectory within 1e-6 (measured: 6e-9 rad)."""
-    from harness.engines.mujoco import simulate
+    from harness.bench import record
     from harness.papers.graph_theory_2021.dynamics import build_graph_model
     from harness.papers.graph_theory_2021.forward import forward_simulate
     from harness.scenario import load_scenario
 
     sc = load_scenario(BRANCH)
-    rec = simulate(sc)
+    rec = record(sc)
     model = build_graph_model(sc.robot, sc.gravity_W)
     cs = build_constraints(sc.robot, model.topology, "normal")
     result = forward_simulate(sc.robot, model, cs, rec, rec.meta["drive_stages"], sc.simulation.timestep,

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from harness.engines.mujoco import simulate
+from harness.bench import record
 from harness.measurement import Measurement, Noise, measure
 from harness.papers.graph_theory_2021.sweep import run_sweep
 from harness.scenario import load_scenario
@@ -17,7 +17,7 @@ from tests.conftest import SCENARIOS
 
 @pytest.fixture(scope="module")
 def recording():
-    return simulate(load_scenario(SCENARIOS / "kr500_rail.toml"))
+    return record(load_scenario(SCENARIOS / "kr500_rail.toml"))
 
 
 def test_noise_has_the_stated_statistics(recording):
@@ -56,7 +56,7 @@ def test_differentiated_accelerations_converge_to_the_sensors():
     sc = load_scenario(SCENARIOS / "kr500_rail.toml")
     errors = []
     for steps in (400, 800, 1600):
-        rec = simulate(dataclasses.replace(sc, output_steps=steps))
+        rec = record(dataclasses.replace(sc, output_steps=steps))
         d = measure(rec, Measurement(differentiate=True))
         inner = slice(10, -10)  # the filter's end effects
         err = [np.max(np.abs(getattr(d, c)[inner] - getattr(rec, c)[inner])) / np.max(np.abs(getattr(rec, c)))

@@ -260,6 +260,56 @@ def test_a_user_identification_method_is_fitted_and_judged_on_a_validation_traje
     assert judged["base_parameters"] is None  # it reports no parameters: only its torques are judged
 
 
+DATA_SHEET_METHOD = USER_MODEL + textwrap.dedent('''
+    def inertial(m, c, I_c):
+        """Pinocchio's dynamic parameters about a frame at the joint point, world axes at q = 0."""
+        c = np.asarray(c, float)
+        I_o = np.diag(I_c) + m * (c @ c * np.eye(3) - np.outer(c, c))
+        return [m, *(m * c), I_o[0, 0], I_o[0, 1], I_o[1, 1], I_o[0, 2], I_o[1, 2], I_o[2, 2]]
+
+
+    class FromDataSheet:
+        """Not a fit at all: the parameters a data sheet gives, with the forearm's mass scaled."""
+
+        joint_names = ["shoulder", "elbow"]
+
+        def __init__(self, g, scale):
+            self.g, self.scale = g, scale
+
+        def fit(self, q, qd, qdd, tau):
+            m2 = 1.2 * self.scale
+            model = Arm(self.g, m2=m2)
+            model.joint_names = ["elbow", "shoulder"]
+            model.parameters = np.array([inertial(m2, [0.2, 0, 0], [0.0003, 0.01615, 0.01615]),
+                                         inertial(2.0, [0.25, 0, 0], [0.0008, 0.04206667, 0.04206667])])
+            return model
+
+
+    def method(robot, gravity_W, parameters):
+        return FromDataSheet(-gravity_W[2], **parameters)
+''')
+
+
+@pytest.mark.parametrize(("scale", "worst"), [(1.0, 1e-12), (1.05, None)])
+def test_the_parameters_a_method_reports_are_judged_by_the_base_parameters_the_data_determine(tmp_path, scale,
+                                                                                              worst):
+    """Its (n, 10) parameters, in its own joint order, reduced to the base parameters of the
+    training data's regressor and compared with the robot's. A 5 % heavier forearm is seen."""
+    path = _project(tmp_path, model=DATA_SHEET_METHOD)
+    path.write_text(path.read_text() + f'''
+[identification]
+name = "sheet"
+python = "user_arm:method"
+scale = {scale}
+''')
+    judged = harness.run(path).results["identification_methods"]["sheet"]
+    # a planar 2R arm has 6 base parameters: per link the moment of inertia about its joint axis and the two
+    # first moments in the plane, link 1's absorbing link 2's mass (m2 l1^2, m2 l1)
+    assert judged["validation"] is None and judged["base_parameters"]["count"] == 6
+    error = judged["base_parameters"]["max_rel_error"]
+    assert error < worst if worst else error > 1e-2
+
+
 def _pytest_in(folder: Path) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(folder)],
                           capture_output=True, text=True, cwd=folder, timeout=300)
@@ -274,6 +324,21 @@ def test_the_harness_run_fixture_in_a_users_own_suite_passes_and_fails(tmp_path)
     assert passed.returncode == 0 and "1 passed" in passed.stdout, passed.stdout + passed.stderr
     assert failed.returncode == 1 and "1 failed" in failed.stdout
     assert "my torques vs MuJoCo" in failed.stdout  # the failing gate is named
+
+
+def test_mujoco_warnings_go_to_the_log_not_to_a_file_in_the_working_directory(tmp_path, monkeypatch, caplog):
+    import mujoco
+
+    import harness.engines.mujoco  # noqa: F401  (installs the handler)
+
+    monkeypatch.chdir(tmp_path)
+    model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><body><joint/><geom size='0.1'/></body>"
+                                           "</worldbody></mujoco>")
+    data = mujoco.MjData(model)
+    data.qvel[0] = float("nan")
+    mujoco.mj_step(model, data)
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    assert any("QVEL" in r.getMessage() for r in caplog.records)
 
 
 def test_importing_harness_loads_no_engine_and_no_paper():

@@ -205,3 +205,20 @@ def test_report_renders_in_a_headless_browser(fast_run, tmp_path):
         check=True,
     )
     assert shot.stat().st_size > 50_000  # a rendered page, not a blank one
+
+
+@pytest.mark.parametrize(("edit", "phrase"), [
+    (lambda r: r["gates"][0].update(direction="at_lest"), "'at_lest' is not one of at_most, at_least"),
+    (lambda r: r.pop("gates"), "no gates in this results file"),
+    (lambda r: r["gates"][0].update(limit="small"), "expected a number"),
+    (lambda r: r["gates"].__setitem__(0, "a gate"), "expected an object"),
+])
+def test_gate_command_refuses_malformed_gates_in_a_results_file(fast_run, tmp_path, capsys, edit, phrase):
+    """A results.json whose stored gates are malformed is bad input: it neither passes nor fails."""
+    results = json.loads((fast_run / "results.json").read_text())
+    edit(results)
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps(results))
+    assert main(["gate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and phrase in err, err

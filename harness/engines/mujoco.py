@@ -24,7 +24,10 @@ are kept in `meta["drive_stages"]`, so that another model can be driven by exact
 
 from __future__ import annotations
 
+import logging
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -32,8 +35,10 @@ import numpy as np
 from harness.cardano import angles_from_rotation, gimbal_flags
 from harness.quaternion import to_matrix
 from harness.recording import Recording
-from harness.scenario import Scenario
 from harness.spec import WORLD, Body, Joint, RobotSpec
+
+if TYPE_CHECKING:
+    from harness.scenario import Simulation
 
 _MJ_INTEGRATOR = {"RK4": "RK4", "Euler": "Euler", "implicitfast": "implicitfast"}
 MOMENT_FLOOR = 1e-12
@@ -123,28 +128,40 @@ def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
     return spec.carried_joint(joint.name)
 
 
-def build_model(scenario: Scenario) -> mujoco.MjModel:
-    sim = scenario.simulation
-    xml = build_mjcf(scenario.robot, scenario.gravity_W, sim.integrator, sim.timestep)
+def build_model(spec: RobotSpec, gravity_W: np.ndarray, simulation: Simulation) -> mujoco.MjModel:
+    xml = build_mjcf(spec, gravity_W, simulation.integrator, simulation.timestep)
     return mujoco.MjModel.from_xml_string(xml)
 
 
-def simulate(scenario: Scenario) -> Recording:
-    """Forward-simulate the scenario with mj_step and record every output row."""
-    spec = scenario.robot
-    model = build_model(scenario)
+def _log_warning(message: str) -> None:
+    """MuJoCo's warnings go to the log, not to a MUJOCO_LOG.TXT in the working directory."""
+    _WARNINGS.append(message)
+    logging.getLogger("harness.mujoco").warning(message)
+
+
+_WARNINGS: list[str] = []
+mujoco.set_mju_user_warning(_log_warning)
+
+
+def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, output_steps: int, output_dt: float,
+             simulation: Simulation) -> Recording:
+    """Forward-simulate the robot with mj_step along the prescribed motion (`prescribed(t)` ->
+    (q, q', q''), each (len(t), n) in the spec's joint order) and record `output_steps + 1` rows
+    from t = 0, `output_dt` apart. `simulation.timestep` must divide `output_dt`."""
+    model = build_model(spec, gravity_W, simulation)
     data = mujoco.MjData(model)
     qadr = np.array([model.joint(j).qposadr[0] for j in spec.joint_names])
     vadr = np.array([model.joint(j).dofadr[0] for j in spec.joint_names])
     act = np.array([model.actuator(f"drive_{j}").id for j in spec.joint_names])
-    w = scenario.simulation.tracking_bandwidth
-    dt, substeps = scenario.simulation.timestep, scenario.substeps
-    n_rows = scenario.output_steps + 1
+    w = simulation.tracking_bandwidth
+    dt = simulation.timestep
+    substeps = round(output_dt / dt)
+    n_rows = output_steps + 1
     n_steps = (n_rows - 1) * substeps
     # The integrators evaluate the dynamics at whole and half steps (RK4 stages): the prescribed
     # motion is evaluated once, batched, on that half-step grid.
     half = dt / 2.0
-    q_d, qd_d, qdd_d = scenario.prescribed(np.arange(2 * n_steps + 2) * half)
+    q_d, qd_d, qdd_d = prescribed(np.arange(2 * n_steps + 2) * half)
     qacc_cmd, tau = np.zeros(model.nv), np.zeros(model.nv)
     stages: list[np.ndarray] = []  # the drive torques of every evaluation inside mj_step
     capture = [False]
@@ -164,6 +181,7 @@ def simulate(scenario: Scenario) -> Recording:
     sensor_rows = np.empty((n_rows, model.nsensordata))
     qacc_rows = np.empty((n_rows, len(vadr)))
     mujoco.set_mjcb_control(drive)
+    warned = len(_WARNINGS)
     try:
         for row in range(n_rows):
             data.time = row * substeps * dt
@@ -177,7 +195,7 @@ def simulate(scenario: Scenario) -> Recording:
                 capture[0] = False
     finally:
         mujoco.set_mjcb_control(None)
-    per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[scenario.simulation.integrator]
+    per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]
     drive_stages = np.array(stages).reshape(n_steps, per_step, len(act))
     t = np.arange(n_rows) * substeps * dt
     q_ref, qd_ref, qdd_ref = (x[::2 * substeps] for x in (q_d, qd_d, qdd_d))
@@ -203,7 +221,8 @@ def simulate(scenario: Scenario) -> Recording:
     q, qd = per_joint("q")[..., 0], per_joint("qd")[..., 0]
     meta = {
         "engine": "mujoco", "engine_version": mujoco.__version__,
-        "integrator": scenario.simulation.integrator, "timestep": dt, "substeps": substeps,
+        "integrator": simulation.integrator, "timestep": dt, "substeps": substeps,
+        "warnings": _WARNINGS[warned:],
         "tracking_bandwidth": w,
         "q_ref": q_ref, "qd_ref": qd_ref, "qdd_ref": qdd_ref,
         "drive_stages": drive_stages,  # (steps, stages, joints): torques at every evaluation
@@ -212,8 +231,8 @@ def simulate(scenario: Scenario) -> Recording:
         t=t, joints=tuple(spec.joint_names), bodies=tuple(b.name for b in spec.massive_bodies),
         q=q, qd=qd, qdd=qacc_rows, tau=per_joint("tau")[..., 0], F_W=F_W, M_W=M_W,
         p_W=per_body("framepos"), v_W=per_body("framelinvel"), theta=theta,
-        a_W=per_body("framelinacc") + scenario.gravity_W,  # framelinacc is a - g (proper)
-        aO_W=per_body("jointacc") + scenario.gravity_W,
+        a_W=per_body("framelinacc") + gravity_W,  # framelinacc is a - g (proper)
+        aO_W=per_body("jointacc") + gravity_W,
         omega_W=per_body("frameangvel"), omegadot_W=per_body("frameangacc"),
         gimbal=gimbal_flags(theta), R_WB=R_WB, meta=meta,
     )

@@ -27,9 +27,9 @@ pre { background: #f7f7f7; padding: 0.5rem; font-size: 0.75rem; overflow-x: auto
 nav a { margin-right: 0.8rem; font-size: 0.85rem; }
 """
 
-def _renderers(results: dict) -> list:
-    """(key, title, render) of every stage with a report section: the core's, then those of the
-    studies that ran (found through the same registry the run used)."""
+def _registered_stages(results: dict) -> list:
+    """The core's stages, then those of the studies that ran, found through the same registry the
+    run used (a study that is no longer installed: its sections are left out, the rest is drawn)."""
     from harness.plugins import PluginError, load_study
     from harness.stages import core_stages
 
@@ -38,21 +38,23 @@ def _renderers(results: dict) -> list:
         try:
             stages += load_study(name).stages
         except PluginError:
-            continue  # a study no longer installed: its sections are left out, the rest is drawn
-    return [(s.key, s.title, s.render) for s in stages if s.render is not None]
+            continue
+    return stages
 
 
-def render(results: dict, rec: Recording) -> str:
+def render(results: dict, rec: Recording, stages: list | None = None) -> str:
+    """The report of a results.json and its recording. `stages` (default: the registered ones
+    of the studies the results name) give the sections after the motion, one per stage result."""
     name = results["scenario"]["name"]
     parts = [sections.verdict(results), sections.model(results), sections.motion(results, rec)]
     nav = [("verdict", "Verdict"), ("model", "Model"), ("motion", "Motion")]
     if "excitation" in results:
         parts.append(sections.excitation(results))
         nav.append(("excitation", "Excitation"))
-    for key, title, draw in _renderers(results):
-        if key in results:
-            parts.append(draw(results, rec))
-            nav.append((key, title))
+    for stage in stages if stages is not None else _registered_stages(results):
+        if stage.render is not None and stage.key in results:
+            parts.append(stage.render(results, rec))
+            nav.append((stage.key, stage.title))
     parts.append(sections.how(results))
     nav.append(("how", "How the run was made"))
     body = "".join(parts)

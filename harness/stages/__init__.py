@@ -16,13 +16,21 @@ Progress = Callable[[str, float | None], None]
 @dataclass(frozen=True, eq=False)
 class Context:
     """What every stage may read: the scenario, the ideal recording (the truth), what the
-    measurement gives, and the results of the stages that ran before it, by key."""
+    measurement gives, and the results of the stages that ran before it, by key. `cache` holds
+    what several stages need and is made once per run (a validation recording, a built model)."""
 
     scenario: Scenario
     recording: Recording
     measured: Recording
     progress: Progress
     done: dict[str, object] = field(default_factory=dict)
+    cache: dict[object, object] = field(default_factory=dict)
+
+    def once(self, key: object, make: Callable[[], object]) -> object:
+        """`make()` the first time `key` is asked for in this run, the same object after that."""
+        if key not in self.cache:
+            self.cache[key] = make()
+        return self.cache[key]
 
 
 def core_stages() -> tuple[Stage, ...]:

@@ -13,10 +13,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.bench import record
 from harness.compare import joint_load_scale
-from harness.engines.mujoco import simulate
 from harness.engines.pinocchio import build_model
-from harness.plugins import ModelUnderTest, PluginError, Stage, call, check_array, check_protocol, invoke
+from harness.plugins import (
+    ModelUnderTest,
+    PluginError,
+    Stage,
+    call,
+    check_array,
+    check_protocol,
+    column_maps,
+    invoke,
+)
 from harness.torque_id import (
     BETA_FLOOR,
     TorqueIdentification,
@@ -36,11 +45,11 @@ def joint_data(rec, joints: list[str]) -> tuple[np.ndarray, ...]:
 
 def validation_recording(ctx, scenario):
     """The validation scenario simulated once per run, whichever stage asks first."""
-    key = ("validation recording", str(scenario.source))
-    if key not in ctx.done:
+    def make():
         ctx.progress(f"simulating the validation trajectory {scenario.name}", None)
-        ctx.done[key] = simulate(scenario)
-    return ctx.done[key]
+        return record(scenario)
+
+    return ctx.once(("validation recording", str(scenario.source)), make)
 
 
 def run_builtin(ctx, config) -> TorqueIdentification | None:
@@ -70,24 +79,20 @@ class MethodResult:
     validation_joints: list[str]
 
 
-def _in_order(inst, joints):
-    return [joints.index(j) for j in inst.joint_names], [list(inst.joint_names).index(j) for j in joints]
-
-
 def _judge(ctx, entry) -> MethodResult:
     sc, method, plugin = ctx.scenario, entry.instance, entry.reference
     joints = sc.robot.joint_names
-    to_method, _ = _in_order(method, joints)
+    to_method, _ = column_maps(method.joint_names, joints)
     q, qd, qdd, tau = joint_data(ctx.measured, joints)
     fitted = invoke(plugin, "fit", method.fit, q[:, to_method], qd[:, to_method], qdd[:, to_method],
                     tau[:, to_method])
     check_protocol(f"{plugin} (its fitted model)", fitted, ModelUnderTest, joints)
-    base_rel = None
-    pm = build_model(sc.robot, sc.gravity_W)
-    W = regressor(pm, q, qd, qdd)
-    base = base_parameters(W)
+    base_rel, base_count = None, 0
     if getattr(fitted, "parameters", None) is not None:
-        fit_to_robot = [list(fitted.joint_names).index(j) for j in joints]
+        pm = build_model(sc.robot, sc.gravity_W)
+        base = ctx.once("base parameters of the measured data", lambda: base_parameters(regressor(pm, q, qd, qdd)))
+        base_count = len(base.independent)
+        _, fit_to_robot = column_maps(fitted.joint_names, joints)
         theta = check_array(plugin, "parameters", fitted.parameters, (len(joints), 10))[fit_to_robot].reshape(-1)
         beta_true, beta = base.of(true_parameters(pm)), base.of(theta)
         scale = np.maximum(np.abs(beta_true), BETA_FLOOR * np.max(np.abs(beta_true)))
@@ -97,14 +102,14 @@ def _judge(ctx, entry) -> MethodResult:
     if validation is not None:
         val = validation_recording(ctx, validation)
         qv, qdv, qddv, tauv = joint_data(val, joints)
-        f_in, f_out = _in_order(fitted, joints)
+        f_in, f_out = column_maps(fitted.joint_names, joints)
         pred = call(plugin, "inverse_dynamics of the fitted model", fitted.inverse_dynamics, qv[:, f_in],
                     qdv[:, f_in], qddv[:, f_in], shape=tauv.shape)[:, f_out]
         val_err = np.abs(pred - tauv) / joint_load_scale(sc.robot, val)
     if base_rel is None and val_err is None:
         raise PluginError(plugin, "cannot be judged: its fitted model reports no parameters and the scenario "
                                   "names no validation trajectory ([identification] validation = ...)")
-    return MethodResult(entry.name, plugin, base_rel, len(base.independent),
+    return MethodResult(entry.name, plugin, base_rel, base_count,
                         validation.name if validation is not None else None, val_err, joints)
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from harness.compare import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
 from harness.engines.pinocchio import build_model, crba, rnea
-from harness.plugins import PluginError, Stage, call, check_array, invoke
+from harness.plugins import PluginError, Stage, call, check_array, column_maps, invoke
 
 MASS_MATRIX_SAMPLES = 20  # configurations of the recording at which a model's M(q) is compared
 
@@ -48,15 +48,10 @@ class TorqueComparison:
         return {"mujoco": self.mujoco, "pinocchio": self.pinocchio, **{m.name: m.tau for m in self.models}}
 
 
-def _reorder(names: list[str], joints: list[str]) -> list[int]:
-    return [list(names).index(j) for j in joints]
-
-
 def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows) -> ModelTorques:
     """One model under test on the recorded motion, in its own column order, brought to the robot's."""
     inst, plugin = entry.instance, entry.reference
-    order = _reorder(list(inst.joint_names), joints)  # robot joint k is the model's column order[k]
-    to_model = [joints.index(j) for j in inst.joint_names]
+    to_model, order = column_maps(inst.joint_names, joints)
     N, n = q.shape
     tau = call(plugin, "inverse_dynamics", inst.inverse_dynamics, q[:, to_model], qd[:, to_model],
                qdd[:, to_model], shape=(N, n))[:, order]
@@ -85,12 +80,9 @@ def run(ctx, config) -> TorqueComparison:
     pm = build_model(sc.robot, sc.gravity_W)
     pin = rnea(pm, q, qd, qdd)
     rows = np.unique(np.linspace(0, len(rec.t) - 1, MASS_MATRIX_SAMPLES).round().astype(int))
-    cache = {}
 
-    def M_pin_at():
-        if "M" not in cache:
-            cache["M"] = crba(pm, q[rows])
-        return cache["M"]
+    def M_pin_at():  # Pinocchio's CRBA, computed once, only if a model offers a mass matrix
+        return ctx.once("mass matrix (CRBA) at the comparison rows", lambda: crba(pm, q[rows]))
 
     models = tuple(_model_torques(e, q, qd, qdd, joints, M_pin_at, rows) for e in sc.models)
     return TorqueComparison(joints, rec.t, joint_load_scale(sc.robot, rec), rec.tau[:, cols], pin.tau,

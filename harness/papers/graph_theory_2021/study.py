@@ -14,9 +14,7 @@ reference/ folder.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -41,7 +39,8 @@ from harness.papers.graph_theory_2021.solve import (
 )
 from harness.plugins import Stage, Study
 from harness.reference import has_reference_table
-from harness.spec import RobotSpec, load_spec
+from harness.scenario import load_variant
+from harness.spec import RobotSpec
 from harness.tomlio import Table
 
 _GRID_TOL = 1e-9
@@ -63,18 +62,7 @@ def _table_name(t: Table, key: str) -> str | None:
 
 
 def configure(t: Table, scenario) -> Config:
-    robot = scenario.robot
-    tested = robot
-    if t.has("model"):
-        rel = t.string("model")
-        path = Path(os.path.normpath(scenario.source.parent / rel))
-        if not path.is_file():
-            raise t.error("model", f"model file {rel!r} not found (looked for {path})")
-        tested = load_spec(path)
-        if (tested.joint_names != robot.joint_names
-                or [b.name for b in tested.bodies] != [b.name for b in robot.bodies]):
-            raise t.error("model", f"model {tested.name!r} must have the bodies and joints of {robot.name!r} "
-                                   "(it describes the same robot)")
+    tested = load_variant(t, "model", scenario)
     lt = t.table("lagrange", default={})
     time = lt.number("time", default=None, nonnegative=True) if lt.has("time") else None
     dt = scenario.output_dt
@@ -93,11 +81,9 @@ def config_of(scenario) -> Config:
 
 def _models(ctx, config: Config) -> tuple[GraphModel, GraphModel]:
     """The graph model of the model's parameters, and of the robot (the truth)."""
-    key = ("graph models", id(config))
-    if key not in ctx.done:
-        g = ctx.scenario.gravity_W
-        ctx.done[key] = build_graph_model(config.tested, g), build_graph_model(ctx.scenario.robot, g)
-    return ctx.done[key]
+    g = ctx.scenario.gravity_W
+    return ctx.once(("graph models", id(config)),
+                    lambda: (build_graph_model(config.tested, g), build_graph_model(ctx.scenario.robot, g)))
 
 
 def _residual(ctx, config):

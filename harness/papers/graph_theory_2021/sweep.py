@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from harness.engines.mujoco import simulate
+from harness.bench import record
 from harness.measurement import Measurement, measure
 from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.identification import PARAMETERS
@@ -48,7 +48,7 @@ def _trial(args: tuple[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 
 def run_sweep(scenario: Scenario, trials: int, jobs: int = 1,
               progress: Callable[[int, int], None] | None = None, levels: tuple[float, ...] = LEVELS) -> dict:
-    recording = simulate(scenario)
+    recording = record(scenario)
     truth = build_graph_model(scenario.robot, scenario.gravity_W)
     true = np.column_stack([truth.m, truth.m, truth.m, truth.J])
     base = scenario.measurement.seed

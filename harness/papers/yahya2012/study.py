@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from harness.engines.mujoco import simulate
+from harness.bench import record
 from harness.papers.yahya2012 import report
 from harness.papers.yahya2012.audit import audit_inertia_matrix
 from harness.papers.yahya2012.claims import design_claims
@@ -49,7 +49,7 @@ def _claims(ctx, c: Config):
     if c.baseline is None:
         return None
     ctx.progress(f"baseline design: simulating {c.baseline.name}", None)
-    out = design_claims(ctx.scenario.robot, ctx.recording, simulate(c.baseline), list(c.shared_motor),
+    out = design_claims(ctx.scenario.robot, ctx.recording, record(c.baseline), list(c.shared_motor),
                         c.baseline_joint)
     out["baseline"] = c.baseline.name
     return out
