@@ -173,3 +173,15 @@ def test_sigterm_stops_a_run_in_one_line_and_leaves_nothing_behind(tmp_path):
     assert "[kr500_rail_forward" in first
     assert proc.returncode == 130 and rest.splitlines()[-1] == "harness: interrupted"
     assert not list(tmp_path.iterdir())
+
+
+def test_scenarios_that_name_each_other_are_refused_as_a_cycle(tmp_path, capsys):
+    scenario = _copy_inputs(tmp_path)
+    copy_gate_sets(tmp_path / "scenarios")
+    text = scenario.read_text()
+    scenario.write_text(text + '\n[torque_identification]\nvalidation = "other.toml"\n')
+    back = text + '\n[torque_identification]\nvalidation = "kr500_rail.toml"\n'
+    (tmp_path / "scenarios" / "other.toml").write_text(back)
+    out = tmp_path / "out"
+    _assert_refused(capsys, ["run", str(scenario), "--out", str(out)], "other.toml", "torque_identification.validation",
+                    out)
