@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 
 
 def _value(g: dict) -> str:
-    return "missing" if g["value"] is None else f"{g['value']:.3g}"
+    return "no value" if g["value"] is None else f"{g['value']:.3g}"
 
 
 def _sign(g: dict) -> str:

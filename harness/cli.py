@@ -18,6 +18,18 @@ from harness.tomlio import InputError, read_toml
 
 EXIT_OK, EXIT_GATE_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 DEFAULT_SCENARIO = "kr500_rail"
+MAX_TRIALS = 1_000_000  # a sweep holds every trial's estimates in memory
+
+
+def max_jobs() -> int:
+    return 4 * (os.cpu_count() or 1)
+
+
+class _Parser(argparse.ArgumentParser):
+    """Usage errors in one line, exit status 2, like every other bad input."""
+
+    def error(self, message: str):
+        self.exit(2, f"harness: error: {message} (see harness --help)\n")
 REPORT_FILE = "report.html"
 
 DESCRIPTION = """\
@@ -43,10 +55,9 @@ def _resolve_scenario(arg: str) -> Path:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="harness", description=DESCRIPTION,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = _Parser(prog="harness", description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--debug", action="store_true", help="on an internal error, show the traceback")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
     run = sub.add_parser(
         "run", help="run scenarios through the whole pipeline and write their reports",
         description="Run each scenario through the whole pipeline: simulate it in MuJoCo, compare every model under "
@@ -212,7 +223,7 @@ def _print_summary(results: dict, out: Path) -> None:
 def _print_gates(rows: list[dict]) -> None:
     for g in rows:
         sign = "<=" if g["direction"] == "at_most" else ">="
-        value = "missing" if g["value"] is None else f"{g['value']:.3g}"
+        value = "no value" if g["value"] is None else f"{g['value']:.3g}"
         mark = "pass" if g["passed"] else "FAIL"
         print(f"  {mark}  {g['name']}: {value} {sign} {g['limit']:.3g}"
               + (f"  ({g['reason']})" if g["reason"] else ""))
@@ -227,8 +238,14 @@ def _read_results(path: Path) -> dict:
         raise InputError(path, "", f"cannot read file ({exc})") from None
     except json.JSONDecodeError as exc:
         raise InputError(path, "", f"invalid JSON: {exc}") from None
-    if not isinstance(results, dict) or results.get("schema", {}).get("name") != "harness-results":
+    except RecursionError:
+        raise InputError(path, "", "invalid JSON: nested too deeply") from None
+    schema = results.get("schema") if isinstance(results, dict) else None
+    if not isinstance(schema, dict) or schema.get("name") != "harness-results":
         raise InputError(path, "schema", "not a results.json written by harness")
+    for key in ("scenario", "recording", "run"):
+        if not isinstance(results.get(key), dict):
+            raise InputError(path, key, "missing or not an object: not a complete results.json")
     return results
 
 
@@ -244,6 +261,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     if not recording.is_file():
         raise InputError(recording, "", "file not found (the report needs the recording beside results.json)")
     out = args.out or args.results.parent / REPORT_FILE
+    from harness.recording import read_csv
+
+    rec = read_csv(recording)
+    stated = results["recording"]
+    if len(rec.t) != stated.get("rows") or list(rec.joints) != stated.get("joints"):
+        raise InputError(recording, "", f"has {len(rec.t)} rows of joints {list(rec.joints)}; results.json "
+                                        f"says {stated.get('rows')} rows of {stated.get('joints')}")
     try:
         write_report(results, args.results.parent, out)
     except (KeyError, TypeError) as exc:
@@ -282,10 +306,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if study is None:
         raise InputError(scenario.source, "studies", "no study of this scenario can be swept (the graph-theory "
                                                      "study can: [studies.graph_theory_2021])")
-    if args.trials < 2:
-        raise InputError(args.scenario, "--trials", f"needs at least 2 trials, got {args.trials}")
-    if args.jobs < 1:
-        raise InputError(args.scenario, "--jobs", f"needs at least 1 process, got {args.jobs}")
+    if not 2 <= args.trials <= MAX_TRIALS:
+        raise InputError(args.scenario, "--trials", f"needs 2 to {MAX_TRIALS:,} trials, got {args.trials}")
+    if not 1 <= args.jobs <= max_jobs():
+        raise InputError(args.scenario, "--jobs", f"needs 1 to {max_jobs()} processes (4 per core), got {args.jobs}")
     if scenario.measurement.ideal:
         raise InputError(scenario.source, "measurement", "the scenario measures ideally: there is nothing to sweep")
     out = args.out or Path("reports") / scenario.name

@@ -35,7 +35,8 @@ def pair_metrics(a: np.ndarray, b: np.ndarray, scale: np.ndarray, t: np.ndarray,
                  joints: list[str]) -> dict:
     """Largest absolute and relative error of (N, joints) series, with where they occur."""
     err = np.abs(a - b)
-    rel = err / scale
+    with np.errstate(invalid="ignore", divide="ignore"):  # a joint that carries nothing: 0/0 is NaN, reported
+        rel = err / scale
     ka, ja = np.unravel_index(np.argmax(err), err.shape)
     kr, jr = np.unravel_index(np.argmax(rel), rel.shape)
     return {
@@ -48,6 +49,17 @@ def pair_metrics(a: np.ndarray, b: np.ndarray, scale: np.ndarray, t: np.ndarray,
 def wrench_metrics(a: np.ndarray, b: np.ndarray, t: np.ndarray, joints: list[str]) -> dict:
     """(N, joints, 3) wrenches: largest |a - b| relative to the largest |b| of each joint."""
     err = np.linalg.norm(a - b, axis=-1)
-    rel = err / np.max(np.linalg.norm(b, axis=-1), axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = err / np.max(np.linalg.norm(b, axis=-1), axis=0)
     k, j = np.unravel_index(np.argmax(rel), rel.shape)
     return {"max_rel_error": float(rel[k, j]), "joint": joints[j], "t": float(t[k])}
+
+
+def largest(values: np.ndarray, where: np.ndarray | None = None) -> float | None:
+    """The largest of `values` where `where` holds (NaN ignored), or None when there is none: a
+    metric over no evaluated row is not a number, and a gate on it fails closed."""
+    values = np.asarray(values, dtype=float)
+    if where is not None:
+        values = values[np.broadcast_to(where, values.shape)]
+    values = values[~np.isnan(values)]
+    return float(values.max()) if values.size else None

@@ -91,7 +91,8 @@ def check(gates: tuple[Gate, ...] | list[Gate], results: dict) -> tuple[list[dic
         value = lookup(results, g.metric)
         number = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
         if not number:
-            passed, reason = False, "missing" if value is None else f"not a finite number: {value!r}"
+            passed, reason = False, "no value (nothing was evaluated)" if value is None else \
+                f"not a finite number: {value!r}"
             value = None
         else:
             passed = value <= g.limit if g.direction == "at_most" else value >= g.limit

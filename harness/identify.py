@@ -119,7 +119,8 @@ def solve(K: np.ndarray, L: np.ndarray, names: Sequence[str], column_floor: np.n
             G, k = len(ids), counts[0]
             Kc, Xc, rc = Ks.reshape(G, k, -1), Xw.reshape(G, k, -1), r.reshape(G, k)
             H = Kc @ bread @ np.swapaxes(Xc, 1, 2)  # leverage of each cluster on its own fit
-            r_adj = np.linalg.solve(np.eye(k) - H, rc[..., None])[..., 0]
+            # a cluster that alone determines a direction has leverage 1: pinv leaves that direction out
+            r_adj = (np.linalg.pinv(np.eye(k) - H) @ rc[..., None])[..., 0]
             scores = np.einsum("gkp,gk->gp", Xc, r_adj)
         else:
             scores = []
@@ -130,7 +131,8 @@ def solve(K: np.ndarray, L: np.ndarray, names: Sequence[str], column_floor: np.n
                 scores.append(Xw[rows].T @ r_adj)
             scores = np.array(scores)
         G = len(scores)
-        cov = bread @ (scores.T @ scores) @ bread
-        std[cols] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) / norms[cols]
-        half[cols] = student_t.ppf(0.975, max(G - 1, 1)) * std[cols]
+        if G >= 2:  # one cluster alone gives no spread to estimate: no standard deviation (NaN)
+            cov = bread @ (scores.T @ scores) @ bread
+            std[cols] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) / norms[cols]
+            half[cols] = student_t.ppf(0.975, G - 1) * std[cols]
     return LeastSquares(tuple(names), x, ok, tuple(reasons), snr, sv, residual, K.shape[0], std, half)

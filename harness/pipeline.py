@@ -11,6 +11,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from harness.bench import record
 from harness.excitation import optimise as optimise_excitation
 from harness.measurement import measure
@@ -93,7 +95,10 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
     outputs: dict[str, StageOutput] = {}
     for stage, config in stages_of(scenario):
         timed(stage.progress, None)
-        result = stage.run(ctx, config)
+        # 0/0 where nothing moves or nothing is loaded is NaN, not an error: results.json writes it
+        # as null, lists it in run.not_finite, and a gate on it fails closed
+        with np.errstate(invalid="ignore", divide="ignore"):
+            result = stage.run(ctx, config)
         ctx.done[stage.key] = result
         if result is None:
             timed.drop(stage.progress)

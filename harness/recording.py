@@ -22,6 +22,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.tomlio import InputError
+
 XYZ = ("x", "y", "z")
 ANGLES = ("alpha", "beta", "gamma")
 
@@ -81,8 +83,16 @@ class Recording:
 
 
 def read_csv(path: Path | str) -> Recording:
-    """Read a recording back from CSV: joints from the q_ columns, bodies from the _alpha ones."""
-    df = pd.read_csv(path)
+    """Read a recording back from CSV: joints from the q_ columns, bodies from the _alpha ones.
+    A missing column, an empty or unparsable cell (a truncated file) is an InputError."""
+    try:
+        df = pd.read_csv(path)
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise InputError(path, "", f"cannot read the recording ({str(exc).splitlines()[0]})") from None
+    bad = [c for c in df.columns if not pd.api.types.is_numeric_dtype(df[c]) or df[c].isna().any()]
+    if bad or "t" not in df.columns:
+        raise InputError(path, bad[0] if bad else "t", "missing, empty or not a number in some row "
+                                                         "(a truncated or edited recording)")
     joints = tuple(c[2:] for c in df.columns if c.startswith("q_"))
     bodies = tuple(c[: -len("_alpha")] for c in df.columns if c.endswith("_alpha"))
 
@@ -95,6 +105,13 @@ def read_csv(path: Path | str) -> Recording:
     def angles() -> np.ndarray:
         return np.stack([df[[f"{b}_{a}" for a in ANGLES]].to_numpy() for b in bodies], axis=1)
 
+    expected = ["t", *(f"{k}_{j}" for j in joints for k in ("q", "qd", "qdd", "tau")),
+                *(f"{j}_{k}{a}" for j in joints for k in ("F", "M") for a in XYZ),
+                *(f"{b}_{k}{a}" for b in bodies for k in ("", "v", "a", "aO", "w", "wd") for a in XYZ),
+                *(f"{b}_{a}" for b in bodies for a in (*ANGLES, "gimbal"))]
+    missing = [c for c in expected if c not in df.columns]
+    if missing:
+        raise InputError(path, missing[0], "column missing: not a complete recording.csv")
     return Recording(
         t=df["t"].to_numpy(), joints=joints, bodies=bodies,
         q=per_joint("q"), qd=per_joint("qd"), qdd=per_joint("qdd"), tau=per_joint("tau"),

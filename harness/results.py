@@ -7,8 +7,9 @@ which versions, the scenario file's text, the studies that ran, seconds per stag
 `model`, `recording`, then one section per stage that ran, under the stage's key: `torques`
 (MuJoCo, Pinocchio RNEA and every model under test, joint reaction wrenches, mass matrices),
 `torque_identification`, `identification_methods`, and those of the studies (for the graph-theory
-paper: `graph`, `identification`, `identification_full`, `lagrange`). Every number is finite
-(NaN or infinity is an error when writing, never a silent `NaN` token).
+paper: `graph`, `identification`, `identification_full`, `lagrange`). Every number is finite: a
+NaN or infinity that a stage computes is written as null and its path listed in `run.not_finite`
+(never a silent `NaN` token; a gate on it fails closed).
 """
 
 from __future__ import annotations
@@ -138,11 +139,28 @@ def build_results(out: RunOutput, when: str | None = None) -> dict:
         "model": model_section(out.scenario.robot),
         "recording": recording_section(out.recording),
     }
-    for key, s in out.stages.items():
-        results[key] = s.stage.serialise(s.result, out.context, s.config)
+    with np.errstate(invalid="ignore", divide="ignore"):  # NaN becomes null below, and is listed
+        for key, s in out.stages.items():
+            results[key] = s.stage.serialise(s.result, out.context, s.config)
     if out.excitation is not None:
         results["excitation"] = out.excitation
+    not_finite: list[str] = []
+    results = _finite(results, "", not_finite)
+    results["run"]["not_finite"] = not_finite
     return results
+
+
+def _finite(node, path: str, found: list[str]):
+    """The tree with every NaN or infinite number replaced by null, its path noted in `found`: a
+    gate on such a value fails closed, and the file stays valid JSON."""
+    if isinstance(node, dict):
+        return {k: _finite(v, f"{path}.{k}" if path else str(k), found) for k, v in node.items()}
+    if isinstance(node, list | tuple):
+        return [_finite(v, f"{path}.{i}", found) for i, v in enumerate(node)]
+    if isinstance(node, float | np.floating) and not np.isfinite(node):
+        found.append(path)
+        return None
+    return node
 
 
 def write_results(path: Path, results: dict) -> None:

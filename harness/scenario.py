@@ -45,6 +45,8 @@ from harness.tomlio import InputError, Table, read_toml
 
 INTEGRATORS = ("RK4", "Euler", "implicitfast")
 _GRID_TOL = 1e-9  # relative to the output interval: a sample time on the grid, a timestep dividing it
+MAX_OUTPUT_STEPS = 1_000_000  # rows of a recording: about 1 GB for an arm of ten joints
+MAX_SIMULATION_STEPS = 20_000_000  # MuJoCo steps of one run, each with a Python drive callback (hours)
 
 
 @dataclass(frozen=True)
@@ -169,6 +171,9 @@ def _load(path: Path) -> Scenario:
     gravity = s.vector("gravity", default=[0.0, 0.0, -9.80665])
     duration = s.number("duration", positive=True)
     output_steps = s.integer("output_steps", minimum=1)
+    if output_steps > MAX_OUTPUT_STEPS:
+        raise s.error("output_steps", f"{output_steps} rows cannot be held: at most {MAX_OUTPUT_STEPS:,} (split the "
+                                      "run, or record less often)")
     output_dt = duration / output_steps
     if s.data.get("sample_times") == "all":
         s.string("sample_times")
@@ -227,6 +232,10 @@ def _load(path: Path) -> Scenario:
             if k % measurement.every:
                 raise s.error("sample_times", f"sample time {ts:g} s is not measured (measurement.every = "
                                               f"{measurement.every} keeps every {measurement.every}th output step)")
+    steps = duration / simulation.timestep
+    if not np.isfinite(steps) or steps > MAX_SIMULATION_STEPS:
+        raise InputError(path, "simulation.timestep", f"{duration:g} s in steps of {simulation.timestep:g} s is "
+                                                      f"{steps:.3g} steps: at most {MAX_SIMULATION_STEPS:,}")
     ratio = output_dt / simulation.timestep
     if ratio < 1.0 - _GRID_TOL or abs(ratio - round(ratio)) > _GRID_TOL * ratio:
         raise InputError(path, "simulation.timestep",

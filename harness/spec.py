@@ -147,8 +147,10 @@ def load_spec(path: Path | str) -> RobotSpec:
     """Load and validate models/*.toml; raises `InputError` naming the file and key."""
     path = Path(path)
     root = Table(read_toml(path), path)
-    model = root.table("model")
-    name = model.string("name")
+    # [model] may be left out of a URDF model file: the robot's name, or the file's, names it
+    default_name = (root.data.get("urdf") or {}).get("robot", path.stem) if root.has("urdf") else None
+    model = root.table("model", default={}) if default_name else root.table("model")
+    name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
     model.finish()
     dh = limits = None
@@ -164,8 +166,15 @@ def load_spec(path: Path | str) -> RobotSpec:
             name_ = ut.string("robot")
             urdf_path = example_robot_data_path(name_)
             if urdf_path is None:
-                raise ut.error("robot", f"no robot {name_!r}: is the example-robot-data package installed "
-                                        "(pip install -e '.[robots]')?")
+                from importlib.metadata import PackageNotFoundError, distribution
+
+                try:
+                    distribution("example-robot-data")
+                except PackageNotFoundError:
+                    raise ut.error("robot", f"no robot {name_!r}: the example-robot-data package is not installed "
+                                            "(pip install -e '.[robots]')") from None
+                raise ut.error("robot", f"no robot {name_!r} in example-robot-data (looked for {name_}.urdf in "
+                                        "every */urdf/ and */robots/ folder of its robots)")
         else:
             urdf_path = path.parent / ut.string("file")
             if not urdf_path.is_file():

@@ -45,6 +45,8 @@ def read_toml(path: Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(path, "", f"invalid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(path, "", "invalid TOML: nested too deeply") from None
 
 
 @dataclass

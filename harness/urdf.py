@@ -41,8 +41,11 @@ def example_robot_data_path(name: str) -> Path | None:
     rel = KNOWN_ROBOTS.get(name)
     if rel is not None and (root / rel).is_file():
         return root / rel
-    candidates = sorted(root.glob(f"*/urdf/{name}.urdf"))
-    return candidates[0] if candidates else None
+    for folder in ("urdf", "robots"):  # the package keeps robots in both
+        candidates = sorted(root.glob(f"*/{folder}/{name}.urdf"))
+        if candidates:
+            return candidates[0]
+    return None
 
 
 def _rpy(rpy: np.ndarray) -> np.ndarray:

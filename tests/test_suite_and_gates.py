@@ -26,11 +26,11 @@ def test_every_scenario_passes_its_gates(run_scenario, path):
 
 
 def test_gates_fail_closed():
-    results = {"a": {"b": 1e-12, "nan": float("nan"), "text": "x"}}
+    results = {"a": {"b": 1e-12, "nan": float("nan"), "text": "x", "null": None}}
     rows, passed = check(
         [
             Gate("ok", "a.b", 1e-9),
-            Gate("missing", "a.c", 1e-9),
+            Gate("null", "a.null", 1e-9),
             Gate("nan", "a.nan", 1e-9),
             Gate("text", "a.text", 1e-9),
             Gate("floor", "a.b", 1e-6, "at_least"),
@@ -38,7 +38,7 @@ def test_gates_fail_closed():
         results,
     )
     assert [r["passed"] for r in rows] == [True, False, False, False, False]
-    assert rows[1]["reason"] == "missing" and not passed
+    assert rows[1]["reason"] == "no value (nothing was evaluated)" and not passed
 
 
 def test_same_scenario_twice_gives_the_same_results_but_for_the_time(run_scenario):

@@ -7,6 +7,8 @@ from __future__ import annotations
 import html
 from pathlib import Path
 
+import numpy as np
+
 from harness.recording import Recording, read_csv
 from harness.report import sections
 
@@ -45,6 +47,11 @@ def _registered_stages(results: dict) -> list:
 def render(results: dict, rec: Recording, stages: list | None = None) -> str:
     """The report of a results.json and its recording. `stages` (default: the registered ones
     of the studies the results name) give the sections after the motion, one per stage result."""
+    with np.errstate(invalid="ignore", divide="ignore"):  # an undefined error is drawn as a gap
+        return _render(results, rec, stages)
+
+
+def _render(results: dict, rec: Recording, stages: list | None) -> str:
     name = results["scenario"]["name"]
     parts = [sections.verdict(results), sections.model(results), sections.motion(results, rec)]
     nav = [("verdict", "Verdict"), ("model", "Model"), ("motion", "Motion")]

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.cardano import GIMBAL_COND_D, A_0i, D, D_dot, cond_D
+from harness.cardano import GIMBAL_COND_D, A_0i, D, D_dot, D_from_rotations, cond_D
 from harness.papers.graph_theory_2021.topology import Topology, build_topology, joint_resultants
 from harness.recording import Recording
 from harness.spec import RobotSpec
@@ -153,3 +153,12 @@ def unconstrained_residual(model: GraphModel, s: BodySeries) -> Residual:
         den = np.maximum(np.linalg.norm(B[..., sl], axis=-1), size)
         parts.append(num / np.maximum(den, np.finfo(float).tiny))
     return Residual(s.t, parts[0], parts[1], cond, cond <= GIMBAL_COND_D)
+
+
+
+def D_error(theta: np.ndarray) -> float:
+    """Largest |D(theta) - D from a rotation library| over the given angles (..., 3): Eq. 33's D
+    checked at every recorded orientation. The residual of Eq. 36 and Eq. 111 cannot see a wrong
+    D, which cancels from both; with A(0i) equal to the engine's orientation (checked when
+    recording), a right D means D theta' is the engine's angular velocity, by the chain rule."""
+    return float(np.max(np.abs(D(theta) - D_from_rotations(theta)), initial=0.0))

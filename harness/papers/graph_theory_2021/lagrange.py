@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import GIMBAL_COND_D, A_0i, D, cond_D
+from harness.compare import largest
 from harness.papers.graph_theory_2021.constrained import Constrained, solve_constrained
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, build_constraints
 from harness.papers.graph_theory_2021.dynamics import GraphModel, body_series
@@ -22,7 +23,7 @@ class Formulation:
     constraints: ConstraintSet
     solution: Constrained
     max_abs_phi: float  # on the recording
-    max_abs_phi_dot: float  # Phi_q q' on the recording
+    max_abs_phi_dot: float | None  # Phi_q q' on the recording, where the Cardano angles are regular
     axis_rank_deficient: dict[str, int]  # joint -> rows where its two axis rows have rank < 2
 
 
@@ -44,8 +45,7 @@ def _formulation(spec: RobotSpec, model: GraphModel, rec: Recording, name: str) 
         rows = [k for k, lab in enumerate(cs.labels) if lab.startswith(f"{joint}.axis")]
         sv = np.linalg.svd(sol.Phi_q[well][:, rows], compute_uv=False)
         deficient[joint] = int(np.sum(sv[:, -1] < 1e-8 * sv[:, 0]))
-    return Formulation(cs, sol, float(np.max(np.abs(sol.phi))),
-                       float(np.nanmax(np.abs(sol.phi_dot[well]))), deficient)
+    return Formulation(cs, sol, float(np.max(np.abs(sol.phi))), largest(np.abs(sol.phi_dot[well])), deficient)
 
 
 @dataclass(frozen=True)

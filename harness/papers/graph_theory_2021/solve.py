@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.compare import largest
 from harness.identify import LeastSquares, solve
 from harness.measurement import Measurement, dither
 from harness.papers.graph_theory_2021.dynamics import GraphModel, Residual, body_series
@@ -45,7 +46,7 @@ def measured_rows(measured: Recording, times: np.ndarray) -> np.ndarray:
     """Rows of a (possibly subsampled) measured recording at the given times."""
     dt = measured.t[1] - measured.t[0] if len(measured.t) > 1 else 1.0
     return np.array([int(np.argmin(np.abs(measured.t - ts))) for ts in times
-                     if np.min(np.abs(measured.t - ts)) <= 1e-9 * dt])
+                     if np.min(np.abs(measured.t - ts)) <= 1e-9 * dt], dtype=int)
 
 
 def _solve_per_body(form: Callable[[Recording], tuple[np.ndarray, np.ndarray]], measured: Recording,
@@ -101,10 +102,8 @@ def _list(v: np.ndarray) -> list[float]:
     return [float(x) for x in np.ravel(v)]
 
 
-def graph_section(model: GraphModel, residual: Residual) -> dict:
+def graph_section(model: GraphModel, residual: Residual, D_error: float) -> dict:
     top = model.topology
-    worst_t = np.nanmax(np.where(residual.evaluated, residual.translational, np.nan))
-    worst_r = np.nanmax(np.where(residual.evaluated, residual.rotational, np.nan))
     skipped = [{"t": float(residual.t[k]), "body": top.bodies[i], "cond_D": float(residual.cond_D[k, i])}
                for k, i in zip(*np.nonzero(~residual.evaluated), strict=True)]
     return {
@@ -115,10 +114,16 @@ def graph_section(model: GraphModel, residual: Residual) -> dict:
         "unconstrained_residual": {
             "definition": "|A_i q_i'' - B_i| / |B_i| (Eq. 36), translational and rotational parts "
                           "separately, at every row where cond(D_i) <= 100",
-            "max_translational": float(worst_t),
-            "max_rotational": float(worst_r),
+            "max_translational": largest(residual.translational, residual.evaluated),
+            "max_rotational": largest(residual.rotational, residual.evaluated),
             "rows_evaluated": int(residual.evaluated.sum()),
             "rows_not_evaluated": skipped,
+        },
+        "cardano": {
+            "definition": "largest |D(theta) - D_ref(theta)| over every recorded body and row, D of Eq. 33 and "
+                          "D_ref its columns (Ry Rz)^T e_x, Rz^T e_y, e_z from a rotation library: with A(0i) the "
+                          "engine's orientation, D theta' is then the engine's angular velocity",
+            "D_max_abs_error": D_error,
         },
     }
 

@@ -21,7 +21,9 @@ import numpy as np
 from harness.engines.pinocchio import build_model as build_pinocchio
 from harness.papers.graph_theory_2021 import report
 from harness.papers.graph_theory_2021.dynamics import (
+    D_error,
     GraphModel,
+    Residual,
     body_series,
     build_graph_model,
     unconstrained_residual,
@@ -41,7 +43,7 @@ from harness.plugins import Stage, Study
 from harness.reference import has_reference_table
 from harness.scenario import load_variant
 from harness.spec import RobotSpec
-from harness.tomlio import Table
+from harness.tomlio import InputError, Table
 
 _GRID_TOL = 1e-9
 
@@ -61,7 +63,14 @@ def _table_name(t: Table, key: str) -> str | None:
     return name
 
 
+MIN_SAMPLE_TIMES = 2  # the uncertainty of section 2.3's estimates is taken over the sample times (CR3)
+
+
 def configure(t: Table, scenario) -> Config:
+    if len(scenario.sample_times) < MIN_SAMPLE_TIMES:
+        raise InputError(scenario.source, "scenario.sample_times",
+                         f"the graph-theory study identifies the parameters at the sample times: give at least "
+                         f"{MIN_SAMPLE_TIMES} (or \"all\"), found {len(scenario.sample_times)}")
     tested = load_variant(t, "model", scenario)
     lt = t.table("lagrange", default={})
     time = lt.number("time", default=None, nonnegative=True) if lt.has("time") else None
@@ -86,9 +95,16 @@ def _models(ctx, config: Config) -> tuple[GraphModel, GraphModel]:
                     lambda: (build_graph_model(config.tested, g), build_graph_model(ctx.scenario.robot, g)))
 
 
-def _residual(ctx, config):
+@dataclass(frozen=True, eq=False)
+class GraphChecks:
+    residual: Residual  # Eq. 36 on the recording
+    D_error: float  # Eq. 33's D against a rotation library at every recorded orientation
+
+
+def _graph_checks(ctx, config) -> GraphChecks:
     model, _ = _models(ctx, config)
-    return unconstrained_residual(model, body_series(ctx.recording, model.topology))
+    s = body_series(ctx.recording, model.topology)
+    return GraphChecks(unconstrained_residual(model, s), D_error(s.theta))
 
 
 def _identification(ctx, config):
@@ -128,8 +144,8 @@ STUDY = Study(
     name="graph_theory_2021",
     configure=configure,
     stages=(
-        Stage("graph", "graph model: unconstrained dynamics", _residual,
-              lambda r, ctx, c: graph_section(_models(ctx, c)[0], r)),
+        Stage("graph", "graph model: unconstrained dynamics", _graph_checks,
+              lambda r, ctx, c: graph_section(_models(ctx, c)[0], r.residual, r.D_error)),
         Stage("identification", "identifying parameters (section 2.3)", _identification,
               lambda r, ctx, c: identification_section(r, c.paper_identified, c.paper_abs_error,
                                                        ctx.scenario.measurement.significant_digits),

@@ -107,6 +107,9 @@ def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarra
     M_J_W = P_out @ on_outer - P_in @ on_inner
     F_norm = np.linalg.norm(F_W, axis=-1)
     F_size = np.einsum("ik,nk->ni", P_out + P_in, F_norm)
-    M_size = (np.einsum("ik,nk->ni", P_out, np.linalg.norm(on_outer, axis=-1))
-              + np.einsum("ik,nk->ni", P_in, np.linalg.norm(on_inner, axis=-1)))
+    # a moment about the centre of mass is M + c x F: both terms count, since they may cancel (the
+    # outermost body of an arm at rest carries no moment about its centre of mass at all)
+    M_norm = np.linalg.norm(M_W, axis=-1)
+    M_size = (np.einsum("ik,nk->ni", P_out, M_norm + np.linalg.norm(np.cross(c_out, F_W), axis=-1))
+              + np.einsum("ik,nk->ni", P_in, M_norm + np.linalg.norm(np.cross(c_in, F_W), axis=-1)))
     return F_J_W, M_J_W, F_size, M_size
