@@ -57,17 +57,87 @@ def _rpy(rpy: np.ndarray) -> np.ndarray:
     return Rz @ Ry @ Rx
 
 
-def _origin(el) -> tuple[np.ndarray, np.ndarray]:
+class _Bad(ValueError):
+    """A malformed element: the message names it; read_urdf turns it into an InputError."""
+
+
+def _numbers(text: str, what: str, count: int | None = None) -> np.ndarray:
+    try:
+        out = np.array([float(v) for v in text.split()])
+    except ValueError:
+        raise _Bad(f"{what} = {text!r} is not a list of numbers") from None
+    if count is not None and len(out) != count:
+        raise _Bad(f"{what} = {text!r} needs {count} numbers")
+    if not np.all(np.isfinite(out)):
+        raise _Bad(f"{what} = {text!r} is not finite")
+    return out
+
+
+def _origin(el, where: str = "") -> tuple[np.ndarray, np.ndarray]:
     o = el.find("origin") if el is not None else None
     if o is None:
         return np.eye(3), np.zeros(3)
-    xyz = np.array([float(v) for v in o.get("xyz", "0 0 0").split()])
-    rpy = np.array([float(v) for v in o.get("rpy", "0 0 0").split()])
+    xyz = _numbers(o.get("xyz", "0 0 0"), f"{where} origin xyz", 3)
+    rpy = _numbers(o.get("rpy", "0 0 0"), f"{where} origin rpy", 3)
     return _rpy(rpy), xyz
 
 
 def _vec(text: str | None, default: str) -> np.ndarray:
-    return np.array([float(v) for v in (text or default).split()])
+    return _numbers(text or default, "axis xyz", 3)
+
+
+INERTIA_TOL = 1e-9  # relative to the largest principal moment: round-off in a URDF's printed tensor
+
+
+def _check_inertia(name: str, m: float, I: np.ndarray, model_scale: float) -> None:
+    """A link's tensor about its centre of mass must be a rigid body's: principal moments not
+    negative and each at most the sum of the other two (the triangle inequality), both to
+    INERTIA_TOL of the link's largest moment. A tensor below INERTIA_TOL of the model's largest
+    moment is round-off around zero (a link with no rotational inertia) and passes."""
+    moments = np.linalg.eigvalsh(I)
+    scale = float(np.max(np.abs(moments)))
+    if scale <= INERTIA_TOL * model_scale:
+        return
+    if moments[0] < -INERTIA_TOL * scale:
+        raise _Bad(f"link {name!r}: inertia is not positive semi-definite (principal moments "
+                   f"{', '.join(f'{x:.4g}' for x in moments)})")
+    if moments[2] > (moments[0] + moments[1]) * (1 + INERTIA_TOL) + INERTIA_TOL * scale:
+        raise _Bad(f"link {name!r}: principal moments {', '.join(f'{x:.4g}' for x in moments)} break the "
+                   "triangle inequality (the largest exceeds the sum of the others): no rigid body has them")
+
+
+def _structure(path: Path, root) -> tuple[dict, list, dict, dict]:
+    """Links by name, joints, and each joint's parent and child link, validated: names unique,
+    parent and child present and defined, each link the child of at most one joint (so a tree)."""
+    links: dict = {}
+    for link in root.findall("link"):
+        name = link.get("name")
+        if not name:
+            raise _Bad("a <link> has no name")
+        if name in links:
+            raise _Bad(f"link {name!r} is defined twice")
+        links[name] = link
+    joints = root.findall("joint")
+    parent_of, child_of = {}, {}
+    seen_joints = set()
+    for j in joints:
+        jname = j.get("name")
+        if not jname or jname in seen_joints:
+            raise _Bad(f"joint {jname!r} has no name or is defined twice")
+        seen_joints.add(jname)
+        for tag, into in (("parent", parent_of), ("child", child_of)):
+            el = j.find(tag)
+            link = el.get("link") if el is not None else None
+            if link is None:
+                raise _Bad(f"joint {jname!r} has no <{tag} link=...>")
+            if link not in links:
+                raise _Bad(f"joint {jname!r}: {tag} link {link!r} is not defined")
+            into[jname] = link
+    children = list(child_of.values())
+    twice = sorted({c for c in children if children.count(c) > 1})
+    if twice:
+        raise _Bad(f"link {twice[0]!r} is the child of two joints (a loop, not a tree)")
+    return links, joints, parent_of, child_of
 
 
 def read_urdf(path: Path, table: Table) -> tuple[list[Body], list[Joint], dict]:
@@ -76,9 +146,17 @@ def read_urdf(path: Path, table: Table) -> tuple[list[Body], list[Joint], dict]:
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as exc:
         raise InputError(path, "", f"cannot read URDF ({exc})") from None
-    links = {link.get("name"): link for link in root.findall("link")}
-    joints = root.findall("joint")
-    children = {j.find("child").get("link") for j in joints}
+    except RecursionError:
+        raise InputError(path, "", "cannot read URDF (nested too deeply)") from None
+    try:
+        return _read(path, root, table)
+    except _Bad as exc:
+        raise table.error("urdf", f"{path}: {exc}") from None
+
+
+def _read(path: Path, root, table: Table) -> tuple[list[Body], list[Joint], dict]:
+    links, joints, parent_of, child_of = _structure(path, root)
+    children = set(child_of.values())
     roots = [n for n in links if n not in children]
     if len(roots) != 1:
         raise table.error("urdf", f"{path}: expected one root link, found {len(roots)}")
@@ -87,14 +165,14 @@ def read_urdf(path: Path, table: Table) -> tuple[list[Body], list[Joint], dict]:
     order = [roots[0]]
     by_parent: dict[str, list] = {}
     for j in joints:
-        by_parent.setdefault(j.find("parent").get("link"), []).append(j)
+        by_parent.setdefault(parent_of[j.get("name")], []).append(j)
     frontier = [roots[0]]
     while frontier:
         parent = frontier.pop(0)
         for j in by_parent.get(parent, []):
-            R_j, p_j = _origin(j)
+            R_j, p_j = _origin(j, f"joint {j.get('name')!r}")
             R_p, p_p = pose[parent]
-            child = j.find("child").get("link")
+            child = child_of[j.get("name")]
             pose[child] = (R_p @ R_j, p_p + R_p @ p_j)
             order.append(child)
             frontier.append(child)
@@ -103,23 +181,31 @@ def read_urdf(path: Path, table: Table) -> tuple[list[Body], list[Joint], dict]:
     inertial = {}
     for name in order:
         el = links[name].find("inertial")
-        if el is None or el.find("mass") is None or float(el.find("mass").get("value")) <= 0:
+        if el is None:
             inertial[name] = (0.0, pose[name][1], np.zeros((3, 3)))
             continue
+        mass_el = el.find("mass")
+        mass = _numbers(mass_el.get("value", "") if mass_el is not None else "0", f"link {name!r} mass", 1)[0]
+        if mass < 0:
+            raise _Bad(f"link {name!r}: mass {mass:g} is negative")
         R_l, p_l = pose[name]
-        R_i, p_i = _origin(el)
+        R_i, p_i = _origin(el, f"link {name!r} inertial")
         i = el.find("inertia")
-        Ixx, Ixy, Ixz, Iyy, Iyz, Izz = (float(i.get(k, "0")) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
+        values = [_numbers(i.get(k, "0"), f"link {name!r} inertia {k}", 1)[0] if i is not None else 0.0
+                  for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
+        Ixx, Ixy, Ixz, Iyy, Iyz, Izz = values
         I_local = np.array([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]])
         R = R_l @ R_i
-        inertial[name] = (float(el.find("mass").get("value")), p_l + R_l @ p_i, R @ I_local @ R.T)
+        # a link of zero mass keeps its rotational inertia: merged into its body, it adds to it
+        inertial[name] = (float(mass), p_l + R_l @ p_i, R @ I_local @ R.T)
 
     # merge along fixed joints: each link belongs to the body of its nearest non-fixed ancestor joint
     owner = {roots[0]: WORLD}
     kept = []
+    joint_of = {child: j for j in joints for child in [child_of[j.get("name")]]}
     for name in order[1:]:
-        j = next(j for j in joints if j.find("child").get("link") == name)
-        parent = j.find("parent").get("link")
+        j = joint_of[name]
+        parent = parent_of[j.get("name")]
         if j.get("type") == "fixed":
             owner[name] = owner[parent]
         elif j.get("type") in ("revolute", "continuous", "prismatic"):
@@ -129,14 +215,19 @@ def read_urdf(path: Path, table: Table) -> tuple[list[Body], list[Joint], dict]:
             raise table.error("urdf", f"{path}: joint {j.get('name')!r} has type {j.get('type')!r} "
                                       "(revolute, continuous, prismatic and fixed are supported)")
     groups: dict[str, list[str]] = {}
+    model_scale = max((float(np.max(np.abs(np.linalg.eigvalsh(inertial[n][2])))) for n in order), default=0.0)
     for name in order[1:]:
         if owner[name] != WORLD:
             groups.setdefault(owner[name], []).append(name)
+            # the links of the ground never move: their inertia, consistent or not, enters nothing
+            _check_inertia(name, *inertial[name][::2], model_scale)
 
     bodies = []
     for body_name, members in groups.items():
         m = sum(inertial[n][0] for n in members)
         if m <= 0:
+            if any(np.any(inertial[n][2]) for n in members):
+                raise _Bad(f"link {body_name!r} moves with rotational inertia but no mass (no engine takes it)")
             bodies.append(Body(body_name, 0.0, np.zeros((3, 3)), np.eye(3), pose[body_name][1]))
             continue
         com = sum(inertial[n][0] * inertial[n][1] for n in members) / m
@@ -152,13 +243,18 @@ def read_urdf(path: Path, table: Table) -> tuple[list[Body], list[Joint], dict]:
 
     spec_joints, limits = [], {}
     for j in kept:
-        child = j.find("child").get("link")
-        parent = owner[j.find("parent").get("link")]
+        child = child_of[j.get("name")]
+        parent = owner[parent_of[j.get("name")]]
         R_c, p_c = pose[child]
         axis = R_c @ _vec(j.find("axis").get("xyz") if j.find("axis") is not None else None, "1 0 0")
+        if not np.linalg.norm(axis) > 0:
+            raise _Bad(f"joint {j.get('name')!r}: axis is the zero vector")
         jtype = "prismatic" if j.get("type") == "prismatic" else "revolute"
         spec_joints.append(Joint(j.get("name"), jtype, parent, child, p_c, axis / np.linalg.norm(axis)))
         lim = j.find("limit")
         if lim is not None and j.get("type") != "continuous":
-            limits[j.get("name")] = (float(lim.get("lower", "-inf")), float(lim.get("upper", "inf")))
+            try:
+                limits[j.get("name")] = (float(lim.get("lower", "-inf")), float(lim.get("upper", "inf")))
+            except ValueError:
+                raise _Bad(f"joint {j.get('name')!r}: limit lower/upper are not numbers") from None
     return bodies, spec_joints, limits

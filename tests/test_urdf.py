@@ -84,3 +84,64 @@ def test_an_arm_never_seen_goes_through_harness_run(tmp_path, capsys, robot):
         + '\n[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
     assert main(["run", str(tmp_path / "scenarios" / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     assert "PASSED (2 of 2 gates)" in capsys.readouterr().out
+
+
+EXAMPLE_URDF = MODELS.parent / "examples" / "two_link_arm" / "two_link_arm.urdf"
+
+BAD_URDFS = {
+    "NaN mass": (('<mass value="2.0"/>', '<mass value="nan"/>'), "mass = 'nan' is not finite"),
+    "text mass": (('<mass value="2.0"/>', '<mass value="heavy"/>'), "is not a list of numbers"),
+    "negative mass": (('<mass value="2.0"/>', '<mass value="-2.0"/>'), "mass -2 is negative"),
+    "inf origin": (('<origin xyz="0.5 0 0"', '<origin xyz="inf 0 0"'), "origin xyz"),
+    "joint without child": (('<child link="fore"/>', ""), "has no <child link=...>"),
+    "undefined child": (('<child link="fore"/>', '<child link="hand"/>'), "child link 'hand' is not defined"),
+    "zero axis": (('<axis xyz="0 1 0"/>\n    <limit lower="-3.1" upper="3.1" effort="100" velocity="5"/>\n  '
+                   '</joint>\n  <link name="fore">', '<axis xyz="0 0 0"/>\n  </joint>\n  <link name="fore">'),
+                  "axis is the zero vector"),
+    "duplicate link": (('<link name="fore">', '<link name="upper">'), "link 'upper' is defined twice"),
+    "loop": (('<parent link="upper"/>\n    <child link="fore"/>', '<parent link="fore"/>\n    <child link="upper"/>'),
+             "the child of two joints"),
+    "not positive definite": (('ixx="0.0003"', 'ixx="-0.01"'), "not positive semi-definite"),
+    "triangle inequality": (('ixx="0.0008"', 'ixx="0.5"'), "break the triangle inequality"),
+    "inertia without mass": (('<mass value="1.2"/>', '<mass value="0"/>'), "rotational inertia but no mass"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_URDFS))
+def test_a_urdf_that_no_rigid_body_could_have_is_refused_in_one_line(tmp_path, capsys, case):
+    (old, new), phrase = BAD_URDFS[case]
+    text = EXAMPLE_URDF.read_text()
+    assert old in text, case
+    (tmp_path / "arm.urdf").write_text(text.replace(old, new, 1))
+    (tmp_path / "arm.toml").write_text('[urdf]\nfile = "arm.urdf"\n')
+    (tmp_path / "s.toml").write_text('[scenario]\nmodel = "arm.toml"\nduration = 1.0\noutput_steps = 10\n'
+                                     '[motion.shoulder]\ntype = "locked"\n[motion.elbow]\ntype = "locked"\n'
+                                     '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "arm.urdf" in err and phrase in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_massless_link_fixed_to_a_body_adds_its_rotational_inertia(tmp_path):
+    """A link of zero mass with an inertia tensor, fixed to the forearm (a sensor's housing, say),
+    is part of the forearm: its moments add to the forearm's about their common centre of mass."""
+    text = EXAMPLE_URDF.read_text().replace("</robot>", '''  <joint name="mount" type="fixed">
+    <parent link="fore"/>
+    <child link="housing"/>
+    <origin xyz="0.4 0 0" rpy="0 0 0"/>
+  </joint>
+  <link name="housing">
+    <inertial>
+      <mass value="0"/>
+      <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.002" iyz="0" izz="0.002"/>
+    </inertial>
+  </link>
+</robot>''')
+    (tmp_path / "arm.urdf").write_text(text)
+    (tmp_path / "arm.toml").write_text('[urdf]\nfile = "arm.urdf"\n')
+    (tmp_path / "plain.urdf").write_text(EXAMPLE_URDF.read_text())
+    (tmp_path / "plain.toml").write_text('[urdf]\nfile = "plain.urdf"\n')
+    with_housing, plain = load_spec(tmp_path / "arm.toml").body("fore"), load_spec(tmp_path / "plain.toml").body("fore")
+    assert with_housing.mass == plain.mass
+    np.testing.assert_allclose(np.sort(np.diag(with_housing.I_B)), np.sort(np.diag(plain.I_B)) + 0.002, rtol=1e-12)
