@@ -20,7 +20,7 @@ from scipy.optimize import minimize
 from harness.engines.pinocchio import build_model
 from harness.motion import Sinusoids
 from harness.scenario import Scenario
-from harness.torque_id import base_parameters, regressor
+from harness.torque_id import regressor, structural_base
 
 SAMPLES = 60  # regressor samples over one period
 
@@ -39,9 +39,9 @@ def _series(coef: np.ndarray, q0: np.ndarray, wf: float, t: np.ndarray):
     return q, qd, qdd
 
 
-def condition_number(pm, q, qd, qdd) -> float:
-    W = regressor(pm, q, qd, qdd)
-    W1 = W[:, base_parameters(W).independent]
+def condition_number(pm, q, qd, qdd, base) -> float:
+    """Of the column-scaled regressor of the (structural) base parameters along the trajectory."""
+    W1 = regressor(pm, q, qd, qdd)[:, base.independent]
     sv = np.linalg.svd(W1 / np.linalg.norm(W1, axis=0), compute_uv=False)
     return float(sv[0] / sv[-1])
 
@@ -50,6 +50,7 @@ def optimise(scenario: Scenario, harmonics: int, base_frequency: float, evaluati
              ) -> tuple[Scenario, dict]:
     spec = scenario.robot
     pm = build_model(spec, scenario.gravity_W)
+    base = structural_base(pm, spec.limits)  # chosen once, not at every evaluation
     n = len(spec.joints)
     limits = np.array([(spec.limits or {}).get(j.name, (-np.pi, np.pi)) for j in spec.joints], dtype=float)
     limits = np.clip(limits, -np.pi, np.pi)
@@ -61,7 +62,7 @@ def optimise(scenario: Scenario, harmonics: int, base_frequency: float, evaluati
         coef = x.reshape(n, harmonics, 2)
         q, qd, qdd = _series(coef, q0, base_frequency, t)
         excess = np.maximum(0, np.abs(q - q0) - 0.9 * half)
-        return np.log(condition_number(pm, q, qd, qdd)) + 1e3 * np.sum(excess**2)
+        return np.log(condition_number(pm, q, qd, qdd, base)) + 1e3 * np.sum(excess**2)
 
     rng = np.random.default_rng(seed)
     x0 = (rng.uniform(-1, 1, (n, harmonics, 2)) * scale).ravel()

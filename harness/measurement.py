@@ -12,7 +12,9 @@ A scenario's `[measurement]` table, every key optional:
     absolute = 0.0                  #   positions, joints (q, q', q'', tau)
 
 Noise on a value x has standard deviation sqrt(absolute^2 + (relative |x|)^2), independently per
-component and sample. Order: noise, then differentiation, then rounding. With `differentiate`,
+component and sample; angles and positions take absolute noise only (their zero is arbitrary).
+Order, as on a bench: sampling (`every`), then noise and rounding of each reading, then
+differentiation of what was read. With `differentiate`,
 the centre-of-mass accelerations come from the measured positions, and the angular velocities
 and accelerations from the measured Cardano angles (omega^(i) = D theta', omega'^(i) = D theta'' +
 D' theta', Eq. 33, which needs no inverse of D and so passes gimbal lock), all by a cubic
@@ -42,6 +44,8 @@ GROUPS = {
     "angular_accelerations": ("omegadot_W",), "angles": ("theta",), "positions": ("p_W", "v_W"),
     "joints": ("q", "qd", "qdd", "tau"),
 }
+
+ABSOLUTE_ONLY = ("angles", "positions")  # their size says nothing of how well they are read
 
 
 @dataclass(frozen=True)
@@ -95,6 +99,10 @@ def read_measurement(t: Table) -> Measurement:
             if group not in GROUPS:
                 raise nt.error(group, f"unknown channel group (groups: {', '.join(GROUPS)})")
             g = nt.table(group)
+            if group in ABSOLUTE_ONLY and g.has("relative"):
+                raise g.error("relative", f"{group} take absolute noise only: an error relative to an angle or a "
+                                          "position depends on where its zero is (a body turned by 17 rad is read "
+                                          "no worse than one at rest)")
             noise[group] = Noise(g.number("relative", default=0.0, nonnegative=True),
                                  g.number("absolute", default=0.0, nonnegative=True))
             g.finish()
@@ -147,15 +155,18 @@ def measure(rec: Recording, m: Measurement) -> Recording:
     if m.ideal:
         return rec
     rng = np.random.default_rng(m.seed)
-    values = {c: getattr(rec, c) for c in CHANNELS}
-    values.update(add_noise(rec, m.noise, rng))
-    if m.differentiate:
-        values.update(differentiate(rec.t, values["p_W"], values["theta"], m.filter_window))
+    # the bench samples; each reading then carries its noise and its resolution; derivatives come
+    # from what was read
+    rows = np.arange(0, len(rec.t), m.every)
+    sampled = dataclasses.replace(rec, t=rec.t[rows], gimbal=rec.gimbal[rows], R_WB=None,
+                                  **{c: getattr(rec, c)[rows] for c in CHANNELS})
+    values = {c: getattr(sampled, c) for c in CHANNELS}
+    values.update(add_noise(sampled, m.noise, rng))
     if m.significant_digits is not None:
         values = {c: round_significant(v, m.significant_digits) for c, v in values.items()}
-    rows = np.arange(0, len(rec.t), m.every)
-    sub = {c: v[rows] for c, v in values.items()}
-    return dataclasses.replace(rec, t=rec.t[rows], gimbal=rec.gimbal[rows], R_WB=None, **sub)
+    if m.differentiate:
+        values.update(differentiate(sampled.t, values["p_W"], values["theta"], m.filter_window))
+    return dataclasses.replace(sampled, **values)
 
 
 def dither(rec: Recording, m: Measurement, rng: np.random.Generator) -> Recording:

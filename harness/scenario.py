@@ -218,6 +218,12 @@ def _load(path: Path) -> Scenario:
             raise motion_table.error(j, f"missing: every joint of model {robot.name!r} needs a "
                                         "motion (use type = \"locked\" to hold it)")
         motion[j] = read_motion(motion_table.table(j))
+        with np.errstate(over="ignore", invalid="ignore"):
+            values = np.stack(motion[j].evaluate(np.linspace(0.0, duration, output_steps + 1)))
+        if not np.all(np.isfinite(values)):
+            bad = np.flatnonzero(~np.all(np.isfinite(values), axis=0))[0]
+            raise motion_table.error(j, f"the motion is not finite within the run (from t = "
+                                        f"{bad * duration / output_steps:g} s on, q, q' or q'' overflows)")
     motion_table.finish()
 
     for ts in sample_times:
@@ -226,6 +232,10 @@ def _load(path: Path) -> Scenario:
         if abs(ts / output_dt - round(ts / output_dt)) > _GRID_TOL:
             raise s.error("sample_times", f"sample time {ts:g} s is not on the output grid "
                                           f"(every {output_dt:g} s)")
+    measured_rows = output_steps // measurement.every + 1
+    if measurement.differentiate and measurement.filter_window > measured_rows:
+        raise InputError(path, "measurement.filter_window", f"{measurement.filter_window} samples, but the "
+                                                            f"measurement has only {measured_rows} rows")
     if measurement.every > 1:
         for ts in sample_times:
             k = round(ts / output_dt)

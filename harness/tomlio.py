@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 _MISSING = object()
+MAX_MAGNITUDE = 1e15  # SI numbers beyond this overflow products (m l^2, rho R^2 l) long before they mean anything
 
 
 class InputError(Exception):
@@ -171,9 +172,15 @@ def _check_number(table: Table, name: str, value: Any, positive: bool = False,
                   nonnegative: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise table.error(name, f"expected a number, got {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:
+        raise table.error(name, f"a number of {len(str(value))} digits is beyond double precision") from None
     if not math.isfinite(value):
         raise table.error(name, f"must be a finite number, got {value}")
+    if abs(value) > MAX_MAGNITUDE:
+        raise table.error(name, f"{value:g} is beyond {MAX_MAGNITUDE:g}: no quantity of a robot or its motion "
+                                "is that large in SI units")
     if positive and value <= 0.0:
         raise table.error(name, f"must be positive, got {value}")
     if nonnegative and value < 0.0:

@@ -74,6 +74,30 @@ def base_parameters(W: np.ndarray) -> BaseParameters:
     return BaseParameters(live[P[:r]], np.concatenate([live[P[r:]], dead]), comb)
 
 
+STRUCTURAL_STATES = 200  # random states for the structural base: 2 x 10 n rows and more for n <= 9 joints
+
+
+def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0) -> BaseParameters:
+    """The base parameters of the model's structure, chosen once: QR with column pivoting of the
+    noise-free regressor at STRUCTURAL_STATES random states (q uniform within the joint limits, or
+    +-pi, +-1 m; q', q'' standard normal), not of a measured trajectory, whose noise or poor
+    excitation would change which combinations are chosen. For the same model and seed it is the
+    same every time it is asked for."""
+    rng = np.random.default_rng(seed)
+    n = len(pm.joint_ids)
+    lo, hi = np.empty(n), np.empty(n)
+    for k, jid in enumerate(pm.joint_ids):
+        name = pm.model.names[jid]
+        revolute = pm.model.joints[jid].shortname().startswith("JointModelR")
+        default = (-np.pi, np.pi) if revolute else (-1.0, 1.0)
+        lo[k], hi[k] = (limits or {}).get(name, default)
+        if not (np.isfinite(lo[k]) and np.isfinite(hi[k])):
+            lo[k], hi[k] = default
+    q = rng.uniform(lo, hi, (STRUCTURAL_STATES, n))
+    qd, qdd = rng.standard_normal((2, STRUCTURAL_STATES, n))
+    return base_parameters(regressor(pm, q, qd, qdd))
+
+
 @dataclass(eq=False)
 class TorqueIdentification:
     names: list[str]  # parameter names, joint by joint
@@ -86,9 +110,11 @@ class TorqueIdentification:
 
 
 def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau,
-                          validation: tuple | None = None) -> TorqueIdentification:
+                          validation: tuple | None = None, base: BaseParameters | None = None
+                          ) -> TorqueIdentification:
+    """Least squares of the base parameters (default: the structural ones of `pm`) from joint torques."""
     W = regressor(pm, q, qd, qdd)
-    base = base_parameters(W)
+    base = base or structural_base(pm)
     W1 = W[:, base.independent]
     s = np.linalg.norm(W1, axis=0)
     z, *_ = np.linalg.lstsq(W1 / s, tau.reshape(-1), rcond=None)
@@ -120,7 +146,8 @@ def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
     rel = np.abs(ti.beta - ti.beta_true) / scale
     out = {
         "method": "joint torques only: Pinocchio's joint torque regressor, base parameters by QR with column "
-                  "pivoting, least squares (harness/torque_id.py)",
+                  f"pivoting of the regressor at {STRUCTURAL_STATES} random states (the model's structure), "
+                  "least squares (harness/torque_id.py)",
         "parameters": len(ti.names), "base_parameters": len(ti.beta),
         "condition_number": ti.condition_number,
         "rel_error_definition": f"|identified - true| / max(|true|, {BETA_FLOOR:g} x largest |true|)",

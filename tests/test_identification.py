@@ -118,3 +118,43 @@ def test_round_significant_agrees_with_decimal_formatting():
         np.testing.assert_allclose(round_significant(x, digits), expected, rtol=4e-16, atol=0)
     assert Measurement(7).resolution == 5e-7
     np.testing.assert_array_equal(round_significant(np.array([0.0, -0.0]), 7), [0.0, 0.0])
+
+
+@pytest.mark.parametrize("sizes", [(6,) * 12, (3, 6, 9, 6, 4, 8, 5, 7)], ids=["equal clusters", "unequal clusters"])
+def test_cr3_covariance_is_the_leave_one_cluster_out_jackknife(sizes):
+    """The CR3 sandwich with leverage-corrected residuals equals, exactly, the sum over clusters of
+    the squared change of the estimate when that cluster is left out (the same weights kept):
+    beta - beta_(g) = (K^T W K)^-1 K_g^T W (I - H_gg)^-1 r_g. An independent computation: each
+    leave-one-out fit is solved afresh by lstsq."""
+    from harness.identify import _weighted, solve
+
+    rng = np.random.default_rng(3)
+    cluster = np.repeat(np.arange(len(sizes)), sizes)
+    n, p = len(cluster), 4
+    K = rng.standard_normal((n, p)) * np.array([1.0, 10.0, 0.1, 3.0])
+    group = rng.integers(0, 2, n)
+    L = K @ np.array([1.0, -2.0, 0.5, 3.0]) + rng.standard_normal(n) * np.where(group == 0, 0.01, 0.1)
+    ls = solve(K, L, ["a", "b", "c", "d"], np.zeros(p), cluster, group)
+    norms = np.linalg.norm(K, axis=0)
+    w, _ = _weighted(K / norms, L, group)
+    sw = np.sqrt(w)
+    sq = np.zeros(p)
+    for g in range(len(sizes)):
+        keep = cluster != g
+        x_g = np.linalg.lstsq(K[keep] * sw[keep, None], L[keep] * sw[keep], rcond=None)[0]
+        sq += (ls.x - x_g) ** 2
+    np.testing.assert_allclose(ls.std**2, sq, rtol=1e-9)
+
+
+def test_a_group_that_fits_exactly_gets_the_largest_weight_not_the_smallest():
+    from harness.identify import _weighted
+
+    # group 0 is a channel that reads exactly zero and is predicted exactly zero (an axis about
+    # which nothing turns, ideally measured): its residual is exactly 0; group 1 is noisy
+    rng = np.random.default_rng(4)
+    K = np.zeros((40, 2))
+    K[20:] = rng.standard_normal((20, 2))
+    group = np.repeat([0, 1], 20)
+    L = np.concatenate([np.zeros(20), K[20:] @ np.array([1.0, 2.0]) + rng.standard_normal(20) * 0.1])
+    w, _ = _weighted(K, L, group)
+    assert w[group == 0].min() > w[group == 1].max()

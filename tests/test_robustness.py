@@ -127,13 +127,15 @@ def test_report_reads_its_recording_only_beside_results_json(written, tmp_path, 
 
 @pytest.mark.parametrize(("edit", "key"), [
     (lambda t: t.replace("output_steps = 100", "output_steps = 1000000000"), "scenario.output_steps"),
+    (lambda t: t.replace("output_steps = 100", "output_steps = " + "9" * 400), "scenario.output_steps"),
     (lambda t: t.replace("timestep = 0.0005", "timestep = 1e-300"), "simulation.timestep"),
-    (lambda t: t.replace("duration = 2.0", "duration = 1e308"), "simulation.timestep"),
+    (lambda t: t.replace("duration = 2.0", "duration = 1e12"), "simulation.timestep"),
+    (lambda t: t.replace("duration = 2.0", "duration = 1e308"), "scenario.duration"),
 ])
 def test_what_cannot_fit_is_refused_before_anything_is_allocated(tmp_path, capsys, edit, key):
     assert main(["run", str(_kr500(tmp_path, edit)), "--out", str(tmp_path / "out"), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and key in err and "at most" in err, err
+    assert err.count("\n") == 1 and key in err and ("at most" in err or "beyond" in err), err
 
 
 @pytest.mark.parametrize("argv", [["sweep", "kr500_noise", "--trials", "1e12"],

@@ -29,9 +29,8 @@ from harness.plugins import (
 from harness.torque_id import (
     BETA_FLOOR,
     TorqueIdentification,
-    base_parameters,
     identify_from_torques,
-    regressor,
+    structural_base,
     true_parameters,
 )
 from harness.torque_id import section as torque_id_section
@@ -58,8 +57,9 @@ def run_builtin(ctx, config) -> TorqueIdentification | None:
         return None
     joints = sc.robot.joint_names
     val = validation_recording(ctx, sc.torque_validation)
-    ti = identify_from_torques(build_model(sc.robot, sc.gravity_W), joints, *joint_data(ctx.measured, joints),
-                               joint_data(val, joints))
+    pm = build_model(sc.robot, sc.gravity_W)
+    base = ctx.once("structural base parameters", lambda: structural_base(pm, sc.robot.limits))
+    ti = identify_from_torques(pm, joints, *joint_data(ctx.measured, joints), joint_data(val, joints), base)
     ti.validation_scale = joint_load_scale(sc.robot, val)
     return ti
 
@@ -90,7 +90,7 @@ def _judge(ctx, entry) -> MethodResult:
     base_rel, base_count = None, 0
     if getattr(fitted, "parameters", None) is not None:
         pm = build_model(sc.robot, sc.gravity_W)
-        base = ctx.once("base parameters of the measured data", lambda: base_parameters(regressor(pm, q, qd, qdd)))
+        base = ctx.once("structural base parameters", lambda: structural_base(pm, sc.robot.limits))
         base_count = len(base.independent)
         _, fit_to_robot = column_maps(fitted.joint_names, joints)
         theta = check_array(plugin, "parameters", fitted.parameters, (len(joints), 10))[fit_to_robot].reshape(-1)
@@ -127,8 +127,8 @@ def serialise_methods(results: tuple[MethodResult, ...], ctx, config) -> dict:
             entry["base_parameters"] = {
                 "count": r.base_count,
                 "max_rel_error": float(r.base_rel_error.max()),
-                "rel_error_definition": f"|identified - true| / max(|true|, {BETA_FLOOR:g} x largest |true|), base "
-                                        "parameters of the Pinocchio regressor of the training data",
+                "rel_error_definition": f"|identified - true| / max(|true|, {BETA_FLOOR:g} x largest |true|), the "
+                                        "structural base parameters of the robot (harness/torque_id.py)",
             }
         if r.validation_rel_error is not None:
             e = r.validation_rel_error
