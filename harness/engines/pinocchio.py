@@ -31,7 +31,9 @@ def build_model(spec: RobotSpec, gravity_W: np.ndarray) -> PinocchioModel:
     model = pin.Model()
     model.name = spec.name
     ids: dict[str, int] = {}
-    for joint in spec.joints:  # root first
+    # depth first: Pinocchio's CRBA and regressors take every subtree to occupy consecutive
+    # velocity indices (in root-first, breadth-first order a branched tree's M loses its couplings)
+    for joint in _depth_first(spec):
         parent = 0 if joint.parent == WORLD else ids[joint.parent]
         origin = np.zeros(3) if joint.parent == WORLD else spec.inner_joint(joint.parent).p_W0
         jm = (pin.JointModelRevoluteUnaligned if joint.revolute else pin.JointModelPrismaticUnaligned)(
@@ -47,6 +49,18 @@ def build_model(spec: RobotSpec, gravity_W: np.ndarray) -> PinocchioModel:
     joint_ids = tuple(ids[j.child] for j in spec.joints)
     q_index = np.array([model.joints[i].idx_q for i in joint_ids])
     return PinocchioModel(model, joint_ids, q_index)
+
+
+def _depth_first(spec: RobotSpec) -> list:
+    order: list = []
+
+    def visit(body: str) -> None:
+        for joint in spec.outer_joints(body):
+            order.append(joint)
+            visit(joint.child)
+
+    visit(WORLD)
+    return order
 
 
 @dataclass(frozen=True, eq=False)

@@ -32,6 +32,16 @@ class GraphTheoryModel:
         out = self.solve(q, qd, qdd)
         return out.F_W, out.M_W
 
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """M(q) column by column from the same equations: with no velocity, M e_k is the torque of a
+        unit acceleration of joint k less that of none (gravity cancels)."""
+        q = np.atleast_2d(q)
+        zero = np.zeros_like(q)
+        at_rest = self.inverse_dynamics(q, zero, zero)
+        eye = np.eye(q.shape[1])
+        cols = [self.inverse_dynamics(q, zero, np.broadcast_to(eye[k], q.shape)) - at_rest for k in range(q.shape[1])]
+        return np.stack(cols, axis=-1)
+
 
 def make(robot: RobotSpec, gravity_W: np.ndarray = STANDARD_GRAVITY_W) -> GraphTheoryModel:
     return GraphTheoryModel(robot, np.asarray(gravity_W, dtype=float))
