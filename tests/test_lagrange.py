@@ -173,3 +173,21 @@ def test_stable_tree_is_reproduced_open_loop():
     assert result.completed
     assert result.q_error.max() <= 1e-6 and result.r_error <= 1e-6
     assert result.max_abs_phi <= 1e-9
+
+
+def test_condition_numbers_do_not_depend_on_units():
+    """Eq. 111's matrix in metres or in millimetres, its constraint rows scaled at will: the
+    equilibrated condition number is the same (to 1e-6), the raw one is not."""
+    from harness.papers.graph_theory_2021.constrained import _cond_rank
+
+    rng = np.random.default_rng(7)
+    X = rng.standard_normal((5, 8, 12))
+    units = np.where(np.arange(12) % 6 < 3, 1e3, 1.0)  # translational columns in mm
+    rows = 10.0 ** rng.uniform(-3, 3, 8)
+    scaled = rows[None, :, None] * X * units[None, None, :]
+    cond, rank = _cond_rank(X)
+    cond_scaled, rank_scaled = _cond_rank(scaled)
+    np.testing.assert_allclose(cond_scaled, cond, rtol=1e-6)
+    assert np.array_equal(rank, rank_scaled)
+    raw = np.linalg.cond(scaled)
+    assert np.all(raw > 10 * cond)
