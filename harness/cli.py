@@ -171,7 +171,6 @@ class _Progress:
 def cmd_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     from harness.api import run
-    from harness.pipeline import stages_of
     from harness.report import render
     from harness.results import RECORDING_FILE, RESULTS_FILE, write_results
     from harness.scenario import load_scenario
@@ -196,7 +195,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         results = result.results
         results["run"]["timings"] = {"importing the engines and libraries": imported, **results["run"]["timings"]}
         imported = 0.0
-        page = render(results, result.recording, [stage for stage, _ in stages_of(result.output.scenario)])
+        page = render(results, result.recording, [s.stage for s in result.output.stages.values()])
         try:
             _write_atomically(out, {
                 RECORDING_FILE: result.recording.write_csv,

@@ -29,14 +29,13 @@ object with `joint_names`, `inverse_dynamics` as above and, optionally, `paramet
 per joint in the fitted model's `joint_names` order, the child body's
 [m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] about the joint point, in world axes at
 the initial pose (all q = 0) (Pinocchio's dynamic parameters of a frame at the joint point with
-those axes). They are judged where the data determine them: reduced to the base parameters of the
-training data's regressor and compared with the robot's.
+those axes). They are judged where the data determine them: reduced to the robot's structural base
+parameters (harness/torque_id.py, structural_base) and compared with the robot's own.
 """
 
 from __future__ import annotations
 
 import importlib
-import importlib.util
 import inspect
 import sys
 from collections.abc import Callable, Sequence

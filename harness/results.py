@@ -34,7 +34,8 @@ RECORDING_FILE = "recording.csv"
 RESULTS_FILE = "results.json"
 
 
-def _list(v: np.ndarray) -> list[float]:
+def floats(v) -> list[float]:
+    """An array as a flat list of Python floats, for JSON."""
     return [float(x) for x in np.ravel(v)]
 
 
@@ -44,11 +45,11 @@ def scenario_section(s: Scenario) -> dict:
         "file": str(s.source),
         "description": s.description,
         "model_file": str(s.robot.source),
-        "gravity": _list(s.gravity_W),
+        "gravity": floats(s.gravity_W),
         "duration": s.duration,
         "output_steps": s.output_steps,
         "output_dt": s.output_dt,
-        "sample_times": _list(s.sample_times),
+        "sample_times": floats(s.sample_times),
         "motion": {j: {"type": m.kind, "description": m.describe()} for j, m in s.motion.items()},
         "simulation": {
             "integrator": s.simulation.integrator,
@@ -63,14 +64,14 @@ def model_section(spec: RobotSpec) -> dict:
     bodies = []
     for b in spec.bodies:
         row = {"name": b.name, "massless": b.massless, "mass": b.mass}
-        row.update(zip(("J11", "J22", "J33"), _list(b.principal_inertia), strict=True))
+        row.update(zip(("J11", "J22", "J33"), floats(b.principal_inertia), strict=True))
         if b.cylinder is not None:
             row.update(shape="cylinder", length=b.cylinder.length, radius=b.cylinder.radius,
                        density=b.cylinder.density)
-        row.update(com=_list(b.p_W_com0), e1=_list(b.R_WB0[:, 0]), e2=_list(b.R_WB0[:, 1]))
+        row.update(com=floats(b.p_W_com0), e1=floats(b.R_WB0[:, 0]), e2=floats(b.R_WB0[:, 1]))
         bodies.append(row)
     joints = [{"name": j.name, "type": j.type, "parent": j.parent, "child": j.child,
-               "point": _list(j.p_W0), "axis": _list(j.axis_W0)} for j in spec.joints]
+               "point": floats(j.p_W0), "axis": floats(j.axis_W0)} for j in spec.joints]
     return {"name": spec.name, "file": str(spec.source), "description": spec.description,
             "bodies": bodies, "joints": joints}
 
@@ -84,7 +85,7 @@ def recording_section(rec: Recording) -> dict:
             "qd_max_abs_error": float(np.max(np.abs(rec.qd[:, j] - meta["qd_ref"][:, j]))),
             "qdd_max_abs_error": float(np.max(np.abs(rec.qdd[:, j] - meta["qdd_ref"][:, j]))),
         }
-    gimbal = {b: _list(rec.t[rec.gimbal[:, i]]) for i, b in enumerate(rec.bodies)
+    gimbal = {b: floats(rec.t[rec.gimbal[:, i]]) for i, b in enumerate(rec.bodies)
               if rec.gimbal[:, i].any()}
     return {
         "file": RECORDING_FILE,

@@ -16,6 +16,7 @@ import numpy as np
 from harness.compare import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
 from harness.engines.pinocchio import build_model, crba, rnea
 from harness.plugins import PluginError, Stage, call, check_array, column_maps, invoke
+from harness.results import floats
 
 MASS_MATRIX_SAMPLES = 20  # configurations of the recording at which a model's M(q) is compared
 
@@ -89,9 +90,6 @@ def run(ctx, config) -> TorqueComparison:
                             pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models)
 
 
-def _list(v) -> list[float]:
-    return [float(x) for x in np.ravel(v)]
-
 
 DIFFERENCE_TOL = 1e-12  # relative: parameters that differ by less are the same number written twice
 
@@ -126,13 +124,13 @@ def serialise(tc: TorqueComparison, ctx, config) -> dict:
     return {
         "joints": joints,
         "definition": DEFINITION,
-        "load_scale": dict(zip(joints, _list(tc.load_scale), strict=True)),
+        "load_scale": dict(zip(joints, floats(tc.load_scale), strict=True)),
         "models": {m.name: {"plugin": m.reference, "model_file": m.model_file,
                             "joint_wrenches": m.F_W is not None,
                             "mass_matrix": m.mass_matrix_rel_error is not None} for m in tc.models},
         "parameter_differences": {e.name: parameter_differences(e.robot, ctx.scenario.robot)
                                   for e in ctx.scenario.models if e.robot is not ctx.scenario.robot},
-        "samples": [{"t": float(ti), **{k: _list(v[i]) for k, v in sources.items()}} for i, ti in enumerate(t)],
+        "samples": [{"t": float(ti), **{k: floats(v[i]) for k, v in sources.items()}} for i, ti in enumerate(t)],
         **{f"{a}_vs_{b}": pair_metrics(sources[a], sources[b], tc.load_scale, t, joints) for a, b in pairs},
         "reactions": {
             "definition": "|a - b| / largest |b| of the joint over the run, b the recorded wrench "

@@ -18,6 +18,7 @@ from harness.papers.graph_theory_2021.identification import PARAMETERS, id_Y, id
 from harness.papers.graph_theory_2021.lagrange import LagrangeOutput, reactions_at
 from harness.recording import Recording
 from harness.reference import reference_table
+from harness.results import floats
 from harness.spec import RobotSpec
 
 PACKAGE = "harness.papers.graph_theory_2021"  # its reference tables are in its reference/ folder
@@ -97,9 +98,6 @@ def identify_full(spec, model: GraphModel, measured: Recording, rows: np.ndarray
                                    FULL_PARAMETERS)
     return FullIdentification(model.topology.bodies, per_body, true)
 
-
-def _list(v: np.ndarray) -> list[float]:
-    return [float(x) for x in np.ravel(v)]
 
 
 def graph_section(model: GraphModel, residual: Residual, D_error: float) -> dict:
@@ -204,7 +202,7 @@ def identification_section(ident: Identification, paper_identified: str | None, 
                        "t quantile with G - 1 degrees of freedom (harness/identify.py)",
         "rel_error_definition": "(identified - true) / |true|; where the true value is zero, relative to the "
                                 "largest true value of the same kind (mass or moment of inertia) in the model",
-        "sample_times": _list(ident.sample_times),
+        "sample_times": floats(ident.sample_times),
         "significant_digits": significant_digits,
         "larger_error_than_paper": {
             f"{r['body']}.{r['name']}": "ours" if abs(r["abs_error"]) > abs(r["paper_abs_error"]) else "paper's"
@@ -219,8 +217,8 @@ def identification_section(ident: Identification, paper_identified: str | None, 
         "coverage_ci95": (sum(r["true_in_ci95"] for r in identified) / len(identified)) if identified else None,
         "max_error_in_std": max((abs(r["abs_error"]) / r["std"] for r in identified if r["std"]), default=None),
         "parameters": rows,
-        "per_body": [{"body": b, "rows": ls.rows, "column_snr": _list(ls.column_snr),
-                      "singular_values": _list(ls.singular_values),
+        "per_body": [{"body": b, "rows": ls.rows, "column_snr": floats(ls.column_snr),
+                      "singular_values": floats(ls.singular_values),
                       "residual_norm": ls.residual_norm}
                      for b, ls in zip(ident.bodies, ident.per_body, strict=True)],
         "system": {
@@ -266,7 +264,7 @@ def lagrange_section(lg: LagrangeOutput, paper_lambda: str | None, spec: RobotSp
         "rows_evaluated": int(normal.evaluated.sum()),
         "rows_not_evaluated": [{"t": float(t), "reason": "a body's cond(D) > 100, or Eq. 111 singular"}
                                for t in normal.t[~normal.evaluated]],
-        "t": _list(normal.t),
+        "t": floats(normal.t),
         "formulations": forms,
         "at_time": None,
         "forward_simulation": None,
@@ -290,10 +288,10 @@ def lagrange_section(lg: LagrangeOutput, paper_lambda: str | None, spec: RobotSp
                       "MuJoCo's step and stage torques, plus a correction toward the prescribed "
                       "motion (harness/papers/graph_theory_2021/forward.py)",
             "largest_joint_deviation": float(fw.q_error.max()),
-            "max_joint_deviation": dict(zip(spec.joint_names, _list(fw.q_error), strict=True)),
+            "max_joint_deviation": dict(zip(spec.joint_names, floats(fw.q_error), strict=True)),
             "max_position_deviation": fw.r_error,
             "max_abs_phi": fw.max_abs_phi,
-            "correction_over_drive": dict(zip(spec.joint_names, _list(fw.feedback_ratio),
+            "correction_over_drive": dict(zip(spec.joint_names, floats(fw.feedback_ratio),
                                               strict=True)),
             "open_loop_departure_time": None if departure is None else float(departure),
             "open_loop_note": "with the recorded torques alone the replay leaves MuJoCo's trajectory "
