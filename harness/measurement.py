@@ -14,14 +14,17 @@ A scenario's `[measurement]` table, every key optional:
 Noise on a value x has standard deviation sqrt(absolute^2 + (relative |x|)^2), independently per
 component and sample; angles and positions take absolute noise only (their zero is arbitrary).
 Order, as on a bench: sampling (`every`), then noise and rounding of each reading, then
-differentiation of what was read. With `differentiate`,
-the centre-of-mass accelerations come from the measured positions, and the angular velocities
-and accelerations from the measured Cardano angles (omega^(i) = D theta', omega'^(i) = D theta'' +
-D' theta', Eq. 33, which needs no inverse of D and so passes gimbal lock), all by a cubic
-Savitzky-Golay filter over `filter_window` samples: exact for cubic motion, and smoothing noise.
-On kr500_rail the error falls at second order with the step (3 to 4 times per halving). Near
-gimbal lock of a body whose alpha and gamma then change fast (not B1 of kr500_rail, whose angles
-stay smooth), its angle rates are large and the filter loses accuracy: sample finer there.
+differentiation of what was read. With `differentiate`, every acceleration channel is re-derived:
+the centre-of-mass accelerations from the measured positions, the accelerations of the inner joint
+points from the points' positions p_W + A(theta) r_B (measured position and angles, r_B the body-
+fixed arm from the centre of mass to the point, known from the model as a sensor's place on a
+bench is), and the angular velocities and accelerations from the measured Cardano angles
+(omega^(i) = D theta', omega'^(i) = D theta'' + D' theta', Eq. 33, which needs no inverse of D and
+so passes gimbal lock), all by a cubic Savitzky-Golay filter over `filter_window` samples: exact
+for cubic motion, and smoothing noise. On kr500_rail the error falls at second order with the step
+(3 to 4 times per halving). Near gimbal lock of a body whose alpha and gamma then change fast (not
+B1 of kr500_rail, whose angles stay smooth), its angle rates are large and the filter loses
+accuracy: sample finer there.
 Time and the gimbal flags are not measurements.
 """
 
@@ -135,8 +138,10 @@ def add_noise(rec: Recording, noise: dict[str, Noise], rng: np.random.Generator)
     return out
 
 
-def differentiate(t: np.ndarray, p_W: np.ndarray, theta: np.ndarray, window: int) -> dict[str, np.ndarray]:
-    """a_W, omega_W, omegadot_W from positions and Cardano angles (cubic Savitzky-Golay)."""
+def differentiate(t: np.ndarray, p_W: np.ndarray, theta: np.ndarray, window: int,
+                  arm_O_B: np.ndarray) -> dict[str, np.ndarray]:
+    """a_W, aO_W, omega_W, omegadot_W from positions and Cardano angles (cubic Savitzky-Golay).
+    arm_O_B: (nb, 3) each body's arm from its centre of mass to its inner joint point O."""
     dt = float(t[1] - t[0])
     sg = lambda x, k: savgol_filter(x, window, 3, deriv=k, delta=dt, axis=0, mode="interp")  # noqa: E731
     theta_d, theta_dd = sg(theta, 1), sg(theta, 2)
@@ -146,12 +151,15 @@ def differentiate(t: np.ndarray, p_W: np.ndarray, theta: np.ndarray, window: int
     omegadot_B = (np.einsum("...ab,...b->...a", Dm, theta_dd)
                   + np.einsum("...ab,...b->...a", D_dot(th, theta_d), theta_d))
     A = A_0i(th)
-    return {"a_W": sg(p_W, 2), "omega_W": np.einsum("...ab,...b->...a", A, omega_B),
+    pO_W = p_W + np.einsum("...ab,...b->...a", A_0i(theta), arm_O_B)  # the point where it was read
+    return {"a_W": sg(p_W, 2), "aO_W": sg(pO_W, 2), "omega_W": np.einsum("...ab,...b->...a", A, omega_B),
             "omegadot_W": np.einsum("...ab,...b->...a", A, omegadot_B)}
 
 
-def measure(rec: Recording, m: Measurement) -> Recording:
-    """What the test bench reports under the measurement conditions `m` (deterministic in m.seed)."""
+def measure(rec: Recording, m: Measurement, arm_O_B: np.ndarray | None = None) -> Recording:
+    """What the test bench reports under the measurement conditions `m` (deterministic in m.seed).
+    arm_O_B: (nb, 3) the arms of the inner joint points (RobotSpec.inner_joint_arms_B), needed to
+    re-derive their accelerations when `m.differentiate`."""
     if m.ideal:
         return rec
     rng = np.random.default_rng(m.seed)
@@ -165,7 +173,9 @@ def measure(rec: Recording, m: Measurement) -> Recording:
     if m.significant_digits is not None:
         values = {c: round_significant(v, m.significant_digits) for c, v in values.items()}
     if m.differentiate:
-        values.update(differentiate(sampled.t, values["p_W"], values["theta"], m.filter_window))
+        if arm_O_B is None:
+            raise ValueError("measure: differentiating needs the arms of the inner joint points")
+        values.update(differentiate(sampled.t, values["p_W"], values["theta"], m.filter_window, arm_O_B))
     return dataclasses.replace(sampled, **values)
 
 

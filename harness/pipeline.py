@@ -90,7 +90,7 @@ def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
         scenario, excitation = optimise_excitation(scenario, **scenario.excitation)
     timed("simulating in MuJoCo", None)
     recording = record(scenario)
-    measured = measure(recording, scenario.measurement)
+    measured = measure(recording, scenario.measurement, scenario.robot.inner_joint_arms_B())
     ctx = Context(scenario, recording, measured, timed)
     outputs: dict[str, StageOutput] = {}
     for stage, config in stages_of(scenario):

@@ -39,6 +39,12 @@ def floats(v) -> list[float]:
     return [float(x) for x in np.ravel(v)]
 
 
+def finite_or_null(x: float) -> float | None:
+    """A number that may be meaningfully infinite or undefined (a condition number, the standard
+    deviation of an undetermined parameter): null in the file, and not a fault of the run."""
+    return float(x) if np.isfinite(x) else None
+
+
 def scenario_section(s: Scenario) -> dict:
     return {
         "name": s.name,

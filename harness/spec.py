@@ -72,6 +72,11 @@ class Body:
         """[J11, J22, J33]: the diagonal of I_B (the body axes are principal axes)."""
         return np.diag(self.I_B).copy()
 
+    def arm_B(self, point_W0: np.ndarray) -> np.ndarray:
+        """(3,) the body-fixed vector from O_ci to a point of the body given at the initial pose
+        (a joint point O_J: the paper's c_{i,j}), in body components."""
+        return self.R_WB0.T @ (np.asarray(point_W0) - self.p_W_com0)
+
 
 @dataclass(frozen=True, eq=False)
 class Joint:
@@ -118,6 +123,11 @@ class RobotSpec:
 
     def inner_joint(self, body: str) -> Joint:
         return next(j for j in self.joints if j.child == body)
+
+    def inner_joint_arms_B(self) -> np.ndarray:
+        """(nb, 3) for each massive body, the arm from its centre of mass to its inner joint point
+        O (where aO_W is recorded), in body components."""
+        return np.array([b.arm_B(self.inner_joint(b.name).p_W0) for b in self.massive_bodies]).reshape(-1, 3)
 
     def outer_joints(self, body: str) -> list[Joint]:
         return [j for j in self.joints if j.parent == body]

@@ -19,6 +19,8 @@ import pinocchio as pin
 from scipy.linalg import qr, solve_triangular
 
 from harness.engines.pinocchio import PinocchioModel
+from harness.identify import WEAK_RATIO, sandwich_std, sensitivity, weakly_identifiable
+from harness.results import finite_or_null
 
 PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 RANK_TOL = 1e-8  # |R_ii| / |R_00| below this: the column depends on the others (exact data: 1e-14)
@@ -105,6 +107,10 @@ class TorqueIdentification:
     beta_true: np.ndarray
     beta: np.ndarray
     condition_number: float  # of the column-scaled base regressor
+    std: np.ndarray  # (r,) standard deviation of each base parameter (CR3 over the samples; inf: undetermined)
+    ci_half_width: np.ndarray  # (r,) half width of its 95 % interval
+    sensitivity: np.ndarray  # (r,) kappa relative to the model's own base parameters (harness/identify.py)
+    weak: np.ndarray  # (r,) bool: weakly identifiable
     validation_error: np.ndarray | None  # (N_val, n) predicted - recorded torques, validation trajectory
     validation_scale: np.ndarray | None = None  # (n,) joint loads L_J of the validation recording
 
@@ -117,15 +123,30 @@ def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau
     base = base or structural_base(pm)
     W1 = W[:, base.independent]
     s = np.linalg.norm(W1, axis=0)
-    z, *_ = np.linalg.lstsq(W1 / s, tau.reshape(-1), rcond=None)
+    s = np.where(s > 0, s, 1.0)  # a column the trajectory never moves: undetermined, not a division by zero
+    L = tau.reshape(-1)
+    z, *_ = np.linalg.lstsq(W1 / s, L, rcond=None)
     sv = np.linalg.svd(W1 / s, compute_uv=False)
+    ones, sample = np.ones(len(L)), np.repeat(np.arange(len(q)), tau.shape[1])  # a sample's joints share noise
+    std, half = sandwich_std(W1 / s, L - (W1 / s) @ z, ones, sample)
+    beta_model = base.of(true_parameters(pm))  # the model's own values: the magnitudes of the parameters
+    kappa = sensitivity(W1 / s, L) / (s * beta_scale(beta_model))
     err = None
     if validation is not None:
         qv, qdv, qddv, tauv = validation
         pred = (regressor(pm, qv, qdv, qddv)[:, base.independent] @ (z / s)).reshape(tauv.shape)
         err = pred - tauv
     names = [f"{j}.{p}" for j in joints for p in PARAMETER_NAMES]
-    return TorqueIdentification(names, base, base.of(true_parameters(pm)), z / s, float(sv[0] / sv[-1]), err)
+    return TorqueIdentification(names, base, beta_model, z / s, float(sv[0] / sv[-1]), std / s, half / s,
+                                kappa, weakly_identifiable(kappa), err)
+
+
+BETA_FLOOR = 1e-6  # relative errors of base parameters near zero are taken against 1e-6 of the largest
+
+
+def beta_scale(beta: np.ndarray) -> np.ndarray:
+    """What a base parameter's error is relative to: |beta|, at least BETA_FLOOR of the largest."""
+    return np.maximum(np.abs(beta), BETA_FLOOR * np.max(np.abs(beta), initial=0.0))
 
 
 def describe_base(ti: TorqueIdentification, k: int) -> str:
@@ -137,13 +158,10 @@ def describe_base(ti: TorqueIdentification, k: int) -> str:
     return " ".join(terms)
 
 
-BETA_FLOOR = 1e-6  # relative errors of base parameters near zero are taken against 1e-6 of the largest
-
-
 def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
     """The results.json section."""
-    scale = np.maximum(np.abs(ti.beta_true), BETA_FLOOR * np.max(np.abs(ti.beta_true)))
-    rel = np.abs(ti.beta - ti.beta_true) / scale
+    rel = np.abs(ti.beta - ti.beta_true) / beta_scale(ti.beta_true)
+    weak = ti.weak
     out = {
         "method": "joint torques only: Pinocchio's joint torque regressor, base parameters by QR with column "
                   f"pivoting of the regressor at {STRUCTURAL_STATES} random states (the model's structure), "
@@ -151,9 +169,23 @@ def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
         "parameters": len(ti.names), "base_parameters": len(ti.beta),
         "condition_number": ti.condition_number,
         "rel_error_definition": f"|identified - true| / max(|true|, {BETA_FLOOR:g} x largest |true|)",
-        "max_rel_error": float(rel.max()),
+        "uncertainty": "std and 95 % interval from the cluster-robust (CR3) covariance over the samples, "
+                       "t quantile with N - 1 degrees of freedom; infinite where the data leave a direction "
+                       "undetermined (harness/identify.py)",
+        "weak_definition": f"identifiable, but its sensitivity to the data is more than {WEAK_RATIO:g} times the "
+                           "median base parameter's; its error is reported apart from max_rel_error "
+                           "(harness/identify.py)",
+        "max_rel_error": float(rel[~weak].max(initial=0.0)),
+        "weakly_identifiable": [describe_base(ti, k) for k in np.flatnonzero(weak)],
+        "max_rel_error_weak": float(rel[weak].max()) if weak.any() else None,
+        "coverage_ci95": float(np.mean(np.abs(ti.beta - ti.beta_true) <= ti.ci_half_width)),
         "base": [{"expression": describe_base(ti, k), "true": float(ti.beta_true[k]), "identified": float(ti.beta[k]),
-                  "rel_error": float(rel[k])} for k in range(len(ti.beta))],
+                  "rel_error": float(rel[k]), "std": finite_or_null(ti.std[k]),
+                  "ci95": [finite_or_null(ti.beta[k] - ti.ci_half_width[k]),
+                           finite_or_null(ti.beta[k] + ti.ci_half_width[k])],
+                  "undetermined": bool(np.isinf(ti.std[k])),
+                  "sensitivity": finite_or_null(ti.sensitivity[k]), "weakly_identifiable": bool(weak[k])}
+                 for k in range(len(ti.beta))],
         "validation": None,
     }
     if ti.validation_error is not None:

@@ -88,7 +88,7 @@ def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
         for joint in chain:
             ET.SubElement(el, "joint", name=joint.name,
                           type="hinge" if joint.revolute else "slide",
-                          pos=_fmt(R_WB.T @ (joint.p_W0 - p_WB)), axis=_fmt(R_WB.T @ joint.axis_W0))
+                          pos=_fmt(body.arm_B(joint.p_W0)), axis=_fmt(R_WB.T @ joint.axis_W0))
         ET.SubElement(el, "inertial", pos="0 0 0", mass=repr(body.mass),
                       diaginertia=_fmt(np.maximum(body.principal_inertia, floor)))
         if body.cylinder is not None:
@@ -98,7 +98,7 @@ def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
         ET.SubElement(el, "site", name=f"com_{body.name}", pos="0 0 0")
         # A carriage's joint shares its point with the child's joint (checked by the spec).
         ET.SubElement(el, "site", name=f"joint_{chain[-1].name}",
-                      pos=_fmt(R_WB.T @ (chain[-1].p_W0 - p_WB)))
+                      pos=_fmt(body.arm_B(chain[-1].p_W0)))
 
     for joint in spec.joints:
         ET.SubElement(actuators, "motor", name=f"drive_{joint.name}", joint=joint.name, gear="1")

@@ -37,6 +37,15 @@ def table(header: list[str], rows: list[list], cls: str = "") -> str:
     return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
 
 
+def identifiability(p: dict) -> str:
+    """A parameter's verdict: yes, weak (with its sensitivity) or no (with the reason)."""
+    if not p.get("identifiable", True):
+        return f'<span class="bad">no</span> <small>{esc(p.get("reason", ""))}</small>'
+    if p.get("weakly_identifiable"):
+        return f'<span class="bad">weak</span> <small>sensitivity {num(p.get("sensitivity"))}</small>'
+    return '<span class="ok">yes</span>'
+
+
 def figure(svg: str, caption: str) -> str:
     return f"<figure>{svg}<figcaption>{esc(caption)}</figcaption></figure>"
 
@@ -301,7 +310,10 @@ def how(r: dict) -> str:
 
 def torque_identification(r: dict) -> str:
     t = r["torque_identification"]
-    rows = [[esc(b["expression"]), num(b["true"]), num(b["identified"]), num(b["rel_error"])] for b in t["base"]]
+    rows = [[esc(b["expression"]), num(b["true"]), num(b["identified"]), num(b["rel_error"]), num(b["std"]),
+             identifiability(b)] for b in t["base"]]
+    weak = (f" Weakly identifiable ({esc(t['weak_definition'])}): {len(t['weakly_identifiable'])}, largest error "
+            f"{num(t['max_rel_error_weak'])}." if t["weakly_identifiable"] else "")
     v = t["validation"]
     val = (
         (
@@ -317,8 +329,8 @@ def torque_identification(r: dict) -> str:
         (
             f"<p>{esc(t['method'])}. {t['base_parameters']} base parameters out of {t['parameters']}; condition number "
             f"of the scaled base regressor {num(t['condition_number'])}; largest error {num(t['max_rel_error'])} "
-            f"({esc(t['rel_error_definition'])}). {val}</p>"
-            + table(["base parameter", "true", "identified", "rel error"], rows, "wrap")
+            f"({esc(t['rel_error_definition'])}).{weak} {esc(t['uncertainty'])}. {val}</p>"
+            + table(["base parameter", "true", "identified", "rel error", "std", "identifiable"], rows, "wrap")
         ),
     )
 

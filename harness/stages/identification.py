@@ -29,6 +29,7 @@ from harness.plugins import (
 from harness.torque_id import (
     BETA_FLOOR,
     TorqueIdentification,
+    beta_scale,
     identify_from_torques,
     structural_base,
     true_parameters,
@@ -95,8 +96,7 @@ def _judge(ctx, entry) -> MethodResult:
         _, fit_to_robot = column_maps(fitted.joint_names, joints)
         theta = check_array(plugin, "parameters", fitted.parameters, (len(joints), 10))[fit_to_robot].reshape(-1)
         beta_true, beta = base.of(true_parameters(pm)), base.of(theta)
-        scale = np.maximum(np.abs(beta_true), BETA_FLOOR * np.max(np.abs(beta_true)))
-        base_rel = np.abs(beta - beta_true) / scale
+        base_rel = np.abs(beta - beta_true) / beta_scale(beta_true)
     validation = entry.validation or sc.torque_validation
     val_err = None
     if validation is not None:

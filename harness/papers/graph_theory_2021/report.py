@@ -7,7 +7,7 @@ import numpy as np
 
 from harness.recording import Recording
 from harness.report import plots
-from harness.report.sections import esc, figure, num, section, table
+from harness.report.sections import esc, figure, identifiability, num, section, table
 
 
 def _larger(p: dict) -> str:
@@ -35,9 +35,7 @@ def identification(r: dict) -> str:
                 num(p["paper_identified"]),
                 num(p["paper_abs_error"]),
                 _larger(p),
-                '<span class="ok">yes</span>'
-                if p["identifiable"]
-                else f'<span class="bad">no</span> <small>{esc(p["reason"])}</small>',
+                identifiability(p),
             ]
         )
     labels = [f"{p['body']}.{p['name']}" for p in ident["parameters"]]
@@ -94,9 +92,7 @@ def identification_full(r: dict) -> str:
             num(p["identified"]),
             num(p["rel_error"]),
             num(p["std"]),
-            '<span class="ok">yes</span>'
-            if p["identifiable"]
-            else f'<span class="bad">no</span> <small>{esc(p["reason"])}</small>',
+            identifiability(p),
         ]
         for p in f["parameters"]
     ]
@@ -105,7 +101,9 @@ def identification_full(r: dict) -> str:
         "All 10 inertial parameters per body",
         (
             f"<p>{esc(f['method'])}; {esc(f['rel_error_definition'])}. Largest relative error "
-            f"{num(f['max_abs_rel_error'])}; not identifiable: {esc(', '.join(f['not_identifiable']) or 'none')}.</p>"
+            f"{num(f['max_abs_rel_error'])}; not identifiable: {esc(', '.join(f['not_identifiable']) or 'none')}; "
+            f"weakly identifiable: {esc(', '.join(f['weakly_identifiable']) or 'none')} ({esc(f['weak_definition'])}), "
+            f"largest error {num(f['max_abs_rel_error_weak'])}.</p>"
             + table(["body", "parameter", "true", "identified", "rel error", "std", "identifiable"], rows)
         ),
     )

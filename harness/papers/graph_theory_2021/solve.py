@@ -5,12 +5,12 @@ column (harness/identify.py); and the results.json sections of the paper's stage
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from harness.compare import largest
-from harness.identify import LeastSquares, solve
+from harness.identify import WEAK_RATIO, LeastSquares, solve, weakly_identifiable
 from harness.measurement import Measurement, dither
 from harness.papers.graph_theory_2021.dynamics import GraphModel, Residual, body_series
 from harness.papers.graph_theory_2021.full import FULL_PARAMETERS, GROUPS, full_form
@@ -18,7 +18,7 @@ from harness.papers.graph_theory_2021.identification import PARAMETERS, id_Y, id
 from harness.papers.graph_theory_2021.lagrange import LagrangeOutput, reactions_at
 from harness.recording import Recording
 from harness.reference import reference_table
-from harness.results import floats
+from harness.results import finite_or_null, floats
 from harness.spec import RobotSpec
 
 PACKAGE = "harness.papers.graph_theory_2021"  # its reference tables are in its reference/ folder
@@ -51,10 +51,11 @@ def measured_rows(measured: Recording, times: np.ndarray) -> np.ndarray:
 
 
 def _solve_per_body(form: Callable[[Recording], tuple[np.ndarray, np.ndarray]], measured: Recording,
-                    measurement: Measurement, names: tuple[str, ...]):
+                    measurement: Measurement, names: tuple[str, ...], scale: np.ndarray):
     """Per-body least squares of a regressor form Y x = Z (Y: (N, n, rows, p)), each column judged
     against its measurement-error floor: Y rebuilt from the measured channels moved within the
     measurement's errors (fixed seed, so a run is reproducible), the rms change of each column.
+    scale: (n, p) the parameters' magnitudes in the model's own values (for the sensitivities).
     Returns Y, Z, the floors and the per-body solutions."""
     Y, Z = form(measured)
     rng = np.random.default_rng(0)
@@ -63,21 +64,25 @@ def _solve_per_body(form: Callable[[Recording], tuple[np.ndarray, np.ndarray]], 
     floor = np.sqrt(np.mean([np.linalg.norm(stack_per_body(d, Z)[0], axis=1) ** 2 for d in dY], axis=0))
     N, n, k = Y.shape[:3]
     sample, channel = np.repeat(np.arange(N), k), np.tile(np.arange(k), N)  # rows of one body
-    return Y, Z, floor, tuple(solve(K[i], L[i], names, floor[i], sample, channel) for i in range(n))
+    per_body = [solve(K[i], L[i], names, floor[i], sample, channel, scale[i]) for i in range(n)]
+    # weak against the median over all bodies: one body's few parameters are no population
+    weak = weakly_identifiable(np.concatenate([ls.sensitivity for ls in per_body])).reshape(n, -1)
+    return Y, Z, floor, tuple(replace(ls, weak=w) for ls, w in zip(per_body, weak, strict=True))
 
 
 def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
              measurement: Measurement, truth: GraphModel | None = None, with_system: bool = True) -> Identification:
     """Section 2.3: per body (Eq. 56) and for the whole system (Eq. 64)."""
+    scale = parameter_scale(np.column_stack([model.m, model.m, model.m, model.J]))
     Y, Z, floor, per_body = _solve_per_body(lambda rec: _regressor(model, rec, rows), measured, measurement,
-                                            PARAMETERS)
+                                            PARAMETERS, scale)
     N, n = Y.shape[:2]
     system = None
     if with_system:
         Ks, Ls = stack_system(Y, Z)
         names = [f"{b}.{p}" for b in model.topology.bodies for p in PARAMETERS]
         system = solve(Ks, Ls, names, floor.reshape(-1), np.repeat(np.arange(N), 6 * n),
-                       np.tile(np.arange(6 * n), N))
+                       np.tile(np.arange(6 * n), N), scale.reshape(-1))
     truth = truth or model
     true = np.column_stack([truth.m, truth.m, truth.m, truth.J])
     return Identification(model.topology.bodies, per_body, system, true, measured.t[rows], measurement.resolution)
@@ -95,7 +100,7 @@ def identify_full(spec, model: GraphModel, measured: Recording, rows: np.ndarray
     """All 10 inertial parameters per body (harness/papers/graph_theory_2021/full.py), with the same excitation test
     and uncertainty as the paper's form."""
     *_, per_body = _solve_per_body(lambda rec: full_form(spec, model, rec, rows), measured, measurement,
-                                   FULL_PARAMETERS)
+                                   FULL_PARAMETERS, np.array([kind_scale(t) for t in true]))
     return FullIdentification(model.topology.bodies, per_body, true)
 
 
@@ -134,6 +139,27 @@ def parameter_scale(true: np.ndarray) -> np.ndarray:
     return np.where(true != 0.0, np.abs(true), largest)
 
 
+WEAK_DEFINITION = (f"identifiable, but its sensitivity to the data (relative change per relative change of the "
+                   f"data, worst direction) is more than {WEAK_RATIO:g} times the median parameter's; its error "
+                   "is reported apart from max_abs_rel_error (harness/identify.py)")
+
+
+def _weakness(ls: LeastSquares, c: int) -> dict:
+    k = ls.sensitivity[c]
+    return {"sensitivity": float(k) if np.isfinite(k) else None, "weakly_identifiable": bool(ls.weak[c])}
+
+
+def kind_scale(true: np.ndarray) -> np.ndarray:
+    """(10,) the largest value of each parameter's kind in one body (m; m c, at least m r_g with
+    r_g = sqrt(max I / m) the radius of gyration, since a centre of mass on the joint point has
+    m c = 0 and its own largest value is round-off; I_O)."""
+    out = np.zeros(10)
+    for g in GROUPS:
+        out[list(g)] = np.max(np.abs(true[list(g)]))
+    out[1:4] = max(out[1], np.sqrt(true[0] * out[4]))
+    return out
+
+
 def full_identification_section(full) -> dict:
     """All 10 parameters per body. Errors relative to the largest true value of the same kind (m;
     m c, at least m times the radius of gyration; I_O) in that body: a product of inertia or a
@@ -143,28 +169,28 @@ def full_identification_section(full) -> dict:
     rows = []
     for i, body in enumerate(full.bodies):
         ls, true = full.per_body[i], full.true[i]
-        kind_scale = np.zeros(10)
-        for g in GROUPS:
-            kind_scale[list(g)] = np.max(np.abs(true[list(g)]))
-        # first moments: at least m r_g, r_g = sqrt(max I / m) the radius of gyration (a centre of mass
-        # on the joint point has m c = 0, and its own largest value is round-off)
-        kind_scale[1:4] = max(kind_scale[1], np.sqrt(true[0] * kind_scale[4]))
+        scales = kind_scale(true)
         for c, name in enumerate(FULL_PARAMETERS):
             ok = bool(ls.identifiable[c])
-            scale = kind_scale[c]
+            scale = scales[c]
             rows.append({"body": body, "name": name, "true": float(true[c]),
                          "identified": float(ls.x[c]) if ok else None,
                          "rel_error": float((ls.x[c] - true[c]) / scale) if ok and scale > 0 else None,
-                         "std": float(ls.std[c]) if ok else None, "identifiable": ok, "reason": ls.reasons[c]})
-    rel = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None]
+                         "std": finite_or_null(ls.std[c]) if ok else None, "identifiable": ok, "reason": ls.reasons[c],
+                         **_weakness(ls, c)})
+    rel = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and not r["weakly_identifiable"]]
+    weak = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and r["weakly_identifiable"]]
     return {
         "method": "10 inertial parameters per body at its inner joint point, in its joint frame "
                   "(harness/papers/graph_theory_2021/full.py); true values: Pinocchio's dynamic parameters",
         "rel_error_definition": "(identified - true) / largest true value of the same kind in the body "
                                 "(m; m c, at least m r_g with r_g the radius of gyration; I_O)",
         "parameters": rows,
+        "weak_definition": WEAK_DEFINITION,
         "max_abs_rel_error": max(rel) if rel else None,
         "not_identifiable": [f"{r['body']}.{r['name']}" for r in rows if not r["identifiable"]],
+        "weakly_identifiable": [f"{r['body']}.{r['name']}" for r in rows if r["weakly_identifiable"]],
+        "max_abs_rel_error_weak": max(weak) if weak else None,
     }
 
 
@@ -184,15 +210,17 @@ def identification_section(ident: Identification, paper_identified: str | None, 
                 "identified": float(x) if ok else None,
                 "abs_error": float(x - true) if ok else None,
                 "rel_error": float((x - true) / scale[i, c]) if ok else None,
-                "std": float(ls.std[c]) if ok else None,
-                "rel_std_percent": float(100 * ls.std[c] / abs(x)) if ok and x != 0 else None,
-                "ci95": [float(ls.ci_low[c]), float(ls.ci_high[c])] if ok else None,
+                "std": finite_or_null(ls.std[c]) if ok else None,
+                "rel_std_percent": finite_or_null(100 * ls.std[c] / abs(x)) if ok and x != 0 else None,
+                "ci95": [finite_or_null(ls.ci_low[c]), finite_or_null(ls.ci_high[c])] if ok else None,
                 "true_in_ci95": bool(ls.ci_low[c] <= true <= ls.ci_high[c]) if ok else None,
-                "identifiable": ok, "reason": ls.reasons[c],
+                "identifiable": ok, "reason": ls.reasons[c], **_weakness(ls, c),
                 "paper_identified": paper.get((body, name)),
                 "paper_abs_error": paper_err.get((body, name)),
             })
     identified = [r for r in rows if r["identifiable"]]
+    strong = [r for r in identified if not r["weakly_identifiable"]]
+    weak = [r for r in identified if r["weakly_identifiable"]]
     sys = ident.system
     per_body_x = np.concatenate([ls.x for ls in ident.per_body])
     both = sys.identifiable & np.concatenate([ls.identifiable for ls in ident.per_body])
@@ -211,8 +239,11 @@ def identification_section(ident: Identification, paper_identified: str | None, 
         "excitation": "a parameter is identifiable when its regressor column is at least 10 times "
                       "what measurement error alone produces, and its column is not collinear "
                       "with others (harness/identify.py)",
-        "max_abs_rel_error": max((abs(r["rel_error"]) for r in identified), default=None),
+        "weak_definition": WEAK_DEFINITION,
+        "max_abs_rel_error": max((abs(r["rel_error"]) for r in strong), default=None),
         "not_identifiable": [f"{r['body']}.{r['name']}" for r in rows if not r["identifiable"]],
+        "weakly_identifiable": [f"{r['body']}.{r['name']}" for r in weak],
+        "max_abs_rel_error_weak": max((abs(r["rel_error"]) for r in weak), default=None),
         "not_identifiable_count": sum(not r["identifiable"] for r in rows),
         "coverage_ci95": (sum(r["true_in_ci95"] for r in identified) / len(identified)) if identified else None,
         "max_error_in_std": max((abs(r["abs_error"]) / r["std"] for r in identified if r["std"]), default=None),
@@ -232,10 +263,6 @@ def identification_section(ident: Identification, paper_identified: str | None, 
     }
 
 
-def _finite(x: float) -> float | None:
-    return float(x) if np.isfinite(x) else None
-
-
 def lagrange_section(lg: LagrangeOutput, paper_lambda: str | None, spec: RobotSpec, model: GraphModel,
                      rec: Recording) -> dict:
     forms = {}
@@ -249,12 +276,12 @@ def lagrange_section(lg: LagrangeOutput, paper_lambda: str | None, spec: RobotSp
             "max_abs_phi_dot_on_recording": f.max_abs_phi_dot,
             "rank_Phi_q_min": int(sol.rank_Phi_q.min()),
             "rank_Phi_q_max": int(sol.rank_Phi_q.max()),
-            "cond_Phi_q": [_finite(c) for c in sol.cond_Phi_q],
-            "cond_system": [_finite(c) for c in sol.cond_system],
+            "cond_Phi_q": [finite_or_null(c) for c in sol.cond_Phi_q],
+            "cond_system": [finite_or_null(c) for c in sol.cond_system],
             "axis_rows_rank_deficient": f.axis_rank_deficient,
             "rows_solved": int(ev.sum()),
-            "acceleration_check_max_rel_error": _finite(np.max(sol.acceleration_error[ev], initial=-np.inf)),
-            "reaction_check_max_rel_error": _finite(np.max(sol.reaction_error[ev], initial=-np.inf)),
+            "acceleration_check_max_rel_error": finite_or_null(np.max(sol.acceleration_error[ev], initial=-np.inf)),
+            "reaction_check_max_rel_error": finite_or_null(np.max(sol.reaction_error[ev], initial=-np.inf)),
         }
     normal = lg.formulations["normal"].solution
     section = {

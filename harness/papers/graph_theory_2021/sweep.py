@@ -37,7 +37,7 @@ def _trial(args: tuple[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     seed, level = args
     sc = _STATE["scenario"]
     m: Measurement = sc.measurement.scaled(level).with_seed(seed)
-    measured = measure(_STATE["recording"], m)
+    measured = measure(_STATE["recording"], m, sc.robot.inner_joint_arms_B())
     ident = identify(_STATE["model"], measured, measured_rows(measured, sc.sample_times), m, _STATE["truth"],
                      with_system=False)
     x = np.stack([ls.x for ls in ident.per_body])

@@ -71,7 +71,7 @@ def build_topology(spec: RobotSpec) -> Topology:
         for i, sign in ends:
             body = spec.body(bodies[i])
             S[i, k] = sign
-            c_B[i, k] = body.R_WB0.T @ (joint.p_W0 - body.p_W_com0)
+            c_B[i, k] = body.arm_B(joint.p_W0)
             if sign > 0 and not joint.revolute:
                 slide_B[i, k] = body.R_WB0.T @ joint.axis_W0
     return Topology(bodies, joints, S, c_B, slide_B)
