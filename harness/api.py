@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.recording import Recording
-from harness.scenario import Scenario
+from harness.scenario import DataScenario, Scenario
 from harness.scenario import load_scenario as _load_scenario
 from harness.spec import RobotSpec, load_spec
 
@@ -51,7 +51,7 @@ class Result:
         return tuple(g for g in self.gates if not g.passed)
 
 
-def load_scenario(path: str | Path) -> Scenario:
+def load_scenario(path: str | Path) -> Scenario | DataScenario:
     return _load_scenario(Path(path))
 
 
@@ -66,7 +66,7 @@ def run(scenario: str | Path | Scenario, progress=None) -> Result:
     from harness.pipeline import run as run_pipeline
     from harness.results import build_results
 
-    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    sc = scenario if isinstance(scenario, Scenario | DataScenario) else load_scenario(scenario)
     out = run_pipeline(sc, progress) if progress is not None else run_pipeline(sc)
     results = verdict(sc.gates, build_results(out), sc.source)
     rows = tuple(GateRow(**r) for r in results["gates"])

@@ -141,9 +141,11 @@ def _write_atomically(out: Path, files: dict[str, Callable[[Path], object]]) -> 
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         for name, write in files.items():
+            (tmp / name).parent.mkdir(parents=True, exist_ok=True)
             write(tmp / name)
         out.mkdir(exist_ok=True)
         for name in files:
+            (out / name).parent.mkdir(parents=True, exist_ok=True)
             (tmp / name).replace(out / name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -197,10 +199,12 @@ def cmd_run(args: argparse.Namespace) -> int:
         imported = 0.0
         page = render(results, result.recording, [s.stage for s in result.output.stages.values()])
         try:
+            data_file = results["data"]["file"] if "data" in results else RECORDING_FILE
             _write_atomically(out, {
-                RECORDING_FILE: result.recording.write_csv,
+                data_file: result.recording.write_csv,
                 RESULTS_FILE: lambda p, r=results: write_results(p, r),
                 REPORT_FILE: lambda p, text=page: p.write_text(text),
+                **{name: (lambda p, text=text: p.write_text(text)) for name, text in result.output.files.items()},
             })
         except OSError as exc:
             raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
@@ -242,7 +246,7 @@ def _read_results(path: Path) -> dict:
     schema = results.get("schema") if isinstance(results, dict) else None
     if not isinstance(schema, dict) or schema.get("name") != "harness-results":
         raise InputError(path, "schema", "not a results.json written by harness")
-    for key in ("scenario", "recording", "run"):
+    for key in ("scenario", "data" if "data" in results else "recording", "run"):
         if not isinstance(results.get(key), dict):
             raise InputError(path, key, "missing or not an object: not a complete results.json")
     return results
@@ -252,18 +256,19 @@ def cmd_report(args: argparse.Namespace) -> int:
     from harness.report import write_report
 
     results = _read_results(args.results)
-    rec_name = results.get("recording", {}).get("file", "recording.csv") if isinstance(results.get("recording"),
-                                                                                        dict) else None
+    kind = "data" if "data" in results else "recording"  # a measured log, or the bench's recording
+    rec_name = results[kind].get("file", "recording.csv")
     if not isinstance(rec_name, str) or Path(rec_name).name != rec_name:
-        raise InputError(args.results, "recording.file", "must name a file beside results.json")
+        raise InputError(args.results, f"{kind}.file", "must name a file beside results.json")
     recording = args.results.parent / rec_name
     if not recording.is_file():
-        raise InputError(recording, "", "file not found (the report needs the recording beside results.json)")
+        raise InputError(recording, "", f"file not found (the report needs the {kind} beside results.json)")
     out = args.out or args.results.parent / REPORT_FILE
+    from harness.log import read_log_csv
     from harness.recording import read_csv
 
-    rec = read_csv(recording)
-    stated = results["recording"]
+    rec = read_log_csv(recording) if kind == "data" else read_csv(recording)
+    stated = results[kind]
     if len(rec.t) != stated.get("rows") or list(rec.joints) != stated.get("joints"):
         raise InputError(recording, "", f"has {len(rec.t)} rows of joints {list(rec.joints)}; results.json "
                                         f"says {stated.get('rows')} rows of {stated.get('joints')}")

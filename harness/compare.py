@@ -64,3 +64,17 @@ def largest(values: np.ndarray, where: np.ndarray | None = None) -> float | None
         values = values[np.broadcast_to(where, values.shape)]
     values = values[~np.isnan(values)]
     return float(values.max()) if values.size else None
+
+
+def torque_errors(pred: np.ndarray, tau: np.ndarray, joints: list[str]) -> dict:
+    """Predicted against measured torques of a log, (N, n) each: ||e||_F / ||tau||_F over every
+    sample and joint (the figure published identifications quote), the RMS error, and per joint the
+    same. A log has no truth to take a joint's load from, so the measured torque is the scale."""
+    e = pred - tau
+    return {
+        "rel_error": float(np.linalg.norm(e) / np.linalg.norm(tau)),
+        "rms_error": float(np.sqrt(np.mean(e**2))),
+        "per_joint": {j: {"rms_error": float(np.sqrt(np.mean(e[:, k] ** 2))),
+                          "rel_error": float(np.linalg.norm(e[:, k]) / np.linalg.norm(tau[:, k]))}
+                      for k, j in enumerate(joints)},
+    }

@@ -32,7 +32,8 @@ and an error of the data that the residual cannot show (a bias common to every s
 engines' round-off, 1e-13) then moves it by much more than its standard deviation. Its sensitivity
 kappa_k = ||row k of (W^1/2 K)^+|| ||W^1/2 L|| / scale_k is the relative change of the parameter per
 relative change of the data in the worst direction (scale_k: the parameter's magnitude in the
-model's own values). A parameter whose kappa is more than WEAK_RATIO times the median kappa is
+model's own values; the joint-torque paths take the estimate's where the model has it zero). A
+parameter whose kappa is more than WEAK_RATIO times the median kappa is
 reported as weakly identifiable (the essential-parameter criterion of Pham and Gautier, 1991, on
 sensitivities instead of standard deviations, so that no noise model is assumed): its error is
 kappa_k times the data's relative error, a thousand times the typical parameter's. so100's first

@@ -18,7 +18,7 @@ from harness.excitation import optimise as optimise_excitation
 from harness.measurement import measure
 from harness.plugins import Stage
 from harness.recording import Recording
-from harness.scenario import Scenario
+from harness.scenario import DataScenario, Scenario
 from harness.stages import Context, Progress, core_stages
 
 
@@ -38,6 +38,15 @@ class RunOutput:
     stages: dict[str, StageOutput]  # by results.json key, in the order they ran
     excitation: dict | None = None
     timings: dict | None = None  # seconds per stage
+
+    @property
+    def files(self) -> dict[str, str]:
+        """The files the stages add to the output folder, {relative path: text}."""
+        out: dict[str, str] = {}
+        for s in self.stages.values():
+            if s.stage.files is not None:
+                out.update(s.stage.files(s.result))
+        return out
 
     def __getitem__(self, key: str) -> Any:
         """The typed result of the stage that writes `key` (KeyError: it did not run)."""
@@ -80,9 +89,35 @@ def stages_of(scenario: Scenario) -> Iterator[tuple[Stage, Any]]:
             yield stage, config
 
 
-def run(scenario: Scenario, progress: Progress = _quiet) -> RunOutput:
+def run_data(scenario: DataScenario, progress: Progress = _quiet) -> RunOutput:
+    """A measured log (harness/log.py): read and condition it, then the log's stages."""
+    from harness.log import load
+    from harness.stages import log_identification
+
+    timed = _Timed(progress)
+    timed("reading and conditioning the log", None)
+    full, train, validation = load(scenario.data, scenario.robot)
+    ctx = Context(scenario, full, train, timed)
+    ctx.cache["validation log"] = validation
+    outputs: dict[str, StageOutput] = {}
+    for stage in (log_identification.STAGE,):
+        timed(stage.progress, None)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            result = stage.run(ctx, None)
+        if result is None:
+            timed.drop(stage.progress)
+            continue
+        outputs[stage.key] = StageOutput(stage, None, result)
+        ctx.done[stage.key] = result
+    timed.close()
+    return RunOutput(scenario, full, train, ctx, outputs, None, timed.timings)
+
+
+def run(scenario: Scenario | DataScenario, progress: Progress = _quiet) -> RunOutput:
     """The engines are built from the scenario's robot (the truth); each model under test and each
     identification method from what the scenario names, and judged against them."""
+    if isinstance(scenario, DataScenario):
+        return run_data(scenario, progress)
     timed = _Timed(progress)
     excitation = None
     if scenario.excitation is not None:

@@ -189,7 +189,8 @@ class Stage:
     """One step of a run. `run(context, config)` returns a typed result, or None when the stage has
     nothing to do for this scenario; `serialise(result, context, config)` turns it into its part of
     results.json, under `key`. `render(results, recording)` draws that part of the report, titled
-    `title` in the report's navigation. `context` is a harness.stages.Context."""
+    `title` in the report's navigation. `files(result)`, when given, returns files to write into the
+output folder ({relative path: text}, e.g. an exported model). `context` is a harness.stages.Context."""
 
     key: str
     progress: str
@@ -197,6 +198,7 @@ class Stage:
     serialise: Callable[[Any, Any, Any], dict]
     title: str = ""
     render: Callable[[dict, Any], str] | None = None
+    files: Callable[[Any], dict[str, str]] | None = None  # files it adds beside results.json: {path: text}
 
 
 @dataclass(frozen=True, eq=False)

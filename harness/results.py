@@ -66,6 +66,19 @@ def scenario_section(s: Scenario) -> dict:
     }
 
 
+def data_scenario_section(s) -> dict:
+    return {"name": s.name, "file": str(s.source), "description": s.description, "model_file": str(s.robot.source),
+            "gravity": floats(s.gravity_W), "data": s.data.describe()}
+
+
+def data_section(log) -> dict:
+    """The measured log and every step of its conditioning (harness/log.py)."""
+    from harness.log import LOG_FILE
+
+    return {"file": LOG_FILE, "rows": len(log.t), "joints": list(log.joints), "t_start": float(log.t[0]),
+            "t_end": float(log.t[-1]), "conditioning": log.conditioning}
+
+
 def model_section(spec: RobotSpec) -> dict:
     bodies = []
     for b in spec.bodies:
@@ -77,7 +90,8 @@ def model_section(spec: RobotSpec) -> dict:
         row.update(com=floats(b.p_W_com0), e1=floats(b.R_WB0[:, 0]), e2=floats(b.R_WB0[:, 1]))
         bodies.append(row)
     joints = [{"name": j.name, "type": j.type, "parent": j.parent, "child": j.child,
-               "point": floats(j.p_W0), "axis": floats(j.axis_W0)} for j in spec.joints]
+               "point": floats(j.p_W0), "axis": floats(j.axis_W0),
+               **({"friction": j.friction.as_dict()} if not j.friction.none else {})} for j in spec.joints]
     return {"name": spec.name, "file": str(spec.source), "description": spec.description,
             "bodies": bodies, "joints": joints}
 
@@ -139,12 +153,15 @@ def build_results(out: RunOutput, when: str | None = None) -> dict:
     """results.json without the verdict (harness.gates.verdict adds it). `when` (ISO time) defaults
     to now; it and `run.timings` are the only fields that differ between two runs of a scenario."""
     when = when or datetime.now(UTC).isoformat(timespec="seconds")
+    from harness.scenario import DataScenario
+
+    data = isinstance(out.scenario, DataScenario)
     results = {
         "schema": SCHEMA,
         "run": run_section(out, when),
-        "scenario": scenario_section(out.scenario),
+        "scenario": data_scenario_section(out.scenario) if data else scenario_section(out.scenario),
         "model": model_section(out.scenario.robot),
-        "recording": recording_section(out.recording),
+        **({"data": data_section(out.recording)} if data else {"recording": recording_section(out.recording)}),
     }
     with np.errstate(invalid="ignore", divide="ignore"):  # NaN becomes null below, and is listed
         for key, s in out.stages.items():

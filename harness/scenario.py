@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from harness.gates import Gate, read_gates
+from harness.log import DataSource, check_columns, read_source
 from harness.measurement import Measurement, read_measurement
 from harness.motion import Motion, read_motion
 from harness.plugins import (
@@ -90,6 +91,7 @@ class Scenario:
     gates: tuple[Gate, ...] = ()
     text: str = ""  # the scenario file as read, for the report
     torque_validation: Scenario | None = None  # joint-torque identification, validated on this scenario
+    torque_friction: bool = False  # ... with each joint's rotor inertia, viscous, Coulomb friction and offset
     excitation: dict | None = None  # Fourier-series excitation to optimise (harness/excitation.py)
     models: tuple[PluginEntry, ...] = ()  # models under test
     methods: tuple[PluginEntry, ...] = ()  # identification methods under test
@@ -149,7 +151,7 @@ def load_variant(t: Table, key: str, scenario: Scenario) -> RobotSpec:
     return variant
 
 
-def load_scenario(path: Path | str) -> Scenario:
+def load_scenario(path: Path | str) -> Scenario | DataScenario:
     """Load and validate a scenario, its model and its plugins; raises `InputError` naming the
     file and key (a plugin that cannot be imported or built is named in the message)."""
     path = Path(path)
@@ -160,8 +162,49 @@ def load_scenario(path: Path | str) -> Scenario:
         _LOADING.pop()
 
 
-def _load(path: Path) -> Scenario:
+@dataclass(frozen=True, eq=False)
+class DataScenario:
+    """A scenario whose data come from a measured log (`[data]`, harness/log.py) instead of the bench."""
+
+    name: str
+    description: str
+    source: Path
+    robot: RobotSpec
+    gravity_W: np.ndarray
+    data: DataSource
+    gates: tuple[Gate, ...]
+    text: str = ""
+    models: tuple[PluginEntry, ...] = ()  # never filled: a log is judged by identification
+    methods: tuple[PluginEntry, ...] = ()
+    studies: tuple[tuple[Study, Any], ...] = ()
+
+
+def _load_data(root: Table, path: Path) -> DataScenario:
+    s = root.table("scenario")
+    description = s.string("description", default="")
+    model_rel = s.string("model")
+    gravity = s.vector("gravity", default=[0.0, 0.0, -9.80665])
+    gate_files = [_relative_file(s, "gate_sets", rel, path)
+                  for rel in (s.strings("gate_sets", choices=None) if s.has("gate_sets") else ())]
+    s.finish()
+    robot = load_spec(_relative_file(s, "model", model_rel, path))
+    dt = root.table("data")
+    source = read_source(dt, path)
+    check_columns(source, robot, dt)
+    gates = _read_all_gates(root, gate_files)
+    for table in ("motion", "simulation", "measurement", "model_under_test", "identification", "studies",
+                  "torque_identification", "excitation"):
+        if root.has(table):
+            raise root.error(table, "a scenario with [data] is judged on its log: it has no simulated motion, "
+                                    "measurement, studies or other identification")
+    root.finish()
+    return DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, path.read_text())
+
+
+def _load(path: Path) -> Scenario | DataScenario:
     root = Table(read_toml(path), path)
+    if root.has("data"):
+        return _load_data(root, path)
     s = root.table("scenario")
     description = s.string("description", default="")
     model_rel = s.string("model")
@@ -188,12 +231,14 @@ def _load(path: Path) -> Scenario:
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))
     gates = _read_all_gates(root, gate_files)
-    torque_validation = None
+    torque_validation, torque_friction = None, False
     if root.has("torque_identification"):
         ti = root.table("torque_identification")
         torque_validation = load_related(ti, "validation", path)
         if torque_validation.robot.joint_names != robot.joint_names:
             raise ti.error("validation", f"{ti.data['validation']!r} simulates another robot than {robot.name!r}")
+        # default: identify the joints' friction and rotor inertia where the model declares any
+        torque_friction = ti.boolean("friction", default=not all(f.none for f in robot.frictions))
         ti.finish()
     excitation = None
     if root.has("excitation"):
@@ -252,7 +297,7 @@ def _load(path: Path) -> Scenario:
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                         np.asarray(sample_times), motion, simulation, measurement, gates, path.read_text(),
-                        torque_validation, excitation)
+                        torque_validation, torque_friction, excitation)
     models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
                    for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
     methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)

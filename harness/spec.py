@@ -19,11 +19,13 @@ middle; a point link sits at the origin of frame i.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from harness.friction import FRICTION_KEYS, NO_FRICTION, JointFriction
 from harness.tomlio import InputError, Table, read_toml
 
 WORLD = "world"
@@ -88,6 +90,7 @@ class Joint:
     child: str
     p_W0: np.ndarray  # (3,) joint point at the initial pose
     axis_W0: np.ndarray  # (3,) unit axis at the initial pose
+    friction: JointFriction = NO_FRICTION  # rotor inertia and friction of its drive (harness/friction.py)
 
     @property
     def revolute(self) -> bool:
@@ -105,6 +108,8 @@ class RobotSpec:
     joints: tuple[Joint, ...]
     dh: tuple[tuple[float, float, float, float], ...] | None = None  # (alpha, a, d, theta) when given
     limits: dict[str, tuple[float, float]] | None = None  # joint position limits, when the source has them
+    urdf: Path | None = None  # the URDF it was read from, if any
+    urdf_fixed: tuple[str, ...] = ()  # joints of that URDF taken as fixed
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -120,6 +125,11 @@ class RobotSpec:
     def massive_bodies(self) -> tuple[Body, ...]:
         """The bodies that carry mass: the paper's B_1 .. B_n."""
         return tuple(b for b in self.bodies if not b.massless)
+
+    @property
+    def frictions(self) -> tuple[JointFriction, ...]:
+        """Each joint's friction and rotor inertia, in the spec's joint order."""
+        return tuple(j.friction for j in self.joints)
 
     def inner_joint(self, body: str) -> Joint:
         return next(j for j in self.joints if j.child == body)
@@ -163,7 +173,8 @@ def load_spec(path: Path | str) -> RobotSpec:
     name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
     model.finish()
-    dh = limits = None
+    dh = limits = urdf_path = None
+    fixed: tuple[str, ...] = ()
     if root.has("dh"):
         bodies, joints, body_tables, joint_tables, dh = _read_dh(root.table("dh"))
     elif root.has("urdf"):
@@ -189,8 +200,20 @@ def load_spec(path: Path | str) -> RobotSpec:
             urdf_path = path.parent / ut.string("file")
             if not urdf_path.is_file():
                 raise ut.error("file", f"URDF file {urdf_path} not found")
+        fixed = ut.strings("fixed", choices=None) if ut.has("fixed") else ()
         ut.finish()
-        bodies, joints, limits = read_urdf(urdf_path, ut)
+        bodies, joints, limits = read_urdf(urdf_path, ut, fixed)
+        if root.has("joints"):  # [joints.<name>]: friction and rotor inertia beyond the URDF's <dynamics>
+            jt = root.table("joints")
+            by_name = {j.name: j for j in joints}
+            for jname in list(jt.data):
+                if jname not in by_name:
+                    raise jt.error(jname, f"no joint {jname!r} in the URDF (joints: {', '.join(by_name)})")
+                t = jt.table(jname)
+                by_name[jname] = dataclasses.replace(by_name[jname], friction=read_friction(t, by_name[jname].friction))
+                t.finish()
+            jt.finish()
+            joints = [by_name[j.name] for j in joints]
         body_tables = [Table({"name": b.name}, path, f"urdf.{b.name}") for b in bodies]
         joint_tables = [Table({"name": j.name}, path, f"urdf.{j.name}") for j in joints]
     else:
@@ -205,7 +228,7 @@ def load_spec(path: Path | str) -> RobotSpec:
     bodies_by_name = {b.name: b for b in bodies}
     ordered_bodies = tuple(bodies_by_name[n] for n in order)
     ordered_joints = tuple(sorted(joints, key=lambda j: order.index(j.child)))
-    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh, limits)
+    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh, limits, urdf_path, fixed)
     _check_massless(spec, {t.data.get("name"): t for t in body_tables})
     return spec
 
@@ -311,8 +334,17 @@ def _read_joint(t: Table) -> Joint:
     child = t.string("child")
     point = t.vector("point")
     axis = t.vector("axis", nonzero=True)
+    friction = read_friction(t)
     t.finish()
-    return Joint(name, jtype, parent, child, point, axis / np.linalg.norm(axis))
+    return Joint(name, jtype, parent, child, point, axis / np.linalg.norm(axis), friction)
+
+
+def read_friction(t: Table, base: JointFriction = NO_FRICTION) -> JointFriction:
+    """The optional keys armature, viscous, coulomb, offset (any sign: a bias), coulomb_velocity of
+    a joint's table; keys not given keep `base` (a URDF's <dynamics>)."""
+    values = {k: t.number(k, default=getattr(base, k), nonnegative=k != "offset") for k in FRICTION_KEYS
+              if t.has(k) or getattr(base, k)}
+    return JointFriction(**values)
 
 
 def _check_unique(names: list[str], tables: list[Table], kind: str) -> None:

@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import qr, solve_triangular
 
+from harness import friction
 from harness.engines.pinocchio import PinocchioModel
 from harness.identify import WEAK_RATIO, sandwich_std, sensitivity, weakly_identifiable
 from harness.results import finite_or_null
@@ -30,9 +31,11 @@ ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off:
 # independent.
 
 
-def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-    """(N * n, 10 n): the joint torque regressor of every sample, rows sample by sample in the
-    spec's joint order, columns joint by joint (the body each joint carries)."""
+def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+              with_friction: bool = False) -> np.ndarray:
+    """(N * n, 10 n [+ 4 n]): the joint torque regressor of every sample, rows sample by sample in
+    the spec's joint order, columns joint by joint (the body each joint carries); with friction,
+    then per joint the columns of [armature, viscous, coulomb, offset] (harness/friction.py)."""
     model = pm.model
     data = model.createData()
     n = len(pm.joint_ids)
@@ -43,11 +46,35 @@ def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
     for k in range(len(q)):
         Y = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])
         out[k] = Y[np.ix_(pm.q_index, cols)]
-    return out.reshape(len(q) * n, 10 * n)
+    if with_friction:
+        # joint j's four columns act on joint j's row only
+        F = friction.columns(pm.frictions, qd, qdd)  # (N, n, 4)
+        block = np.zeros((len(q), n, n, 4))
+        idx = np.arange(n)
+        block[:, idx, idx, :] = F
+        out = np.concatenate([out, block.reshape(len(q), n, 4 * n)], axis=2)
+    return out.reshape(len(q) * n, -1)
 
 
-def true_parameters(pm: PinocchioModel) -> np.ndarray:
-    return np.concatenate([pm.model.inertias[j].toDynamicParameters() for j in pm.joint_ids])
+def true_parameters(pm: PinocchioModel, with_friction: bool = False) -> np.ndarray:
+    inertial = np.concatenate([pm.model.inertias[j].toDynamicParameters() for j in pm.joint_ids])
+    return np.concatenate([inertial, friction.values(pm.frictions).ravel()]) if with_friction else inertial
+
+
+def kind_scale(true: np.ndarray) -> np.ndarray:
+    """(10,) the largest value of each parameter's kind in one body (m; m c, at least m r_g with
+    r_g = sqrt(max I / m) the radius of gyration, since a centre of mass on the joint point has
+    m c = 0 and its own largest value is round-off; I_O)."""
+    out = np.zeros(10)
+    for g in ((0,), (1, 2, 3), (4, 5, 6, 7, 8, 9)):  # m; m c; the inertia
+        out[list(g)] = np.max(np.abs(true[list(g)]))
+    out[1:4] = max(out[1], np.sqrt(true[0] * out[4]))
+    return out
+
+
+def parameter_names(joints: list[str], with_friction: bool = False) -> list[str]:
+    names = [f"{j}.{p}" for j in joints for p in PARAMETER_NAMES]
+    return names + ([f"{j}.{k}" for j in joints for k in friction.IDENTIFIED_KEYS] if with_friction else [])
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,12 +82,13 @@ class BaseParameters:
     independent: np.ndarray  # (r,) column indices of theta_1
     dependent: np.ndarray  # (p - r,) column indices of theta_2
     combination: np.ndarray  # (r, p - r): beta = theta_1 + combination theta_2
+    with_friction: bool = False  # theta holds each joint's [armature, viscous, coulomb, offset] too
 
     def of(self, theta: np.ndarray) -> np.ndarray:
         return theta[self.independent] + self.combination @ theta[self.dependent]
 
 
-def base_parameters(W: np.ndarray) -> BaseParameters:
+def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameters:
     norms = np.linalg.norm(W, axis=0)
     live = np.flatnonzero(norms > ZERO_COLUMN * norms.max())
     dead = np.flatnonzero(norms <= ZERO_COLUMN * norms.max())
@@ -73,13 +101,14 @@ def base_parameters(W: np.ndarray) -> BaseParameters:
     comb = comb * scale[P[r:]][None, :] / scale[P[:r]][:, None]
     # parameters whose column is zero enter no base parameter
     comb = np.concatenate([comb, np.zeros((r, len(dead)))], axis=1)
-    return BaseParameters(live[P[:r]], np.concatenate([live[P[r:]], dead]), comb)
+    return BaseParameters(live[P[:r]], np.concatenate([live[P[r:]], dead]), comb, with_friction)
 
 
 STRUCTURAL_STATES = 200  # random states for the structural base: 2 x 10 n rows and more for n <= 9 joints
 
 
-def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0) -> BaseParameters:
+def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0,
+                    with_friction: bool = False) -> BaseParameters:
     """The base parameters of the model's structure, chosen once: QR with column pivoting of the
     noise-free regressor at STRUCTURAL_STATES random states (q uniform within the joint limits, or
     +-pi, +-1 m; q', q'' standard normal), not of a measured trajectory, whose noise or poor
@@ -97,7 +126,7 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
             lo[k], hi[k] = default
     q = rng.uniform(lo, hi, (STRUCTURAL_STATES, n))
     qd, qdd = rng.standard_normal((2, STRUCTURAL_STATES, n))
-    return base_parameters(regressor(pm, q, qd, qdd))
+    return base_parameters(regressor(pm, q, qd, qdd, with_friction), with_friction)
 
 
 @dataclass(eq=False)
@@ -119,8 +148,8 @@ def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau
                           validation: tuple | None = None, base: BaseParameters | None = None
                           ) -> TorqueIdentification:
     """Least squares of the base parameters (default: the structural ones of `pm`) from joint torques."""
-    W = regressor(pm, q, qd, qdd)
     base = base or structural_base(pm)
+    W = regressor(pm, q, qd, qdd, base.with_friction)
     W1 = W[:, base.independent]
     s = np.linalg.norm(W1, axis=0)
     s = np.where(s > 0, s, 1.0)  # a column the trajectory never moves: undetermined, not a division by zero
@@ -129,16 +158,46 @@ def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau
     sv = np.linalg.svd(W1 / s, compute_uv=False)
     ones, sample = np.ones(len(L)), np.repeat(np.arange(len(q)), tau.shape[1])  # a sample's joints share noise
     std, half = sandwich_std(W1 / s, L - (W1 / s) @ z, ones, sample)
-    beta_model = base.of(true_parameters(pm))  # the model's own values: the magnitudes of the parameters
-    kappa = sensitivity(W1 / s, L) / (s * beta_scale(beta_model))
+    # the model's own values: the magnitudes of the parameters
+    beta_model = base.of(true_parameters(pm, base.with_friction))
+    # relative to the parameter's size in the model or, where the model has it zero (a friction
+    # the model does not declare), in the estimate
+    kappa = sensitivity(W1 / s, L) / (s * beta_scale(np.maximum(np.abs(beta_model), np.abs(z / s))))
     err = None
     if validation is not None:
         qv, qdv, qddv, tauv = validation
-        pred = (regressor(pm, qv, qdv, qddv)[:, base.independent] @ (z / s)).reshape(tauv.shape)
+        pred = (regressor(pm, qv, qdv, qddv, base.with_friction)[:, base.independent] @ (z / s)).reshape(tauv.shape)
         err = pred - tauv
-    names = [f"{j}.{p}" for j in joints for p in PARAMETER_NAMES]
+    names = parameter_names(joints, base.with_friction)
     return TorqueIdentification(names, base, beta_model, z / s, float(sv[0] / sv[-1]), std / s, half / s,
                                 kappa, weakly_identifiable(kappa), err)
+
+
+def friction_section(ti: TorqueIdentification) -> dict:
+    """Each joint's friction and rotor inertia: identified where it is a base parameter on its own,
+    else the base parameter it enters (a vertical first joint's armature adds to its link's I_zz)."""
+    alone = {ti.base.independent[k]: k for k in range(len(ti.beta))
+             if not np.any(np.abs(ti.base.combination[k]) > COEFFICIENT_FLOOR)}
+    joints: dict[str, dict] = {}
+    errors = []
+    for c, name in enumerate(ti.names):
+        joint, term = name.rsplit(".", 1)
+        if term not in friction.IDENTIFIED_KEYS:
+            continue
+        k = alone.get(c)
+        true = float(ti.beta_true[k]) if k is not None else None
+        if k is None:
+            entry = {"in": next((describe_base(ti, b) for b in range(len(ti.beta))
+                                 if ti.base.independent[b] == c or c in ti.base.dependent[
+                                     np.abs(ti.base.combination[b]) > COEFFICIENT_FLOOR]), None)}
+        else:
+            rel = abs(ti.beta[k] - ti.beta_true[k]) / max(abs(ti.beta_true[k]), BETA_FLOOR)
+            errors.append(rel)
+            entry = {"true": true, "identified": float(ti.beta[k]), "rel_error": float(rel)}
+        joints.setdefault(joint, {})[term] = entry
+    return {"definition": "per joint and term; rel_error = |identified - true| / max(|true|, 1e-6) where the term "
+                          "is a base parameter on its own, else `in` names the base parameter it enters",
+            "max_rel_error": max(errors, default=None), "joints": joints}
 
 
 BETA_FLOOR = 1e-6  # relative errors of base parameters near zero are taken against 1e-6 of the largest
@@ -149,11 +208,14 @@ def beta_scale(beta: np.ndarray) -> np.ndarray:
     return np.maximum(np.abs(beta), BETA_FLOOR * np.max(np.abs(beta), initial=0.0))
 
 
+COEFFICIENT_FLOOR = 1e-12  # coefficients of the base combinations below this are QR round-off
+
+
 def describe_base(ti: TorqueIdentification, k: int) -> str:
     """beta_k as a combination of the physical parameters."""
     terms = [ti.names[ti.base.independent[k]]]
     for c, j in zip(ti.base.combination[k], ti.base.dependent, strict=True):
-        if abs(c) > 1e-12:
+        if abs(c) > COEFFICIENT_FLOOR:
             terms.append(f"{c:+.6g} {ti.names[j]}")
     return " ".join(terms)
 
@@ -187,6 +249,7 @@ def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
                   "sensitivity": finite_or_null(ti.sensitivity[k]), "weakly_identifiable": bool(weak[k])}
                  for k in range(len(ti.beta))],
         "validation": None,
+        "friction": friction_section(ti) if ti.base.with_friction else None,
     }
     if ti.validation_error is not None:
         err = np.abs(ti.validation_error) / ti.validation_scale

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.friction import JointFriction
 from harness.spec import WORLD, Body, Joint
 from harness.tomlio import InputError, Table
 
@@ -140,8 +141,22 @@ def _structure(path: Path, root) -> tuple[dict, list, dict, dict]:
     return links, joints, parent_of, child_of
 
 
-def read_urdf(path: Path, table: Table) -> tuple[list[Body], list[Joint], dict]:
-    """Bodies and joints (world frame at q = 0) of a URDF, plus joint limits by name."""
+def _dynamics(joint) -> JointFriction:
+    """<dynamics damping friction>: viscous and Coulomb friction (a sharp sign, as URDF means it)."""
+    d = joint.find("dynamics")
+    if d is None:
+        return JointFriction()
+    where = f"joint {joint.get('name')!r} <dynamics>"
+    viscous, coulomb = (float(_numbers(d.get(k, "0"), f"{where} {k}", 1)[0]) for k in ("damping", "friction"))
+    for k, v in (("damping", viscous), ("friction", coulomb)):
+        if v < 0:
+            raise _Bad(f"{where}: {k} = {v:g} is negative")
+    return JointFriction(viscous=viscous, coulomb=coulomb)
+
+
+def read_urdf(path: Path, table: Table, fixed: tuple[str, ...] = ()) -> tuple[list[Body], list[Joint], dict]:
+    """Bodies and joints (world frame at q = 0) of a URDF, plus joint limits by name. The joints
+    named in `fixed` are taken as fixed at q = 0 (a gripper's fingers), their bodies merged."""
     try:
         root = ET.parse(path).getroot()
     except (OSError, ET.ParseError) as exc:
@@ -149,13 +164,16 @@ def read_urdf(path: Path, table: Table) -> tuple[list[Body], list[Joint], dict]:
     except RecursionError:
         raise InputError(path, "", "cannot read URDF (nested too deeply)") from None
     try:
-        return _read(path, root, table)
+        return _read(path, root, table, fixed)
     except _Bad as exc:
         raise table.error("urdf", f"{path}: {exc}") from None
 
 
-def _read(path: Path, root, table: Table) -> tuple[list[Body], list[Joint], dict]:
+def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[Body], list[Joint], dict]:
     links, joints, parent_of, child_of = _structure(path, root)
+    unknown = sorted(set(fixed) - {j.get("name") for j in joints})
+    if unknown:
+        raise _Bad(f"fixed: no joint {unknown[0]!r} in the URDF")
     children = set(child_of.values())
     roots = [n for n in links if n not in children]
     if len(roots) != 1:
@@ -206,7 +224,7 @@ def _read(path: Path, root, table: Table) -> tuple[list[Body], list[Joint], dict
     for name in order[1:]:
         j = joint_of[name]
         parent = parent_of[j.get("name")]
-        if j.get("type") == "fixed":
+        if j.get("type") == "fixed" or j.get("name") in fixed:
             owner[name] = owner[parent]
         elif j.get("type") in ("revolute", "continuous", "prismatic"):
             owner[name] = name
@@ -250,7 +268,8 @@ def _read(path: Path, root, table: Table) -> tuple[list[Body], list[Joint], dict
         if not np.linalg.norm(axis) > 0:
             raise _Bad(f"joint {j.get('name')!r}: axis is the zero vector")
         jtype = "prismatic" if j.get("type") == "prismatic" else "revolute"
-        spec_joints.append(Joint(j.get("name"), jtype, parent, child, p_c, axis / np.linalg.norm(axis)))
+        spec_joints.append(Joint(j.get("name"), jtype, parent, child, p_c, axis / np.linalg.norm(axis),
+                                 _dynamics(j)))
         lim = j.find("limit")
         if lim is not None and j.get("type") != "continuous":
             try:

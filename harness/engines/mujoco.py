@@ -7,7 +7,9 @@ mass), its joint placed before the child's own. Every joint gets a motor (gear 1
 point O_J on the outer body with force and torque sensors, and joint position, velocity and
 actuator-force sensors; every centre of mass gets a site with an accelerometer and gyro (site
 frame) and frame sensors (world frame: position, orientation, linear and angular velocity and
-acceleration). Contacts are disabled; no armature, damping or friction.
+acceleration). Contacts are disabled. A joint's rotor inertia is MuJoCo's `armature` and its viscous
+friction MuJoCo's `damping`; Coulomb friction and offset are applied at every evaluation of the
+dynamics as the generalised force of harness/friction.py.
 
 MuJoCo refuses a moving body with a zero principal moment of inertia, which the paper's thin rods
 (about their own axis) and point masses have. Such a moment is given MOMENT_FLOOR times the
@@ -32,6 +34,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from harness import friction
 from harness.cardano import angles_from_rotation, gimbal_flags
 from harness.quaternion import to_matrix
 from harness.recording import Recording
@@ -86,9 +89,15 @@ def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
                            pos=_fmt(R_WP.T @ (p_WB - p_WP)), quat=_fmt(_quat(R_WP.T @ R_WB)))
         elements[body.name], frames[body.name] = el, (R_WB, p_WB)
         for joint in chain:
+            # rotor inertia enters MuJoCo's mass matrix, viscous friction its passive force -f_v q';
+            # Coulomb friction and offset are applied by `simulate` (MuJoCo's frictionloss is a
+            # constraint solved with regularisation, not the smooth law of harness/friction.py)
+            f = joint.friction
+            extra = {"armature": repr(f.armature)} if f.armature else {}
+            extra |= {"damping": repr(f.viscous)} if f.viscous else {}
             ET.SubElement(el, "joint", name=joint.name,
                           type="hinge" if joint.revolute else "slide",
-                          pos=_fmt(body.arm_B(joint.p_W0)), axis=_fmt(R_WB.T @ joint.axis_W0))
+                          pos=_fmt(body.arm_B(joint.p_W0)), axis=_fmt(R_WB.T @ joint.axis_W0), **extra)
         ET.SubElement(el, "inertial", pos="0 0 0", mass=repr(body.mass),
                       diaginertia=_fmt(np.maximum(body.principal_inertia, floor)))
         if body.cylinder is not None:
@@ -163,17 +172,23 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     half = dt / 2.0
     q_d, qd_d, qdd_d = prescribed(np.arange(2 * n_steps + 2) * half)
     qacc_cmd, tau = np.zeros(model.nv), np.zeros(model.nv)
+    coulomb, offset, coulomb_velocity = (np.array([getattr(f, k) for f in spec.frictions])
+                                         for k in ("coulomb", "offset", "coulomb_velocity"))
+    with_coulomb = bool(np.any(coulomb) or np.any(offset))
     stages: list[np.ndarray] = []  # the drive torques of every evaluation inside mj_step
     capture = [False]
 
     def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        """Computed torque at the state being evaluated: tau = M q''_cmd + bias (Eq. of motion
-        with no passive or constraint forces), called by MuJoCo after the velocity stage."""
+        """Computed torque at the state being evaluated: tau = M q''_cmd + bias - passive - applied
+        (M with the rotor inertias, passive the viscous friction, applied the Coulomb friction and
+        offset set here from the joint velocities), called by MuJoCo after the velocity stage."""
         k = round(d.time / half)
         e, ed = q_d[k] - d.qpos[qadr], qd_d[k] - d.qvel[vadr]
         qacc_cmd[vadr] = qdd_d[k] + 2.0 * w * ed + w * w * e
         mujoco.mj_mulM(m, d, tau, qacc_cmd)
-        d.ctrl[act] = tau[vadr] + d.qfrc_bias[vadr]
+        if with_coulomb:
+            d.qfrc_applied[vadr] = -(coulomb * friction.coulomb_shape(d.qvel[vadr], coulomb_velocity) + offset)
+        d.ctrl[act] = tau[vadr] + d.qfrc_bias[vadr] - d.qfrc_passive[vadr] - d.qfrc_applied[vadr]
         if capture[0]:
             stages.append(d.ctrl[act].copy())
 

@@ -6,7 +6,9 @@ Every joint frame sits at its joint point with world-aligned axes at the initial
 axis is its world axis there. Each massive body is attached to its inner joint with its mass,
 its centre of mass relative to the joint point, and its inertia about the centre of mass rotated
 into the joint frame (R_WB0 I_B R_WB0^T). A massless carriage is a joint with no body. Gravity is
-the scenario's; no armature or damping (the spec has none).
+the scenario's. The joints' rotor inertia and friction (harness/friction.py) are added to RNEA's
+torques and the armature to CRBA's diagonal by that module's law, outside Pinocchio (its own
+armature would cover the rotor inertia only).
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from harness import friction
+from harness.friction import JointFriction
 from harness.recording import Recording
 from harness.spec import WORLD, RobotSpec
 
@@ -25,6 +29,7 @@ class PinocchioModel:
     model: pin.Model
     joint_ids: tuple[int, ...]  # Pinocchio joint index of each spec joint, spec order
     q_index: np.ndarray  # index into q (and v) of each spec joint
+    frictions: tuple[JointFriction, ...] = ()  # per spec joint
 
 
 def build_model(spec: RobotSpec, gravity_W: np.ndarray) -> PinocchioModel:
@@ -48,7 +53,7 @@ def build_model(spec: RobotSpec, gravity_W: np.ndarray) -> PinocchioModel:
     model.gravity.linear = np.asarray(gravity_W, dtype=float)
     joint_ids = tuple(ids[j.child] for j in spec.joints)
     q_index = np.array([model.joints[i].idx_q for i in joint_ids])
-    return PinocchioModel(model, joint_ids, q_index)
+    return PinocchioModel(model, joint_ids, q_index, spec.frictions)
 
 
 def _depth_first(spec: RobotSpec) -> list:
@@ -91,7 +96,9 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> 
             R = data.oMi[jid].rotation
             F[k, j] = R @ data.f[jid].linear
             M[k, j] = R @ data.f[jid].angular
-    return InverseDynamics(tau, F, M)
+    # the drives' friction and rotor inertia act between the bodies and their motors: in the
+    # torques, not in the wrenches the joints transmit
+    return InverseDynamics(tau + friction.torque(pm.frictions, qd, qdd), F, M)
 
 
 def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: Recording) -> InverseDynamics:
@@ -111,4 +118,4 @@ def crba(pm: PinocchioModel, q: np.ndarray) -> np.ndarray:
         M = pin.crba(model, data, full)
         M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
         out[k] = M[np.ix_(pm.q_index, pm.q_index)]
-    return out
+    return out + np.diag(friction.values(pm.frictions)[:, 0]) if pm.frictions else out

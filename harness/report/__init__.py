@@ -53,8 +53,12 @@ def render(results: dict, rec: Recording, stages: list | None = None) -> str:
 
 def _render(results: dict, rec: Recording, stages: list | None) -> str:
     name = results["scenario"]["name"]
-    parts = [sections.verdict(results), sections.model(results), sections.motion(results, rec)]
-    nav = [("verdict", "Verdict"), ("model", "Model"), ("motion", "Motion")]
+    if "data" in results:  # a measured log: its conditioning and signals in place of the motion
+        parts = [sections.verdict(results), sections.model(results), sections.data(results, rec)]
+        nav = [("verdict", "Verdict"), ("model", "Model"), ("data", "Measured log")]
+    else:
+        parts = [sections.verdict(results), sections.model(results), sections.motion(results, rec)]
+        nav = [("verdict", "Verdict"), ("model", "Model"), ("motion", "Motion")]
     if "excitation" in results:
         parts.append(sections.excitation(results))
         nav.append(("excitation", "Excitation"))
@@ -76,7 +80,12 @@ def _render(results: dict, rec: Recording, stages: list | None) -> str:
 
 def write_report(results: dict, results_dir: Path, out: Path | None = None) -> Path:
     """Render from a results.json's content and the recording.csv beside it."""
-    rec = read_csv(Path(results_dir) / results["recording"]["file"])
+    if "data" in results:
+        from harness.log import read_log_csv
+
+        rec = read_log_csv(Path(results_dir) / results["data"]["file"])
+    else:
+        rec = read_csv(Path(results_dir) / results["recording"]["file"])
     out = out or Path(results_dir) / "report.html"
     out.write_text(render(results, rec))
     return out

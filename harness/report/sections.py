@@ -128,6 +128,7 @@ def model(r: dict) -> str:
             esc(j["child"]),
             esc(np.round(j["point"], 6).tolist()),
             esc(np.round(j["axis"], 6).tolist()),
+            esc(", ".join(f"{k} {v:g}" for k, v in j["friction"].items() if v)) if j.get("friction") else "",
         ]
         for j in m["joints"]
     ]
@@ -144,7 +145,8 @@ def model(r: dict) -> str:
         + "<h3>Bodies (masses and principal moments of inertia about the centre of mass)</h3>"
         + table(["body", "shape", "l [m]", "R [m]", "rho [kg/m^3]", "m [kg]", "J11 [kg m^2]", "J22", "J33"], rows)
         + "<h3>Joints (world frame, initial pose)</h3>"
-        + table(["joint", "type", "inner body", "outer body", "point [m]", "axis"], joints),
+        + table(["joint", "type", "inner body", "outer body", "point [m]", "axis", "drive (friction, rotor)"],
+                joints),
     )
 
 
@@ -184,6 +186,77 @@ def motion(r: dict, rec: Recording) -> str:
     sc = r["scenario"]
     mot = table(["joint", "motion"], [[esc(j), esc(m["description"])] for j, m in sc["motion"].items()])
     return section("motion", "Motion", mot + "".join(figs) + "<h3>Tracking of the prescribed motion</h3>" + track)
+
+
+def data(r: dict, log) -> str:
+    """A measured log: where it came from, each conditioning step, and its signals."""
+    d = r["data"]
+    c = d["conditioning"]
+    src = r["scenario"]["data"]
+    steps = "".join(f"<li><b>{esc(step['step'])}</b>: "
+                    + esc(", ".join(f"{k.replace('_', ' ')} {num(v) if isinstance(v, float) else v}"
+                                    for k, v in step.items() if k != "step" and v not in ({}, None))) + "</li>"
+                    for step in c["steps"])
+    warnings = "".join(f'<p class="warn">{esc(w)}</p>' for w in c["warnings"])
+    val = c.get("validation")
+    split = (f"<p>Training: t &lt; {num(val['t_split'])} s ({val['training_samples']} samples); validation, never "
+             f"seen by the fit: the rest ({val['validation_samples']} samples).</p>") if val else ""
+    t = log.t
+    figs = [figure(plots.lines(t, {j: log.q[:, k] for k, j in enumerate(log.joints)}, "q [rad]", "Joint positions"),
+                   "Conditioned joint positions."),
+            figure(plots.lines(t, {j: log.tau[:, k] for k, j in enumerate(log.joints)}, "tau [N m]",
+                               "Measured joint torques"), "Conditioned (filtered) joint torques."),
+            figure(plots.lines(t, {j: log.qdd[:, k] for k, j in enumerate(log.joints)}, "q'' [rad/s^2]",
+                               "Joint accelerations"), "Accelerations by differences of the filtered velocities.")]
+    return section(
+        "data", "Measured log",
+        f"<p><code>{esc(src['file'])}</code>, sha256 <code>{esc(c['sha256'])}</code>; {d['rows']} conditioned "
+        f"samples from t = {num(d['t_start'])} s to {num(d['t_end'])} s.</p><ol>{steps}</ol>{warnings}{split}"
+        + "".join(figs))
+
+
+def log_identification(r: dict, log) -> str:
+    li = r["log_identification"]
+    models = list(li["validation_rel_error"])
+    span = li["series"]["span"]
+    headline = table(["model", f"{span}: ||tau_pred - tau|| / ||tau||"],
+                     [[esc(m), num(li["validation_rel_error"][m])] for m in models])
+    joints = list(li["errors"][span][models[0]]["per_joint"])
+    per_joint = table(["joint", *(f"{m}: RMS [N m] / relative" for m in models)],
+                      [[esc(j), *(f"{num(li['errors'][span][m]['per_joint'][j]['rms_error'])} / "
+                                  f"{num(li['errors'][span][m]['per_joint'][j]['rel_error'])}" for m in models)]
+                       for j in joints])
+    s = li["series"]
+    t = np.array(s["t"])
+    panels = [(j, {"measured": np.array(s["measured"][j]), "consistent": np.array(s["consistent"][j]),
+                   "model as given": np.array(s["model as given"][j])}, None) for j in joints]
+    fig = figure(plots.grid(t, panels, "tau [N m]"),
+                 f"Measured torques against those the identified (physically consistent) model and the model as "
+                 f"given predict, along the {span} span.")
+    ls = li["least_squares"]
+    con = li["consistent"]
+    links = table(["link", "m [kg]", "principal moments about the centre of mass", "triangle slack",
+                   "min eig J", "consistent"],
+                  [[esc(k), num(v["mass"]), esc(", ".join(num(x) for x in v.get("principal_moments", []))),
+                    num(v.get("triangle_slack")), num(v["min_eig_pseudo_inertia"]),
+                    '<span class="ok">yes</span>' if v["consistent"] else '<span class="bad">no</span>']
+                   for k, v in con["links"].items()])
+    fric = table(["joint", "armature", "viscous", "coulomb", "offset", "coulomb_velocity"],
+                 [[esc(j), *(num(v[k]) for k in ("armature", "viscous", "coulomb", "offset", "coulomb_velocity"))]
+                  for j, v in con["friction"].items()])
+    base = table(["base parameter", "model", "identified", "std", "std [%]", "identifiable"],
+                 [[esc(b["expression"]), num(b["model"]), num(b["identified"]), num(b["std"]),
+                   num(b["rel_std_percent"]), identifiability(b)] for b in ls["base"]], "wrap")
+    costs = ", ".join(f"{k} {num(v)}" for k, v in li["consistent_costs"].items())
+    return section(
+        "log_identification", "Identification from the log",
+        f"<p>{esc(li['method'])}. Friction: {esc(li['friction_law'])}. Relative error: "
+        f"{esc(li['rel_error_definition'])}.</p>" + headline + fig + "<h3>Per joint</h3>" + per_joint
+        + f"<h3>Physically consistent parameters</h3><p>Solver: {esc(con['solver_status'])}; what consistency "
+        f"costs in relative torque error (consistent minus least squares): {esc(costs)}. Exported: "
+        f"{esc(', '.join(li['export']))}.</p>" + links + fric
+        + f"<h3>Least squares: {ls['base_parameters']} base parameters of {ls['parameters']}</h3>"
+        + f"<p>Condition number of the scaled base regressor {num(ls['condition_number'])}.</p>" + base)
 
 
 def torques(r: dict) -> str:
@@ -293,14 +366,18 @@ def how(r: dict) -> str:
     timings = run.get("timings") or {}
     stages = table(["stage", "seconds"], [[esc(k), f"{v:.2f}"] for k, v in timings.items()]) if timings else ""
     versions = table(["package", "version"], [[esc(k), esc(v)] for k, v in run["versions"].items()])
-    sim = r["scenario"]["simulation"]
+    if "data" in r:
+        source = "From the measured log of the section above, conditioned as stated there."
+    else:
+        sim = r["scenario"]["simulation"]
+        source = (f"MuJoCo {esc(r['recording']['engine_version'])}, integrator {esc(sim['integrator'])}, time step "
+                  f"{num(sim['timestep'])} s, computed-torque drive with bandwidth "
+                  f"{num(sim['tracking_bandwidth'])} rad/s.")
     return section(
         "how",
         "How the run was made",
         (
-            f"<p>Run at {esc(run['time'])} (UTC). MuJoCo {esc(r['recording']['engine_version'])}, integrator "
-            f"{esc(sim['integrator'])}, time step {num(sim['timestep'])} s, computed-torque drive with bandwidth "
-            f"{num(sim['tracking_bandwidth'])} rad/s. Scenario file <code>{esc(r['scenario']['file'])}</code>:</p>"
+            f"<p>Run at {esc(run['time'])} (UTC). {source} Scenario file <code>{esc(r['scenario']['file'])}</code>:</p>"
             f"<pre>{esc(run['scenario_text'])}</pre>"
             + (("<h3>Time spent in each stage</h3>" + stages) if stages else "")
             + versions

@@ -59,7 +59,8 @@ def run_builtin(ctx, config) -> TorqueIdentification | None:
     joints = sc.robot.joint_names
     val = validation_recording(ctx, sc.torque_validation)
     pm = build_model(sc.robot, sc.gravity_W)
-    base = ctx.once("structural base parameters", lambda: structural_base(pm, sc.robot.limits))
+    base = ctx.once(("structural base parameters", sc.torque_friction),
+                    lambda: structural_base(pm, sc.robot.limits, with_friction=sc.torque_friction))
     ti = identify_from_torques(pm, joints, *joint_data(ctx.measured, joints), joint_data(val, joints), base)
     ti.validation_scale = joint_load_scale(sc.robot, val)
     return ti
@@ -91,7 +92,7 @@ def _judge(ctx, entry) -> MethodResult:
     base_rel, base_count = None, 0
     if getattr(fitted, "parameters", None) is not None:
         pm = build_model(sc.robot, sc.gravity_W)
-        base = ctx.once("structural base parameters", lambda: structural_base(pm, sc.robot.limits))
+        base = ctx.once(("structural base parameters", False), lambda: structural_base(pm, sc.robot.limits))
         base_count = len(base.independent)
         _, fit_to_robot = column_maps(fitted.joint_names, joints)
         theta = check_array(plugin, "parameters", fitted.parameters, (len(joints), 10))[fit_to_robot].reshape(-1)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness import friction
 from harness.cardano import GIMBAL_COND_D, D, D_dot
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
 from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, skew
@@ -168,7 +169,9 @@ def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: Constrain
     phi, Phi_q, zeta = constraints.evaluate(state)
     phi_dot = np.where(ok[:, None], np.einsum("nmk,nk->nm", Phi_q, state.q_dot), np.nan)
     M = generalized_mass(model, s.theta)
-    tau = rec.tau[:, [rec.joint_index(j) for j in spec.joint_names]]
+    cols = [rec.joint_index(j) for j in spec.joint_names]
+    # the drives' friction and rotor inertia act between motor and joint: the bodies get the rest
+    tau = rec.tau[:, cols] - friction.torque(spec.frictions, rec.qd[:, cols], rec.qdd[:, cols])
     F_a, M_a = active_wrenches(spec, model, tau, s.A, state.r)
     Q = generalized_forces(model, s.theta, thd, s.A, F_a, M_a)
     K = kkt_matrix(M, Phi_q)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from harness import friction
 from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.inverse import GraphInverse, inverse_dynamics_of_motion
 from harness.spec import RobotSpec
@@ -26,7 +27,9 @@ class GraphTheoryModel:
         return inverse_dynamics_of_motion(self.spec, self.graph, q, qd, qdd)
 
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-        return self.solve(q, qd, qdd).tau
+        """The drive torques: the joint wrenches' components along the axes, plus the drives' own
+        rotor inertia and friction (harness/friction.py)."""
+        return self.solve(q, qd, qdd).tau + friction.torque(self.spec.frictions, qd, qdd)
 
     def joint_wrenches(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         out = self.solve(q, qd, qdd)

@@ -13,13 +13,14 @@ from harness.compare import largest
 from harness.identify import WEAK_RATIO, LeastSquares, solve, weakly_identifiable
 from harness.measurement import Measurement, dither
 from harness.papers.graph_theory_2021.dynamics import GraphModel, Residual, body_series
-from harness.papers.graph_theory_2021.full import FULL_PARAMETERS, GROUPS, full_form
+from harness.papers.graph_theory_2021.full import FULL_PARAMETERS, full_form
 from harness.papers.graph_theory_2021.identification import PARAMETERS, id_Y, id_Z, stack_per_body, stack_system
 from harness.papers.graph_theory_2021.lagrange import LagrangeOutput, reactions_at
 from harness.recording import Recording
 from harness.reference import reference_table
 from harness.results import finite_or_null, floats
 from harness.spec import RobotSpec
+from harness.torque_id import kind_scale
 
 PACKAGE = "harness.papers.graph_theory_2021"  # its reference tables are in its reference/ folder
 
@@ -147,17 +148,6 @@ WEAK_DEFINITION = (f"identifiable, but its sensitivity to the data (relative cha
 def _weakness(ls: LeastSquares, c: int) -> dict:
     k = ls.sensitivity[c]
     return {"sensitivity": float(k) if np.isfinite(k) else None, "weakly_identifiable": bool(ls.weak[c])}
-
-
-def kind_scale(true: np.ndarray) -> np.ndarray:
-    """(10,) the largest value of each parameter's kind in one body (m; m c, at least m r_g with
-    r_g = sqrt(max I / m) the radius of gyration, since a centre of mass on the joint point has
-    m c = 0 and its own largest value is round-off; I_O)."""
-    out = np.zeros(10)
-    for g in GROUPS:
-        out[list(g)] = np.max(np.abs(true[list(g)]))
-    out[1:4] = max(out[1], np.sqrt(true[0] * out[4]))
-    return out
 
 
 def full_identification_section(full) -> dict:

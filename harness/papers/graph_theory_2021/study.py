@@ -79,6 +79,9 @@ def configure(t: Table, scenario) -> Config:
         raise lt.error("time", f"{time:g} s is not an output step of the run (every {dt:g} s up to "
                                f"{scenario.duration:g} s)")
     settings = Settings(time, _table_name(lt, "paper_lambda"), lt.boolean("forward_simulation", default=False))
+    if settings.forward_simulation and not all(f.none for f in scenario.robot.frictions):
+        raise lt.error("forward_simulation", "the constrained model is integrated without the joints' friction and "
+                                             "rotor inertia, which this robot's model declares")
     lt.finish()
     return Config(tested, _table_name(t, "paper_identified"), _table_name(t, "paper_abs_error"), settings)
 

@@ -1,0 +1,347 @@
+"""A measured joint log as the source of a run, beside the MuJoCo bench.
+
+A scenario's `[data]` table names a CSV file and its columns, `{j}` standing for 1..n in the
+model's joint order:
+
+    [data]
+    file = "log.csv"                      # relative to the scenario file
+    columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }   # qd may be left out
+    cutoff = 10.0                         # Hz, zero-phase low-pass (default: none)
+    filter_order = 4                      # Butterworth order (applied forward and backward)
+    rate = 1000.0                         # Hz, the uniform grid (default: 1 / the median step)
+    decimate = 10                         # keep every 10th sample of the filtered grid (default 1)
+    trim = 0.3                            # s dropped at each end after filtering (default 3 / cutoff)
+    validation = { from = 0.7 }           # the last 30 % by time is kept for validation
+
+Conditioning, in this order, each step stated in results.json (`data.conditioning`):
+1. checks: every cell a finite number (else the file, the column and the row are named); time
+   strictly increasing once repeated rows are dropped; rows that repeat the previous row's
+   positions exactly (a logger's sample and hold) dropped and counted; gaps (steps over twice the
+   median), the clock's jitter, and positions beyond the model's joint limits counted and warned;
+2. resampling of q, q', tau to a uniform grid by linear interpolation of the kept rows;
+3. a zero-phase Butterworth low-pass (scipy.signal.sosfiltfilt) of q, q', tau;
+4. velocities (where the log has none) and accelerations by central differences of the filtered
+   signals (numpy.gradient, second order);
+5. `trim` seconds dropped at both ends (filter and difference transients), then decimation.
+The file's sha256 is recorded.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.signal import butter, sosfiltfilt
+
+from harness.spec import RobotSpec
+from harness.tomlio import InputError, Table
+
+LOG_FILE = "data.csv"  # the conditioned log, written beside results.json
+GAP_FACTOR = 2.0  # a step more than twice the median is a gap
+TRIM_PERIODS = 3.0  # default trim: three periods of the cut-off frequency
+MAX_FILTER_ORDER = 20
+
+
+@dataclass(frozen=True)
+class DataSource:
+    file: Path
+    columns: dict[str, str]  # "t", "q", "qd" (optional), "tau" -> column name or template with {j}
+    cutoff: float | None
+    filter_order: int
+    rate: float | None
+    decimate: int
+    trim: float | None
+    validation_from: float | None  # fraction of the duration where the validation span starts
+    validation_file: Path | None
+
+    def describe(self) -> dict:
+        return {"file": str(self.file), "columns": dict(self.columns), "cutoff_hz": self.cutoff,
+                "filter_order": self.filter_order, "rate_hz": self.rate, "decimate": self.decimate,
+                "trim_s": self.trim, "validation_from": self.validation_from,
+                "validation_file": str(self.validation_file) if self.validation_file else None}
+
+
+@dataclass(frozen=True, eq=False)
+class JointLog:
+    """Joint positions, velocities, accelerations and torques on a uniform grid, (N, n) each."""
+
+    t: np.ndarray
+    joints: tuple[str, ...]
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray
+    conditioning: dict = field(default_factory=dict)
+
+    def joint_index(self, name: str) -> int:
+        return self.joints.index(name)
+
+    def span(self, rows: np.ndarray | slice) -> JointLog:
+        return JointLog(self.t[rows], self.joints, self.q[rows], self.qd[rows], self.qdd[rows], self.tau[rows],
+                        self.conditioning)
+
+    def to_frame(self) -> pd.DataFrame:
+        cols: dict[str, np.ndarray] = {"t": self.t}
+        for j, name in enumerate(self.joints):
+            for k in ("q", "qd", "qdd", "tau"):
+                cols[f"{k}_{name}"] = getattr(self, k)[:, j]
+        return pd.DataFrame(cols)
+
+    def write_csv(self, path: Path) -> None:
+        self.to_frame().to_csv(path, index=False, float_format="%.17g")
+
+
+def read_log_csv(path: Path | str) -> JointLog:
+    """A conditioned log written by write_csv, read back (for `harness report`)."""
+    try:
+        df = pd.read_csv(path)
+    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        raise InputError(path, "", f"cannot read the conditioned log ({str(exc).splitlines()[0]})") from None
+    joints = tuple(c[2:] for c in df.columns if c.startswith("q_"))
+    need = ["t", *(f"{k}_{j}" for j in joints for k in ("q", "qd", "qdd", "tau"))]
+    bad = [c for c in need if c not in df.columns or not pd.api.types.is_numeric_dtype(df[c]) or df[c].isna().any()]
+    if bad:
+        raise InputError(path, bad[0], "missing, empty or not a number in some row")
+
+    def per_joint(k: str) -> np.ndarray:
+        return df[[f"{k}_{j}" for j in joints]].to_numpy()
+
+    return JointLog(df["t"].to_numpy(), joints, per_joint("q"), per_joint("qd"), per_joint("qdd"), per_joint("tau"))
+
+
+def read_source(t: Table, scenario_file: Path) -> DataSource:
+    """The `[data]` table, validated (the file must exist and be inside reach of the scenario)."""
+    file = _file(t, "file", scenario_file)
+    ct = t.table("columns")
+    columns = {k: ct.string(k) for k in ("t", "q", "qd", "tau") if k != "qd" or ct.has("qd")}
+    for k in ("q", "qd", "tau"):
+        if k in columns and "{j}" not in columns[k] and "{name}" not in columns[k]:
+            raise ct.error(k, f"a per-joint column needs {{j}} (1..n in the model's joint order) or {{name}} (the "
+                              f"joint's name), got {columns[k]!r}")
+    for k, v in columns.items():
+        try:
+            v.format(j=1, name="joint")
+        except (KeyError, IndexError, ValueError):
+            raise ct.error(k, f"{v!r}: only {{j}} and {{name}} may stand in braces") from None
+    ct.finish()
+    cutoff = t.number("cutoff", positive=True) if t.has("cutoff") else None
+    order = t.integer("filter_order", default=4, minimum=1)
+    if order > MAX_FILTER_ORDER:
+        raise t.error("filter_order", f"{order}: at most {MAX_FILTER_ORDER} (a steeper Butterworth rings longer "
+                                      "after every edge of the data without a useful gain in the band)")
+    rate = t.number("rate", positive=True) if t.has("rate") else None
+    decimate = t.integer("decimate", default=1, minimum=1)
+    trim = t.number("trim", nonnegative=True) if t.has("trim") else None
+    v_from = v_file = None
+    if t.has("validation"):
+        vt = t.table("validation")
+        if vt.has("from") == vt.has("file"):
+            raise vt.error("from", "give either from (a fraction of the log's duration) or file (another log)")
+        if vt.has("from"):
+            v_from = vt.number("from")
+            if not 0.0 < v_from < 1.0:
+                raise vt.error("from", f"{v_from:g} is outside the log: a fraction of its duration in (0, 1)")
+        else:
+            v_file = _file(vt, "file", scenario_file)
+        vt.finish()
+    t.finish()
+    return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file)
+
+
+def _file(t: Table, key: str, scenario_file: Path) -> Path:
+    path = (scenario_file.parent / t.string(key)).resolve()
+    if not path.is_file():
+        raise t.error(key, f"file {t.data[key]!r} not found (looked for {path})")
+    return path
+
+
+@dataclass(frozen=True, eq=False)
+class RawLog:
+    file: Path
+    sha256: str
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray | None
+    tau: np.ndarray
+    rows: int
+
+
+def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
+    """The log's column of each quantity and joint: {j} is 1..n in the model's joint order, {name}
+    the joint's name."""
+    return {k: [v] if k == "t" else [v.format(j=j + 1, name=name) for j, name in enumerate(robot.joint_names)]
+            for k, v in source.columns.items()}
+
+
+def _check_header(path: Path, header: list[str], source: DataSource, robot: RobotSpec) -> None:
+    for names in column_names(source, robot).values():
+        for name in names:
+            if name not in header:
+                raise InputError(path, name, f"column missing (the log has {', '.join(map(str, header[:12]))}"
+                                             f"{' ...' if len(header) > 12 else ''})")
+    n = len(robot.joints)
+    for k in ("q", "qd", "tau"):
+        if k in source.columns and "{j}" in source.columns[k]:
+            extra = source.columns[k].format(j=n + 1, name="")
+            if extra in header:
+                raise InputError(path, extra, f"the log has a column for joint {n + 1}; the model {robot.name!r} "
+                                              f"has {n} joints ({', '.join(robot.joint_names)})")
+
+
+def _read_frame(path: Path, nrows: int | None = None) -> pd.DataFrame:
+    try:
+        df = pd.read_csv(path, low_memory=False, nrows=nrows)
+    except (OSError, UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
+        raise InputError(path, "", f"not a CSV log ({str(exc).splitlines()[0]})") from None
+    if len(df.columns) < 2:
+        raise InputError(path, "", f"not a CSV log (one column, {str(df.columns[0])[:40]!r})")
+    return df
+
+
+def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
+    """At load, before any work: the log (and a validation log) has the columns the scenario names."""
+    for path in (source.file, source.validation_file):
+        if path is not None:
+            _check_header(path, list(_read_frame(path, nrows=0).columns), source, robot)
+
+
+def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> RawLog:
+    """The log's columns for the robot's joints; every refusal names the file and the column."""
+    path = file or source.file
+    df = _read_frame(path)
+    if df.empty:
+        raise InputError(path, "", "the log has no rows")
+    _check_header(path, list(df.columns), source, robot)
+
+    def column(name: str) -> np.ndarray:
+        x = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(x))
+        if len(bad):
+            raise InputError(path, name, f"row {bad[0] + 2} is {df[name].iloc[bad[0]]!r}, not a finite number "
+                                         f"({len(bad)} such rows)")
+        return x
+
+    names = column_names(source, robot)
+    t = column(names["t"][0])
+    q, tau = (np.column_stack([column(c) for c in names[k]]) for k in ("q", "tau"))
+    qd = np.column_stack([column(c) for c in names["qd"]]) if "qd" in names else None
+    digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return RawLog(Path(path), digest, t, q, qd, tau, len(t))
+
+
+def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> JointLog:
+    """Steps 1-5 of the module docstring."""
+    path, t = raw.file, raw.t
+    steps, warnings = [], []
+    # 1. checks
+    held = np.r_[False, np.all(raw.q[1:] == raw.q[:-1], axis=1)]
+    same_time = np.r_[False, t[1:] == t[:-1]]
+    drop = held | same_time
+    keep = ~drop
+    tk = t[keep]
+    backwards = np.flatnonzero(np.diff(tk) <= 0)
+    if len(backwards):
+        row = np.flatnonzero(keep)[backwards[0] + 1]
+        raise InputError(path, "t", f"time goes backwards at row {row + 2} ({t[row]:g} s after "
+                                    f"{tk[backwards[0]]:g} s): not a log in time order")
+    if len(tk) < 10:
+        raise InputError(path, "t", f"only {len(tk)} distinct samples")
+    dt = np.diff(tk)
+    median = float(np.median(dt))
+    gaps = dt > GAP_FACTOR * median
+    jitter = float(np.std(dt) / median)
+    steps.append({"step": "checks", "rows": raw.rows, "repeated_rows_dropped": int(held.sum()),
+                  "equal_times_dropped": int((same_time & ~held).sum()), "median_step_s": median,
+                  "min_step_s": float(dt.min()), "max_step_s": float(dt.max()), "jitter": jitter,
+                  "gaps": int(gaps.sum()), "gap_definition": f"a step over {GAP_FACTOR:g} x the median"})
+    if held.any():
+        warnings.append(f"{int(held.sum())} rows repeat the previous row's positions exactly (sample and hold): "
+                        "dropped")
+    if gaps.any():
+        warnings.append(f"{int(gaps.sum())} gaps in time (largest {dt.max():.3g} s, median step {median:.3g} s): "
+                        "bridged by interpolation")
+    beyond = {}
+    for j, name in enumerate(robot.joint_names):
+        lo, hi = (robot.limits or {}).get(name, (-np.inf, np.inf))
+        outside = int(np.sum((raw.q[keep, j] < lo) | (raw.q[keep, j] > hi)))
+        if outside:
+            beyond[name] = outside
+    if beyond:
+        warnings.append("positions beyond the model's joint limits: "
+                        + ", ".join(f"{k} {v} rows" for k, v in beyond.items()))
+    steps[0]["beyond_joint_limits"] = beyond
+    # 2. uniform grid
+    rate = source.rate or 1.0 / median
+    grid = tk[0] + np.arange(int(np.floor((tk[-1] - tk[0]) * rate)) + 1) / rate
+
+    def resample(x: np.ndarray) -> np.ndarray:
+        return np.column_stack([np.interp(grid, tk, x[keep, j]) for j in range(x.shape[1])])
+
+    q, tau = resample(raw.q), resample(raw.tau)
+    qd = resample(raw.qd) if raw.qd is not None else None
+    steps.append({"step": "resample", "rate_hz": rate, "method": "linear interpolation of the kept rows",
+                  "samples": len(grid)})
+    # 3. zero-phase low-pass
+    if source.cutoff is not None:
+        if source.cutoff >= rate / 2:
+            raise InputError(path, "cutoff", f"{source.cutoff:g} Hz is not below the Nyquist frequency "
+                                             f"{rate / 2:g} Hz of the {rate:g} Hz grid")
+        sos = butter(source.filter_order, source.cutoff, fs=rate, output="sos")
+        pad = 3 * (2 * len(sos) + 1)
+        if len(grid) <= pad:
+            raise InputError(path, "cutoff", f"{len(grid)} samples are too few to filter (need over {pad})")
+
+        def lowpass(x: np.ndarray) -> np.ndarray:
+            return sosfiltfilt(sos, x, axis=0)
+
+        q, tau = lowpass(q), lowpass(tau)
+        qd = lowpass(qd) if qd is not None else None
+        steps.append({"step": "low-pass", "filter": f"Butterworth order {source.filter_order}, applied forward "
+                      "and backward (zero phase, scipy.signal.sosfiltfilt)", "cutoff_hz": source.cutoff,
+                      "signals": ["q", "qd" if raw.qd is not None else None, "tau"]})
+    else:
+        warnings.append("no low-pass filter (`cutoff`): accelerations are differences of unfiltered data")
+    # 4. derivatives
+    h = 1.0 / rate
+    if qd is None:
+        qd = np.gradient(q, h, axis=0)
+    qdd = np.gradient(qd, h, axis=0)
+    steps.append({"step": "differentiate", "method": "central differences (numpy.gradient, second order) of the "
+                  "filtered " + ("velocities" if raw.qd is not None else "positions (velocities) and velocities"),
+                  "velocities": "measured" if raw.qd is not None else "differentiated"})
+    # 5. trim and decimate
+    trim = source.trim if source.trim is not None else (TRIM_PERIODS / source.cutoff if source.cutoff else 2 * h)
+    k0 = int(np.ceil(trim * rate))
+    rows = np.arange(k0, len(grid) - k0, source.decimate)
+    if len(rows) < 10:
+        raise InputError(path, "trim", f"trimming {trim:g} s at each end leaves {len(rows)} samples")
+    if source.cutoff is not None and source.decimate > 1 and source.cutoff >= rate / source.decimate / 2:
+        raise InputError(path, "decimate", f"keeping every {source.decimate}th sample of {rate:g} Hz aliases the "
+                                           f"{source.cutoff:g} Hz band: the cut-off must be below "
+                                           f"{rate / source.decimate / 2:g} Hz")
+    steps.append({"step": "trim and decimate", "trim_s": trim, "decimate": source.decimate,
+                  "samples": len(rows), "rate_hz": rate / source.decimate})
+    conditioning = {"file": str(path), "sha256": raw.sha256, "steps": steps, "warnings": warnings,
+                    "t_start": float(grid[rows[0]]), "t_end": float(grid[rows[-1]])}
+    return JointLog(grid[rows], tuple(robot.joint_names), q[rows], qd[rows], qdd[rows], tau[rows], conditioning)
+
+
+def load(source: DataSource, robot: RobotSpec) -> tuple[JointLog, JointLog, JointLog | None]:
+    """The conditioned log, its training span and its validation span (the last part by time, or
+    another log): the identification never sees the validation data."""
+    full = condition(read_raw(source, robot), source, robot)
+    if source.validation_file is not None:
+        return full, full, condition(read_raw(source, robot, source.validation_file), source, robot)
+    if source.validation_from is None:
+        return full, full, None
+    t_split = full.t[0] + source.validation_from * (full.t[-1] - full.t[0])
+    train, val = full.t < t_split, full.t >= t_split
+    if train.sum() < 10 or val.sum() < 10:
+        raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few samples "
+                                                         f"({int(train.sum())} and {int(val.sum())})")
+    full.conditioning["validation"] = {"from_fraction": source.validation_from, "t_split": float(t_split),
+                                       "training_samples": int(train.sum()), "validation_samples": int(val.sum())}
+    return full, full.span(train), full.span(val)

@@ -1,0 +1,209 @@
+"""Identification from a measured joint log (harness/log.py): the pipeline proven on the bench,
+on data whose truth nobody knows, judged on a part of the log the fit never saw.
+
+1. Least squares of the structural base parameters with each joint's friction and rotor
+   inertia (harness/torque_id.py), with standard deviations and weakly identifiable parameters.
+2. The physically consistent fit of all parameters (harness/consistent.py), closest to the
+   model's own values where the data cannot tell.
+3. Both, and the model as it was given (its URDF with its own friction), predict the torques of
+   the validation span: per joint RMS and relative error, and over all joints
+   ||tau_pred - tau||_F / ||tau||_F (the figure published identifications quote).
+4. The consistent model is exported (harness/export.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness import consistent
+from harness.compare import torque_errors
+from harness.engines.pinocchio import build_model
+from harness.export import export
+from harness.friction import IDENTIFIED_KEYS
+from harness.friction import values as friction_values
+from harness.identify import sandwich_std, sensitivity, weakly_identifiable
+from harness.log import JointLog
+from harness.plugins import Stage
+from harness.torque_id import (
+    BaseParameters,
+    beta_scale,
+    kind_scale,
+    parameter_names,
+    regressor,
+    structural_base,
+    true_parameters,
+)
+
+
+@dataclass(frozen=True, eq=False)
+class LogIdentification:
+    joints: list[str]
+    names: list[str]  # all parameters: 10 per link, then 4 per joint
+    base: BaseParameters
+    beta_model: np.ndarray  # the model's own base parameters
+    beta: np.ndarray  # least squares
+    std: np.ndarray
+    ci_half_width: np.ndarray
+    sensitivity: np.ndarray
+    weak: np.ndarray
+    condition_number: float
+    fit: consistent.ConsistentFit
+    theta_model: np.ndarray  # (n, 10)
+    friction_model: np.ndarray  # (n, 4)
+    predictions: dict[str, dict[str, np.ndarray]]  # span -> model -> (N, n) torques
+    measured: dict[str, np.ndarray]  # span -> (N, n) torques
+    t: dict[str, np.ndarray]  # span -> times
+    files: dict[str, str]  # the export
+
+
+def _data(log: JointLog, joints: list[str]) -> tuple[np.ndarray, ...]:
+    cols = [log.joint_index(j) for j in joints]
+    return log.q[:, cols], log.qd[:, cols], log.qdd[:, cols], log.tau[:, cols]
+
+
+def run(ctx, config) -> LogIdentification | None:
+    sc = ctx.scenario
+    robot = sc.robot
+    joints = robot.joint_names
+    train: JointLog = ctx.measured
+    validation: JointLog | None = ctx.cache.get("validation log")
+    pm = build_model(robot, sc.gravity_W)
+    ctx.progress("structural base parameters (with friction and rotor inertia)", None)
+    base = structural_base(pm, robot.limits, with_friction=True)
+    q, qd, qdd, tau = _data(train, joints)
+    W = regressor(pm, q, qd, qdd, with_friction=True)
+    L = tau.reshape(-1)
+    W1 = W[:, base.independent]
+    s = np.linalg.norm(W1, axis=0)
+    s = np.where(s > 0, s, 1.0)
+    z, *_ = np.linalg.lstsq(W1 / s, L, rcond=None)
+    sv = np.linalg.svd(W1 / s, compute_uv=False)
+    std, half = sandwich_std(W1 / s, L - (W1 / s) @ z, np.ones(len(L)), np.repeat(np.arange(len(q)), len(joints)))
+    x_model = true_parameters(pm, with_friction=True)
+    beta_model = base.of(x_model)
+    # relative to the parameter's size in the model or, where the model has it zero (a friction
+    # the model does not declare), in the estimate
+    kappa = sensitivity(W1 / s, L) / (s * beta_scale(np.maximum(np.abs(beta_model), np.abs(z / s))))
+    n = len(joints)
+    theta_model = x_model[: 10 * n].reshape(n, 10)
+    friction_model = friction_values(robot.frictions)
+    # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
+    # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
+    rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(len(q), n, -1) ** 2, axis=0)).reshape(n, n, 4)
+    cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
+    carry = np.sqrt(np.mean(tau**2, axis=0))[:, None] / np.where(cols > 0, cols, 1.0)
+    scale = np.concatenate([np.concatenate([kind_scale(t) for t in theta_model]),
+                            np.maximum(np.abs(friction_model), carry).ravel()])
+    ctx.progress("physically consistent parameters (semidefinite program)", None)
+    fit = consistent.fit(W, L, theta_model, friction_model, scale)
+    x_fit = np.concatenate([fit.theta.ravel(), fit.friction.ravel()])
+    spans = {"training": (q, qd, qdd, tau, train.t)}
+    if validation is not None:
+        spans["validation"] = (*_data(validation, joints), validation.t)
+    predictions, measured, times = {}, {}, {}
+    for span, (qs, qds, qdds, taus, ts) in spans.items():
+        Ws = W if span == "training" else regressor(pm, qs, qds, qdds, with_friction=True)
+        predictions[span] = {
+            "least squares": (Ws[:, base.independent] @ (z / s)).reshape(taus.shape),
+            "consistent": (Ws @ x_fit).reshape(taus.shape),
+            "model as given": (Ws @ x_model).reshape(taus.shape),
+        }
+        measured[span], times[span] = taus, ts
+    files = export(robot, fit.theta, fit.friction,
+                   f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
+                   "physically consistent inertial parameters, friction and rotor inertia")
+    return LogIdentification(joints, parameter_names(joints, True), base, beta_model, z / s, std / s, half / s,
+                             kappa, weakly_identifiable(kappa), float(sv[0] / sv[-1]), fit, theta_model,
+                             friction_model, predictions, measured, times, files)
+
+
+def _span_errors(li: LogIdentification, span: str) -> dict:
+    return {model: torque_errors(pred, li.measured[span], li.joints) for model, pred in li.predictions[span].items()}
+
+
+def serialise(li: LogIdentification, ctx, config) -> dict:
+    from harness.consistent import consistency
+    from harness.results import finite_or_null
+    from harness.torque_id import COEFFICIENT_FLOOR
+
+    n = len(li.joints)
+    rel = np.abs(li.beta - li.beta_model) / beta_scale(li.beta_model)
+
+    def expression(k: int) -> str:
+        terms = [li.names[li.base.independent[k]]]
+        for c, j in zip(li.base.combination[k], li.base.dependent, strict=True):
+            if abs(c) > COEFFICIENT_FLOOR:
+                terms.append(f"{c:+.6g} {li.names[j]}")
+        return " ".join(terms)
+
+    errors = {span: _span_errors(li, span) for span in li.predictions}
+    headline = errors.get("validation", errors["training"])
+    links = {}
+    for k, j in enumerate(li.joints):
+        links[j] = {"identified": dict(zip(PARAMETER_KEYS, map(float, li.fit.theta[k]), strict=True)),
+                    "model": dict(zip(PARAMETER_KEYS, map(float, li.theta_model[k]), strict=True)),
+                    **{f"{key}": value for key, value in consistency(li.fit.theta[k]).items()}}
+    return {
+        "method": "least squares of the structural base parameters with friction and rotor inertia, then all "
+                  "parameters under the pseudo-inertia LMI (harness/consistent.py, Clarabel)",
+        "friction_law": "I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o per joint (harness/friction.py), v_c from the model",
+        "rel_error_definition": "||tau_predicted - tau_measured||_F / ||tau_measured||_F over every sample and joint "
+                                "of the span; per joint the same over its samples, and the RMS error in N m",
+        "spans": {span: {"samples": len(li.t[span]), "t_start": float(li.t[span][0]), "t_end": float(li.t[span][-1])}
+                  for span in li.t},
+        "errors": errors,
+        "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()},
+        "consistent_costs": {span: e["consistent"]["rel_error"] - e["least squares"]["rel_error"]
+                             for span, e in errors.items()},
+        "least_squares": {
+            "base_parameters": len(li.beta), "parameters": len(li.names), "condition_number": li.condition_number,
+            "weakly_identifiable": [expression(k) for k in np.flatnonzero(li.weak)],
+            "base": [{"expression": expression(k), "model": float(li.beta_model[k]), "identified": float(li.beta[k]),
+                      "std": finite_or_null(li.std[k]),
+                      "rel_std_percent": finite_or_null(100 * li.std[k] / abs(li.beta[k])) if li.beta[k] else None,
+                      "ci95": [finite_or_null(li.beta[k] - li.ci_half_width[k]),
+                               finite_or_null(li.beta[k] + li.ci_half_width[k])],
+                      "change_from_model": float(rel[k]), "sensitivity": finite_or_null(li.sensitivity[k]),
+                      "weakly_identifiable": bool(li.weak[k])} for k in range(len(li.beta))],
+        },
+        "consistent": {
+            "solver_status": li.fit.status,
+            "training_rel_residual": li.fit.relative_residual,
+            "inconsistent_links": sum(not v["consistent"] for v in links.values()),
+            "links": links,
+            "friction": {j: dict(zip(IDENTIFIED_KEYS, map(float, li.fit.friction[k]), strict=True))
+                         | {"coulomb_velocity": ctx.scenario.robot.frictions[k].coulomb_velocity}
+                         for k, j in enumerate(li.joints)},
+        },
+        "export": sorted(li.files),
+        "joints": n,
+        "series": _series(li),
+    }
+
+
+SERIES_POINTS = 600  # samples per curve kept in results.json for the report's validation plot
+
+
+def _series(li: LogIdentification) -> dict:
+    """The validation span's measured and predicted torques, thinned to SERIES_POINTS, for the plot."""
+    span = "validation" if "validation" in li.t else "training"
+    rows = np.unique(np.linspace(0, len(li.t[span]) - 1, SERIES_POINTS).round().astype(int))
+    return {"span": span, "t": [float(x) for x in li.t[span][rows]],
+            "measured": {j: [float(x) for x in li.measured[span][rows, k]] for k, j in enumerate(li.joints)},
+            **{model: {j: [float(x) for x in pred[rows, k]] for k, j in enumerate(li.joints)}
+               for model, pred in li.predictions[span].items()}}
+
+
+PARAMETER_KEYS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
+
+
+def render(results: dict, log) -> str:
+    from harness.report.sections import log_identification
+
+    return log_identification(results, log)
+
+
+STAGE = Stage("log_identification", "identification from the measured log", run, serialise,
+              "Identification from the log", render, lambda li: li.files)

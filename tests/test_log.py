@@ -1,0 +1,199 @@
+"""A measured log in, a validated and physically consistent model out (harness/log.py,
+harness/consistent.py, harness/export.py): first proven on a bench recording where the truth is
+known, then on the real Panda log of Gaz et al. (2019), whose exported model is judged by
+Pinocchio's own URDF parser and the friction law written out here, not by the code that fitted it."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import tomllib
+
+import numpy as np
+import pandas as pd
+import pinocchio as pin
+import pytest
+
+from harness.api import load_scenario
+from harness.bench import record
+from harness.cli import main
+from harness.engines.pinocchio import build_model, rnea
+from harness.spec import load_spec
+from tests.conftest import ROOT, SCENARIOS
+
+LOG = ROOT / "data" / "panda_gaz2019" / "log.csv"
+PUBLISHED = 0.026  # Gaz et al.'s model on its own training data (data/panda_gaz2019/README.md)
+
+
+@pytest.fixture(scope="module")
+def panda(tmp_path_factory):
+    out = tmp_path_factory.mktemp("panda") / "out"
+    assert main(["run", str(SCENARIOS / "panda_gaz2019.toml"), "--out", str(out), "--quiet"]) == 0
+    return out, json.loads((out / "results.json").read_text())
+
+
+def test_the_log_is_read_as_its_readme_describes_it(panda):
+    """The file's sha256, and the sample-and-hold rows counted independently with pandas."""
+    _, r = panda
+    c = r["data"]["conditioning"]
+    assert c["sha256"] == hashlib.sha256(LOG.read_bytes()).hexdigest()
+    df = pd.read_csv(LOG)
+    q = df[[f"q{j}" for j in range(1, 8)]].to_numpy()
+    held = int(np.sum(np.all(q[1:] == q[:-1], axis=1)))
+    assert held == 1255  # the README's count
+    assert c["steps"][0]["repeated_rows_dropped"] == held
+    assert c["validation"]["from_fraction"] == 0.7
+
+
+def _law(f: dict, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """The friction law, written out: I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o."""
+    smooth = np.tanh(qd / f["coulomb_velocity"]) if f["coulomb_velocity"] > 0 else np.sign(qd)
+    return f["armature"] * qdd + f["viscous"] * qd + f["coulomb"] * smooth + f["offset"]
+
+
+def test_the_exported_model_beats_the_published_one_on_data_it_never_saw(panda):
+    """The exported URDF read by Pinocchio's own parser, its joints.toml by tomllib: on the last
+    30 % of the log, which the fit never saw, the torque error is below the published model's
+    2.6 % (on its own training data; measured here 1.4 %), and it is the figure results.json states."""
+    out, r = panda
+    model = pin.buildModelFromUrdf(str(out / "identified" / "robot.urdf"))
+    model.gravity.linear = np.array(r["scenario"]["gravity"])
+    assert model.nq == 7  # the fingers fixed in the export, as in the fit
+    joints = tomllib.loads((out / "identified" / "joints.toml").read_text())["joints"]
+    log = pd.read_csv(out / "data.csv")
+    names = [f"panda_joint{k}" for k in range(1, 8)]
+    val = log[log["t"] >= r["data"]["conditioning"]["validation"]["t_split"]]
+    q, qd, qdd, tau = (val[[f"{k}_{j}" for j in names]].to_numpy() for k in ("q", "qd", "qdd", "tau"))
+    data = model.createData()
+    order = [model.joints[model.getJointId(j)].idx_q for j in names]
+    pred = np.empty_like(tau)
+    for k in range(len(q)):
+        qq, vv, aa = (np.zeros(model.nq) for _ in range(3))
+        qq[order], vv[order], aa[order] = q[k], qd[k], qdd[k]
+        pred[k] = pin.rnea(model, data, qq, vv, aa)[order]
+    pred += np.column_stack([_law(joints[j], qd[:, i], qdd[:, i]) for i, j in enumerate(names)])
+    rel = np.linalg.norm(pred - tau) / np.linalg.norm(tau)
+    assert rel < PUBLISHED
+    li = r["log_identification"]
+    assert rel == pytest.approx(li["validation_rel_error"]["consistent"], rel=1e-6)
+    # the model as given (the URDF of example-robot-data) is far worse: the data's README says 16 %
+    assert li["validation_rel_error"]["model as given"] > 0.1
+    assert li["consistent"]["inconsistent_links"] == 0
+
+
+def test_the_export_reloads_through_the_harness_to_round_off(panda):
+    """identified/robot.toml, loaded as any model file, gives Pinocchio's own parser's torques to
+    round-off (the harness's URDF reader and friction against the independent route)."""
+    out, _ = panda
+    spec = load_spec(out / "identified" / "robot.toml")
+    pm_ours = build_model(spec, np.array([0.0, 0.0, -9.81]))
+    model = pin.buildModelFromUrdf(str(out / "identified" / "robot.urdf"))
+    model.gravity.linear = np.array([0.0, 0.0, -9.81])
+    rng = np.random.default_rng(2)
+    q, qd, qdd = rng.uniform(-1, 1, (3, 20, 7))
+    ours = rnea(pm_ours, q, qd, qdd).tau
+    joints = tomllib.loads((out / "identified" / "joints.toml").read_text())["joints"]
+    data = model.createData()
+    theirs = np.array([pin.rnea(model, data, q[k], qd[k], qdd[k]) for k in range(20)])
+    theirs += np.column_stack([_law(joints[spec.joint_names[i]], qd[:, i], qdd[:, i]) for i in range(7)])
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-12 * np.abs(theirs).max())
+
+
+def test_the_log_pipeline_recovers_a_known_robot_from_its_bench_log(tmp_path):
+    """ur5_friction's bench recording (2 ms steps) written as a log of t, q, q', tau and read back
+    through [data] with no filter: accelerations only from differences of the velocities. The
+    friction terms that are base parameters on their own come back within 1e-3 (measured 1e-6 to
+    3e-5: central differences at 2 ms), the validation torques within 1e-4 (measured 3e-6)."""
+    sc = load_scenario(SCENARIOS / "ur5_friction.toml")
+    rec = record(dataclasses.replace(sc, duration=4.0, output_steps=2000))
+    cols = {"t": rec.t}
+    for k, j in enumerate(sc.robot.joint_names):
+        c = rec.joint_index(j)
+        cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
+    pd.DataFrame(cols).to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    (tmp_path / "s.toml").write_text(
+        f'[scenario]\nmodel = "{SCENARIOS.parent / "models" / "ur5_friction.toml"}"\n[data]\nfile = "log.csv"\n'
+        'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\nvalidation = { from = 0.7 }\n'
+        '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1e-4\n')
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    li = json.loads((tmp_path / "out" / "results.json").read_text())["log_identification"]
+    for j, f in zip(sc.robot.joint_names, sc.robot.frictions, strict=True):
+        got = li["consistent"]["friction"][j]
+        for term in ("viscous", "coulomb", "offset"):
+            assert abs(got[term] - getattr(f, term)) <= 1e-3 * abs(getattr(f, term)), (j, term, got[term])
+
+
+BAD_LOGS = {
+    "not a CSV": (lambda df, p: p.write_bytes(b"\x00\x01\x02 not, a\x00 log \xff\xfe"), "not a CSV log"),
+    "missing column": (lambda df, p: df.drop(columns=["tau3"]).to_csv(p, index=False), "tau3"),
+    "time backwards": (lambda df, p: df.assign(t=df["t"].where(df.index != 50, 0.0001)).to_csv(p, index=False),
+                       "time goes backwards"),
+    "NaN": (lambda df, p: df.assign(q2=df["q2"].where(df.index != 7, np.nan)).to_csv(p, index=False), "q2"),
+    "extra joint": (lambda df, p: df.assign(q8=0.0).to_csv(p, index=False), "q8"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_LOGS))
+def test_a_bad_log_is_refused_in_one_line_naming_the_file_and_column(tmp_path, capsys, case):
+    make, message = BAD_LOGS[case]
+    make(pd.read_csv(LOG, nrows=400), tmp_path / "log.csv")
+    (tmp_path / "s.toml").write_text(
+        f'[scenario]\nmodel = "{SCENARIOS.parent / "models" / "panda_arm.toml"}"\n[data]\nfile = "log.csv"\n'
+        'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\n'
+        '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1\n')
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and "log.csv" in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    ('validation = { from = 1.5 }', "outside the log"),
+    ('columns = { t = "t", q = "q_{name}", tau = "tau{j}" }', "q_panda_joint1"),
+    ('cutoff = 600.0', "Nyquist"),
+])
+def test_a_bad_data_table_is_refused_in_one_line(tmp_path, capsys, edit, message):
+    pd.read_csv(LOG, nrows=400).to_csv(tmp_path / "log.csv", index=False)
+    table = 'file = "log.csv"\ncolumns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\n'
+    key = edit.split(" = ")[0]
+    table = "\n".join(line for line in table.splitlines() if not line.startswith(key)) + "\n" + edit + "\n"
+    (tmp_path / "s.toml").write_text(
+        f'[scenario]\nmodel = "{SCENARIOS.parent / "models" / "panda_arm.toml"}"\n[data]\n{table}'
+        '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1\n')
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_exported_model_run_through_harness_predicts_what_the_fit_predicted(panda, tmp_path):
+    """The exported robot.toml as the model of the same log scenario: its torques as given are the
+    consistent fit's, to round-off (the export loses nothing the prediction used)."""
+    out, r = panda
+    text = (SCENARIOS / "panda_gaz2019.toml").read_text()
+    text = text.replace('model = "../models/panda_arm.toml"', f'model = "{out / "identified" / "robot.toml"}"')
+    text = text.replace('file = "../data/panda_gaz2019/log.csv"', f'file = "{LOG}"')
+    (tmp_path / "again.toml").write_text(text)
+    assert main(["run", str(tmp_path / "again.toml"), "--out", str(tmp_path / "out"), "--quiet"]) in (0, 1)
+    again = json.loads((tmp_path / "out" / "results.json").read_text())["log_identification"]
+    before = r["log_identification"]["validation_rel_error"]["consistent"]
+    assert again["validation_rel_error"]["model as given"] == pytest.approx(before, rel=1e-9)
+
+
+def test_a_log_without_velocities_validated_on_another_file(tmp_path):
+    """The log cut in two files at row 12000, its velocity columns removed: velocities come from
+    differences of the filtered positions, the second file is the validation. The consistent model
+    still predicts the unseen file within the published model's 2.6 % (measured 1.7 %)."""
+    df = pd.read_csv(LOG).drop(columns=[f"qd{j}" for j in range(1, 8)])
+    df.iloc[:12000].to_csv(tmp_path / "a.csv", index=False)
+    df.iloc[12000:].to_csv(tmp_path / "b.csv", index=False)
+    (tmp_path / "s.toml").write_text(
+        f'[scenario]\nmodel = "{SCENARIOS.parent / "models" / "panda_arm.toml"}"\n[data]\nfile = "a.csv"\n'
+        'columns = { t = "t", q = "q{j}", tau = "tau{j}" }\nrate = 1000.0\ncutoff = 10.0\ndecimate = 10\n'
+        'validation = { file = "b.csv" }\n'
+        '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 0.026\n')
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert r["data"]["conditioning"]["steps"][3]["velocities"] == "differentiated"
+    assert r["log_identification"]["spans"]["validation"]["t_start"] > 12.0
