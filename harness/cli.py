@@ -97,6 +97,13 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--trials", type=int, default=200, metavar="N", help="number of trials (default 200)")
     sweep.add_argument("--jobs", type=int, default=1, metavar="K", help="worker processes (default 1)")
     sweep.add_argument("--out", metavar="DIR", type=Path, default=None, help="default: reports/<scenario name>")
+    excite = sub.add_parser(
+        "excite", help="optimise a scenario's excitation and write the trajectory for a robot to play",
+        description="Optimise the scenario's [excitation] (a Fourier series per joint, at rest at both ends, within "
+                    "the position, velocity, acceleration and torque limits) and write one period of it as CSV: t, "
+                    "then q_<joint>, qd_<joint>, qdd_<joint> for every joint, at the scenario's excitation rate.")
+    excite.add_argument("scenario", metavar="SCENARIO", help="scenario file or name (e.g. ur5_excitation)")
+    excite.add_argument("--out", metavar="FILE", type=Path, required=True, help="the CSV to write")
     sub.add_parser("list", help="list the models, scenarios and installed plugins",
                    description="One line per model and per scenario found in ./models and ./scenarios, and per "
                                "plugin (model, identification method, study) installed by entry point.")
@@ -329,6 +336,34 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_excite(args: argparse.Namespace) -> int:
+    from harness.excitation import optimise, trajectory
+    from harness.scenario import Scenario, load_scenario
+
+    scenario = load_scenario(_resolve_scenario(args.scenario))
+    if not isinstance(scenario, Scenario) or scenario.excitation is None:
+        raise InputError(getattr(scenario, "source", args.scenario), "excitation",
+                         "the scenario has no [excitation] to optimise")
+    optimised, report = optimise(scenario, **scenario.excitation)
+    t, q, qd, qdd = trajectory(optimised, scenario.excitation["rate"])
+    cols = {"t": t}
+    for k, j in enumerate(scenario.robot.joint_names):
+        cols[f"q_{j}"], cols[f"qd_{j}"], cols[f"qdd_{j}"] = q[:, k], qd[:, k], qdd[:, k]
+    import pandas as pd
+
+    text = pd.DataFrame(cols).to_csv(index=False, float_format="%.17g")
+    try:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        _write_file_atomically(args.out, text)
+    except OSError as exc:
+        raise InputError(args.out, "--out", f"cannot write ({exc.strerror or exc})") from None
+    used = ", ".join(f"{k} {v:.3f}" for k, v in report["largest_fraction_of_limits"].items())
+    print(f"{scenario.name}: wrote {args.out}: {len(t)} rows over {t[-1]:.3f} s at {scenario.excitation['rate']:g} Hz, "
+          f"at rest at both ends; condition number {report['initial_condition_number']:.3g} -> "
+          f"{report['optimised_condition_number']:.3g}; largest fraction of each limit: {used}")
+    return EXIT_OK
+
+
 def cmd_list(args: argparse.Namespace) -> int:
     for folder, key in (("models", "model"), ("scenarios", "scenario")):
         files = sorted(Path(folder).glob("*.toml"))
@@ -365,7 +400,7 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, _on_sigterm)  # unwind, so that no temporary folder is left
     try:
         return {"run": cmd_run, "report": cmd_report, "gate": cmd_gate, "sweep": cmd_sweep,
-                "list": cmd_list}[args.command](args)
+                "excite": cmd_excite, "list": cmd_list}[args.command](args)
     except InputError as exc:
         print(f"harness: error: {exc.one_line()}", file=sys.stderr)
         return EXIT_BAD_INPUT

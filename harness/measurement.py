@@ -3,19 +3,23 @@
 A scenario's `[measurement]` table, every key optional:
 
     significant_digits = 7          # round every measured channel (the paper's ADAMS output)
+    encoder_resolution = 2e-5       # joint positions read in counts of this size (rad or m), the
+                                    #   counts' zero drawn within a count per measurement
     seed = 1                        # noise is drawn from this seed: the same seed, the same data
     every = 1                       # measure every k-th output step only
     differentiate = false           # accelerations from measured positions and angles (below)
     filter_window = 7               # Savitzky-Golay window (odd number of samples), cubic
     [measurement.noise.forces]      # Gaussian, per group: forces, moments, accelerations,
     relative = 0.01                 #   angular_velocities, angular_accelerations, angles,
-    absolute = 0.0                  #   positions, joints (q, q', q'', tau)
+    absolute = 0.0                  #   positions, joints (q, q', q'', tau), joint_torques (tau
+                                    #   alone; it replaces what joints gives tau)
 
 Noise on a value x has standard deviation sqrt(absolute^2 + (relative |x|)^2), independently per
 component and sample; angles and positions take absolute noise only (their zero is arbitrary).
 Order, as on a bench: sampling (`every`), then noise and rounding of each reading, then
 differentiation of what was read. With `differentiate`, every acceleration channel is re-derived:
-the centre-of-mass accelerations from the measured positions, the accelerations of the inner joint
+the joint velocities and accelerations from the measured joint positions (as a controller reads
+its encoders), the centre-of-mass accelerations from the measured positions, the accelerations of the inner joint
 points from the points' positions p_W + A(theta) r_B (measured position and angles, r_B the body-
 fixed arm from the centre of mass to the point, known from the model as a sensor's place on a
 bench is), and the angular velocities and accelerations from the measured Cardano angles
@@ -45,7 +49,7 @@ CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W",
 GROUPS = {
     "forces": ("F_W",), "moments": ("M_W",), "accelerations": ("a_W", "aO_W"), "angular_velocities": ("omega_W",),
     "angular_accelerations": ("omegadot_W",), "angles": ("theta",), "positions": ("p_W", "v_W"),
-    "joints": ("q", "qd", "qdd", "tau"),
+    "joints": ("q", "qd", "qdd", "tau"), "joint_torques": ("tau",),
 }
 
 ABSOLUTE_ONLY = ("angles", "positions")  # their size says nothing of how well they are read
@@ -60,6 +64,7 @@ class Noise:
 @dataclass(frozen=True)
 class Measurement:
     significant_digits: int | None = None  # None: the engine's double precision
+    encoder_resolution: float | None = None  # joint positions quantised to this count (rad or m)
     noise: dict[str, Noise] = field(default_factory=dict)  # group -> noise
     seed: int = 0
     every: int = 1
@@ -69,7 +74,7 @@ class Measurement:
     @property
     def ideal(self) -> bool:
         return (self.significant_digits is None and not any(n.relative or n.absolute for n in self.noise.values())
-                and self.every == 1 and not self.differentiate)
+                and self.every == 1 and not self.differentiate and self.encoder_resolution is None)
 
     @property
     def resolution(self) -> float:
@@ -88,7 +93,8 @@ class Measurement:
                                                 for g, n in self.noise.items()})
 
     def describe(self) -> dict:
-        return {"significant_digits": self.significant_digits, "seed": self.seed, "every": self.every,
+        return {"significant_digits": self.significant_digits, "encoder_resolution": self.encoder_resolution,
+                "seed": self.seed, "every": self.every,
                 "differentiate": self.differentiate, "filter_window": self.filter_window,
                 "noise": {g: {"relative": n.relative, "absolute": n.absolute} for g, n in self.noise.items()}}
 
@@ -110,8 +116,10 @@ def read_measurement(t: Table) -> Measurement:
                                  g.number("absolute", default=0.0, nonnegative=True))
             g.finish()
         nt.finish()
-    m = Measurement(digits, noise, t.integer("seed", default=0, minimum=0), t.integer("every", default=1, minimum=1),
-                    t.boolean("differentiate", default=False), t.integer("filter_window", default=7, minimum=5))
+    encoder = t.number("encoder_resolution", positive=True) if t.has("encoder_resolution") else None
+    m = Measurement(digits, encoder, noise, t.integer("seed", default=0, minimum=0),
+                    t.integer("every", default=1, minimum=1), t.boolean("differentiate", default=False),
+                    t.integer("filter_window", default=7, minimum=5))
     if m.filter_window % 2 == 0:
         raise t.error("filter_window", f"must be odd, got {m.filter_window}")
     t.finish()
@@ -128,6 +136,14 @@ def round_significant(x: np.ndarray, digits: int) -> np.ndarray:
     return np.where(ok, np.round(x * scale) / scale, x)
 
 
+def read_encoders(q: np.ndarray, resolution: float, rng: np.random.Generator) -> np.ndarray:
+    """Joint positions read in counts of `resolution`: an encoder's zero falls anywhere within a
+    count (drawn per joint and measurement), so two measurements of one motion differ in their
+    quantisation error as two robots would."""
+    zero = rng.uniform(0.0, resolution, q.shape[-1])
+    return np.round((q - zero) / resolution) * resolution + zero
+
+
 def add_noise(rec: Recording, noise: dict[str, Noise], rng: np.random.Generator) -> dict[str, np.ndarray]:
     out = {}
     for group, n in noise.items():
@@ -138,12 +154,20 @@ def add_noise(rec: Recording, noise: dict[str, Noise], rng: np.random.Generator)
     return out
 
 
-def differentiate(t: np.ndarray, p_W: np.ndarray, theta: np.ndarray, window: int,
+def savgol(x: np.ndarray, t: np.ndarray, window: int, deriv: int) -> np.ndarray:
+    """The cubic Savitzky-Golay filter over `window` samples (its `deriv`-th derivative), along
+    time: the one differentiator of every measured channel."""
+    return savgol_filter(x, window, 3, deriv=deriv, delta=float(t[1] - t[0]), axis=0, mode="interp")
+
+
+def differentiate(t: np.ndarray, q: np.ndarray, p_W: np.ndarray, theta: np.ndarray, window: int,
                   arm_O_B: np.ndarray) -> dict[str, np.ndarray]:
-    """a_W, aO_W, omega_W, omegadot_W from positions and Cardano angles (cubic Savitzky-Golay).
-    arm_O_B: (nb, 3) each body's arm from its centre of mass to its inner joint point O."""
-    dt = float(t[1] - t[0])
-    sg = lambda x, k: savgol_filter(x, window, 3, deriv=k, delta=dt, axis=0, mode="interp")  # noqa: E731
+    """qd, qdd from joint positions; a_W, aO_W, omega_W, omegadot_W from positions and Cardano
+    angles (cubic Savitzky-Golay). arm_O_B: (nb, 3) each body's arm from its centre of mass to its
+    inner joint point O."""
+    def sg(x: np.ndarray, k: int) -> np.ndarray:
+        return savgol(x, t, window, k)
+
     theta_d, theta_dd = sg(theta, 1), sg(theta, 2)
     th = sg(theta, 0)
     Dm = D(th)
@@ -152,7 +176,8 @@ def differentiate(t: np.ndarray, p_W: np.ndarray, theta: np.ndarray, window: int
                   + np.einsum("...ab,...b->...a", D_dot(th, theta_d), theta_d))
     A = A_0i(th)
     pO_W = p_W + np.einsum("...ab,...b->...a", A_0i(theta), arm_O_B)  # the point where it was read
-    return {"a_W": sg(p_W, 2), "aO_W": sg(pO_W, 2), "omega_W": np.einsum("...ab,...b->...a", A, omega_B),
+    return {"qd": sg(q, 1), "qdd": sg(q, 2), "a_W": sg(p_W, 2), "aO_W": sg(pO_W, 2),
+            "omega_W": np.einsum("...ab,...b->...a", A, omega_B),
             "omegadot_W": np.einsum("...ab,...b->...a", A, omegadot_B)}
 
 
@@ -172,10 +197,13 @@ def measure(rec: Recording, m: Measurement, arm_O_B: np.ndarray | None = None) -
     values.update(add_noise(sampled, m.noise, rng))
     if m.significant_digits is not None:
         values = {c: round_significant(v, m.significant_digits) for c, v in values.items()}
+    if m.encoder_resolution is not None:
+        values["q"] = read_encoders(values["q"], m.encoder_resolution, rng)
     if m.differentiate:
         if arm_O_B is None:
             raise ValueError("measure: differentiating needs the arms of the inner joint points")
-        values.update(differentiate(sampled.t, values["p_W"], values["theta"], m.filter_window, arm_O_B))
+        values.update(differentiate(sampled.t, values["q"], values["p_W"], values["theta"], m.filter_window,
+                                    arm_O_B))
     return dataclasses.replace(sampled, **values)
 
 

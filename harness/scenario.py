@@ -47,6 +47,7 @@ from harness.tomlio import InputError, Table, read_toml
 INTEGRATORS = ("RK4", "Euler", "implicitfast")
 _GRID_TOL = 1e-9  # relative to the output interval: a sample time on the grid, a timestep dividing it
 MAX_OUTPUT_STEPS = 1_000_000  # rows of a recording: about 1 GB for an arm of ten joints
+MAX_TRIALS = 100_000  # estimator trials of one run, each a measurement and a regressor (hours beyond)
 MAX_SIMULATION_STEPS = 20_000_000  # MuJoCo steps of one run, each with a Python drive callback (hours)
 
 
@@ -92,6 +93,8 @@ class Scenario:
     text: str = ""  # the scenario file as read, for the report
     torque_validation: Scenario | None = None  # joint-torque identification, validated on this scenario
     torque_friction: bool = False  # ... with each joint's rotor inertia, viscous, Coulomb friction and offset
+    estimators: dict | None = None  # estimators side by side on the joint-torque path (harness/stages/estimators.py)
+    payload: dict | None = None  # {"without": Scenario, "body": name} (harness/stages/payload.py)
     excitation: dict | None = None  # Fourier-series excitation to optimise (harness/excitation.py)
     models: tuple[PluginEntry, ...] = ()  # models under test
     methods: tuple[PluginEntry, ...] = ()  # identification methods under test
@@ -240,13 +243,46 @@ def _load(path: Path) -> Scenario | DataScenario:
         # default: identify the joints' friction and rotor inertia where the model declares any
         torque_friction = ti.boolean("friction", default=not all(f.none for f in robot.frictions))
         ti.finish()
+    estimators = None
+    if root.has("estimators"):
+        et = root.table("estimators")
+        if torque_validation is None:
+            raise et.error("methods", "estimators are judged on a validation trajectory: give "
+                                      "[torque_identification] validation = ...")
+        from harness.estimators import ESTIMATORS
+
+        estimators = {"methods": et.strings("methods", choices=tuple(ESTIMATORS), default=list(ESTIMATORS)),
+                      "trials": et.integer("trials", default=200, minimum=2)}
+        if estimators["trials"] > MAX_TRIALS:
+            raise et.error("trials", f"{estimators['trials']} trials: at most {MAX_TRIALS:,}")
+        et.finish()
+    payload = None
+    if root.has("payload"):
+        pt = root.table("payload")
+        without = load_related(pt, "without", path)
+        body = pt.string("body")
+        if without.robot.joint_names != robot.joint_names:
+            raise pt.error("without", f"{pt.data['without']!r} moves another robot than {robot.name!r}")
+        if body not in {b.name for b in robot.massive_bodies}:
+            raise pt.error("body", f"no body {body!r} with mass in {robot.name!r}")
+        pt.finish()
+        payload = {"without": without, "body": body}
     excitation = None
     if root.has("excitation"):
         et = root.table("excitation")
-        excitation = {"harmonics": et.integer("harmonics", default=2, minimum=1),
+        from harness.excitation import CRITERIA
+
+        excitation = {"harmonics": et.integer("harmonics", default=2, minimum=2),
                       "base_frequency": et.number("base_frequency", positive=True),
                       "evaluations": et.integer("evaluations", default=400, minimum=10),
-                      "seed": et.integer("seed", default=0, minimum=0)}
+                      "seed": et.integer("seed", default=0, minimum=0),
+                      "criterion": et.string("criterion", default="condition", choices=CRITERIA),
+                      "acceleration_limit": (et.number("acceleration_limit", positive=True)
+                                             if et.has("acceleration_limit") else None),
+                      "limit_fraction": et.number("limit_fraction", default=0.9, positive=True),
+                      "rate": et.number("rate", default=100.0, positive=True)}
+        if excitation["limit_fraction"] > 1.0:
+            raise et.error("limit_fraction", f"{excitation['limit_fraction']:g}: a fraction of each limit, at most 1")
         et.finish()
         if root.has("motion"):
             raise root.error("motion", "a scenario with [excitation] gets its motion from the optimisation: "
@@ -297,7 +333,7 @@ def _load(path: Path) -> Scenario | DataScenario:
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                         np.asarray(sample_times), motion, simulation, measurement, gates, path.read_text(),
-                        torque_validation, torque_friction, excitation)
+                        torque_validation, torque_friction, estimators, payload, excitation)
     models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
                    for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
     methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)

@@ -110,6 +110,7 @@ class RobotSpec:
     limits: dict[str, tuple[float, float]] | None = None  # joint position limits, when the source has them
     urdf: Path | None = None  # the URDF it was read from, if any
     urdf_fixed: tuple[str, ...] = ()  # joints of that URDF taken as fixed
+    drive_limits: dict[str, dict[str, float]] | None = None  # per joint "velocity" and "effort", when given
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -173,7 +174,7 @@ def load_spec(path: Path | str) -> RobotSpec:
     name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
     model.finish()
-    dh = limits = urdf_path = None
+    dh = limits = urdf_path = drive_limits = None
     fixed: tuple[str, ...] = ()
     if root.has("dh"):
         bodies, joints, body_tables, joint_tables, dh = _read_dh(root.table("dh"))
@@ -202,7 +203,7 @@ def load_spec(path: Path | str) -> RobotSpec:
                 raise ut.error("file", f"URDF file {urdf_path} not found")
         fixed = ut.strings("fixed", choices=None) if ut.has("fixed") else ()
         ut.finish()
-        bodies, joints, limits = read_urdf(urdf_path, ut, fixed)
+        bodies, joints, limits, drive_limits = read_urdf(urdf_path, ut, fixed)
         if root.has("joints"):  # [joints.<name>]: friction and rotor inertia beyond the URDF's <dynamics>
             jt = root.table("joints")
             by_name = {j.name: j for j in joints}
@@ -220,6 +221,9 @@ def load_spec(path: Path | str) -> RobotSpec:
         body_tables, joint_tables = root.tables("bodies"), root.tables("joints")
         bodies = [_read_body(t) for t in body_tables]
         joints = [_read_joint(t) for t in joint_tables]
+    payload = root.table("payload") if root.has("payload") else None
+    if payload is not None:
+        bodies = _with_payload(bodies, payload)
     root.finish()
 
     _check_unique([b.name for b in bodies], body_tables, "body")
@@ -228,9 +232,43 @@ def load_spec(path: Path | str) -> RobotSpec:
     bodies_by_name = {b.name: b for b in bodies}
     ordered_bodies = tuple(bodies_by_name[n] for n in order)
     ordered_joints = tuple(sorted(joints, key=lambda j: order.index(j.child)))
-    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh, limits, urdf_path, fixed)
+    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh, limits, urdf_path, fixed,
+                     drive_limits)
     _check_massless(spec, {t.data.get("name"): t for t in body_tables})
     return spec
+
+
+def _with_payload(bodies: list[Body], t: Table) -> list[Body]:
+    """`[payload]`: a rigid load on a body (`body`): `mass`, its centre of mass `com` and its
+    inertia about that centre `inertia` = [Ixx, Iyy, Izz, Ixy, Ixz, Iyz], both in the world frame at
+    the initial pose. The body becomes the union of both (parallel axes), in its new principal axes."""
+    name = t.string("body")
+    if name not in {b.name for b in bodies} or next(b for b in bodies if b.name == name).massless:
+        raise t.error("body", f"no body {name!r} with mass to carry the payload")
+    m = t.number("mass", positive=True)
+    c = t.vector("com")
+    xx, yy, zz, xy, xz, yz = t.vector("inertia", length=6)
+    I_c = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    moments = np.linalg.eigvalsh(I_c)
+    if moments[0] < 0 or moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+        raise t.error("inertia", "is not the inertia of a rigid body (negative, or breaks the triangle inequality)")
+    t.finish()
+    out = []
+    for b in bodies:
+        if b.name != name:
+            out.append(b)
+            continue
+        M = b.mass + m
+        com = (b.mass * b.p_W_com0 + m * c) / M
+        total = np.zeros((3, 3))
+        for mass, at, I in ((b.mass, b.p_W_com0, b.R_WB0 @ b.I_B @ b.R_WB0.T), (m, c, I_c)):
+            d = at - com
+            total += I + mass * (d @ d * np.eye(3) - np.outer(d, d))
+        principal, axes = np.linalg.eigh(total)
+        if np.linalg.det(axes) < 0:
+            axes[:, 2] *= -1
+        out.append(dataclasses.replace(b, mass=M, I_B=np.diag(principal), R_WB0=axes, p_W_com0=com, cylinder=None))
+    return out
 
 
 def _named(table: Table, kind: str) -> str:

@@ -154,8 +154,9 @@ def _dynamics(joint) -> JointFriction:
     return JointFriction(viscous=viscous, coulomb=coulomb)
 
 
-def read_urdf(path: Path, table: Table, fixed: tuple[str, ...] = ()) -> tuple[list[Body], list[Joint], dict]:
-    """Bodies and joints (world frame at q = 0) of a URDF, plus joint limits by name. The joints
+def read_urdf(path: Path, table: Table, fixed: tuple[str, ...] = ()) -> tuple[list[Body], list[Joint], dict, dict]:
+    """Bodies and joints (world frame at q = 0) of a URDF, plus joint position limits by name and
+    velocity and effort limits by name ({"velocity": .., "effort": ..}, where given). The joints
     named in `fixed` are taken as fixed at q = 0 (a gripper's fingers), their bodies merged."""
     try:
         root = ET.parse(path).getroot()
@@ -169,7 +170,7 @@ def read_urdf(path: Path, table: Table, fixed: tuple[str, ...] = ()) -> tuple[li
         raise table.error("urdf", f"{path}: {exc}") from None
 
 
-def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[Body], list[Joint], dict]:
+def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[Body], list[Joint], dict, dict]:
     links, joints, parent_of, child_of = _structure(path, root)
     unknown = sorted(set(fixed) - {j.get("name") for j in joints})
     if unknown:
@@ -259,7 +260,7 @@ def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[
             axes[:, 2] *= -1
         bodies.append(Body(body_name, m, np.diag(moments), axes, com))
 
-    spec_joints, limits = [], {}
+    spec_joints, limits, drive_limits = [], {}, {}
     for j in kept:
         child = child_of[j.get("name")]
         parent = owner[parent_of[j.get("name")]]
@@ -276,4 +277,13 @@ def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[
                 limits[j.get("name")] = (float(lim.get("lower", "-inf")), float(lim.get("upper", "inf")))
             except ValueError:
                 raise _Bad(f"joint {j.get('name')!r}: limit lower/upper are not numbers") from None
-    return bodies, spec_joints, limits
+        if lim is not None:  # URDF's velocity and effort limits (of continuous joints too)
+            rates = {}
+            for key in ("velocity", "effort"):
+                if lim.get(key) is not None:
+                    value = _numbers(lim.get(key), f"joint {j.get('name')!r} limit {key}", 1)[0]
+                    if value > 0:  # 0 is URDF's way of saying none
+                        rates[key] = float(value)
+            if rates:
+                drive_limits[j.get("name")] = rates
+    return bodies, spec_joints, limits, drive_limits

@@ -53,7 +53,8 @@ def test_differentiated_accelerations_converge_to_the_sensors():
     """Accelerations from positions and angles (cubic Savitzky-Golay, 7 samples), the joint points'
     too: the error against the acceleration sensors falls by at least 3 each time the step halves
     (second order: 4 in the limit); B1 passes gimbal lock six times on the way (omega = D theta'
-    needs no inverse of D)."""
+    needs no inverse of D). The joints move at constant acceleration in kr500_rail, which a cubic
+    filter differentiates exactly: their q' and q'' agree to round-off (1e-8) at every step."""
     sc = load_scenario(SCENARIOS / "kr500_rail.toml")
     errors = []
     for steps in (400, 800, 1600):
@@ -63,6 +64,9 @@ def test_differentiated_accelerations_converge_to_the_sensors():
         err = [np.max(np.abs(getattr(d, c)[inner] - getattr(rec, c)[inner])) / np.max(np.abs(getattr(rec, c)))
                for c in ("a_W", "aO_W", "omega_W", "omegadot_W")]
         errors.append(err)
+        for c in ("qd", "qdd"):
+            exact = getattr(rec, c)[inner]
+            assert np.max(np.abs(getattr(d, c)[inner] - exact)) <= 1e-8 * np.max(np.abs(exact))
     errors = np.array(errors)
     assert np.all(errors[1:] < errors[:-1] / 3), errors
     assert errors[-1].max() < 2e-2
@@ -96,7 +100,7 @@ def test_a_bench_samples_then_reads_then_differentiates_what_it_read(recording):
 
     from harness.measurement import add_noise, differentiate, round_significant
 
-    m = Measurement(significant_digits=4, every=2, differentiate=True, seed=5,
+    m = Measurement(significant_digits=4, encoder_resolution=1e-4, every=2, differentiate=True, seed=5,
                     noise={"positions": Noise(absolute=1e-4), "angles": Noise(absolute=1e-4)})
     arms = load_scenario(SCENARIOS / "kr500_rail.toml").robot.inner_joint_arms_B()
     got = measure(recording, m, arms)
@@ -107,8 +111,14 @@ def test_a_bench_samples_then_reads_then_differentiates_what_it_read(recording):
     p_read, theta_read = round_significant(noisy["p_W"], 4), round_significant(noisy["theta"], 4)
     np.testing.assert_array_equal(got.p_W, p_read)
     np.testing.assert_array_equal(got.theta, theta_read)
-    derived = differentiate(sampled.t, p_read, theta_read, 7, arms)
-    for c in ("a_W", "aO_W", "omega_W", "omegadot_W"):
+    # joint positions: rounded to 4 digits, then read in counts of 1e-4 rad from a zero anywhere
+    # within a count: on a grid of 1e-4 per joint, within half a count of what was there
+    q4 = round_significant(recording.q[rows], 4)
+    counts = (got.q - got.q[0]) / 1e-4
+    np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-6)
+    assert np.max(np.abs(got.q - q4)) <= 0.5e-4 * (1 + 1e-9)
+    derived = differentiate(sampled.t, got.q, p_read, theta_read, 7, arms)
+    for c in ("qd", "qdd", "a_W", "aO_W", "omega_W", "omegadot_W"):
         np.testing.assert_array_equal(getattr(got, c), derived[c])
 
 

@@ -259,6 +259,31 @@ def log_identification(r: dict, log) -> str:
         + f"<p>Condition number of the scaled base regressor {num(ls['condition_number'])}.</p>" + base)
 
 
+def estimator_comparison(r: dict) -> str:
+    e = r["estimators"]
+    methods = e["methods"]
+    rows = [[esc(name), esc(m["description"]), num(m["max_bias_in_sd"]), num(m["median_bias_in_sd"]),
+             str(m["significant_biases"]), f"{num(m['coverage_min'])} / {num(m['coverage_median'])} / "
+             f"{num(m['coverage_max'])}", num(m["median_rms_rel_error"]), num(m["validation_rel_error_mean"]),
+             num(m["seconds_per_fit"])] for name, m in methods.items()]
+    labels = [str(k) for k in range(len(next(iter(methods.values()))["per_parameter"]["bias_in_sd"]))]
+    fig_bias = figure(plots.bars(labels, {k: m["per_parameter"]["bias_in_sd"] for k, m in methods.items()},
+                                 "|bias| / sd", "Bias of each base parameter, in standard deviations"),
+                      "Per base parameter (numbered as in the torque identification's table): the mean error over "
+                      "the trials relative to the error's spread.")
+    fig_cov = figure(plots.bars(labels, {k: m["per_parameter"]["coverage"] for k, m in methods.items()},
+                                "coverage", "Coverage of the 95 % intervals", logy=False),
+                     f"Fraction of the {e['trials']} trials whose 95 % interval holds the truth.")
+    return section(
+        "estimators", "Estimators side by side",
+        f"<p>{e['trials']} measurements of the same recording under the scenario's noise, "
+        f"{e['samples_per_trial']} samples each; {esc(e['definition'])}. Binomial standard error of a coverage at "
+        f"this trial count: {num(e['coverage_binomial_standard_error'])}.</p>"
+        + table(["estimator", "method", "max |bias|/sd", "median |bias|/sd", "significant biases",
+                 "coverage min / median / max", "median RMS rel error", "validation error", "s per fit"], rows)
+        + fig_bias + fig_cov)
+
+
 def torques(r: dict) -> str:
     tq = r["torques"]
     t = np.array([s["t"] for s in tq["samples"]])
@@ -414,12 +439,20 @@ def torque_identification(r: dict) -> str:
 
 def excitation(r: dict) -> str:
     e = r["excitation"]
+    used = ", ".join(f"{k} {num(v)}" for k, v in e["largest_fraction_of_limits"].items())
+    shrunk = e["amplitude_shrunk_by"]
+    limits = table(["joint", "position [rad or m]", "velocity", "acceleration", "effort"],
+                   [[esc(j), esc(", ".join(num(x) for x in v["position"])), num(v["velocity"]),
+                     num(v["acceleration"]), num(v["effort"])] for j, v in e["limits"].items()])
     return section(
         "excitation",
         "Optimised excitation",
         (
             f"<p>{e['harmonics']}-harmonic Fourier series per joint, base frequency {num(e['base_frequency'])} rad/s, "
             f"{e['evaluations']} evaluations of the objective ({esc(e['objective'])}). Condition number "
-            f"{num(e['initial_condition_number'])} at the start, {num(e['optimised_condition_number'])} optimised.</p>"
+            f"{num(e['initial_condition_number'])} at the start, {num(e['optimised_condition_number'])} optimised. "
+            f"Largest fraction of each limit used (checked on {esc(str(e.get('dense_samples', '')))} samples a "
+            f"period): {esc(used)}{'' if shrunk == 1 else f'; amplitude scaled by {num(shrunk)} to hold them'}.</p>"
+            "<h3>Limits (none where empty)</h3>" + limits
         ),
     )

@@ -34,6 +34,7 @@ class Context:
 
 
 def core_stages() -> tuple[Stage, ...]:
-    from harness.stages import identification, torques
+    from harness.stages import estimators, identification, payload, torques
 
-    return (torques.STAGE, identification.TORQUE_STAGE, identification.METHODS_STAGE)
+    return (torques.STAGE, identification.TORQUE_STAGE, identification.METHODS_STAGE, estimators.STAGE,
+            payload.STAGE)

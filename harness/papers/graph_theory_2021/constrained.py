@@ -26,7 +26,7 @@ import numpy as np
 from harness import friction
 from harness.cardano import GIMBAL_COND_D, D, D_dot
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
-from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, skew
+from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, at_rest_floor, skew
 from harness.recording import Recording
 from harness.spec import RobotSpec
 
@@ -193,12 +193,12 @@ def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: Constrain
                     + np.einsum("...ab,...b->...a", D_dot(s.theta[ok], thd[ok]), thd[ok]))
         got = np.concatenate([qdd_b[..., :3], omegadot], axis=-1).reshape(ok.sum(), -1)
         want = np.concatenate([s.a_W[ok], s.omegadot_B[ok]], axis=-1).reshape(ok.sum(), -1)
-        acc_err[ok] = np.linalg.norm(got - want, axis=1) / np.linalg.norm(want, axis=1)
+        acc_err[ok] = np.linalg.norm(got - want, axis=1) / at_rest_floor(np.linalg.norm(want, axis=1))
         # recorded constraint reactions: joint resultants less the drives, generalized
         F_c = s.F_J_W[ok] - F_a[ok]
         M_c_B = s.M_J_B[ok] - np.einsum("...ba,...b->...a", s.A[ok], M_a[ok])
         G = np.concatenate([F_c, np.einsum("...ba,...b->...a", D(s.theta[ok]), M_c_B)], axis=-1)
         G = G.reshape(ok.sum(), -1)
         reaction = -np.einsum("nmk,nm->nk", Phi_q[ok], lam[ok])
-        react_err[ok] = np.linalg.norm(reaction - G, axis=1) / np.linalg.norm(G, axis=1)
+        react_err[ok] = np.linalg.norm(reaction - G, axis=1) / at_rest_floor(np.linalg.norm(G, axis=1))
     return Constrained(s.t, ok, qdd, lam, acc_err, react_err, phi, phi_dot, Phi_q, cond_Phi, cond_K, rank_Phi)

@@ -134,12 +134,25 @@ class Residual:
     evaluated: np.ndarray  # (N, n) bool: cond(D) <= GIMBAL_COND_D
 
 
+AT_REST = 1e-3  # a row whose scale is below this fraction of the run's largest is judged against that
+
+
+def at_rest_floor(size: np.ndarray) -> np.ndarray:
+    """(N, ...) a per-row scale, floored at AT_REST of its largest over the rows (axis 0): a row at
+    rest, where every term vanishes, would divide round-off by round-off (0.69 at t = 0 of a
+    trajectory that starts at rest, 1e-15 on the next row)."""
+    floor = AT_REST * np.max(size, axis=0, initial=0.0)
+    return np.maximum(np.maximum(size, floor), np.finfo(float).tiny)
+
+
 def unconstrained_residual(model: GraphModel, s: BodySeries) -> Residual:
     """A q'' - B at every row where D is well conditioned; the others are listed with cond(D).
 
     Relative, each part separately, to the size of the terms summed into B_i: gravity and the
     joint forces on the body; the gyroscopic term and the joint moments. That is |B_i| or more; for
-    a point mass, whose B_rot vanishes, it is the size of the joint moments that cancel on it."""
+    a point mass, whose B_rot vanishes, it is the size of the joint moments that cancel on it. A
+    row where all of them vanish (a body at rest whose weight passes through its centre of mass)
+    is judged against AT_REST of the body's largest size over the run (at_rest_floor)."""
     theta_dot, theta_ddot, cond = angle_rates(s.theta, s.omega_B, s.omegadot_B)
     qdd = np.concatenate([s.a_W, theta_ddot], axis=-1)
     A = unconstrained_A(model, s.theta)
@@ -151,7 +164,7 @@ def unconstrained_residual(model: GraphModel, s: BodySeries) -> Residual:
     for sl, size in zip((slice(0, 3), slice(3, 6)), sizes, strict=True):
         num = np.linalg.norm(r[..., sl], axis=-1)
         den = np.maximum(np.linalg.norm(B[..., sl], axis=-1), size)
-        parts.append(num / np.maximum(den, np.finfo(float).tiny))
+        parts.append(num / at_rest_floor(den))
     return Residual(s.t, parts[0], parts[1], cond, cond <= GIMBAL_COND_D)
 
 

@@ -1,0 +1,145 @@
+"""Estimators side by side on the joint-torque path (harness/estimators.py), on the bench where the
+truth is known: the recording is measured `trials` times under the scenario's measurement (noise
+drawn from seeds seed, seed + 1, ...), every estimator fits every trial, and each is judged per base
+parameter by its bias (the mean error, in units of its spread over the trials, and against the
+standard error of that mean), its RMS error, the coverage of its 95 % intervals, the torques it
+predicts on the validation trajectory, and its time. A scenario asks for it with
+
+    [estimators]
+    methods = ["ols", "wls", "irls", "iv"]   # default: all four
+    trials = 1000
+
+and needs `[torque_identification] validation = ...` and a `[measurement]` with noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.compare import joint_load_scale
+from harness.engines.pinocchio import build_model
+from harness.estimators import DESCRIPTIONS, ESTIMATORS
+from harness.measurement import measure, savgol
+from harness.plugins import Stage
+from harness.torque_id import beta_scale, regressor, structural_base, true_parameters
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    methods: tuple[str, ...]
+    beta_true: np.ndarray  # (r,)
+    beta: np.ndarray  # (methods, trials, r)
+    std: np.ndarray  # (methods, trials, r)
+    half: np.ndarray  # (methods, trials, r)
+    seconds: np.ndarray  # (methods, trials)
+    validation_rel_error: np.ndarray  # (methods, trials): largest |predicted - recorded| / L_J
+    samples: int
+    edge: int  # samples dropped at each end (the differentiating filter's end effects)
+    block: int  # samples per cluster of the standard deviations
+
+
+def run(ctx, config) -> Comparison | None:
+    sc = ctx.scenario
+    cfg = sc.estimators
+    if cfg is None:
+        return None
+    from harness.stages.identification import joint_data, validation_recording
+
+    joints = sc.robot.joint_names
+    n = len(joints)
+    pm = build_model(sc.robot, sc.gravity_W)
+    base = ctx.once(("structural base parameters", sc.torque_friction),
+                    lambda: structural_base(pm, sc.robot.limits, with_friction=sc.torque_friction))
+    cols = base.independent
+    rec = ctx.recording
+    m = sc.measurement
+    edge = m.filter_window // 2 if m.differentiate else 0
+    # a differentiated sample shares noise with its neighbours within a filter window on each side:
+    # clusters of three windows hold most such pairs (on ur5_estimators, clusters of one window made
+    # the IV standard deviations 1.5 times the trials' spread, of three windows 1.04 times)
+    block = 3 * m.filter_window if m.differentiate else 1
+    rows = np.arange(0, len(rec.t), m.every)
+    usable = (len(rows) - 2 * edge) // block * block  # whole clusters only
+    keep = slice(edge, edge + usable)
+    idx = [rec.joint_index(j) for j in joints]
+    # the instruments: the regressor of the motion the robot was asked to follow, its velocities
+    # and accelerations differentiated by the same filter as the measured ones (else the filter's
+    # own distortion of the signal, the same in every trial, would bias the estimate)
+    q_ref, qd_ref, qdd_ref = (rec.meta[k][rows][:, idx] for k in ("q_ref", "qd_ref", "qdd_ref"))
+    if m.differentiate:
+        qd_ref, qdd_ref = (savgol(q_ref, rec.t[rows], m.filter_window, k) for k in (1, 2))
+    Z1 = regressor(pm, q_ref[keep], qd_ref[keep], qdd_ref[keep], with_friction=sc.torque_friction)[:, cols]
+    val = validation_recording(ctx, sc.torque_validation)
+    qv, qdv, qddv, tauv = joint_data(val, joints)
+    Wv = regressor(pm, qv, qdv, qddv, with_friction=sc.torque_friction)[:, cols]
+    load = joint_load_scale(sc.robot, val)
+    methods = cfg["methods"]
+    T = cfg["trials"]
+    r = len(cols)
+    beta, std, half = (np.empty((len(methods), T, r)) for _ in range(3))
+    seconds, val_err = np.empty((len(methods), T)), np.empty((len(methods), T))
+    arms = sc.robot.inner_joint_arms_B()
+    for k in range(T):
+        ctx.progress("estimators side by side", k / T)
+        meas = measure(rec, m.with_seed(m.seed + k), arms)
+        q, qd, qdd, tau = (x[keep] for x in joint_data(meas, joints))
+        W1 = regressor(pm, q, qd, qdd, with_friction=sc.torque_friction)[:, cols]
+        for i, name in enumerate(methods):
+            est = ESTIMATORS[name](W1, tau.reshape(-1), n, Z1, block)
+            beta[i, k], std[i, k], half[i, k], seconds[i, k] = est.beta, est.std, est.ci_half_width, est.seconds
+            val_err[i, k] = np.max(np.abs((Wv @ est.beta).reshape(tauv.shape) - tauv) / load)
+    ctx.progress("estimators side by side", 1.0)
+    return Comparison(tuple(methods), base.of(true_parameters(pm, sc.torque_friction)), beta, std, half, seconds,
+                      val_err, usable, edge, block)
+
+
+def serialise(c: Comparison, ctx, config) -> dict:
+    T = c.beta.shape[1]
+    scale = beta_scale(c.beta_true)
+    err = c.beta - c.beta_true  # (methods, trials, r)
+    bias = err.mean(axis=1)
+    spread = err.std(axis=1, ddof=1) if T > 1 else np.full_like(bias, np.nan)
+    bias_in_sd = np.abs(bias) / spread
+    # the mean of T errors has a standard error spread / sqrt(T): beyond 3 of them a bias is real
+    significant = np.abs(bias) > 3 * spread / np.sqrt(T)
+    covered = (np.abs(err) <= c.half).mean(axis=1)
+    rms = np.sqrt(np.mean(err**2, axis=1)) / scale
+    binomial = np.sqrt(0.95 * 0.05 / T)
+    out = {
+        "definition": "per base parameter over the trials: bias = mean error, bias_in_sd = |bias| / the error's "
+                      "standard deviation over the trials, significant where |bias| > 3 standard errors of the mean; "
+                      "coverage of the 95 % intervals; rms_rel_error = RMS error / max(|true|, 1e-6 x largest); "
+                      "validation: largest |predicted - recorded torque| / L_J on the validation trajectory",
+        "trials": T, "samples_per_trial": c.samples, "filter_edge_samples_dropped": c.edge,
+        "samples_per_cluster": c.block,
+        "coverage_binomial_standard_error": float(binomial),
+        "methods": {},
+    }
+    for i, name in enumerate(c.methods):
+        out["methods"][name] = {
+            "description": DESCRIPTIONS[name],
+            "max_bias_in_sd": float(np.max(bias_in_sd[i])),
+            "median_bias_in_sd": float(np.median(bias_in_sd[i])),
+            "significant_biases": int(significant[i].sum()),
+            "coverage_min": float(covered[i].min()), "coverage_median": float(np.median(covered[i])),
+            "coverage_max": float(covered[i].max()),
+            "median_rms_rel_error": float(np.median(rms[i])), "max_rms_rel_error": float(np.max(rms[i])),
+            "validation_rel_error_mean": float(np.mean(c.validation_rel_error[i])),
+            "seconds_per_fit": float(np.mean(c.seconds[i])),
+            "per_parameter": {"bias_in_sd": [float(x) for x in bias_in_sd[i]],
+                              "coverage": [float(x) for x in covered[i]],
+                              "rms_rel_error": [float(x) for x in rms[i]]},
+        }
+    return out
+
+
+def render(results: dict, rec) -> str:
+    from harness.report.sections import estimator_comparison
+
+    return estimator_comparison(results)
+
+
+STAGE = Stage("estimators", "estimators side by side (Monte Carlo over the measurement noise)", run, serialise,
+              "Estimators side by side", render)

@@ -1,0 +1,112 @@
+"""A payload's inertial parameters from two runs of the same motion, without and with it:
+
+    tau_with = W(q, q', q'') theta_robot + W_b(q, q', q'') theta_payload
+
+where W_b holds the 10 columns of the body that carries the payload. The robot's own part is
+predicted at the loaded run's states from the base parameters identified on the run without it
+(harness/torque_id.py), and least squares of the difference on W_b gives the payload's ten
+parameters (m, m c, inertia about the joint point, world axes at q = 0, as the body's own in
+Pinocchio's joint frame), with CR3 standard deviations clustered by sample (harness/identify.py).
+A scenario asks for it with
+
+    [payload]
+    without = "ur5_sines.toml"   # the same motion of the robot without the payload
+    body = "wrist_3_link"        # the body carrying it
+
+The truth is the difference of the two models' parameters of that body.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.engines.pinocchio import build_model
+from harness.identify import sandwich_std
+from harness.measurement import measure
+from harness.plugins import Stage
+from harness.torque_id import PARAMETER_NAMES, kind_scale, regressor, structural_base, true_parameters
+
+
+@dataclass(frozen=True, eq=False)
+class Payload:
+    body: str
+    joint: str
+    true: np.ndarray  # (10,)
+    identified: np.ndarray
+    std: np.ndarray
+    ci_half_width: np.ndarray
+    residual_rel: float  # ||delta tau - W_b theta|| / ||delta tau||
+
+
+def run(ctx, config) -> Payload | None:
+    sc = ctx.scenario
+    if sc.payload is None:
+        return None
+    from harness.stages.identification import joint_data, validation_recording
+
+    without = sc.payload["without"]
+    body = sc.payload["body"]
+    joints = sc.robot.joint_names
+    n = len(joints)
+    k = joints.index(sc.robot.inner_joint(body).name)
+    pm_with = build_model(sc.robot, sc.gravity_W)
+    pm_without = build_model(without.robot, sc.gravity_W)
+    base = structural_base(pm_without, without.robot.limits, with_friction=sc.torque_friction)
+    # the run without the payload, measured as this one is (its own noise draws)
+    rec0 = validation_recording(ctx, without)
+    m = sc.measurement
+    meas0 = measure(rec0, m.with_seed(m.seed + 1), without.robot.inner_joint_arms_B())
+    q0, qd0, qdd0, tau0 = joint_data(meas0, joints)
+    W0 = regressor(pm_without, q0, qd0, qdd0, sc.torque_friction)[:, base.independent]
+    s0 = np.linalg.norm(W0, axis=0)
+    s0 = np.where(s0 > 0, s0, 1.0)
+    beta0 = np.linalg.lstsq(W0 / s0, tau0.reshape(-1), rcond=None)[0] / s0
+    q, qd, qdd, tau = joint_data(ctx.measured, joints)
+    W = regressor(pm_without, q, qd, qdd, sc.torque_friction)
+    delta = tau.reshape(-1) - W[:, base.independent] @ beta0
+    Wb = W[:, 10 * k: 10 * k + 10]
+    sb = np.linalg.norm(Wb, axis=0)
+    sb = np.where(sb > 0, sb, 1.0)
+    z = np.linalg.lstsq(Wb / sb, delta, rcond=None)[0]
+    r = delta - (Wb / sb) @ z
+    std, half = sandwich_std(Wb / sb, r, np.ones(len(r)), np.repeat(np.arange(len(q)), n))
+    true = true_parameters(pm_with)[10 * k: 10 * k + 10] - true_parameters(pm_without)[10 * k: 10 * k + 10]
+    return Payload(body, joints[k], true, z / sb, std / sb, half / sb,
+                   float(np.linalg.norm(r) / max(np.linalg.norm(delta), np.finfo(float).tiny)))
+
+
+def serialise(p: Payload, ctx, config) -> dict:
+    scale = kind_scale(p.true)
+    rel = np.abs(p.identified - p.true) / np.where(scale > 0, scale, 1.0)
+    inside = np.abs(p.identified - p.true) <= p.ci_half_width
+    return {
+        "method": "least squares of the torques the robot without the payload does not explain, on the 10 columns "
+                  "of the body carrying it (harness/stages/payload.py)",
+        "body": p.body, "joint": p.joint,
+        "rel_error_definition": "|identified - true| / the largest true value of its kind (m; m c, at least m r_g; "
+                                "inertia) in the payload",
+        "max_rel_error": float(rel.max()),
+        "all_within_ci95": bool(inside.all()),
+        "outside_ci95": int((~inside).sum()),
+        "residual_rel": p.residual_rel,
+        "parameters": [{"name": name, "true": float(p.true[c]), "identified": float(p.identified[c]),
+                        "rel_error": float(rel[c]), "std": float(p.std[c]),
+                        "ci95_half_width": float(p.ci_half_width[c]), "within_ci95": bool(inside[c])}
+                       for c, name in enumerate(PARAMETER_NAMES)],
+    }
+
+
+def render(results: dict, rec) -> str:
+    from harness.report.sections import esc, num, section, table
+
+    p = results["payload"]
+    rows = [[esc(x["name"]), num(x["true"]), num(x["identified"]), num(x["rel_error"]), num(x["std"]),
+             "yes" if x["within_ci95"] else "no"] for x in p["parameters"]]
+    return section("payload", "Payload", f"<p>{esc(p['method'])}; on {esc(p['body'])} (joint {esc(p['joint'])}). "
+                   f"Largest relative error {num(p['max_rel_error'])} ({esc(p['rel_error_definition'])}).</p>"
+                   + table(["parameter", "true", "identified", "rel error", "std", "in 95 % interval"], rows))
+
+
+STAGE = Stage("payload", "payload from the runs with and without it", run, serialise, "Payload", render)
