@@ -14,7 +14,9 @@ sample (n joints a sample), each returning the estimate with its standard deviat
   with W_1 but not with the noise of the measured positions, velocities and accelerations that W_1
   is built from, so beta = (Z_1^T W_1)^-1 Z_1^T tau is consistent where least squares with a noisy
   regressor is biased (the errors-in-variables bias that differentiated, filtered accelerations
-  cause). Chosen over total least squares, which assumes the same noise in every column (the
+  cause), as long as a column is linear in the noisy signals: the smooth Coulomb column
+  tanh(q'/v_c) is not, and near its sign changes its mean is not tanh of the mean (measured in the
+  README, "Estimators side by side"). Chosen over total least squares, which assumes the same noise in every column (the
   columns of W_1 are products of q', q'' and trigonometric functions of q: their noise differs by
   orders of magnitude), and over DIDIM, which needs the closed-loop controller to simulate.
 
