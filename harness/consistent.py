@@ -35,6 +35,8 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
+from harness.torque_id import about_centre_of_mass, inertia_about_origin
+
 PULL = 1e-4  # weight of the pull towards the model's values, relative to the least-squares residual
 # the objective is 1 at the least-squares optimum: 1e-7 of it is far below anything the data resolve
 # (Clarabel's default 1e-8 flags the Panda's fit "inaccurate" without changing it in any digit shown)
@@ -45,11 +47,10 @@ MARGIN = 1e-6  # J_i >= MARGIN * (model's largest pseudo-inertia eigenvalue) 1: 
 def pseudo_inertia(theta: np.ndarray) -> np.ndarray:
     """(4, 4) J of one link's [m, h_x, h_y, h_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] (about its
     frame origin): numbers in, numbers out (cvxpy expressions are built the same way in `fit`)."""
-    m, hx, hy, hz, xx, xy, yy, xz, yz, zz = theta
-    inertia = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    inertia = inertia_about_origin(theta)
     sigma = 0.5 * np.trace(inertia) * np.eye(3) - inertia
-    h = np.array([hx, hy, hz])
-    return np.block([[sigma, h[:, None]], [h[None, :], np.array([[m]])]])
+    h = np.asarray(theta[1:4], dtype=float)
+    return np.block([[sigma, h[:, None]], [h[None, :], np.array([[theta[0]]])]])
 
 
 def _pseudo_inertia_expr(t) -> cp.Expression:
@@ -65,11 +66,7 @@ def consistency(theta: np.ndarray) -> dict:
     J = pseudo_inertia(theta)
     out = {"mass": m, "min_eig_pseudo_inertia": float(np.linalg.eigvalsh(J)[0])}
     if m > 0:
-        c = theta[1:4] / m
-        xx, xy, yy, xz, yz, zz = theta[4:]
-        I_O = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        I_c = I_O - m * (c @ c * np.eye(3) - np.outer(c, c))
-        p = np.linalg.eigvalsh(I_c)
+        p = np.linalg.eigvalsh(about_centre_of_mass(theta)[2])
         out.update(principal_moments=[float(x) for x in p], triangle_slack=float(p[0] + p[1] - p[2]))
     out["consistent"] = bool(out["min_eig_pseudo_inertia"] >= -1e-12 * max(1.0, abs(m)))
     return out

@@ -54,7 +54,9 @@ class Estimate:
     seconds: float
 
 
-def _scaled(W1: np.ndarray) -> np.ndarray:
+def column_scale(W1: np.ndarray) -> np.ndarray:
+    """Each column's norm (1 for a column the trajectory never moves: undetermined, not a
+    division by zero)."""
     s = np.linalg.norm(W1, axis=0)
     return np.where(s > 0, s, 1.0)
 
@@ -78,7 +80,7 @@ def _finish(W1s: np.ndarray, z: np.ndarray, r: np.ndarray, w: np.ndarray, n: int
 
 def ols(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, block: int = 1) -> Estimate:
     start = time.perf_counter()
-    s = _scaled(W1)
+    s = column_scale(W1)
     w = np.ones(len(tau))
     z, r = _weighted_fit(W1, tau, n, w, s)
     return _finish(W1 / s, z, r, w, n, s, start, block)
@@ -95,7 +97,7 @@ def _per_joint_variance(r: np.ndarray, n: int, dof: int) -> np.ndarray:
 
 def wls(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, block: int = 1) -> Estimate:
     start = time.perf_counter()
-    s = _scaled(W1)
+    s = column_scale(W1)
     _, r0 = _weighted_fit(W1, tau, n, np.ones(len(tau)), s)
     w = np.tile(1.0 / _per_joint_variance(r0, n, W1.shape[1]), len(tau) // n)
     w /= w.max()
@@ -105,7 +107,7 @@ def wls(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, b
 
 def irls(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, block: int = 1) -> Estimate:
     start = time.perf_counter()
-    s = _scaled(W1)
+    s = column_scale(W1)
     w = np.ones(len(tau))
     z, r = _weighted_fit(W1, tau, n, w, s)
     for _ in range(IRLS_ITERATIONS):
@@ -127,7 +129,7 @@ def iv(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, bl
     if Z1 is None:
         raise ValueError("the instrumental-variable estimator needs the instruments Z1")
     start = time.perf_counter()
-    s = _scaled(W1)
+    s = column_scale(W1)
     W1s, Z1s = W1 / s, Z1 / s
     A = Z1s.T @ W1s
     z = np.linalg.solve(A, Z1s.T @ tau)

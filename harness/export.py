@@ -23,20 +23,14 @@ import pinocchio as pin
 
 from harness.friction import FRICTION_KEYS, JointFriction
 from harness.spec import RobotSpec
+from harness.torque_id import about_centre_of_mass
 
 URDF_FILE, JOINTS_FILE, MODEL_FILE = "robot.urdf", "joints.toml", "robot.toml"
 
 
-def _inertia_matrix(theta: np.ndarray) -> np.ndarray:
-    xx, xy, yy, xz, yz, zz = theta[4:]
-    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-
-
 def link_inertial(theta: np.ndarray, R_WL: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """(m, c_L, I_c,L) in the link frame from the ten parameters in the world-aligned joint frame."""
-    m = float(theta[0])
-    c_W = theta[1:4] / m
-    I_c_W = _inertia_matrix(theta) - m * (c_W @ c_W * np.eye(3) - np.outer(c_W, c_W))
+    m, c_W, I_c_W = about_centre_of_mass(theta)
     return m, R_WL.T @ c_W, R_WL.T @ I_c_W @ R_WL
 
 

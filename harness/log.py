@@ -29,6 +29,7 @@ The file's sha256 is recorded.
 from __future__ import annotations
 
 import hashlib
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -191,9 +192,10 @@ def _check_header(path: Path, header: list[str], source: DataSource, robot: Robo
                                               f"has {n} joints ({', '.join(robot.joint_names)})")
 
 
-def _read_frame(path: Path, nrows: int | None = None) -> pd.DataFrame:
+def _read_frame(path: Path, nrows: int | None = None, content: bytes | None = None) -> pd.DataFrame:
+    """The CSV at `path` (or its `content`, already read) as a table; refusals name the file."""
     try:
-        df = pd.read_csv(path, low_memory=False, nrows=nrows)
+        df = pd.read_csv(io.BytesIO(content) if content is not None else path, low_memory=False, nrows=nrows)
     except (OSError, UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
         raise InputError(path, "", f"not a CSV log ({str(exc).splitlines()[0]})") from None
     if len(df.columns) < 2:
@@ -211,7 +213,11 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
 def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> RawLog:
     """The log's columns for the robot's joints; every refusal names the file and the column."""
     path = file or source.file
-    df = _read_frame(path)
+    try:
+        content = Path(path).read_bytes()  # read once: parsed and hashed
+    except OSError as exc:
+        raise InputError(path, "", f"cannot read ({exc.strerror or exc})") from None
+    df = _read_frame(path, content=content)
     if df.empty:
         raise InputError(path, "", "the log has no rows")
     _check_header(path, list(df.columns), source, robot)
@@ -228,7 +234,7 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     t = column(names["t"][0])
     q, tau = (np.column_stack([column(c) for c in names[k]]) for k in ("q", "tau"))
     qd = np.column_stack([column(c) for c in names["qd"]]) if "qd" in names else None
-    digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    digest = hashlib.sha256(content).hexdigest()
     return RawLog(Path(path), digest, t, q, qd, tau, len(t))
 
 

@@ -258,17 +258,26 @@ def _with_payload(bodies: list[Body], t: Table) -> list[Body]:
         if b.name != name:
             out.append(b)
             continue
-        M = b.mass + m
-        com = (b.mass * b.p_W_com0 + m * c) / M
-        total = np.zeros((3, 3))
-        for mass, at, I in ((b.mass, b.p_W_com0, b.R_WB0 @ b.I_B @ b.R_WB0.T), (m, c, I_c)):
-            d = at - com
-            total += I + mass * (d @ d * np.eye(3) - np.outer(d, d))
-        principal, axes = np.linalg.eigh(total)
-        if np.linalg.det(axes) < 0:
-            axes[:, 2] *= -1
+        M, com, principal, axes = union([(b.mass, b.p_W_com0, b.R_WB0 @ b.I_B @ b.R_WB0.T), (m, c, I_c)])
         out.append(dataclasses.replace(b, mass=M, I_B=np.diag(principal), R_WB0=axes, p_W_com0=com, cylinder=None))
     return out
+
+
+def parallel_axis(mass: float, d: np.ndarray) -> np.ndarray:
+    """m (|d|^2 1 - d d^T): what a mass whose centre sits at d adds to an inertia about the origin."""
+    return mass * (d @ d * np.eye(3) - np.outer(d, d))
+
+
+def union(parts: list[tuple[float, np.ndarray, np.ndarray]]) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """Rigidly joined parts [(mass, centre of mass, inertia about it)], one frame for all, as one
+    body: (mass, centre of mass, principal moments, principal axes as right-handed columns)."""
+    mass = sum(m for m, _, _ in parts)
+    com = sum(m * c for m, c, _ in parts) / mass
+    total = sum(I + parallel_axis(m, c - com) for m, c, I in parts)
+    principal, axes = np.linalg.eigh(total)
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1
+    return mass, com, principal, axes
 
 
 def _named(table: Table, kind: str) -> str:

@@ -20,8 +20,10 @@ from scipy.linalg import qr, solve_triangular
 
 from harness import friction
 from harness.engines.pinocchio import PinocchioModel
-from harness.identify import WEAK_RATIO, sandwich_std, sensitivity, weakly_identifiable
+from harness.estimators import column_scale, ols
+from harness.identify import WEAK_RATIO, sensitivity, weakly_identifiable
 from harness.results import finite_or_null
+from harness.spec import parallel_axis
 
 PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 RANK_TOL = 1e-8  # |R_ii| / |R_00| below this: the column depends on the others (exact data: 1e-14)
@@ -59,6 +61,20 @@ def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
 def true_parameters(pm: PinocchioModel, with_friction: bool = False) -> np.ndarray:
     inertial = np.concatenate([pm.model.inertias[j].toDynamicParameters() for j in pm.joint_ids])
     return np.concatenate([inertial, friction.values(pm.frictions).ravel()]) if with_friction else inertial
+
+
+def inertia_about_origin(theta: np.ndarray) -> np.ndarray:
+    """(3, 3) the inertia about the frame origin of one body's ten parameters (PARAMETER_NAMES)."""
+    xx, xy, yy, xz, yz, zz = theta[4:]
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def about_centre_of_mass(theta: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """(m, c, I_c) of one body's ten parameters: its mass, centre of mass and inertia about it,
+    in the frame of the parameters (m > 0)."""
+    m = float(theta[0])
+    c = theta[1:4] / m
+    return m, c, inertia_about_origin(theta) - parallel_axis(m, c)
 
 
 def kind_scale(true: np.ndarray) -> np.ndarray:
@@ -149,28 +165,42 @@ def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau
                           ) -> TorqueIdentification:
     """Least squares of the base parameters (default: the structural ones of `pm`) from joint torques."""
     base = base or structural_base(pm)
-    W = regressor(pm, q, qd, qdd, base.with_friction)
-    W1 = W[:, base.independent]
-    s = np.linalg.norm(W1, axis=0)
-    s = np.where(s > 0, s, 1.0)  # a column the trajectory never moves: undetermined, not a division by zero
-    L = tau.reshape(-1)
-    z, *_ = np.linalg.lstsq(W1 / s, L, rcond=None)
-    sv = np.linalg.svd(W1 / s, compute_uv=False)
-    ones, sample = np.ones(len(L)), np.repeat(np.arange(len(q)), tau.shape[1])  # a sample's joints share noise
-    std, half = sandwich_std(W1 / s, L - (W1 / s) @ z, ones, sample)
+    W1 = regressor(pm, q, qd, qdd, base.with_friction)[:, base.independent]
     # the model's own values: the magnitudes of the parameters
     beta_model = base.of(true_parameters(pm, base.with_friction))
-    # relative to the parameter's size in the model or, where the model has it zero (a friction
-    # the model does not declare), in the estimate
-    kappa = sensitivity(W1 / s, L) / (s * beta_scale(np.maximum(np.abs(beta_model), np.abs(z / s))))
+    fit = fit_base(W1, tau, beta_model)
     err = None
     if validation is not None:
         qv, qdv, qddv, tauv = validation
-        pred = (regressor(pm, qv, qdv, qddv, base.with_friction)[:, base.independent] @ (z / s)).reshape(tauv.shape)
+        pred = (regressor(pm, qv, qdv, qddv, base.with_friction)[:, base.independent] @ fit.beta).reshape(tauv.shape)
         err = pred - tauv
     names = parameter_names(joints, base.with_friction)
-    return TorqueIdentification(names, base, beta_model, z / s, float(sv[0] / sv[-1]), std / s, half / s,
-                                kappa, weakly_identifiable(kappa), err)
+    return TorqueIdentification(names, base, beta_model, fit.beta, fit.condition_number, fit.std, fit.ci_half_width,
+                                fit.sensitivity, fit.weak, err)
+
+
+@dataclass(frozen=True, eq=False)
+class BaseFit:
+    beta: np.ndarray  # (r,)
+    std: np.ndarray
+    ci_half_width: np.ndarray
+    sensitivity: np.ndarray  # kappa (harness/identify.py)
+    weak: np.ndarray
+    condition_number: float  # of the column-scaled base regressor
+
+
+def fit_base(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit:
+    """Least squares of the base parameters from torques tau (N, n) and their regressor W1 (N n, r):
+    ordinary least squares on the column-scaled regressor with CR3 intervals clustered by sample (a
+    sample's joints share noise; harness/estimators.py), the scaled regressor's condition number,
+    and each parameter's sensitivity relative to its size in the model or, where the model has it
+    zero (a friction the model does not declare), in the estimate."""
+    L = tau.reshape(-1)
+    est = ols(W1, L, tau.shape[1])
+    s = column_scale(W1)
+    sv = np.linalg.svd(W1 / s, compute_uv=False)
+    kappa = sensitivity(W1 / s, L) / (s * beta_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
+    return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), float(sv[0] / sv[-1]))
 
 
 def friction_section(ti: TorqueIdentification) -> dict:
@@ -187,7 +217,7 @@ def friction_section(ti: TorqueIdentification) -> dict:
         k = alone.get(c)
         true = float(ti.beta_true[k]) if k is not None else None
         if k is None:
-            entry = {"in": next((describe_base(ti, b) for b in range(len(ti.beta))
+            entry = {"in": next((describe_base(ti.names, ti.base, b) for b in range(len(ti.beta))
                                  if ti.base.independent[b] == c or c in ti.base.dependent[
                                      np.abs(ti.base.combination[b]) > COEFFICIENT_FLOOR]), None)}
         else:
@@ -211,12 +241,12 @@ def beta_scale(beta: np.ndarray) -> np.ndarray:
 COEFFICIENT_FLOOR = 1e-12  # coefficients of the base combinations below this are QR round-off
 
 
-def describe_base(ti: TorqueIdentification, k: int) -> str:
-    """beta_k as a combination of the physical parameters."""
-    terms = [ti.names[ti.base.independent[k]]]
-    for c, j in zip(ti.base.combination[k], ti.base.dependent, strict=True):
+def describe_base(names: list[str], base: BaseParameters, k: int) -> str:
+    """beta_k as a combination of the physical parameters `names`."""
+    terms = [names[base.independent[k]]]
+    for c, j in zip(base.combination[k], base.dependent, strict=True):
         if abs(c) > COEFFICIENT_FLOOR:
-            terms.append(f"{c:+.6g} {ti.names[j]}")
+            terms.append(f"{c:+.6g} {names[j]}")
     return " ".join(terms)
 
 
@@ -238,10 +268,11 @@ def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
                            "median base parameter's; its error is reported apart from max_rel_error "
                            "(harness/identify.py)",
         "max_rel_error": float(rel[~weak].max(initial=0.0)),
-        "weakly_identifiable": [describe_base(ti, k) for k in np.flatnonzero(weak)],
+        "weakly_identifiable": [describe_base(ti.names, ti.base, k) for k in np.flatnonzero(weak)],
         "max_rel_error_weak": float(rel[weak].max()) if weak.any() else None,
         "coverage_ci95": float(np.mean(np.abs(ti.beta - ti.beta_true) <= ti.ci_half_width)),
-        "base": [{"expression": describe_base(ti, k), "true": float(ti.beta_true[k]), "identified": float(ti.beta[k]),
+        "base": [{"expression": describe_base(ti.names, ti.base, k), "true": float(ti.beta_true[k]),
+                  "identified": float(ti.beta[k]),
                   "rel_error": float(rel[k]), "std": finite_or_null(ti.std[k]),
                   "ci95": [finite_or_null(ti.beta[k] - ti.ci_half_width[k]),
                            finite_or_null(ti.beta[k] + ti.ci_half_width[k])],

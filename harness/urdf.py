@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.friction import JointFriction
-from harness.spec import WORLD, Body, Joint
+from harness.spec import WORLD, Body, Joint, union
 from harness.tomlio import InputError, Table
 
 KNOWN_ROBOTS = {
@@ -249,15 +249,7 @@ def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[
                 raise _Bad(f"link {body_name!r} moves with rotational inertia but no mass (no engine takes it)")
             bodies.append(Body(body_name, 0.0, np.zeros((3, 3)), np.eye(3), pose[body_name][1]))
             continue
-        com = sum(inertial[n][0] * inertial[n][1] for n in members) / m
-        I = np.zeros((3, 3))
-        for n in members:
-            mi, ci, Ii = inertial[n]
-            d = ci - com
-            I += Ii + mi * (d @ d * np.eye(3) - np.outer(d, d))
-        moments, axes = np.linalg.eigh(I)
-        if np.linalg.det(axes) < 0:
-            axes[:, 2] *= -1
+        _, com, moments, axes = union([inertial[n] for n in members])
         bodies.append(Body(body_name, m, np.diag(moments), axes, com))
 
     spec_joints, limits, drive_limits = [], {}, {}

@@ -23,12 +23,16 @@ from harness.engines.pinocchio import build_model
 from harness.export import export
 from harness.friction import IDENTIFIED_KEYS
 from harness.friction import values as friction_values
-from harness.identify import sandwich_std, sensitivity, weakly_identifiable
 from harness.log import JointLog
 from harness.plugins import Stage
+from harness.stages.identification import joint_data
 from harness.torque_id import (
+    PARAMETER_NAMES,
+    BaseFit,
     BaseParameters,
     beta_scale,
+    describe_base,
+    fit_base,
     kind_scale,
     parameter_names,
     regressor,
@@ -43,12 +47,7 @@ class LogIdentification:
     names: list[str]  # all parameters: 10 per link, then 4 per joint
     base: BaseParameters
     beta_model: np.ndarray  # the model's own base parameters
-    beta: np.ndarray  # least squares
-    std: np.ndarray
-    ci_half_width: np.ndarray
-    sensitivity: np.ndarray
-    weak: np.ndarray
-    condition_number: float
+    ls: BaseFit  # least squares
     fit: consistent.ConsistentFit
     theta_model: np.ndarray  # (n, 10)
     friction_model: np.ndarray  # (n, 4)
@@ -56,11 +55,6 @@ class LogIdentification:
     measured: dict[str, np.ndarray]  # span -> (N, n) torques
     t: dict[str, np.ndarray]  # span -> times
     files: dict[str, str]  # the export
-
-
-def _data(log: JointLog, joints: list[str]) -> tuple[np.ndarray, ...]:
-    cols = [log.joint_index(j) for j in joints]
-    return log.q[:, cols], log.qd[:, cols], log.qdd[:, cols], log.tau[:, cols]
 
 
 def run(ctx, config) -> LogIdentification | None:
@@ -72,20 +66,12 @@ def run(ctx, config) -> LogIdentification | None:
     pm = build_model(robot, sc.gravity_W)
     ctx.progress("structural base parameters (with friction and rotor inertia)", None)
     base = structural_base(pm, robot.limits, with_friction=True)
-    q, qd, qdd, tau = _data(train, joints)
+    q, qd, qdd, tau = joint_data(train, joints)
     W = regressor(pm, q, qd, qdd, with_friction=True)
     L = tau.reshape(-1)
-    W1 = W[:, base.independent]
-    s = np.linalg.norm(W1, axis=0)
-    s = np.where(s > 0, s, 1.0)
-    z, *_ = np.linalg.lstsq(W1 / s, L, rcond=None)
-    sv = np.linalg.svd(W1 / s, compute_uv=False)
-    std, half = sandwich_std(W1 / s, L - (W1 / s) @ z, np.ones(len(L)), np.repeat(np.arange(len(q)), len(joints)))
     x_model = true_parameters(pm, with_friction=True)
     beta_model = base.of(x_model)
-    # relative to the parameter's size in the model or, where the model has it zero (a friction
-    # the model does not declare), in the estimate
-    kappa = sensitivity(W1 / s, L) / (s * beta_scale(np.maximum(np.abs(beta_model), np.abs(z / s))))
+    ls = fit_base(W[:, base.independent], tau, beta_model)
     n = len(joints)
     theta_model = x_model[: 10 * n].reshape(n, 10)
     friction_model = friction_values(robot.frictions)
@@ -101,12 +87,12 @@ def run(ctx, config) -> LogIdentification | None:
     x_fit = np.concatenate([fit.theta.ravel(), fit.friction.ravel()])
     spans = {"training": (q, qd, qdd, tau, train.t)}
     if validation is not None:
-        spans["validation"] = (*_data(validation, joints), validation.t)
+        spans["validation"] = (*joint_data(validation, joints), validation.t)
     predictions, measured, times = {}, {}, {}
     for span, (qs, qds, qdds, taus, ts) in spans.items():
         Ws = W if span == "training" else regressor(pm, qs, qds, qdds, with_friction=True)
         predictions[span] = {
-            "least squares": (Ws[:, base.independent] @ (z / s)).reshape(taus.shape),
+            "least squares": (Ws[:, base.independent] @ ls.beta).reshape(taus.shape),
             "consistent": (Ws @ x_fit).reshape(taus.shape),
             "model as given": (Ws @ x_model).reshape(taus.shape),
         }
@@ -114,8 +100,7 @@ def run(ctx, config) -> LogIdentification | None:
     files = export(robot, fit.theta, fit.friction,
                    f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
-    return LogIdentification(joints, parameter_names(joints, True), base, beta_model, z / s, std / s, half / s,
-                             kappa, weakly_identifiable(kappa), float(sv[0] / sv[-1]), fit, theta_model,
+    return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
                              friction_model, predictions, measured, times, files)
 
 
@@ -126,24 +111,20 @@ def _span_errors(li: LogIdentification, span: str) -> dict:
 def serialise(li: LogIdentification, ctx, config) -> dict:
     from harness.consistent import consistency
     from harness.results import finite_or_null
-    from harness.torque_id import COEFFICIENT_FLOOR
 
     n = len(li.joints)
-    rel = np.abs(li.beta - li.beta_model) / beta_scale(li.beta_model)
+    ls = li.ls
+    rel = np.abs(ls.beta - li.beta_model) / beta_scale(li.beta_model)
 
     def expression(k: int) -> str:
-        terms = [li.names[li.base.independent[k]]]
-        for c, j in zip(li.base.combination[k], li.base.dependent, strict=True):
-            if abs(c) > COEFFICIENT_FLOOR:
-                terms.append(f"{c:+.6g} {li.names[j]}")
-        return " ".join(terms)
+        return describe_base(li.names, li.base, k)
 
     errors = {span: _span_errors(li, span) for span in li.predictions}
     headline = errors.get("validation", errors["training"])
     links = {}
     for k, j in enumerate(li.joints):
-        links[j] = {"identified": dict(zip(PARAMETER_KEYS, map(float, li.fit.theta[k]), strict=True)),
-                    "model": dict(zip(PARAMETER_KEYS, map(float, li.theta_model[k]), strict=True)),
+        links[j] = {"identified": dict(zip(PARAMETER_NAMES, map(float, li.fit.theta[k]), strict=True)),
+                    "model": dict(zip(PARAMETER_NAMES, map(float, li.theta_model[k]), strict=True)),
                     **{f"{key}": value for key, value in consistency(li.fit.theta[k]).items()}}
     return {
         "method": "least squares of the structural base parameters with friction and rotor inertia, then all "
@@ -158,15 +139,15 @@ def serialise(li: LogIdentification, ctx, config) -> dict:
         "consistent_costs": {span: e["consistent"]["rel_error"] - e["least squares"]["rel_error"]
                              for span, e in errors.items()},
         "least_squares": {
-            "base_parameters": len(li.beta), "parameters": len(li.names), "condition_number": li.condition_number,
-            "weakly_identifiable": [expression(k) for k in np.flatnonzero(li.weak)],
-            "base": [{"expression": expression(k), "model": float(li.beta_model[k]), "identified": float(li.beta[k]),
-                      "std": finite_or_null(li.std[k]),
-                      "rel_std_percent": finite_or_null(100 * li.std[k] / abs(li.beta[k])) if li.beta[k] else None,
-                      "ci95": [finite_or_null(li.beta[k] - li.ci_half_width[k]),
-                               finite_or_null(li.beta[k] + li.ci_half_width[k])],
-                      "change_from_model": float(rel[k]), "sensitivity": finite_or_null(li.sensitivity[k]),
-                      "weakly_identifiable": bool(li.weak[k])} for k in range(len(li.beta))],
+            "base_parameters": len(ls.beta), "parameters": len(li.names), "condition_number": ls.condition_number,
+            "weakly_identifiable": [expression(k) for k in np.flatnonzero(ls.weak)],
+            "base": [{"expression": expression(k), "model": float(li.beta_model[k]), "identified": float(ls.beta[k]),
+                      "std": finite_or_null(ls.std[k]),
+                      "rel_std_percent": finite_or_null(100 * ls.std[k] / abs(ls.beta[k])) if ls.beta[k] else None,
+                      "ci95": [finite_or_null(ls.beta[k] - ls.ci_half_width[k]),
+                               finite_or_null(ls.beta[k] + ls.ci_half_width[k])],
+                      "change_from_model": float(rel[k]), "sensitivity": finite_or_null(ls.sensitivity[k]),
+                      "weakly_identifiable": bool(ls.weak[k])} for k in range(len(ls.beta))],
         },
         "consistent": {
             "solver_status": li.fit.status,
@@ -194,9 +175,6 @@ def _series(li: LogIdentification) -> dict:
             "measured": {j: [float(x) for x in li.measured[span][rows, k]] for k, j in enumerate(li.joints)},
             **{model: {j: [float(x) for x in pred[rows, k]] for k, j in enumerate(li.joints)}
                for model, pred in li.predictions[span].items()}}
-
-
-PARAMETER_KEYS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 
 
 def render(results: dict, log) -> str:

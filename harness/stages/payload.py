@@ -6,7 +6,8 @@ where W_b holds the 10 columns of the body that carries the payload. The robot's
 predicted at the loaded run's states from the base parameters identified on the run without it
 (harness/torque_id.py), and least squares of the difference on W_b gives the payload's ten
 parameters (m, m c, inertia about the joint point, world axes at q = 0, as the body's own in
-Pinocchio's joint frame), with CR3 standard deviations clustered by sample (harness/identify.py).
+Pinocchio's joint frame), by the ordinary least squares of harness/estimators.py (CR3 standard
+deviations clustered by sample).
 A scenario asks for it with
 
     [payload]
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.engines.pinocchio import build_model
-from harness.identify import sandwich_std
+from harness.estimators import ols
 from harness.measurement import measure
 from harness.plugins import Stage
 from harness.torque_id import PARAMETER_NAMES, kind_scale, regressor, structural_base, true_parameters
@@ -60,20 +61,15 @@ def run(ctx, config) -> Payload | None:
     meas0 = measure(rec0, m.with_seed(m.seed + 1), without.robot.inner_joint_arms_B())
     q0, qd0, qdd0, tau0 = joint_data(meas0, joints)
     W0 = regressor(pm_without, q0, qd0, qdd0, sc.torque_friction)[:, base.independent]
-    s0 = np.linalg.norm(W0, axis=0)
-    s0 = np.where(s0 > 0, s0, 1.0)
-    beta0 = np.linalg.lstsq(W0 / s0, tau0.reshape(-1), rcond=None)[0] / s0
+    beta0 = ols(W0, tau0.reshape(-1), n).beta
     q, qd, qdd, tau = joint_data(ctx.measured, joints)
     W = regressor(pm_without, q, qd, qdd, sc.torque_friction)
     delta = tau.reshape(-1) - W[:, base.independent] @ beta0
     Wb = W[:, 10 * k: 10 * k + 10]
-    sb = np.linalg.norm(Wb, axis=0)
-    sb = np.where(sb > 0, sb, 1.0)
-    z = np.linalg.lstsq(Wb / sb, delta, rcond=None)[0]
-    r = delta - (Wb / sb) @ z
-    std, half = sandwich_std(Wb / sb, r, np.ones(len(r)), np.repeat(np.arange(len(q)), n))
+    est = ols(Wb, delta, n)
+    r = delta - Wb @ est.beta
     true = true_parameters(pm_with)[10 * k: 10 * k + 10] - true_parameters(pm_without)[10 * k: 10 * k + 10]
-    return Payload(body, joints[k], true, z / sb, std / sb, half / sb,
+    return Payload(body, joints[k], true, est.beta, est.std, est.ci_half_width,
                    float(np.linalg.norm(r) / max(np.linalg.norm(delta), np.finfo(float).tiny)))
 
 
