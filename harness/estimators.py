@@ -15,19 +15,36 @@ sample (n joints a sample), each returning the estimate with its standard deviat
   is built from, so beta = (Z_1^T W_1)^-1 Z_1^T tau is consistent where least squares with a noisy
   regressor is biased (the errors-in-variables bias that differentiated, filtered accelerations
   cause), as long as a column is linear in the noisy signals: the smooth Coulomb column
-  tanh(q'/v_c) is not, and near its sign changes its mean is not tanh of the mean (measured in the
-  README, "Estimators side by side"). Chosen over total least squares, which assumes the same noise in every column (the
+  tanh(q'/v_c) is not, and near its sign changes its mean is not tanh of the mean, which biased
+  the estimate (measured in the README, "Estimators side by side"). Such columns (`nonlinear`) are
+  therefore taken from the instruments themselves, the Coulomb shape of the reference velocity: for
+  them the estimator is DIDIM's (the regressor of the simulated motion), for the rest IDIM-IV's.
+  On a robot the reference velocity's sign differs from the actual one only for the tracking
+  delay at a reversal. Chosen over total least squares, which assumes the same noise in every column (the
   columns of W_1 are products of q', q'' and trigonometric functions of q: their noise differs by
   orders of magnitude), and over DIDIM, which needs the closed-loop controller to simulate.
 
-Standard deviations are cluster-robust (the joints of one sample share the noise of the state they
-are computed from, and accelerations differentiated by a filter over `block` samples share noise
-with their neighbours, negatively correlated: a differentiator's kernel sums to zero). A cluster is
-`block` consecutive samples (harness/stages/estimators.py takes three filter windows): CR3 for the
-least-squares family (harness/identify.py), and the IV sandwich
-(Z^T W)^-1 [sum_c Z_c^T r_c r_c^T Z_c] (W^T Z)^-1 with the small-sample factor G / (G - 1). Taken
-sample by sample, the IV intervals of differentiated data covered the truth in 100 % of 200 trials
-instead of 95 %. The columns are scaled to unit norm before solving.
+Every estimator is called as f(W1, tau, n, instruments, lags); the least-squares family reads no
+instruments. `lags`: residuals of samples further apart
+than `lags` are uncorrelated (a filter of w samples that differentiates the positions: lags = w - 1,
+since two of its outputs share no input beyond that; 0: every sample's noise its own).
+
+Standard deviations are robust to that correlation (the joints of one sample share the noise of the
+state they are computed from; velocities and accelerations differentiated by a filter share noise
+with their neighbours, partly negatively correlated: a differentiator's kernel sums to zero).
+- Least-squares family: CR3 cluster-robust (harness/identify.py) over clusters of 3 (lags + 1)
+  consecutive samples (1 sample where lags = 0), which hold most of the correlated pairs.
+- IV: the sandwich (Z^T W)^-1 S (W^T Z)^-1, S the covariance of the scores Z^T e. Where the
+  sensors are specified (`Instruments.score_covariance`), S is propagated from their specification
+  (harness/propagation.py) and the interval takes the normal quantile. Otherwise S is estimated from
+  the residuals by the truncated (Hansen) long-run covariance sum_t sum_{|l| <= lags} g_t g_{t+l}^T
+  of the per-sample scores g_t = Z_t^T r_t, times rows / (rows - r), with Student's t on
+  samples / (lags + 1) - 1 degrees of freedom: exact for noise correlated over `lags` samples, but
+  an encoder's quantisation error on a slow joint stays correlated far longer. Measured on
+  ur5_estimators, coverage by base parameter (300 trials): clusters of one sample 100 %; clusters of
+  three filter windows (21 clusters for 58 parameters) 76 % to 100 %; truncated 75 % to 96 %;
+  propagated from the sensors 91 % to 98 % (1000 trials: 93 % to 97 %, README).
+The columns are scaled to unit norm before solving.
 """
 
 from __future__ import annotations
@@ -43,7 +60,17 @@ from harness.identify import sandwich_std
 
 HUBER_C = 1.345  # Huber's constant: 95 % efficiency under Gaussian noise
 IRLS_ITERATIONS = 20
+NORMAL_975 = 1.959963984540054  # the standard normal's 97.5 % quantile
 IRLS_TOL = 1e-6  # relative change of the scaled estimate that ends the iteration (far below its noise)
+
+
+@dataclass(frozen=True, eq=False)
+class Instruments:
+    """What the instrumental-variable estimator reads beside the measured regressor."""
+
+    Z1: np.ndarray  # (rows, r): the regressor of the reference motion
+    nonlinear: np.ndarray | None = None  # (r,) bool: columns nonlinear in a measured signal, taken from Z1
+    score_covariance: np.ndarray | None = None  # (r, r) Cov(Z1^T e) from the sensors (harness/propagation.py)
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,17 +100,18 @@ def clusters(rows: int, n: int, block: int) -> np.ndarray:
 
 
 def _finish(W1s: np.ndarray, z: np.ndarray, r: np.ndarray, w: np.ndarray, n: int, s: np.ndarray,
-            start: float, block: int) -> Estimate:
-    std, half = sandwich_std(W1s, r, w, clusters(len(r), n, block))
+            start: float, lags: int) -> Estimate:
+    std, half = sandwich_std(W1s, r, w, clusters(len(r), n, 3 * (lags + 1) if lags else 1))
     return Estimate(z / s, std / s, half / s, time.perf_counter() - start)
 
 
-def ols(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, block: int = 1) -> Estimate:
+def ols(W1: np.ndarray, tau: np.ndarray, n: int, instruments: Instruments | None = None,
+        lags: int = 0) -> Estimate:
     start = time.perf_counter()
     s = column_scale(W1)
     w = np.ones(len(tau))
     z, r = _weighted_fit(W1, tau, n, w, s)
-    return _finish(W1 / s, z, r, w, n, s, start, block)
+    return _finish(W1 / s, z, r, w, n, s, start, lags)
 
 
 def _per_joint_variance(r: np.ndarray, n: int, dof: int) -> np.ndarray:
@@ -95,17 +123,19 @@ def _per_joint_variance(r: np.ndarray, n: int, dof: int) -> np.ndarray:
     return np.where(var > 0, var, floor)
 
 
-def wls(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, block: int = 1) -> Estimate:
+def wls(W1: np.ndarray, tau: np.ndarray, n: int, instruments: Instruments | None = None,
+        lags: int = 0) -> Estimate:
     start = time.perf_counter()
     s = column_scale(W1)
     _, r0 = _weighted_fit(W1, tau, n, np.ones(len(tau)), s)
     w = np.tile(1.0 / _per_joint_variance(r0, n, W1.shape[1]), len(tau) // n)
     w /= w.max()
     z, r = _weighted_fit(W1, tau, n, w, s)
-    return _finish(W1 / s, z, r, w, n, s, start, block)
+    return _finish(W1 / s, z, r, w, n, s, start, lags)
 
 
-def irls(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, block: int = 1) -> Estimate:
+def irls(W1: np.ndarray, tau: np.ndarray, n: int, instruments: Instruments | None = None,
+        lags: int = 0) -> Estimate:
     start = time.perf_counter()
     s = column_scale(W1)
     w = np.ones(len(tau))
@@ -122,26 +152,37 @@ def irls(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, 
         z = z_new
         if done:
             break
-    return _finish(W1 / s, z, r, w, n, s, start, block)
+    return _finish(W1 / s, z, r, w, n, s, start, lags)
 
 
-def iv(W1: np.ndarray, tau: np.ndarray, n: int, Z1: np.ndarray | None = None, block: int = 1) -> Estimate:
-    if Z1 is None:
-        raise ValueError("the instrumental-variable estimator needs the instruments Z1")
+def iv(W1: np.ndarray, tau: np.ndarray, n: int, instruments: Instruments | None = None,
+       lags: int = 0) -> Estimate:
+    if instruments is None:
+        raise ValueError("the instrumental-variable estimator needs its instruments")
     start = time.perf_counter()
+    Z1, nonlinear = instruments.Z1, instruments.nonlinear
+    if nonlinear is not None and np.any(nonlinear):
+        W1 = np.where(nonlinear, Z1, W1)
     s = column_scale(W1)
     W1s, Z1s = W1 / s, Z1 / s
     A = Z1s.T @ W1s
     z = np.linalg.solve(A, Z1s.T @ tau)
-    r = tau - W1s @ z
-    c = clusters(len(tau), n, block)
-    G = int(c[-1]) + 1
-    scores = np.zeros((G, Z1s.shape[1]))
-    np.add.at(scores, c, Z1s * r[:, None])
     B = np.linalg.inv(A)
-    # diag(B S^T S B^T) as a sum of squares: never negative
-    std = np.sqrt(np.sum((scores @ B.T) ** 2, axis=0) * G / max(G - 1, 1))
-    half = student_t.ppf(0.975, max(G - 1, 1)) * std
+    if instruments.score_covariance is not None:  # from the sensors' specification: known, not estimated
+        var = np.einsum("ij,jk,ik->i", B, instruments.score_covariance / np.outer(s, s), B)
+        std = np.sqrt(np.maximum(var, 0.0))
+        return Estimate(z / s, std / s, NORMAL_975 * std / s, time.perf_counter() - start)
+    r = tau - W1s @ z
+    N, p = len(tau) // n, W1.shape[1]
+    u = (Z1s * r[:, None]).reshape(N, n, p).sum(axis=1) @ B.T  # (N, p): B g_t
+    var = np.sum(u * u, axis=0)
+    for lag in range(1, min(lags, N - 1) + 1):
+        var += 2 * np.sum(u[lag:] * u[:-lag], axis=0)
+    # the truncated form can come out negative where the true variance is far below its noise: it
+    # is then not estimable from these data, and the interval says so
+    var *= len(tau) / max(len(tau) - p, 1)
+    std = np.sqrt(np.where(var > 0, var, np.inf))
+    half = student_t.ppf(0.975, max(N // (lags + 1) - 1, 1)) * std
     return Estimate(z / s, std / s, half / s, time.perf_counter() - start)
 
 

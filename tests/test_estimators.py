@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from harness.api import run
-from harness.estimators import ESTIMATORS, irls, iv, ols, wls
+from harness.estimators import ESTIMATORS, Instruments, irls, iv, ols, wls
 from tests.conftest import SCENARIOS, results_of
 
 N_JOINTS = 3
@@ -24,7 +24,7 @@ def _problem(rng, samples=200, p=5):
 def test_exact_data_give_the_truth_to_round_off(name):
     rng = np.random.default_rng(0)
     X, beta = _problem(rng)
-    est = ESTIMATORS[name](X, X @ beta, N_JOINTS, X)
+    est = ESTIMATORS[name](X, X @ beta, N_JOINTS, Instruments(X))
     np.testing.assert_allclose(est.beta, beta, rtol=1e-12, atol=1e-12 * np.abs(beta).max())
 
 
@@ -41,7 +41,7 @@ def test_a_noisy_regressor_biases_least_squares_and_not_the_instruments():
     for _ in range(300):
         Xn = X + 0.5 * rng.normal(size=X.shape)
         b_ols.append(ols(Xn, y + 0.1 * rng.normal(size=len(y)), N_JOINTS).beta)
-        b_iv.append(iv(Xn, y + 0.1 * rng.normal(size=len(y)), N_JOINTS, X).beta)
+        b_iv.append(iv(Xn, y + 0.1 * rng.normal(size=len(y)), N_JOINTS, Instruments(X)).beta)
     b_ols, b_iv = np.array(b_ols), np.array(b_iv)
     attenuated = np.linalg.solve(X.T @ X + len(X) * 0.25 * np.eye(3), X.T @ X @ beta)
     se_ols = b_ols.std(axis=0, ddof=1) / np.sqrt(len(b_ols))

@@ -264,23 +264,38 @@ def estimator_comparison(r: dict) -> str:
     methods = e["methods"]
     rows = [[esc(name), esc(m["description"]), num(m["max_bias_in_sd"]), num(m["median_bias_in_sd"]),
              str(m["significant_biases"]), f"{num(m['coverage_min'])} / {num(m['coverage_median'])} / "
-             f"{num(m['coverage_max'])}", num(m["median_rms_rel_error"]), num(m["validation_rel_error_mean"]),
+             f"{num(m['coverage_max'])}", str(m["coverage_outside_band"]), num(m["median_rms_rel_error"]),
+             num(m["validation_rel_error_mean"]),
              num(m["seconds_per_fit"])] for name, m in methods.items()]
     labels = [str(k) for k in range(len(next(iter(methods.values()))["per_parameter"]["bias_in_sd"]))]
     fig_bias = figure(plots.bars(labels, {k: m["per_parameter"]["bias_in_sd"] for k, m in methods.items()},
                                  "|bias| / sd", "Bias of each base parameter, in standard deviations"),
                       "Per base parameter (numbered as in the torque identification's table): the mean error over "
                       "the trials relative to the error's spread.")
-    fig_cov = figure(plots.bars(labels, {k: m["per_parameter"]["coverage"] for k, m in methods.items()},
-                                "coverage", "Coverage of the 95 % intervals", logy=False),
-                     f"Fraction of the {e['trials']} trials whose 95 % interval holds the truth.")
+    coverage = {k: m["per_parameter"]["coverage"] for k, m in methods.items()}
+    residual = methods.get("iv", {}).get("coverage_from_residuals")
+    if residual:
+        coverage["iv, intervals from the residuals"] = residual["per_parameter"]
+    lo, hi = e["coverage_band"]
+    fig_cov = figure(plots.bars(labels, coverage, "coverage", "Coverage of the 95 % intervals", logy=False),
+                     f"Fraction of the {e['trials']} trials whose 95 % interval holds the truth; a calibrated "
+                     f"interval falls within {num(lo)} to {num(hi)} (3 binomial standard errors).")
+    source = {"sensors": "propagated from the sensors' specification (harness/propagation.py)",
+              "residuals": "estimated from the residuals"}[e["iv_intervals_from"]]
+    iv_note = ""
+    if residual:
+        iv_note = (f" Estimated from the residuals instead, the same estimates' intervals cover "
+                   f"{num(residual['min'])} / {num(residual['median'])} / {num(residual['max'])} (min / median / "
+                   f"max), {residual['outside_band']} parameters outside the band.")
     return section(
         "estimators", "Estimators side by side",
         f"<p>{e['trials']} measurements of the same recording under the scenario's noise, "
         f"{e['samples_per_trial']} samples each; {esc(e['definition'])}. Binomial standard error of a coverage at "
-        f"this trial count: {num(e['coverage_binomial_standard_error'])}.</p>"
+        f"this trial count: {num(e['coverage_binomial_standard_error'])}. The instrumental variables' intervals are "
+        f"{source}.{iv_note}</p>"
         + table(["estimator", "method", "max |bias|/sd", "median |bias|/sd", "significant biases",
-                 "coverage min / median / max", "median RMS rel error", "validation error", "s per fit"], rows)
+                 "coverage min / median / max", f"outside {num(lo)}-{num(hi)}", "median RMS rel error",
+                 "validation error", "s per fit"], rows)
         + fig_bias + fig_cov)
 
 
