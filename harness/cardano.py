@@ -16,7 +16,6 @@ branch (alpha + pi, pi - beta, gamma + pi) that keeps the series continuous is c
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 LOCK_COS_BETA = 1e-10  # |cos beta| below which alpha and gamma are not separable at all
 GIMBAL_COND_D = 100.0  # rows with cond(D) above this are flagged as near gimbal lock
@@ -49,6 +48,8 @@ def D_from_rotations(theta: np.ndarray) -> np.ndarray:
     """D of Eq. (33) computed independently, with a rotation library: for A = Rx(alpha) Ry(beta)
     Rz(gamma), A^T A' = (omega^(i))~ gives omega^(i) = alpha' (Ry Rz)^T e_x + beta' Rz^T e_y + gamma' e_z,
     so the columns of D are those three vectors. (..., 3) -> (..., 3, 3)."""
+    from scipy.spatial.transform import Rotation  # only here: scipy.spatial takes 0.25 s to import
+
     theta = np.asarray(theta, dtype=float)
     flat = theta.reshape(-1, 3)
     Ry_Rz = Rotation.from_euler("YZ", flat[:, 1:]).as_matrix()  # intrinsic: Ry(beta) Rz(gamma)

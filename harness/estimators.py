@@ -54,9 +54,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import t as student_t
 
-from harness.identify import sandwich_std
+from harness.identify import sandwich_std, t_quantile
 
 HUBER_C = 1.345  # Huber's constant: 95 % efficiency under Gaussian noise
 IRLS_ITERATIONS = 20
@@ -182,7 +181,7 @@ def iv(W1: np.ndarray, tau: np.ndarray, n: int, instruments: Instruments | None 
     # is then not estimable from these data, and the interval says so
     var *= len(tau) / max(len(tau) - p, 1)
     std = np.sqrt(np.where(var > 0, var, np.inf))
-    half = student_t.ppf(0.975, max(N // (lags + 1) - 1, 1)) * std
+    half = t_quantile(max(N // (lags + 1) - 1, 1)) * std
     return Estimate(z / s, std / s, half / s, time.perf_counter() - start)
 
 

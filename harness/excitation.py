@@ -25,7 +25,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.optimize import minimize
 
 from harness.engines.pinocchio import build_model, rnea
 from harness.motion import Sinusoids
@@ -146,6 +145,8 @@ def optimise(scenario: Scenario, harmonics: int, base_frequency: float, evaluati
     rng = np.random.default_rng(seed)
     x0 = (rng.uniform(-1, 1, (n, harmonics - 1, 2)) * scale).ravel()
     start = float(np.exp(_criterion(pm, *_series(coefficients(x0), q0, base_frequency, t), base, "condition")))
+    from scipy.optimize import minimize
+
     res = minimize(cost, x0, method="Powell", options={"maxfev": evaluations, "xtol": 1e-4, "ftol": 1e-6})
     coef = coefficients(res.x)
     # the limits hold on the dense grid, or the amplitude shrinks until they do

@@ -32,13 +32,15 @@ import hashlib
 import io
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
-from scipy.signal import butter, sosfiltfilt
 
 from harness.spec import RobotSpec
 from harness.tomlio import InputError, Table
+
+if TYPE_CHECKING:  # pandas and scipy.signal are imported where a log is read: a bench run needs neither
+    import pandas as pd
 
 LOG_FILE = "data.csv"  # the conditioned log, written beside results.json
 GAP_FACTOR = 2.0  # a step more than twice the median is a gap
@@ -85,6 +87,7 @@ class JointLog:
                         self.conditioning)
 
     def to_frame(self) -> pd.DataFrame:
+        import pandas as pd
         cols: dict[str, np.ndarray] = {"t": self.t}
         for j, name in enumerate(self.joints):
             for k in ("q", "qd", "qdd", "tau"):
@@ -97,6 +100,7 @@ class JointLog:
 
 def read_log_csv(path: Path | str) -> JointLog:
     """A conditioned log written by write_csv, read back (for `harness report`)."""
+    import pandas as pd
     try:
         df = pd.read_csv(path)
     except (OSError, ValueError, pd.errors.ParserError) as exc:
@@ -194,6 +198,7 @@ def _check_header(path: Path, header: list[str], source: DataSource, robot: Robo
 
 def _read_frame(path: Path, nrows: int | None = None, content: bytes | None = None) -> pd.DataFrame:
     """The CSV at `path` (or its `content`, already read) as a table; refusals name the file."""
+    import pandas as pd
     try:
         df = pd.read_csv(io.BytesIO(content) if content is not None else path, low_memory=False, nrows=nrows)
     except (OSError, UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
@@ -212,6 +217,7 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
 
 def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> RawLog:
     """The log's columns for the robot's joints; every refusal names the file and the column."""
+    import pandas as pd
     path = file or source.file
     try:
         content = Path(path).read_bytes()  # read once: parsed and hashed
@@ -240,6 +246,7 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
 
 def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> JointLog:
     """Steps 1-5 of the module docstring."""
+    from scipy.signal import butter, sosfiltfilt
     path, t = raw.file, raw.t
     steps, warnings = [], []
     # 1. checks

@@ -38,7 +38,6 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from harness.cardano import A_0i, D, D_dot
 from harness.recording import Recording
@@ -157,6 +156,8 @@ def add_noise(rec: Recording, noise: dict[str, Noise], rng: np.random.Generator)
 def savgol(x: np.ndarray, t: np.ndarray, window: int, deriv: int) -> np.ndarray:
     """The cubic Savitzky-Golay filter over `window` samples (its `deriv`-th derivative), along
     time: the one differentiator of every measured channel."""
+    from scipy.signal import savgol_filter
+
     return savgol_filter(x, window, 3, deriv=deriv, delta=float(t[1] - t[0]), axis=0, mode="interp")
 
 

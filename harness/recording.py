@@ -18,11 +18,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from harness.tomlio import InputError
+
+if TYPE_CHECKING:  # imported where a CSV is read or written
+    import pandas as pd
 
 XYZ = ("x", "y", "z")
 ANGLES = ("alpha", "beta", "gamma")
@@ -56,7 +59,8 @@ class Recording:
     def body_index(self, name: str) -> int:
         return self.bodies.index(name)
 
-    def to_frame(self) -> pd.DataFrame:
+    def columns(self) -> dict[str, np.ndarray]:
+        """The CSV's columns in order, {name: (N,) values}."""
         cols: dict[str, np.ndarray] = {"t": self.t}
         for j, name in enumerate(self.joints):
             cols[f"q_{name}"] = self.q[:, j]
@@ -76,15 +80,29 @@ class Recording:
                 cols[f"{name}_F{s}"] = self.F_W[:, j, k]
             for k, s in enumerate(XYZ):
                 cols[f"{name}_M{s}"] = self.M_W[:, j, k]
-        return pd.DataFrame(cols)
+        return cols
+
+    def to_frame(self) -> pd.DataFrame:
+        import pandas as pd
+
+        return pd.DataFrame(self.columns())
 
     def write_csv(self, path: Path) -> None:
-        self.to_frame().to_csv(path, index=False, float_format="%.17g")
+        """Every value to 17 significant digits (a double read back is the same double). Written with
+        numpy's printf formatting, as pandas' float_format="%.17g" writes it, without importing pandas."""
+        cols = self.columns()
+        fmt = ["%d" if v.dtype.kind in "iub" else "%.17g" for v in cols.values()]
+        data = np.column_stack(list(cols.values())).astype(float)  # '%d' % 1.0 is '1'
+        with open(path, "w", newline="") as f:
+            f.write(",".join(cols) + "\n")
+            np.savetxt(f, data, fmt=fmt, delimiter=",")
 
 
 def read_csv(path: Path | str) -> Recording:
     """Read a recording back from CSV: joints from the q_ columns, bodies from the _alpha ones.
     A missing column, an empty or unparsable cell (a truncated file) is an InputError."""
+    import pandas as pd
+
     try:
         df = pd.read_csv(path)
     except (OSError, ValueError, pd.errors.ParserError) as exc:

@@ -128,9 +128,9 @@ def recording_section(rec: Recording) -> dict:
 
 
 def run_section(out: RunOutput, when: str) -> dict:
-    import matplotlib
+    from importlib.metadata import version  # installed versions, without importing what the run did not need
+
     import mujoco
-    import pandas
     import pinocchio
 
     from harness import __version__
@@ -139,7 +139,7 @@ def run_section(out: RunOutput, when: str) -> dict:
         "time": when,
         "versions": {"harness": __version__, "python": platform.python_version(), "numpy": np.__version__,
                      "mujoco": mujoco.__version__, "pinocchio": pinocchio.__version__,
-                     "pandas": pandas.__version__, "matplotlib": matplotlib.__version__},
+                     "pandas": version("pandas"), "scipy": version("scipy")},
         "models_under_test": {m.name: {"plugin": m.reference, "model_file": str(m.robot.source)}
                               for m in out.scenario.models},
         "identification_methods": {m.name: m.reference for m in out.scenario.methods},

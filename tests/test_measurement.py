@@ -79,6 +79,7 @@ def test_a_sweep_is_the_same_whatever_the_number_of_processes():
     assert one["parameters"] == two["parameters"]
 
 
+@pytest.mark.slow  # 1000 trials: about 20 s
 def test_noise_sweep_intervals_cover_about_95_percent():
     """kr500_noise, 1000 trials: every parameter identified in every trial has its 95 % interval
     containing the true value in 90 % to 98 % of the trials. The binomial standard error at 1000

@@ -54,6 +54,7 @@ def test_a_rod_link_needs_a_length(tmp_path, capsys):
 CASES = [f"planar6_case{c}_{d}" for c in (1, 2) for d in DESIGNS]
 
 
+@pytest.mark.slow  # four whole scenarios, 2 to 3 s each (their gates run in .ci/run as well)
 @pytest.mark.parametrize("name", CASES)
 def test_torques_agree_three_ways_and_joints_3_to_6_share_one_angle(run_scenario, name):
     out = run_scenario(SCENARIOS / f"{name}.toml")

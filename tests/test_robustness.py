@@ -152,6 +152,7 @@ def test_command_line_mistakes_are_one_line_and_exit_2(capsys, argv):
     assert err.count("\n") == 1 and err.startswith("harness: error: "), err
 
 
+@pytest.mark.slow  # four robots, 3 to 10 s each
 @pytest.mark.parametrize("robot", ["kinova", "solo12", "bolt", "double_pendulum"])
 def test_robots_of_example_robot_data_run_from_two_line_model_files(tmp_path, capsys, robot):
     """No crash: a verdict. Kinova keeps its models in */robots/, as Solo12 and Bolt do; Bolt's feet

@@ -18,11 +18,13 @@ ALL_SCENARIOS = sorted(SCENARIOS.glob("*.toml"))
 
 
 @pytest.mark.parametrize("path", ALL_SCENARIOS, ids=[p.stem for p in ALL_SCENARIOS])
-def test_every_scenario_passes_its_gates(run_scenario, path):
-    results = results_of(run_scenario(path))
-    failing = [(g["name"], g["value"], g["limit"]) for g in results["gates"] if not g["passed"]]
-    assert results["gates"], "a scenario without gates checks nothing"
-    assert results["passed"] and not failing, failing
+def test_every_scenario_loads_and_declares_gates(path):
+    """Every scenario is valid and checks something. Whether each passes its gates is what
+    `harness run scenarios/*.toml` decides in .ci/run, once (exit status 1 on a failed gate); running
+    them all here too would run every scenario twice."""
+    from harness.scenario import load_scenario
+
+    assert load_scenario(path).gates, "a scenario without gates checks nothing"
 
 
 def test_gates_fail_closed():

@@ -69,6 +69,7 @@ def test_joint_torque_identification_recovers_base_parameters_and_predicts_valid
     assert ti["base_parameters"] < ti["parameters"]
 
 
+@pytest.mark.slow  # the optimisation: about 6 s
 def test_optimised_excitation_is_better_conditioned(run_scenario):
     ex = results_of(run_scenario(SCENARIOS / "ur5_excitation.toml"))["excitation"]
     assert ex["optimised_condition_number"] < ex["initial_condition_number"]

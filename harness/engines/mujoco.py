@@ -152,6 +152,13 @@ _WARNINGS: list[str] = []
 mujoco.set_mju_user_warning(_log_warning)
 
 
+def _as_slice(index: np.ndarray) -> slice | np.ndarray:
+    """index as a slice where its entries are consecutive."""
+    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
+        return slice(int(index[0]), int(index[0]) + len(index))
+    return index
+
+
 def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, output_steps: int, output_dt: float,
              simulation: Simulation) -> Recording:
     """Forward-simulate the robot with mj_step along the prescribed motion (`prescribed(t)` ->
@@ -162,6 +169,10 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     qadr = np.array([model.joint(j).qposadr[0] for j in spec.joint_names])
     vadr = np.array([model.joint(j).dofadr[0] for j in spec.joint_names])
     act = np.array([model.actuator(f"drive_{j}").id for j in spec.joint_names])
+    # the callback runs at every stage of every step: a run of consecutive addresses (the usual
+    # case) is read and written as a slice, a view, rather than by fancy indexing, a copy
+    n_joints = len(spec.joint_names)
+    qadr, vadr, act = (_as_slice(a) for a in (qadr, vadr, act))
     w = simulation.tracking_bandwidth
     dt = simulation.timestep
     substeps = round(output_dt / dt)
@@ -194,7 +205,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
 
     data.qpos[qadr], data.qvel[vadr] = q_d[0], qd_d[0]
     sensor_rows = np.empty((n_rows, model.nsensordata))
-    qacc_rows = np.empty((n_rows, len(vadr)))
+    qacc_rows = np.empty((n_rows, n_joints))
     mujoco.set_mjcb_control(drive)
     warned = len(_WARNINGS)
     try:
@@ -211,7 +222,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     finally:
         mujoco.set_mjcb_control(None)
     per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]
-    drive_stages = np.array(stages).reshape(n_steps, per_step, len(act))
+    drive_stages = np.array(stages).reshape(n_steps, per_step, n_joints)
     t = np.arange(n_rows) * substeps * dt
     q_ref, qd_ref, qdd_ref = (x[::2 * substeps] for x in (q_d, qd_d, qdd_d))
 

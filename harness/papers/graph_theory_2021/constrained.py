@@ -124,6 +124,7 @@ class Constrained:
 
 
 EQUILIBRATION_SWEEPS = 30  # alternate row and column scalings: converged to 1e-9 on random matrices
+EQUILIBRATED = 1e-12  # every row and column norm within this of 1: converged, stop early
 ROUND_OFF = 64 * np.finfo(float).eps  # relative to a matrix's largest entry: what products of its data leave
 RANK_TOL = 1e-10  # singular values below this fraction of the largest (equilibrated) count as zero: the
 # scaling amplifies round-off in a structurally deficient matrix to 1e-13 (kr500's paper rows), and a
@@ -145,6 +146,8 @@ def equilibrate(X: np.ndarray) -> np.ndarray:
         X = X / np.where(rows > 0, rows, 1.0)
         cols = np.linalg.norm(X, axis=1, keepdims=True)
         X = X / np.where(cols > 0, cols, 1.0)
+        if np.all(np.abs(rows[rows > 0] - 1.0) < EQUILIBRATED) and np.all(np.abs(cols[cols > 0] - 1.0) < EQUILIBRATED):
+            break  # a further sweep would change no entry by more than this
     return X
 
 

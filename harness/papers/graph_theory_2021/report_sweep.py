@@ -3,12 +3,28 @@
 from __future__ import annotations
 
 import html
+import io
 
-import matplotlib.pyplot as plt
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # histograms and a log-log plot: the sweep's own figures
 import numpy as np
 
-from harness.report import STYLE, plots
+from harness.report import STYLE
 from harness.report.sections import esc, figure, num, section, table
+
+plt.rcParams.update({"svg.fonttype": "none", "svg.hashsalt": "harness", "font.size": 9, "axes.grid": True,
+                     "grid.alpha": 0.3, "figure.dpi": 100})
+
+
+def to_svg(fig) -> str:
+    """The figure as inline SVG text, deterministic for the same data."""
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg", bbox_inches="tight", metadata={"Date": None})
+    plt.close(fig)
+    text = buf.getvalue()
+    return text[text.index("<svg"):]
 
 
 def _histograms(params: list[dict]) -> str:
@@ -24,7 +40,7 @@ def _histograms(params: list[dict]) -> str:
     for ax in axes.flat[len(shown) :]:
         ax.set_visible(False)
     fig.tight_layout()
-    return plots.to_svg(fig)
+    return to_svg(fig)
 
 
 def _levels(levels: list[dict]) -> str:
@@ -40,7 +56,7 @@ def _levels(levels: list[dict]) -> str:
     ax.set_ylabel("median |relative error|")
     ax.set_title("Error against noise level")
     ax.legend(fontsize=5, ncol=6, loc="upper left")
-    return plots.to_svg(fig)
+    return to_svg(fig)
 
 
 def render_sweep(s: dict) -> str:
