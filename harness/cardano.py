@@ -23,12 +23,18 @@ GIMBAL_COND_D = 100.0  # rows with cond(D) above this are flagged as near gimbal
 
 def A_0i(theta: np.ndarray) -> np.ndarray:
     """Eq. (29): rotation matrix from Cardano angles, shape (..., 3) -> (..., 3, 3)."""
-    a, b, g = np.moveaxis(np.asarray(theta, dtype=float), -1, 0)
+    return np.moveaxis(A_0i_components(np.moveaxis(np.asarray(theta, dtype=float), -1, 0)), (0, 1), (-2, -1))
+
+
+def A_0i_components(theta_c: np.ndarray) -> np.ndarray:
+    """Eq. (29) in component-major form: angles (3, ...) -> entries (3, 3, ...), contiguous, so that
+    a batch of rotations is nine whole arrays (harness/papers/graph_theory_2021/inverse.py)."""
+    a, b, g = np.asarray(theta_c, dtype=float)
     ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
-    out = np.empty(a.shape + (3, 3))
-    out[..., 0, 0], out[..., 0, 1], out[..., 0, 2] = cb * cg, -cb * sg, sb
-    out[..., 1, 0], out[..., 1, 1], out[..., 1, 2] = ca * sg + sa * sb * cg, ca * cg - sa * sb * sg, -sa * cb
-    out[..., 2, 0], out[..., 2, 1], out[..., 2, 2] = sa * sg - ca * sb * cg, sa * cg + ca * sb * sg, ca * cb
+    out = np.empty((3, 3) + a.shape)
+    out[0, 0], out[0, 1], out[0, 2] = cb * cg, -cb * sg, sb
+    out[1, 0], out[1, 1], out[1, 2] = ca * sg + sa * sb * cg, ca * cg - sa * sb * sg, -sa * cb
+    out[2, 0], out[2, 1], out[2, 2] = sa * sg - ca * sb * cg, sa * cg + ca * sb * sg, ca * cb
     return out
 
 

@@ -81,14 +81,30 @@ def joint_arms(top: Topology, A: np.ndarray, q: np.ndarray) -> tuple[np.ndarray,
     """World vectors from each joint's outer and inner body's centre of mass to the joint point,
     (N, n_joints, 3) each; the inner one is zero where the inner body is the ground. These are
     the non-zero C_e,ik of Eq. 19 (with signs S_ik), gathered joint by joint."""
+    c_out, c_in = joint_arms_components(top, np.moveaxis(A, (-2, -1), (0, 1)), q)
+    return np.moveaxis(c_out, 0, -1), np.moveaxis(c_in, 0, -1)
+
+
+def joint_arms_components(top: Topology, A_c: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """joint_arms in component-major form: A_c (3, 3, N, n) with A_c[i, j] the (N, n) entries A_ij,
+    the arms (3, N, n_joints) each (a batch of small vectors is fastest as three arrays)."""
     k = np.arange(top.n)
     outer = np.argmax(top.S == -1, axis=0)
     has_inner = np.any(top.S == 1, axis=0)
     inner = np.where(has_inner, np.argmax(top.S == 1, axis=0), 0)
-    c_out = (A[:, outer] @ top.c_B[outer, k][..., None])[..., 0]
-    c_in_B = top.c_B[inner, k][None] + top.slide_B[inner, k][None] * q[..., None]
-    c_in = (A[:, inner] @ c_in_B[..., None])[..., 0] * has_inner[None, :, None]
+    A_out = A_c if np.array_equal(outer, k) else A_c[..., outer]
+    c_out = np.einsum("ijnk,jk->ink", A_out, top.c_B[outer, k].T)
+    c_in_B = top.c_B[inner, k].T[:, None, :] + top.slide_B[inner, k].T[:, None, :] * q[None]
+    c_in = np.zeros_like(c_out)
+    for j in np.flatnonzero(has_inner):  # joint by joint: no copy of the inner bodies' rotations
+        c_in[:, :, j] = np.einsum("ijn,jn->in", A_c[..., inner[j]], c_in_B[:, :, j])
     return c_out, c_in
+
+
+def rotate(A_c: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A v in component-major form: A_c (3, 3, ...) and v (3, ...) -> (3, ...) (einsum: three times
+    faster than the three products summed, on 10,000 samples of seven bodies)."""
+    return np.einsum("ij...,j...->i...", A_c, v)
 
 
 def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarray, M_W: np.ndarray):
