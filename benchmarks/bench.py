@@ -1,10 +1,15 @@
 """Benchmark: run from the project root with `.venv/bin/python benchmarks/bench.py`.
 
-Measures on the machine at hand, in one run so that the ratios hold on a noisy machine:
+Measures on the machine at hand, in one run, so that the ratios hold on a noisy machine (two timed
+things are measured alternately, the best of several rounds of each):
 - joint torques for 10,000 states of kr500: the graph model batched, Pinocchio `rnea` and MuJoCo
-  `mj_inverse` called per state from Python (microseconds per state, ratios);
-- identification, assembly and solve, for 10,000 samples (seconds);
-- `harness run kr500_rail` end to end in a fresh process (seconds, and its stages);
+  `mj_inverse` called per state from Python (microseconds per state, ratio graph / Pinocchio);
+- identification on the force path (the graph model, 10,000 samples) and on the joint-torque path
+  with friction and rotor inertia (Panda, 7 joints, block by block: harness/streaming.py) at 1e4,
+  1e5 and 9e5 samples; at 9e5, in a process of its own, its time over that of Pinocchio's
+  joint-torque regressor alone evaluated once on the same samples from Python, and the peak memory;
+- `harness run` end to end in a fresh process: kr500_rail (seconds, and its stages), and the same
+  kind of scenario (graph model, torques, torque identification) on robots of 6, 7, 7 and 20 joints;
 - `harness sweep` throughput on kr500_noise with 1 and 2 processes (trials per second).
 Writes reports/benchmark.json and prints a table.
 """
@@ -13,44 +18,61 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import resource
 import subprocess
 import sys
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
-import mujoco
 import numpy as np
-import pinocchio as pin
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from harness.bench import record  # noqa: E402
-from harness.engines.mujoco import build_model as build_mujoco  # noqa: E402
-from harness.engines.pinocchio import build_model as build_pinocchio  # noqa: E402
-from harness.measurement import Measurement  # noqa: E402
-from harness.papers.graph_theory_2021.dynamics import build_graph_model  # noqa: E402
-from harness.papers.graph_theory_2021.inverse import inverse_dynamics  # noqa: E402
-from harness.papers.graph_theory_2021.model import make as make_graph_model  # noqa: E402
-from harness.papers.graph_theory_2021.solve import identify  # noqa: E402
-from harness.papers.graph_theory_2021.sweep import run_sweep  # noqa: E402
-from harness.scenario import load_scenario  # noqa: E402
-
 N = 10_000
+LONG = 900_000
+ROUNDS = 7
 
 
-def best_of(f, repeat=3):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+def alternately(*fs, rounds: int = ROUNDS) -> list[float]:
+    """The best time of each function over `rounds` rounds, the functions taking turns."""
+    best = [np.inf] * len(fs)
+    for _ in range(rounds):
+        for k, f in enumerate(fs):
+            t0 = time.perf_counter()
+            f()
+            best[k] = min(best[k], time.perf_counter() - t0)
+    return best
 
 
-def main() -> None:
-    figures = {}
+def joint_motion(n: int, samples: int, rate: float = 1000.0, seed: int = 0):
+    """Three sines a joint (0.1 to 0.5 Hz) sampled at `rate`: q, q', q'' (samples, n), closed form."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(samples) / rate
+    w, amp, phase = rng.uniform(0.6, 3.0, (3, n)), rng.uniform(0.2, 0.8, (3, n)), rng.uniform(0, 6, (3, n))
+    q, qd, qdd = (np.zeros((samples, n)) for _ in range(3))
+    for k in range(3):  # one sine at a time: no (3, samples, n) temporaries
+        arg = w[k] * t[:, None] + phase[k]
+        q += amp[k] * np.sin(arg)
+        qd += amp[k] * w[k] * np.cos(arg)
+        qdd -= amp[k] * w[k] ** 2 * np.sin(arg)
+    return q, qd, qdd
+
+
+def torques(figures: dict) -> None:
+    import mujoco
+    import pinocchio as pin
+
+    from harness.bench import record
+    from harness.engines.mujoco import build_model as build_mujoco
+    from harness.engines.pinocchio import build_model as build_pinocchio
+    from harness.papers.graph_theory_2021.dynamics import build_graph_model
+    from harness.papers.graph_theory_2021.inverse import inverse_dynamics
+    from harness.papers.graph_theory_2021.model import make as make_graph_model
+    from harness.scenario import load_scenario
+
     # 10,000 states of kr500 with every joint moving: their body kinematics come from MuJoCo
     sc = load_scenario(ROOT / "scenarios" / "kr500_all_joints.toml")
     sc = dataclasses.replace(sc, duration=20.0, output_steps=N - 1, sample_times=np.linspace(0, 20.0, N))
@@ -59,10 +81,7 @@ def main() -> None:
     model = build_graph_model(spec, sc.gravity_W)
     cols = [rec.joint_index(j) for j in spec.joint_names]
     q, qd, qdd = rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols]
-
-    t_graph = best_of(lambda: inverse_dynamics(spec, model, rec))
     plugin = make_graph_model(spec, sc.gravity_W)  # as a model under test: (q, q', q'') in, kinematics its own
-    t_plugin = best_of(lambda: plugin.inverse_dynamics(q, qd, qdd))
     pm = build_pinocchio(spec, sc.gravity_W)
     data = pm.model.createData()
     qq, vv, aa = (np.zeros((N, pm.model.nq)) for _ in range(3))
@@ -82,7 +101,8 @@ def main() -> None:
             md.qpos[qadr], md.qvel[vadr], md.qacc[vadr] = q[k], qd[k], qdd[k]
             mujoco.mj_inverse(mm, md)
 
-    t_pin, t_mj = best_of(pinocchio_loop), best_of(mujoco_loop)
+    t_graph, t_pin = alternately(lambda: inverse_dynamics(spec, model, rec), pinocchio_loop)
+    t_plugin, t_mj = alternately(lambda: plugin.inverse_dynamics(q, qd, qdd), mujoco_loop, rounds=3)
     figures["torques_us_per_state"] = {
         "graph_batched": 1e6 * t_graph / N,
         "graph_plugin_with_kinematics": 1e6 * t_plugin / N,
@@ -91,22 +111,159 @@ def main() -> None:
     }
     figures["torques_ratio_graph_over_pinocchio"] = t_graph / t_pin
 
-    rows = np.arange(N)
-    t_id = best_of(lambda: identify(model, rec, rows, Measurement(), with_system=False), repeat=2)
-    figures["identification_10000_samples_s"] = t_id
+    from harness.measurement import Measurement
+    from harness.papers.graph_theory_2021.solve import identify
 
+    rows = np.arange(N)
+    figures["identification_10000_samples_s"] = alternately(
+        lambda: identify(model, rec, rows, Measurement(), with_system=False), rounds=2)[0]
+
+
+def _panda():
+    from harness.engines.pinocchio import build_model
+    from harness.spec import load_spec
+    from harness.torque_id import structural_base
+
+    spec = load_spec(ROOT / "models" / "panda_arm.toml")
+    pm = build_model(spec, np.array([0.0, 0.0, -9.80665]))
+    return pm, structural_base(pm, spec.limits, with_friction=True)
+
+
+def _torques(pm, q, qd, qdd) -> np.ndarray:
+    """Joint torques of the motion with the drives' friction (Pinocchio's rnea, sample by sample)."""
+    import pinocchio as pin
+
+    from harness import friction
+
+    data = pm.model.createData()
+    tau = friction.torque(pm.frictions, qd, qdd)
+    for k in range(len(q)):
+        tau[k] += pin.rnea(pm.model, data, q[k], qd[k], qdd[k])
+    return tau
+
+
+def identification_scaling(figures: dict) -> None:
+    from harness.streaming import fit_long
+
+    pm, base = _panda()
+    out = {}
+    for samples in (10_000, 100_000):
+        q, qd, qdd = joint_motion(7, samples)
+        tau = _torques(pm, q, qd, qdd)
+        out[str(samples)] = alternately(lambda q=q, qd=qd, qdd=qdd, tau=tau: fit_long(pm, base, q, qd, qdd, tau, True),
+                                        rounds=2)[0]
+    # 900,000 samples in a process of its own: its peak memory is the identification's
+    long = json.loads(subprocess.run([sys.executable, __file__, "--long"], check=True, capture_output=True,
+                                     text=True).stdout)
+    out[str(LONG)] = long["identification_s"]
+    figures["identification_torque_path_s"] = out
+    figures["identification_900k_s"] = long["identification_s"]
+    figures["identification_900k_regressor_only_s"] = long["regressor_s"]
+    figures["identification_900k_over_regressor"] = long["identification_s"] / long["regressor_s"]
+    figures["identification_900k_peak_rss_mib"] = long["peak_rss_mib"]
+    figures["identification_900k_allocated_mib"] = long["identification_allocated_mib"]
+    figures["identification_900k_log_arrays_mib"] = long["log_arrays_mib"]
+    figures["identification_900k_max_rel_error"] = long["max_rel_error"]
+
+
+def long_identification() -> None:
+    """--long: the 900,000-sample log alone (its motion, torques, then the two timed runs)."""
+    import pinocchio as pin
+
+    from harness.streaming import fit_long
+    from harness.torque_id import true_parameters
+
+    pm, base = _panda()
+    q, qd, qdd = joint_motion(7, LONG)
+    tau = _torques(pm, q, qd, qdd)
+    data = pm.model.createData()
+
+    def regressor_only():
+        for k in range(LONG):
+            pin.computeJointTorqueRegressor(pm.model, data, q[k], qd[k], qdd[k])
+
+    fit = []
+    t_fit, t_reg = alternately(lambda: fit.append(fit_long(pm, base, q, qd, qdd, tau, True)), regressor_only,
+                               rounds=2)
+    truth = base.of(true_parameters(pm, True))
+    err = np.max(np.abs(fit[-1].beta - truth) / np.maximum(np.abs(truth), 1e-6 * np.abs(truth).max()))
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # the log's arrays included
+    tracemalloc.start()  # what the identification itself allocates (numpy reports to tracemalloc)
+    fit_long(pm, base, q, qd, qdd, tau, True)
+    own = tracemalloc.get_traced_memory()[1] / 2**20
+    tracemalloc.stop()
+    print(json.dumps({"identification_s": t_fit, "regressor_s": t_reg, "max_rel_error": float(err),
+                      "peak_rss_mib": rss, "identification_allocated_mib": own,
+                      "log_arrays_mib": 4 * q.nbytes / 2**20}))
+
+
+CHAIN = 20
+
+
+def chain_scenario(folder: Path) -> Path:
+    """A 20-joint arm: aluminium cylinders end to end along x, joints alternately about z and y, every
+    joint on a sum of sines; the same stages as ur5_sines (graph model, torques, identification
+    validated on another motion)."""
+    bodies, joints = [], []
+    for k in range(CHAIN):
+        x0, length = 0.3 * k, 0.3
+        bodies.append(f'[[bodies]]\nname = "L{k}"\nshape = "cylinder"\nlength = {length}\nradius = 0.04\n'
+                      f'density = 2700.0\ncom = [{x0 + length / 2}, 0.0, 0.0]\ne1 = [1.0, 0.0, 0.0]\n'
+                      'e2 = [0.0, 1.0, 0.0]\n')
+        axis = "[0.0, 0.0, 1.0]" if k % 2 == 0 else "[0.0, 1.0, 0.0]"
+        parent = "world" if k == 0 else f"L{k - 1}"
+        joints.append(f'[[joints]]\nname = "J{k}"\ntype = "revolute"\nparent = "{parent}"\nchild = "L{k}"\n'
+                      f'point = [{x0}, 0.0, 0.0]\naxis = {axis}\n')
+    (folder / "chain20.toml").write_text('[model]\nname = "chain20"\ndescription = "20 aluminium cylinders end to end"'
+                                         '\n\n' + "\n".join(bodies) + "\n" + "\n".join(joints))
+
+    def scenario(name: str, frequency: float, extra: str) -> Path:
+        motion = "\n".join(f'[motion.J{k}]\ntype = "sinusoids"\noffset = 0.0\n'
+                           f'sin = [[0.5, {frequency * (1.1 + 0.13 * k):.3f}]]\n'
+                           f'cos = [[0.2, {frequency * (2.3 + 0.17 * k):.3f}]]\n' for k in range(CHAIN))
+        path = folder / f"{name}.toml"
+        path.write_text(
+            f'[scenario]\ndescription = "A 20-joint arm on sums of sines"\nmodel = "chain20.toml"\n'
+            'gravity = [0.0, 0.0, -9.80665]\nduration = 3.0\noutput_steps = 150\nsample_times = "all"\n\n'
+            '[model_under_test]\nname = "graph"\nplugin = "graph_theory_2021"\n\n[studies.graph_theory_2021]\n\n'
+            f'{extra}[simulation]\nintegrator = "RK4"\ntimestep = 0.0005\ntracking_bandwidth = 20.0\n\n{motion}'
+            '\n[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
+        return path
+
+    scenario("chain20_validation", 0.77, "")
+    return scenario("chain20_sines", 1.0, '[torque_identification]\nvalidation = "chain20_validation.toml"\n\n')
+
+
+def harness_run(scenario: Path | str, out: Path) -> tuple[float, dict]:
+    t0 = time.perf_counter()
+    subprocess.run([str(Path(sys.executable).with_name("harness")), "run", str(scenario), "--out", str(out),
+                    "--quiet"], cwd=ROOT, check=True, capture_output=True)
+    seconds = time.perf_counter() - t0
+    return seconds, json.loads((out / "results.json").read_text())["run"]["timings"]
+
+
+def runs(figures: dict) -> None:
     with tempfile.TemporaryDirectory() as tmp:
-        t0 = time.perf_counter()
-        subprocess.run(
-            [str(Path(sys.executable).with_name("harness")), "run", "kr500_rail", "--out", tmp, "--quiet"],
-            cwd=ROOT,
-            check=True,
-            capture_output=True,
-        )
-        figures["harness_run_kr500_rail_s"] = time.perf_counter() - t0
-        figures["harness_run_kr500_rail_stages_s"] = json.loads((Path(tmp) / "results.json").read_text())["run"][
-            "timings"
-        ]
+        tmp = Path(tmp)
+        best, stages = np.inf, {}
+        for k in range(3):
+            seconds, timings = harness_run("kr500_rail", tmp / f"kr500_{k}")
+            if seconds < best:
+                best, stages = seconds, timings
+        figures["harness_run_kr500_rail_s"] = best
+        figures["harness_run_kr500_rail_stages_s"] = stages
+        by_joints = {}
+        for name, scenario, joints in (("kr500_rail", "kr500_rail", 7), ("ur5_sines", "ur5_sines", 6),
+                                       ("panda_sines", "panda_sines", 7),
+                                       ("chain20_sines", chain_scenario(tmp), CHAIN)):
+            seconds = min(harness_run(scenario, tmp / f"{name}_{k}")[0] for k in range(2))
+            by_joints[name] = {"joints": joints, "seconds": seconds}
+        figures["harness_run_s_by_joints"] = by_joints
+
+
+def sweeps(figures: dict) -> None:
+    from harness.papers.graph_theory_2021.sweep import run_sweep
+    from harness.scenario import load_scenario
 
     noise = load_scenario(ROOT / "scenarios" / "kr500_noise.toml")
     for jobs in (1, 2):
@@ -114,25 +271,51 @@ def main() -> None:
         run_sweep(noise, 100, jobs=jobs, levels=(1.0,))
         figures[f"sweep_trials_per_s_{jobs}_process"] = 100 / (time.perf_counter() - t0)
 
+
+def main() -> None:
+    figures: dict = {"machine": _machine()}
+    torques(figures)
+    identification_scaling(figures)
+    runs(figures)
+    sweeps(figures)
     out = ROOT / "reports" / "benchmark.json"
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps(figures, indent=2) + "\n")
     t = figures["torques_us_per_state"]
-    print(
-        f"joint torques, {N} states of kr500 (us per state): graph model batched {t['graph_batched']:.2f} "
-        f"(as a plugin, with its forward kinematics: {t['graph_plugin_with_kinematics']:.2f}), "
-        f"Pinocchio rnea {t['pinocchio_rnea']:.2f}, MuJoCo mj_inverse {t['mujoco_mj_inverse']:.2f}"
-    )
-    print(f"identification of {N} samples: {t_id:.3f} s")
+    print(f"machine: {figures['machine']}")
+    print(f"joint torques, {N} states of kr500 (us per state): graph model batched {t['graph_batched']:.2f} "
+          f"(as a plugin, with its forward kinematics: {t['graph_plugin_with_kinematics']:.2f}), "
+          f"Pinocchio rnea {t['pinocchio_rnea']:.2f}, MuJoCo mj_inverse {t['mujoco_mj_inverse']:.2f}; "
+          f"graph / Pinocchio {figures['torques_ratio_graph_over_pinocchio']:.2f}")
+    print(f"force-path identification of {N} samples: {figures['identification_10000_samples_s']:.3f} s")
+    print("joint-torque identification with friction, Panda (s): "
+          + ", ".join(f"{k} samples {v:.2f}" for k, v in figures["identification_torque_path_s"].items())
+          + f"; at {LONG}: {figures['identification_900k_over_regressor']:.2f} x Pinocchio's regressor alone "
+            f"({figures['identification_900k_regressor_only_s']:.2f} s), peak memory "
+            f"{figures['identification_900k_peak_rss_mib']:.0f} MiB (the log's arrays "
+            f"{figures['identification_900k_log_arrays_mib']:.0f} MiB, the identification's own "
+            f"{figures['identification_900k_allocated_mib']:.0f} MiB)")
     print(f"harness run kr500_rail, fresh process: {figures['harness_run_kr500_rail_s']:.2f} s")
     for k, v in figures["harness_run_kr500_rail_stages_s"].items():
         print(f"    {k:<55} {v:6.2f} s")
-    print(
-        f"sweep kr500_noise: {figures['sweep_trials_per_s_1_process']:.1f} trials/s with 1 process, "
-        f"{figures['sweep_trials_per_s_2_process']:.1f} with 2"
-    )
+    for k, v in figures["harness_run_s_by_joints"].items():
+        print(f"harness run {k} ({v['joints']} joints): {v['seconds']:.2f} s")
+    print(f"sweep kr500_noise: {figures['sweep_trials_per_s_1_process']:.1f} trials/s with 1 process, "
+          f"{figures['sweep_trials_per_s_2_process']:.1f} with 2")
     print(f"wrote {out}")
 
 
+def _machine() -> str:
+    import os
+    import platform
+
+    cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                if line.startswith("model name")), platform.processor()) if Path("/proc/cpuinfo").exists() else ""
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
+
+
 if __name__ == "__main__":
-    main()
+    if "--long" in sys.argv:
+        long_identification()
+    else:
+        main()

@@ -32,9 +32,18 @@ def A_0i_components(theta_c: np.ndarray) -> np.ndarray:
     a, b, g = np.asarray(theta_c, dtype=float)
     ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
     out = np.empty((3, 3) + a.shape)
-    out[0, 0], out[0, 1], out[0, 2] = cb * cg, -cb * sg, sb
-    out[1, 0], out[1, 1], out[1, 2] = ca * sg + sa * sb * cg, ca * cg - sa * sb * sg, -sa * cb
-    out[2, 0], out[2, 1], out[2, 2] = sa * sg - ca * sb * cg, sa * cg + ca * sb * sg, ca * cb
+    sa_sb, ca_sb = sa * sb, ca * sb
+    np.multiply(cb, cg, out=out[0, 0])
+    np.multiply(cb, sg, out=out[0, 1])
+    np.negative(out[0, 1], out=out[0, 1])
+    out[0, 2] = sb
+    out[1, 0] = ca * sg + sa_sb * cg
+    out[1, 1] = ca * cg - sa_sb * sg
+    np.multiply(sa, cb, out=out[1, 2])
+    np.negative(out[1, 2], out=out[1, 2])
+    out[2, 0] = sa * sg - ca_sb * cg
+    out[2, 1] = sa * cg + ca_sb * sg
+    np.multiply(ca, cb, out=out[2, 2])
     return out
 
 

@@ -34,27 +34,32 @@ ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off:
 
 
 def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-              with_friction: bool = False) -> np.ndarray:
+              with_friction: bool = False, out: np.ndarray | None = None) -> np.ndarray:
     """(N * n, 10 n [+ 4 n]): the joint torque regressor of every sample, rows sample by sample in
     the spec's joint order, columns joint by joint (the body each joint carries); with friction,
-    then per joint the columns of [armature, viscous, coulomb, offset] (harness/friction.py)."""
+    then per joint the columns of [armature, viscous, coulomb, offset] (harness/friction.py).
+    `out`: a zeroed (N, n, 10 n [+ 4 n]) array to write into, reused from one call to the next (the
+    entries written are the same every call, the others stay zero)."""
     model = pm.model
     data = model.createData()
     n = len(pm.joint_ids)
     cols = np.concatenate([np.arange(10 * (j - 1), 10 * j) for j in pm.joint_ids])
-    out = np.empty((len(q), n, 10 * n))
+    if out is None:
+        out = np.zeros((len(q), n, 14 * n if with_friction else 10 * n))  # friction columns written in place
     qq, vv, aa = (np.zeros((len(q), model.nq)) for _ in range(3))
     qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
-    for k in range(len(q)):
-        Y = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])
-        out[k] = Y[np.ix_(pm.q_index, cols)]
+    if np.array_equal(pm.q_index, np.arange(model.nv)) and np.array_equal(cols, np.arange(10 * model.njoints - 10)):
+        for k in range(len(q)):  # the model is the spec's joints, in its order: no rows or columns to pick
+            out[k, :, :10 * n] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])
+    else:
+        pick = np.ix_(pm.q_index, cols)
+        for k in range(len(q)):
+            out[k, :, :10 * n] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[pick]
     if with_friction:
         # joint j's four columns act on joint j's row only
-        F = friction.columns(pm.frictions, qd, qdd)  # (N, n, 4)
-        block = np.zeros((len(q), n, n, 4))
+        block = out[:, :, 10 * n:].reshape(len(q), n, n, 4)  # a view: written into out
         idx = np.arange(n)
-        block[:, idx, idx, :] = F
-        out = np.concatenate([out, block.reshape(len(q), n, 4 * n)], axis=2)
+        block[:, idx, idx, :] = friction.columns(pm.frictions, qd, qdd)  # (N, n, 4)
     return out.reshape(len(q) * n, -1)
 
 

@@ -59,6 +59,7 @@ def test_a_bad_friction_declaration_is_refused_in_one_line(tmp_path, capsys, tex
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_mujoco_applies_each_term_as_the_law_says(run_scenario):
     """The drive torques MuJoCo records on ur5_friction, less Pinocchio's rigid-body RNEA of the same
     robot without drives, are the law's friction and rotor-inertia torques (to round-off of the

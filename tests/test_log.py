@@ -100,6 +100,7 @@ def test_the_export_reloads_through_the_harness_to_round_off(panda):
     np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-12 * np.abs(theirs).max())
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_log_pipeline_recovers_a_known_robot_from_its_bench_log(tmp_path):
     """ur5_friction's bench recording (2 ms steps) written as a log of t, q, q', tau and read back
     through [data] with no filter: accelerations only from differences of the velocities. The

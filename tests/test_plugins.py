@@ -315,6 +315,7 @@ def _pytest_in(folder: Path) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, cwd=folder, timeout=300)
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_harness_run_fixture_in_a_users_own_suite_passes_and_fails(tmp_path):
     good, bad = tmp_path / "good", tmp_path / "bad"
     shutil.copytree(EXAMPLE, good)

@@ -47,6 +47,7 @@ def test_urdf_reader_matches_pinocchios_own_parser(robot, tmp_path):
         np.testing.assert_allclose(g_ours, g_theirs, rtol=0, atol=1e-12 * np.abs(g_theirs).max())
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 @pytest.mark.parametrize("robot", ARMS)
 def test_ten_parameters_per_body_are_recovered(run_scenario, robot):
     """Ideal measurements: every identifiable parameter within 1e-8 of the truth (measured ~1e-12).
@@ -157,6 +158,7 @@ def test_a_massless_link_fixed_to_a_body_adds_its_rotational_inertia(tmp_path):
     np.testing.assert_allclose(np.sort(np.diag(with_housing.I_B)), np.sort(np.diag(plain.I_B)) + 0.002, rtol=1e-12)
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_written_excitation_holds_every_limit_and_starts_and_ends_at_rest(tmp_path, capsys):
     """`harness excite ur5_excitation` writes one period of the optimised trajectory. Checked on the
     CSV alone with Pinocchio's own URDF model (its position, velocity and effort limits, its RNEA):

@@ -77,6 +77,7 @@ def so100(tmp_path_factory):
     return {exact: _so100(tmp_path_factory.mktemp(f"so100_{exact}"), exact) for exact in (False, True)}
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_so100_tilted_pan_axis_makes_the_shoulders_first_moments_weak_in_the_joint_torques(so100):
     tilted, exact = so100[False]["torque_identification"], so100[True]["torque_identification"]
     weak = [b["expression"] for b in tilted["base"] if b["weakly_identifiable"]]
@@ -89,6 +90,7 @@ def test_so100_tilted_pan_axis_makes_the_shoulders_first_moments_weak_in_the_joi
     assert tilted["max_rel_error"] <= 1e-8 and exact["max_rel_error"] <= 1e-8
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_so100_tilted_pan_axis_is_reported_in_the_ten_parameter_identification_too(so100):
     """From the joint forces and moments: the tilt gives the shoulder's m c_z a column 6e-6 times
     the others', nearly collinear with m c_x and m c_y; those three are weak. With the axis exact,

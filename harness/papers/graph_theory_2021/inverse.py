@@ -37,8 +37,9 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
     top = model.topology
     b = [rec.body_index(x) for x in top.bodies]
     q = rec.q[:, [rec.joint_index(j) for j in top.joints]]
-    theta_c, a_c, w_c, wd_c = (_components(x, b) for x in (rec.theta, rec.a_W, rec.omega_W, rec.omegadot_W))
-    return newton_euler(spec, model, q, A_0i_components(theta_c), a_c, w_c, wd_c)
+    theta = rec.theta if b == list(range(rec.theta.shape[1])) else rec.theta[:, b]
+    a_c, w_c, wd_c = (_components(x, b) for x in (rec.a_W, rec.omega_W, rec.omegadot_W))
+    return newton_euler(spec, model, q, A_0i_components(np.moveaxis(theta, -1, 0)), a_c, w_c, wd_c)
 
 
 def inverse_dynamics_of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray,

@@ -1,0 +1,93 @@
+"""Least squares of the joint-torque base parameters over a log too long to hold its regressor: a
+1 kHz arm over 15 minutes is 900,000 samples, whose regressor with friction (7 joints, 98 columns)
+would take 4.9 GB. The samples are taken in blocks of CHUNK: each block's regressor (Pinocchio,
+harness/torque_id.py) is folded into the normal equations (W^T W, W^T y) joint by joint, over the
+columns that move that joint's torque. Memory: one block's regressor and a p^2 matrix. (Spans of
+the log summed by two forked processes ran no faster on this 2-core virtual machine: each took
+twice its serial time.)
+
+Normal equations square the condition number of the column-scaled regressor (about 1e2 to 1e3 on
+an exciting trajectory), so the estimate keeps about 10 of 16 digits: far below any measured
+log's noise, and checked against the QR-based fit of harness/estimators.py on the bench
+(tests/test_log.py). The standard deviations are the classical sigma^2 (W^T W)^-1 with sigma^2 the
+residual variance: white, equal noise on every row (the dense fit's cluster-robust ones need every
+residual, a second pass over the log).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve
+
+from harness.engines.pinocchio import PinocchioModel
+from harness.torque_id import BaseParameters, regressor
+
+CHUNK = 8192  # samples per block: its regressor (7 joints, 98 columns) is 45 MB
+
+
+@dataclass(frozen=True, eq=False)
+class LongFit:
+    beta: np.ndarray  # (r,) base parameters
+    std: np.ndarray  # (r,) classical standard deviations
+    rms_residual: float  # N m, over every row
+    samples: int
+
+
+def _moving_columns(pm: PinocchioModel, n: int, with_friction: bool) -> list[np.ndarray]:
+    """Per joint, the regressor columns that can move its torque: nonzero at some of 16 random states."""
+    rng = np.random.default_rng(0)
+    W = regressor(pm, *rng.uniform(-2.0, 2.0, (3, 16, n)), with_friction).reshape(16, n, -1)
+    return [np.flatnonzero(np.any(W[:, i, :] != 0, axis=0)) for i in range(n)]
+
+
+def _gram(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray,
+          with_friction: bool, chunk: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """W^T W, W^T y and y^T y of the samples given, one block's regressor at a time (module docstring).
+    Joint by joint, over the columns that can move its torque (for joint i of a chain, the bodies it
+    carries and its own drive: a quarter of the products of the whole W^T W for 7 joints), by BLAS's
+    symmetric rank-k update (half the products of a general matrix product)."""
+    from scipy.linalg.blas import dsyrk
+
+    n = q.shape[1]
+    p = 14 * n if with_friction else 10 * n
+    moving = _moving_columns(pm, n, with_friction)
+    WtW, Wty, yy = np.zeros((p, p)), np.zeros(p), 0.0
+    buffer = np.zeros((min(chunk, len(q)), n, p))  # reused: the entries written are the same every block
+    for start in range(0, len(q), chunk):
+        rows = slice(start, start + chunk)
+        W = buffer[:len(q[rows])]
+        regressor(pm, q[rows], qd[rows], qdd[rows], with_friction, out=W)
+        y = tau[rows]
+        for i, live in enumerate(moving):
+            X = W[:, i, live]  # (m, k), C order: its transpose is the Fortran-ordered matrix dsyrk reads
+            WtW[np.ix_(live, live)] += dsyrk(1.0, X.T, trans=0, lower=0)
+            Wty[live] += X.T @ y[:, i]
+        yy += float(np.sum(y * y))
+    return np.triu(WtW) + np.triu(WtW, 1).T, Wty, yy
+
+
+def fit_long(pm: PinocchioModel, base: BaseParameters, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+             tau: np.ndarray, with_friction: bool = False, chunk: int = CHUNK) -> LongFit:
+    """Ordinary least squares of the base parameters from the joint data (N, n) each, block by block
+    (module docstring). Every column's products are accumulated, W^T W, W^T y and y^T y: the base
+    columns are picked and scaled once at the end ((W S)^T (W S) = S W^T W S), so no block is copied.
+    The products run on one BLAS thread: they are small, and OpenBLAS's second thread made the whole
+    fit 1.5 times slower on two cores (threadpoolctl sets it)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        WtW, Wty, yy = _gram(pm, q, qd, qdd, tau, with_friction, chunk)
+    cols = base.independent
+    r = len(cols)
+    A, b = WtW[np.ix_(cols, cols)], Wty[cols]
+    d = np.sqrt(np.diag(A))  # the base columns' norms
+    d = np.where(d > 0, d, 1.0)
+    factor = cho_factor(A / np.outer(d, d))
+    beta = cho_solve(factor, b / d) / d
+    rows_total = len(q) * q.shape[1]
+    rss = max(float(yy - 2 * beta @ b + beta @ A @ beta), 0.0)
+    sigma2 = rss / max(rows_total - r, 1)
+    std = np.sqrt(sigma2 * np.diag(cho_solve(factor, np.eye(r)))) / d
+    return LongFit(beta, std, float(np.sqrt(rss / rows_total)), len(q))
