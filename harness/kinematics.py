@@ -44,6 +44,19 @@ class TreeKinematics:
         return self.bodies.index(name)
 
 
+def axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations by angle (N,) |axis| about axis (3,) (a rotation vector s axis, as
+    scipy's Rotation.from_rotvec reads it): Rodrigues' formula R = 1 + sin(t) K + (1 - cos(t)) K^2,
+    K the cross-product matrix of the unit axis. Written here: scipy.spatial costs 0.25 to 0.6 s
+    to import, more than a whole kr500 run's kinematics."""
+    axis = np.asarray(axis, dtype=float)
+    norm = np.linalg.norm(axis)
+    angle = np.asarray(angle, dtype=float) * norm
+    x, y, z = axis / norm if norm > 0 else axis
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
+
+
 def _point_acceleration(a_c, wd, w, r):
     return a_c + np.cross(wd, r) + np.cross(w, np.cross(w, r))
 
@@ -51,8 +64,6 @@ def _point_acceleration(a_c, wd, w, r):
 def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> TreeKinematics:
     """(q, q', q'') of shape (N, n_joints) in spec joint order -> TreeKinematics."""
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-    from scipy.spatial.transform import Rotation  # imported where used: scipy.spatial takes 0.25 s
-
     N = q.shape[0]
     zero3, eye = np.zeros((N, 3)), np.broadcast_to(np.eye(3), (N, 3, 3))
     # per body: displacement (R, t), centre of mass c, v, a, omega, omega'
@@ -65,7 +76,7 @@ def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.n
         O_J = R_P @ joint.p_W0 + t_P
         s, sd, sdd = q[:, k], qd[:, k], qdd[:, k]
         if joint.revolute:
-            R_J = Rotation.from_rotvec(np.outer(s, joint.axis_W0)).as_matrix()
+            R_J = axis_rotation(joint.axis_W0, s)
             R_B = R_P @ R_J
             t_B = (R_P @ (joint.p_W0 - R_J @ joint.p_W0)[..., None])[..., 0] + t_P
             c_B = R_B @ body.p_W_com0 + t_B

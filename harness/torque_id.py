@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from scipy.linalg import qr, solve_triangular
 
 from harness import friction
 from harness.engines.pinocchio import PinocchioModel
@@ -110,6 +109,8 @@ class BaseParameters:
 
 
 def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameters:
+    from scipy.linalg import qr, solve_triangular  # pivoted QR: numpy has none; imported where needed
+
     norms = np.linalg.norm(W, axis=0)
     live = np.flatnonzero(norms > ZERO_COLUMN * norms.max())
     dead = np.flatnonzero(norms <= ZERO_COLUMN * norms.max())

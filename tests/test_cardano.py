@@ -76,3 +76,17 @@ def test_gimbal_flags_catch_ill_conditioned_rows_and_crossings_between_rows():
     phi = np.array([0.0, 0.5, 1.0, 3.1, 3.2, 4.0])  # lock at 0, and crossed between 3.1 and 3.2
     theta = np.column_stack([np.full(6, np.pi / 2), phi - np.pi / 2, np.full(6, np.pi / 2)])
     np.testing.assert_array_equal(gimbal_flags(theta), [True, False, False, True, True, False])
+
+
+def test_axis_rotation_is_scipys_rotation_vector():
+    """harness.kinematics.axis_rotation (Rodrigues' formula, written to spare scipy.spatial's import)
+    against scipy's Rotation.from_rotvec: unit and non-unit axes, angles over several turns, 1e-14."""
+    from scipy.spatial.transform import Rotation
+
+    from harness.kinematics import axis_rotation
+
+    rng = np.random.default_rng(3)
+    for axis in (rng.normal(size=3), np.array([0.0, 0.0, 1.0]), np.array([0.0, 2.0, 0.0])):
+        s = rng.uniform(-20.0, 20.0, 200)
+        expected = Rotation.from_rotvec(np.outer(s, axis)).as_matrix()
+        np.testing.assert_allclose(axis_rotation(axis, s), expected, rtol=0, atol=1e-14 * max(1, np.abs(s).max()))

@@ -157,6 +157,7 @@ def test_console_script_refuses_bad_input_without_traceback(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.slow  # a second or more: a whole pipeline, or processes
 def test_sigterm_stops_a_run_in_one_line_and_leaves_nothing_behind(tmp_path):
     """Terminated while it works (after its first progress line, inside the constrained model's
     forward simulation): one line, exit status 130, no output folder and no temporary one."""

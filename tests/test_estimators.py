@@ -85,6 +85,7 @@ def test_weighting_by_joint_follows_each_joints_noise():
         assert np.all(np.abs(np.mean(covered[k], axis=0) - 0.95) < 3 * np.sqrt(0.95 * 0.05 / 200) + 0.02)
 
 
+@pytest.mark.slow  # a second or more: a whole pipeline, or processes
 def test_on_ideal_bench_data_every_estimator_returns_the_truth(tmp_path):
     """ur5_friction with the comparison stage and no measurement noise: each estimator's base
     parameters equal the truth to 1e-9 relative (the issue's figure; measured ~1e-10)."""

@@ -168,6 +168,7 @@ def test_a_bad_data_table_is_refused_in_one_line(tmp_path, capsys, edit, message
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow  # a second or more: a whole pipeline, or processes
 def test_the_exported_model_run_through_harness_predicts_what_the_fit_predicted(panda, tmp_path):
     """The exported robot.toml as the model of the same log scenario: its torques as given are the
     consistent fit's, to round-off (the export loses nothing the prediction used)."""
@@ -182,6 +183,7 @@ def test_the_exported_model_run_through_harness_predicts_what_the_fit_predicted(
     assert again["validation_rel_error"]["model as given"] == pytest.approx(before, rel=1e-9)
 
 
+@pytest.mark.slow  # a second or more: a whole pipeline, or processes
 def test_a_log_without_velocities_validated_on_another_file(tmp_path):
     """The log cut in two files at row 12000, its velocity columns removed: velocities come from
     differences of the filtered positions, the second file is the validation. The consistent model

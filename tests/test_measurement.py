@@ -49,6 +49,7 @@ def test_sampling_keeps_every_kth_step(recording):
     np.testing.assert_array_equal(sub.F_W, recording.F_W[::4])
 
 
+@pytest.mark.slow  # a second or more: a whole pipeline, or processes
 def test_differentiated_accelerations_converge_to_the_sensors():
     """Accelerations from positions and angles (cubic Savitzky-Golay, 7 samples), the joint points'
     too: the error against the acceleration sensors falls by at least 3 each time the step halves
@@ -72,6 +73,7 @@ def test_differentiated_accelerations_converge_to_the_sensors():
     assert errors[-1].max() < 2e-2
 
 
+@pytest.mark.slow  # a second or more: a whole pipeline, or processes
 def test_a_sweep_is_the_same_whatever_the_number_of_processes():
     sc = load_scenario(SCENARIOS / "kr500_noise.toml")
     one = run_sweep(sc, 6, jobs=1, levels=(1.0,))

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from harness.api import run
 from harness.spec import load_spec
@@ -21,6 +22,7 @@ def _stated(joint_point: np.ndarray) -> np.ndarray:
     return np.array([MASS, *(MASS * c), I_O[0, 0], I_O[0, 1], I_O[1, 1], I_O[0, 2], I_O[1, 2], I_O[2, 2]])
 
 
+@pytest.mark.slow  # a second or more: a whole pipeline, or processes
 def test_the_payload_comes_back_from_ideal_data():
     """Ideal data: the ten parameters within 1e-6 of their kind's size (measured 1e-14), and they
     are the payload the model file states, moved to the wrist's joint point by the parallel-axis rule."""
@@ -31,6 +33,7 @@ def test_the_payload_comes_back_from_ideal_data():
     np.testing.assert_allclose(got, _stated(point), rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow  # a second or more: a whole pipeline, or processes
 def test_under_torque_noise_each_parameter_is_within_four_standard_deviations(tmp_path):
     """1 % and 0.02 N m of noise on every torque of both runs: each identified parameter within
     four of its standard deviations of the truth (a seeded run; a Gaussian error passes four

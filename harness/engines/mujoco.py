@@ -189,19 +189,25 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     stages: list[np.ndarray] = []  # the drive torques of every evaluation inside mj_step
     capture = [False]
 
+    # MjData's arrays, taken once: each attribute access builds a new array object, and the callback
+    # below runs at every stage of every step
+    qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
+    qfrc_bias, qfrc_passive, qfrc_applied = data.qfrc_bias, data.qfrc_passive, data.qfrc_applied
+
     def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
         """Computed torque at the state being evaluated: tau = M q''_cmd + bias - passive - applied
         (M with the rotor inertias, passive the viscous friction, applied the Coulomb friction and
-        offset set here from the joint velocities), called by MuJoCo after the velocity stage."""
+        offset set here from the joint velocities), called by MuJoCo after the velocity stage (on
+        `data`, the one MjData simulated here, whose arrays are read through the views above)."""
         k = round(d.time / half)
-        e, ed = q_d[k] - d.qpos[qadr], qd_d[k] - d.qvel[vadr]
+        e, ed = q_d[k] - qpos[qadr], qd_d[k] - qvel[vadr]
         qacc_cmd[vadr] = qdd_d[k] + 2.0 * w * ed + w * w * e
         mujoco.mj_mulM(m, d, tau, qacc_cmd)
         if with_coulomb:
-            d.qfrc_applied[vadr] = -(coulomb * friction.coulomb_shape(d.qvel[vadr], coulomb_velocity) + offset)
-        d.ctrl[act] = tau[vadr] + d.qfrc_bias[vadr] - d.qfrc_passive[vadr] - d.qfrc_applied[vadr]
+            qfrc_applied[vadr] = -(coulomb * friction.coulomb_shape(qvel[vadr], coulomb_velocity) + offset)
+        ctrl[act] = tau[vadr] + qfrc_bias[vadr] - qfrc_passive[vadr] - qfrc_applied[vadr]
         if capture[0]:
-            stages.append(d.ctrl[act].copy())
+            stages.append(ctrl[act].copy())
 
     data.qpos[qadr], data.qvel[vadr] = q_d[0], qd_d[0]
     sensor_rows = np.empty((n_rows, model.nsensordata))

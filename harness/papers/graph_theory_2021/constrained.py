@@ -142,10 +142,10 @@ def equilibrate(X: np.ndarray) -> np.ndarray:
     size = np.max(np.abs(X), axis=(1, 2), keepdims=True)
     X[np.abs(X) <= ROUND_OFF * size] = 0.0
     for _ in range(EQUILIBRATION_SWEEPS):
-        rows = np.linalg.norm(X, axis=2, keepdims=True)
-        X = X / np.where(rows > 0, rows, 1.0)
-        cols = np.linalg.norm(X, axis=1, keepdims=True)
-        X = X / np.where(cols > 0, cols, 1.0)
+        rows = np.sqrt(np.einsum("nrc,nrc->nr", X, X))[:, :, None]  # Euclidean norms, without temporaries
+        X /= np.where(rows > 0, rows, 1.0)
+        cols = np.sqrt(np.einsum("nrc,nrc->nc", X, X))[:, None, :]
+        X /= np.where(cols > 0, cols, 1.0)
         if np.all(np.abs(rows[rows > 0] - 1.0) < EQUILIBRATED) and np.all(np.abs(cols[cols > 0] - 1.0) < EQUILIBRATED):
             break  # a further sweep would change no entry by more than this
     return X

@@ -20,7 +20,6 @@ id_K id_X = id_L (Eqs. 57-63) for the whole system.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import block_diag
 
 from harness.papers.graph_theory_2021.dynamics import BodySeries
 
@@ -67,6 +66,8 @@ def stack_per_body(Y: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 def stack_system(Y: np.ndarray, Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eqs. 57-63: id_K (6nN, 6n) with id_Y = blockdiag(id_Y_1..id_Y_n) per sample, id_L (6nN,)."""
-    N = Y.shape[0]
-    K = np.concatenate([block_diag(*Y[j]) for j in range(N)], axis=0)
-    return K, Z.reshape(-1)
+    N, n, rows, p = Y.shape
+    K = np.zeros((N, n, rows, n, p))
+    k = np.arange(n)
+    K[:, k, :, k, :] = np.moveaxis(Y, 1, 0)  # body i's block on the diagonal, all samples at once
+    return K.reshape(N * n * rows, n * p), Z.reshape(-1)
