@@ -92,7 +92,9 @@ def _parser() -> argparse.ArgumentParser:
         description="Simulate the scenario once, then draw its measurement noise N times (seeds from the scenario's "
                     "seed on, so the result does not depend on --jobs), identify the parameters each time, and write "
                     "the distribution of each parameter's error, how often its 95 % interval contains the true value, "
-                    "and the error at scaled noise levels: DIR/sweep.json and DIR/sweep.html.")
+                    "and the error at scaled noise levels: DIR/sweep.json and DIR/sweep.html. The graph-theory "
+                    "study's force path is swept where the scenario has it; otherwise a scenario with [estimators] "
+                    "runs its joint-torque estimators side by side over the N trials (bias, coverage, RMS error).")
     sweep.add_argument("scenario", metavar="SCENARIO", help="scenario file or name (e.g. kr500_noise)")
     sweep.add_argument("--trials", type=int, default=200, metavar="N", help="number of trials (default 200)")
     sweep.add_argument("--jobs", type=int, default=1, metavar="K", help="worker processes (default 1)")
@@ -314,9 +316,10 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     study = next((s for s, _ in scenario.studies if s.sweep is not None), None)
-    if study is None:
-        raise InputError(scenario.source, "studies", "no study of this scenario can be swept (the graph-theory "
-                                                     "study can: [studies.graph_theory_2021])")
+    if study is None and scenario.estimators is None:
+        raise InputError(scenario.source, "studies", "nothing in this scenario can be swept: the graph-theory study's "
+                                                     "force path ([studies.graph_theory_2021]) or the joint-torque "
+                                                     "estimators ([estimators]) can")
     if not 2 <= args.trials <= MAX_TRIALS:
         raise InputError(args.scenario, "--trials", f"needs 2 to {MAX_TRIALS:,} trials, got {args.trials}")
     if not 1 <= args.jobs <= max_jobs():
@@ -324,6 +327,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if scenario.measurement.ideal:
         raise InputError(scenario.source, "measurement", "the scenario measures ideally: there is nothing to sweep")
     out = args.out or Path("reports") / scenario.name
+    if study is None:
+        return _sweep_estimators(scenario, args, out)
     sweep = study.sweep(scenario, args.trials, args.jobs, Bar(f"{scenario.name} sweep"))
     try:
         _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(sweep, indent=1) + "\n"),
@@ -332,6 +337,40 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
     print(f"{scenario.name}: {args.trials} trials; coverage of the 95 % intervals {sweep['coverage_min']:.3f} to "
           f"{sweep['coverage_max']:.3f} over the parameters identified in every trial")
+    print(f"  report: {out / 'sweep.html'}")
+    return EXIT_OK
+
+
+def _sweep_estimators(scenario, args: argparse.Namespace, out: Path) -> int:
+    """The joint-torque estimators side by side over --trials measurements (harness/stages/estimators.py):
+    sweep.json holds the stage's results, sweep.html its report section. The trials run in one
+    process (--jobs applies to the force path's sweep)."""
+    import dataclasses
+    import html
+
+    from harness.api import run
+    from harness.report import STYLE
+    from harness.report.sections import estimator_comparison
+
+    if args.jobs != 1:
+        print(f"{scenario.name}: the estimators' trials run in one process (--jobs {args.jobs} not used)")
+    swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
+    results = {"estimators": run(swept, progress=_Progress(scenario.name, False)).results["estimators"]}
+    page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(scenario.name)}: '
+            f"estimators over {args.trials} trials</title><style>{STYLE}</style></head><body>"
+            f"<h1>{html.escape(scenario.name)}: estimators over {args.trials} trials</h1>"
+            f"{estimator_comparison(results)}</body></html>")
+    try:
+        _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(results, indent=1) + "\n"),
+                                "sweep.html": lambda p: p.write_text(page)})
+    except OSError as exc:
+        raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
+    e = results["estimators"]
+    for name, m in e["methods"].items():
+        print(f"{scenario.name}: {name}: coverage of the 95 % intervals {m['coverage_min']:.3f} to "
+              f"{m['coverage_max']:.3f} over the base parameters, {m['coverage_outside_band']} outside "
+              f"{e['coverage_band'][0]:.3f} to {e['coverage_band'][1]:.3f}; largest |bias| "
+              f"{m['max_bias_in_sd']:.2f} sd")
     print(f"  report: {out / 'sweep.html'}")
     return EXIT_OK
 

@@ -45,15 +45,17 @@ def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
     cols = np.concatenate([np.arange(10 * (j - 1), 10 * j) for j in pm.joint_ids])
     if out is None:
         out = np.zeros((len(q), n, 14 * n if with_friction else 10 * n))  # friction columns written in place
-    qq, vv, aa = (np.zeros((len(q), model.nq)) for _ in range(3))
-    qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    inertial = out[:, :, :10 * n]
     if np.array_equal(pm.q_index, np.arange(model.nv)) and np.array_equal(cols, np.arange(10 * model.njoints - 10)):
-        for k in range(len(q)):  # the model is the spec's joints, in its order: no rows or columns to pick
-            out[k, :, :10 * n] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])
+        # the model is the spec's joints, in its order: no rows or columns to pick, no copy of the states
+        for k, (q_k, qd_k, qdd_k) in enumerate(zip(q, qd, qdd, strict=True)):
+            inertial[k] = pin.computeJointTorqueRegressor(model, data, q_k, qd_k, qdd_k)
     else:
+        qq, vv, aa = (np.zeros((len(q), model.nq)) for _ in range(3))
+        qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
         pick = np.ix_(pm.q_index, cols)
         for k in range(len(q)):
-            out[k, :, :10 * n] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[pick]
+            inertial[k] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[pick]
     if with_friction:
         # joint j's four columns act on joint j's row only
         block = out[:, :, 10 * n:].reshape(len(q), n, n, 4)  # a view: written into out

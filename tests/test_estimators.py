@@ -3,6 +3,8 @@ problems whose truth is built in, then side by side on the bench."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -100,3 +102,28 @@ def test_on_ideal_bench_data_every_estimator_returns_the_truth(tmp_path):
     for name, m in r["estimators"]["methods"].items():
         assert m["median_rms_rel_error"] <= 1e-9, name
         assert m["validation_rel_error_mean"] <= 1e-8, name
+
+
+@pytest.mark.slow  # a 3 s scenario and 30 trials: about 10 s
+def test_harness_sweep_runs_the_estimators_over_the_trials_asked_for(tmp_path, capsys):
+    """`harness sweep` on a scenario with [estimators] and no force-path study: the trial count of
+    the command line, not the scenario's, in sweep.json (the stage's results) and sweep.html; one
+    line per estimator with its coverage. A scenario with neither is refused in one line, exit 2."""
+    from harness.cli import main
+
+    source = (SCENARIOS / "ur5_estimators.toml").read_text()
+    source = (source.replace('"../models/', f'"{SCENARIOS.parent / "models"}/')
+              .replace('"ur5_friction_validation.toml"', f'"{SCENARIOS / "ur5_friction_validation.toml"}"')
+              .replace('methods = ["ols", "wls", "irls", "iv"]', 'methods = ["ols", "iv"]'))
+    (tmp_path / "s.toml").write_text(source)
+    assert main(["sweep", str(tmp_path / "s.toml"), "--trials", "30", "--out", str(tmp_path / "out")]) == 0
+    sweep = json.loads((tmp_path / "out" / "sweep.json").read_text())["estimators"]
+    assert sweep["trials"] == 30 and set(sweep["methods"]) == {"ols", "iv"}
+    assert 0.0 <= sweep["methods"]["iv"]["coverage_min"] <= 1.0
+    assert "Estimators side by side" in (tmp_path / "out" / "sweep.html").read_text()
+    printed = capsys.readouterr().out
+    assert "iv: coverage of the 95 % intervals" in printed and "ols:" in printed
+    start = source.index("[estimators]")
+    (tmp_path / "neither.toml").write_text(source[:start] + source[source.index("[measurement]"):])
+    assert main(["sweep", str(tmp_path / "neither.toml"), "--trials", "5", "--out", str(tmp_path / "none")]) == 2
+    assert "nothing in this scenario can be swept" in capsys.readouterr().err and not (tmp_path / "none").exists()

@@ -304,12 +304,16 @@ def lagrange_section(lg: LagrangeOutput, paper_lambda: str | None, spec: RobotSp
             "method": "quaternions and omega^(i), normal constraint rows, Baumgarte 10/s, RK4 with "
                       "MuJoCo's step and stage torques, plus a correction toward the prescribed "
                       "motion (harness/papers/graph_theory_2021/forward.py)",
+            # the time integrated to: the recording's end unless a deviation beyond 1e-6 stopped it
+            "integrated_until": float(fw.t[-1]),
+            "recording_end": float(rec.t[-1]),
             "largest_joint_deviation": float(fw.q_error.max()),
             "max_joint_deviation": dict(zip(spec.joint_names, floats(fw.q_error), strict=True)),
             "max_position_deviation": fw.r_error,
             "max_abs_phi": fw.max_abs_phi,
             "correction_over_drive": dict(zip(spec.joint_names, floats(fw.feedback_ratio),
                                               strict=True)),
+            "largest_correction_over_drive": float(np.max(fw.feedback_ratio)),
             "open_loop_departure_time": None if departure is None else float(departure),
             "open_loop_note": "with the recorded torques alone the replay leaves MuJoCo's trajectory "
                               "by more than 1e-6 at this time (null: it never does)",
