@@ -1,17 +1,18 @@
 """Least squares of the joint-torque base parameters over a log too long to hold its regressor: a
 1 kHz arm over 15 minutes is 900,000 samples, whose regressor with friction (7 joints, 98 columns)
 would take 4.9 GB. The samples are taken in blocks of CHUNK: each block's regressor (Pinocchio,
-harness/torque_id.py) is folded into the normal equations (W^T W, W^T y) joint by joint, over the
-columns that move that joint's torque. Memory: one block's regressor and a p^2 matrix. (Spans of
-the log summed by two forked processes ran no faster on this 2-core virtual machine: each took
-twice its serial time.)
+harness/torque_id.py) is folded into the normal equations (W^T W, W^T y), joint by joint from the
+first column that moves that joint's torque, in a second thread while the next block is evaluated.
+Memory: two blocks' regressors (90 MB) and a p^2 matrix. Measured on a 2-core virtual machine
+(README, "Speed"): 1.6 to 1.8 times Pinocchio's regressor loop alone; two forked processes summing
+halves of the log each took twice their serial time there, so the log is not split.
 
-Normal equations square the condition number of the column-scaled regressor (about 1e2 to 1e3 on
-an exciting trajectory), so the estimate keeps about 10 of 16 digits: far below any measured
-log's noise, and checked against the QR-based fit of harness/estimators.py on the bench
-(tests/test_log.py). The standard deviations are the classical sigma^2 (W^T W)^-1 with sigma^2 the
-residual variance: white, equal noise on every row (the dense fit's cluster-robust ones need every
-residual, a second pass over the log).
+Normal equations square the condition number of the column-scaled regressor (18.5 on the test's
+Panda motion, 1e2 to 1e3 on others), so the estimate keeps round-off times its square: within 1e-12
+of the dense QR fit of harness/estimators.py in the torque each parameter moves
+(tests/test_streaming.py), far below any measured log's noise. The standard deviations are the
+classical sigma^2 (W^T W)^-1 with sigma^2 the residual variance: white, equal noise on every row
+(the dense fit's cluster-robust ones need every residual, a second pass over the log).
 """
 
 from __future__ import annotations
@@ -45,27 +46,40 @@ def _moving_columns(pm: PinocchioModel, n: int, with_friction: bool) -> list[np.
 def _gram(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray,
           with_friction: bool, chunk: int) -> tuple[np.ndarray, np.ndarray, float]:
     """W^T W, W^T y and y^T y of the samples given, one block's regressor at a time (module docstring).
-    Joint by joint, over the columns that can move its torque (for joint i of a chain, the bodies it
-    carries and its own drive: a quarter of the products of the whole W^T W for 7 joints), by BLAS's
-    symmetric rank-k update (half the products of a general matrix product)."""
-    from scipy.linalg.blas import dsyrk
+    Joint by joint, from the first column that can move its torque on (for joint i of a chain, the
+    bodies it carries and the drives: about a third of the products of the whole W^T W for 7 joints). A block
+    is folded in a second thread while the next one is evaluated: the fold is a few large matrix
+    products, during which numpy lets go of the interpreter that Pinocchio's loop needs."""
+    from concurrent.futures import ThreadPoolExecutor
 
     n = q.shape[1]
     p = 14 * n if with_friction else 10 * n
-    moving = _moving_columns(pm, n, with_friction)
-    WtW, Wty, yy = np.zeros((p, p)), np.zeros(p), 0.0
-    buffer = np.zeros((min(chunk, len(q)), n, p))  # reused: the entries written are the same every block
-    for start in range(0, len(q), chunk):
-        rows = slice(start, start + chunk)
-        W = buffer[:len(q[rows])]
-        regressor(pm, q[rows], qd[rows], qdd[rows], with_friction, out=W)
-        y = tau[rows]
-        for i, live in enumerate(moving):
-            X = W[:, i, live]  # (m, k), C order: its transpose is the Fortran-ordered matrix dsyrk reads
-            WtW[np.ix_(live, live)] += dsyrk(1.0, X.T, trans=0, lower=0)
-            Wty[live] += X.T @ y[:, i]
-        yy += float(np.sum(y * y))
-    return np.triu(WtW) + np.triu(WtW, 1).T, Wty, yy
+    # joint i's torque is moved by no column before its first moving one (for a chain, the bodies
+    # before it): its rows' products start there
+    first_moving = [int(cols.min()) for cols in _moving_columns(pm, n, with_friction)]
+    WtW, Wty, yy = np.zeros((p, p)), np.zeros(p), np.zeros(1)
+    # two blocks: one evaluated while the other is folded; reused, the entries written are the same every time
+    buffers = [np.zeros((min(chunk, len(q)), n, p)) for _ in range(2)]
+
+    def fold(W: np.ndarray, y: np.ndarray) -> None:
+        for i, first in enumerate(first_moving):
+            X = W[:, i, first:]  # a view: BLAS reads it in place (gathering only the moving columns cost more)
+            WtW[first:, first:] += X.T @ X
+            Wty[first:] += X.T @ y[:, i]
+        yy[0] += float(np.sum(y * y))
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        pending = None
+        for b, start in enumerate(range(0, len(q), chunk)):
+            rows = slice(start, start + chunk)
+            W = buffers[b % 2][:len(q[rows])]
+            regressor(pm, q[rows], qd[rows], qdd[rows], with_friction, out=W)
+            if pending is not None:
+                pending.result()  # the fold of the block before: its buffer is the next one written
+            pending = pool.submit(fold, W, tau[rows])
+        if pending is not None:
+            pending.result()
+    return WtW, Wty, float(yy[0])
 
 
 def fit_long(pm: PinocchioModel, base: BaseParameters, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
