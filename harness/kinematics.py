@@ -44,6 +44,14 @@ class TreeKinematics:
         return self.bodies.index(name)
 
 
+def skew(v: np.ndarray) -> np.ndarray:
+    """The cross-product matrix a~, a~ b = a x b, (..., 3) -> (..., 3, 3)."""
+    x, y, z = np.moveaxis(v, -1, 0)
+    zero = np.zeros_like(x)
+    return np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1),
+                     np.stack([-y, x, zero], -1)], -2)
+
+
 def axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """(N, 3, 3) rotations by angle (N,) |axis| about axis (3,) (a rotation vector s axis, as
     scipy's Rotation.from_rotvec reads it): Rodrigues' formula R = 1 + sin(t) K + (1 - cos(t)) K^2,
@@ -52,8 +60,7 @@ def axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     axis = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(axis)
     angle = np.asarray(angle, dtype=float) * norm
-    x, y, z = axis / norm if norm > 0 else axis
-    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    K = skew(axis / norm if norm > 0 else axis)
     return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
 
 

@@ -78,10 +78,9 @@ def run(ctx, config) -> Comparison | None:
     names = parameter_names(joints, sc.torque_friction)
     nonlinear = np.array([names[c].endswith(".coulomb") for c in cols])
     from_residuals = Instruments(Z1, nonlinear)
-    instruments = from_residuals
-    if propagates(m):  # the IV intervals from the sensors' specification
-        instruments = Instruments(Z1, nonlinear, score_covariance(pm, Z1, rec.t[rows], keep, q_ref, qd_ref,
-                                                                  qdd_ref, rec.tau[rows][:, idx], m))
+    sensors = propagates(m)  # the IV intervals from the sensors' specification, where it is complete
+    instruments = Instruments(Z1, nonlinear, score_covariance(pm, Z1, rec.t[rows], keep, q_ref, qd_ref, qdd_ref,
+                                                              rec.tau[rows][:, idx], m)) if sensors else from_residuals
     val = validation_recording(ctx, sc.torque_validation)
     qv, qdv, qddv, tauv = joint_data(val, joints)
     Wv = regressor(pm, qv, qdv, qddv, with_friction=sc.torque_friction)[:, cols]
@@ -91,7 +90,7 @@ def run(ctx, config) -> Comparison | None:
     r = len(cols)
     beta, std, half = (np.empty((len(methods), T, r)) for _ in range(3))
     seconds, val_err = np.empty((len(methods), T)), np.empty((len(methods), T))
-    both = "iv" in methods and instruments is not from_residuals
+    both = "iv" in methods and sensors
     half_residuals = np.empty((T, r)) if both else None
     arms = sc.robot.inner_joint_arms_B()
     for k in range(T):
@@ -107,8 +106,7 @@ def run(ctx, config) -> Comparison | None:
             half_residuals[k] = iv(W1, tau.reshape(-1), n, from_residuals, lags).ci_half_width
     ctx.progress("estimators side by side", 1.0)
     return Comparison(tuple(methods), base.of(true_parameters(pm, sc.torque_friction)), beta, std, half, seconds,
-                      val_err, usable, edge, lags, block, "sensors" if instruments is not from_residuals
-                      else "residuals", half_residuals)
+                      val_err, usable, edge, lags, block, "sensors" if sensors else "residuals", half_residuals)
 
 
 def serialise(c: Comparison, ctx, config) -> dict:

@@ -25,8 +25,9 @@ import numpy as np
 
 from harness import friction
 from harness.cardano import GIMBAL_COND_D, D, D_dot
+from harness.kinematics import skew
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
-from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, at_rest_floor, skew
+from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, at_rest_floor
 from harness.recording import Recording
 from harness.spec import RobotSpec
 

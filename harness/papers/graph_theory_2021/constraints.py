@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import A_0i, D, D_dot
+from harness.kinematics import skew
 from harness.papers.graph_theory_2021.topology import Topology
 from harness.spec import WORLD, RobotSpec
 
@@ -102,13 +103,6 @@ class Row:
     y2: Element
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    x, y, z = np.moveaxis(v, -1, 0)
-    zero = np.zeros_like(x)
-    return np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1),
-                     np.stack([-y, x, zero], -1)], -2)
-
-
 class ConstraintSet:
     """The rows of a formulation, evaluated together: Phi, Phi_q and zeta (Eqs. 105-109)."""
 
@@ -142,7 +136,7 @@ class ConstraintSet:
             value = np.einsum("nkab,kb->nka", Ab, v) + pt[None, :, None] * r[:, b]
             vel = np.einsum("nkab,nkb->nka", Ab, np.cross(wb, v)) + pt[None, :, None] * r_dot[:, b]
             gamma = np.einsum("nkab,nkb->nka", Ab, np.cross(Dd[:, b], v) + np.cross(wb, np.cross(wb, v)))
-            d_rot = -Ab @ _skew(v) @ Dm[:, b]  # (N, m, 3, 3): d value / d rate_b
+            d_rot = -Ab @ skew(v) @ Dm[:, b]  # (N, m, 3, 3): d value / d rate_b
             el.append((value, vel, gamma, d_rot))
         X = [el[0][k] - el[1][k] for k in range(3)]
         Y = [el[2][k] - el[3][k] for k in range(3)]

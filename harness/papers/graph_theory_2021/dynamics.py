@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import GIMBAL_COND_D, A_0i, D, D_dot, D_from_rotations, cond_D
+from harness.kinematics import skew  # Eq. 31: a~ b = a x b
 from harness.papers.graph_theory_2021.topology import Topology, build_topology, joint_resultants
 from harness.recording import Recording
 from harness.spec import RobotSpec
@@ -92,14 +93,6 @@ def angle_rates(theta: np.ndarray, omega_B: np.ndarray, omegadot_B: np.ndarray
     theta_dot[~ok] = np.nan
     theta_ddot[~ok] = np.nan
     return theta_dot, theta_ddot, cond
-
-
-def skew(v: np.ndarray) -> np.ndarray:
-    """Eq. 31: a~ with a~ b = a x b, (..., 3) -> (..., 3, 3)."""
-    x, y, z = np.moveaxis(v, -1, 0)
-    zero = np.zeros_like(x)
-    return np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1),
-                     np.stack([-y, x, zero], -1)], -2)
 
 
 def unconstrained_A(model: GraphModel, theta: np.ndarray) -> np.ndarray:

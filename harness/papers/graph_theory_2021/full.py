@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from harness.cardano import A_0i
-from harness.papers.graph_theory_2021.dynamics import GraphModel, skew
+from harness.kinematics import skew
+from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.recording import Recording
 from harness.spec import RobotSpec
 
