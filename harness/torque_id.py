@@ -45,6 +45,8 @@ def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
     cols = np.concatenate([np.arange(10 * (j - 1), 10 * j) for j in pm.joint_ids])
     if out is None:
         out = np.zeros((len(q), n, 14 * n if with_friction else 10 * n))  # friction columns written in place
+    elif not out.flags.c_contiguous:  # the friction block below must be a view of it, not a copy
+        raise ValueError("regressor: `out` must be C-contiguous")
     inertial = out[:, :, :10 * n]
     if np.array_equal(pm.q_index, np.arange(model.nv)) and np.array_equal(cols, np.arange(10 * model.njoints - 10)):
         # the model is the spec's joints, in its order: no rows or columns to pick, no copy of the states
