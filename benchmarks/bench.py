@@ -10,7 +10,8 @@ things are measured alternately, the best of several rounds of each):
   joint-torque regressor alone evaluated once on the same samples from Python, and the peak memory;
 - `harness run` end to end in a fresh process: kr500_rail (seconds, and its stages), and the same
   kind of scenario (graph model, torques, torque identification) on robots of 6, 7, 7 and 20 joints;
-- `harness sweep` throughput on kr500_noise with 1 and 2 processes (trials per second).
+- `harness sweep` throughput on kr500_noise in 1 and 2 processes and on a local Dask cluster (trials per
+  second).
 Writes reports/benchmark.json and prints a table.
 """
 
@@ -261,15 +262,28 @@ def runs(figures: dict) -> None:
         figures["harness_run_s_by_joints"] = by_joints
 
 
+def _nothing(state, task):
+    return task
+
+
 def sweeps(figures: dict) -> None:
+    """Trials per second of `harness sweep kr500_noise` (200 trials at the scenario's noise, the
+    simulation included) in this process, in 2 forked processes and on a Dask cluster started on
+    this machine (its start and stop included; alone, measured on trials that do nothing)."""
     from harness.papers.graph_theory_2021.sweep import run_sweep
     from harness.scenario import load_scenario
+    from harness.workers import LOCAL, Workers
 
     noise = load_scenario(ROOT / "scenarios" / "kr500_noise.toml")
-    for jobs in (1, 2):
+    trials = 200
+    for key, workers in (("sweep_trials_per_s_1_process", Workers(1)), ("sweep_trials_per_s_2_process", Workers(2)),
+                         ("sweep_trials_per_s_dask_local", Workers(dask=LOCAL))):
         t0 = time.perf_counter()
-        run_sweep(noise, 100, jobs=jobs, levels=(1.0,))
-        figures[f"sweep_trials_per_s_{jobs}_process"] = 100 / (time.perf_counter() - t0)
+        run_sweep(noise, trials, workers, levels=(1.0,))
+        figures[key] = trials / (time.perf_counter() - t0)
+    t0 = time.perf_counter()
+    Workers(dask=LOCAL).map(dict, (), _nothing, range(2))
+    figures["dask_local_cluster_start_and_stop_s"] = time.perf_counter() - t0
 
 
 def main() -> None:
@@ -301,7 +315,8 @@ def main() -> None:
     for k, v in figures["harness_run_s_by_joints"].items():
         print(f"harness run {k} ({v['joints']} joints): {v['seconds']:.2f} s")
     print(f"sweep kr500_noise: {figures['sweep_trials_per_s_1_process']:.1f} trials/s with 1 process, "
-          f"{figures['sweep_trials_per_s_2_process']:.1f} with 2")
+          f"{figures['sweep_trials_per_s_2_process']:.1f} with 2, {figures['sweep_trials_per_s_dask_local']:.1f} on a "
+          f"local Dask cluster (which takes {figures['dask_local_cluster_start_and_stop_s']:.1f} s to start and stop)")
     print(f"wrote {out}")
 
 

@@ -59,15 +59,19 @@ def load_model(path: str | Path) -> RobotSpec:
     return load_spec(Path(path))
 
 
-def run(scenario: str | Path | Scenario, progress=None) -> Result:
+def run(scenario: str | Path | Scenario, progress=None, workers=None) -> Result:
     """Run one scenario (a path, or a loaded Scenario) through the whole pipeline and check its
-    gates. Nothing is written to disk."""
+    gates. Nothing is written to disk. `workers` (a harness.workers.Workers; default this process)
+    is where a stage's Monte Carlo trials run."""
     from harness.gates import verdict
     from harness.pipeline import run as run_pipeline
     from harness.results import build_results
 
     sc = scenario if isinstance(scenario, Scenario | DataScenario) else load_scenario(scenario)
-    out = run_pipeline(sc, progress) if progress is not None else run_pipeline(sc)
+    from harness.workers import IN_PROCESS
+
+    out = run_pipeline(sc, progress if progress is not None else (lambda stage, fraction: None),
+                       workers if workers is not None else IN_PROCESS)
     results = verdict(sc.gates, build_results(out), sc.source)
     rows = tuple(GateRow(**r) for r in results["gates"])
     return Result(sc.name, results["passed"], rows, results, out.recording, out)

@@ -97,7 +97,11 @@ def _parser() -> argparse.ArgumentParser:
                     "runs its joint-torque estimators side by side over the N trials (bias, coverage, RMS error).")
     sweep.add_argument("scenario", metavar="SCENARIO", help="scenario file or name (e.g. kr500_noise)")
     sweep.add_argument("--trials", type=int, default=200, metavar="N", help="number of trials (default 200)")
-    sweep.add_argument("--jobs", type=int, default=1, metavar="K", help="worker processes (default 1)")
+    sweep.add_argument("--jobs", type=int, default=1, metavar="K", help="forked worker processes (default 1)")
+    sweep.add_argument("--dask", nargs="?", const="local", default=None, metavar="ADDRESS",
+                       help="run the trials on Dask: a local cluster (one worker per core) when no address is given, "
+                            "otherwise the scheduler at ADDRESS (e.g. tcp://10.0.0.5:8786), whose workers have harness "
+                            "installed")
     sweep.add_argument("--out", metavar="DIR", type=Path, default=None, help="default: reports/<scenario name>")
     excite = sub.add_parser(
         "excite", help="optimise a scenario's excitation and write the trajectory for a robot to play",
@@ -313,6 +317,7 @@ def cmd_gate(args: argparse.Namespace) -> int:
 def cmd_sweep(args: argparse.Namespace) -> int:
     from harness.progress import Bar
     from harness.scenario import load_scenario
+    from harness.workers import Workers, WorkersError
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     study = next((s for s, _ in scenario.studies if s.sweep is not None), None)
@@ -324,12 +329,21 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise InputError(args.scenario, "--trials", f"needs 2 to {MAX_TRIALS:,} trials, got {args.trials}")
     if not 1 <= args.jobs <= max_jobs():
         raise InputError(args.scenario, "--jobs", f"needs 1 to {max_jobs()} processes (4 per core), got {args.jobs}")
+    if args.dask is not None and args.jobs != 1:
+        raise InputError(args.scenario, "--dask", f"the trials run either on Dask or on --jobs {args.jobs} processes, "
+                                                  "not both")
+    if args.dask is not None and not args.dask.strip():
+        raise InputError(args.scenario, "--dask", "needs a scheduler address (or none, for a local cluster)")
     if scenario.measurement.ideal:
         raise InputError(scenario.source, "measurement", "the scenario measures ideally: there is nothing to sweep")
     out = args.out or Path("reports") / scenario.name
+    workers = Workers(args.jobs, args.dask)
     if study is None:
-        return _sweep_estimators(scenario, args, out)
-    sweep = study.sweep(scenario, args.trials, args.jobs, Bar(f"{scenario.name} sweep"))
+        return _sweep_estimators(scenario, args, out, workers)
+    try:
+        sweep = study.sweep(scenario, args.trials, workers, Bar(f"{scenario.name} sweep ({workers.describe()})"))
+    except WorkersError as exc:
+        raise InputError(args.scenario, "--dask", str(exc)) from None
     try:
         _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(sweep, indent=1) + "\n"),
                                 "sweep.html": lambda p: p.write_text(study.render_sweep(sweep))})
@@ -341,21 +355,26 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _sweep_estimators(scenario, args: argparse.Namespace, out: Path) -> int:
-    """The joint-torque estimators side by side over --trials measurements (harness/stages/estimators.py):
-    sweep.json holds the stage's results, sweep.html its report section. The trials run in one
-    process (--jobs applies to the force path's sweep)."""
+def _sweep_estimators(scenario, args: argparse.Namespace, out: Path, workers) -> int:
+    """The joint-torque estimators side by side over --trials measurements (harness/stages/estimators.py),
+    on `workers`: sweep.json holds the stage's results, sweep.html its report section."""
     import dataclasses
     import html
+    import time
 
     from harness.api import run
     from harness.report import STYLE
     from harness.report.sections import estimator_comparison
+    from harness.workers import WorkersError
 
-    if args.jobs != 1:
-        print(f"{scenario.name}: the estimators' trials run in one process (--jobs {args.jobs} not used)")
     swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
-    results = {"estimators": run(swept, progress=_Progress(scenario.name, False)).results["estimators"]}
+    t0 = time.perf_counter()
+    try:
+        estimators = run(swept, progress=_Progress(scenario.name, False), workers=workers).results["estimators"]
+    except WorkersError as exc:
+        raise InputError(args.scenario, "--dask", str(exc)) from None
+    results = {"estimators": estimators,
+               "run": {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)}}
     page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(scenario.name)}: '
             f"estimators over {args.trials} trials</title><style>{STYLE}</style></head><body>"
             f"<h1>{html.escape(scenario.name)}: estimators over {args.trials} trials</h1>"

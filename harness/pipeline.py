@@ -20,6 +20,7 @@ from harness.plugins import Stage
 from harness.recording import Recording
 from harness.scenario import DataScenario, Scenario
 from harness.stages import Context, Progress, core_stages
+from harness.workers import IN_PROCESS, Workers
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,9 +114,11 @@ def run_data(scenario: DataScenario, progress: Progress = _quiet) -> RunOutput:
     return RunOutput(scenario, full, train, ctx, outputs, None, timed.timings)
 
 
-def run(scenario: Scenario | DataScenario, progress: Progress = _quiet) -> RunOutput:
+def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
+        workers: Workers = IN_PROCESS) -> RunOutput:
     """The engines are built from the scenario's robot (the truth); each model under test and each
-    identification method from what the scenario names, and judged against them."""
+    identification method from what the scenario names, and judged against them. A stage's Monte
+    Carlo trials run on `workers` (harness/workers.py)."""
     if isinstance(scenario, DataScenario):
         return run_data(scenario, progress)
     timed = _Timed(progress)
@@ -126,7 +129,7 @@ def run(scenario: Scenario | DataScenario, progress: Progress = _quiet) -> RunOu
     timed("simulating in MuJoCo", None)
     recording = record(scenario)
     measured = measure(recording, scenario.measurement, scenario.robot.inner_joint_arms_B())
-    ctx = Context(scenario, recording, measured, timed)
+    ctx = Context(scenario, recording, measured, timed, workers=workers)
     outputs: dict[str, StageOutput] = {}
     for stage, config in stages_of(scenario):
         timed(stage.progress, None)

@@ -205,8 +205,9 @@ output folder ({relative path: text}, e.g. an exported model). `context` is a ha
 class Study:
     """A package of stages that a scenario asks for by name (`[studies.NAME]`): `configure(table,
     scenario_file, robot)` validates the scenario's table (raising harness.tomlio.InputError) and
-    returns the configuration its stages receive. `sweep`, when given, repeats the study's
-    identification under measurement noise (`harness sweep`)."""
+    returns the configuration its stages receive. `sweep(scenario, trials, workers, progress)`,
+    when given, repeats the study's identification under measurement noise (`harness sweep`) on
+    `workers` (a harness.workers.Workers) and returns what sweep.json holds; `render_sweep` draws it."""
 
     name: str
     configure: Callable[[Any, Path, Any], Any]

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from harness.plugins import Stage
 from harness.recording import Recording
 from harness.scenario import Scenario
+from harness.workers import IN_PROCESS, Workers
 
 Progress = Callable[[str, float | None], None]
 
@@ -17,7 +18,8 @@ Progress = Callable[[str, float | None], None]
 class Context:
     """What every stage may read: the scenario, the ideal recording (the truth), what the
     measurement gives, and the results of the stages that ran before it, by key. `cache` holds
-    what several stages need and is made once per run (a validation recording, a built model)."""
+    what several stages need and is made once per run (a validation recording, a built model).
+    `workers` is where a stage with independent trials (a Monte Carlo) runs them."""
 
     scenario: Scenario
     recording: Recording
@@ -25,6 +27,7 @@ class Context:
     progress: Progress
     done: dict[str, object] = field(default_factory=dict)
     cache: dict[object, object] = field(default_factory=dict)
+    workers: Workers = IN_PROCESS  # where a stage's independent trials may run (harness/workers.py)
 
     def once(self, key: object, make: Callable[[], object]) -> object:
         """`make()` the first time `key` is asked for in this run, the same object after that."""

@@ -52,7 +52,6 @@ def run(ctx, config) -> Comparison | None:
     from harness.stages.identification import joint_data, validation_recording
 
     joints = sc.robot.joint_names
-    n = len(joints)
     pm = build_model(sc.robot, sc.gravity_W)
     base = ctx.once(("structural base parameters", sc.torque_friction),
                     lambda: structural_base(pm, sc.robot.limits, with_friction=sc.torque_friction))
@@ -87,26 +86,64 @@ def run(ctx, config) -> Comparison | None:
     load = joint_load_scale(sc.robot, val)
     methods = cfg["methods"]
     T = cfg["trials"]
-    r = len(cols)
-    beta, std, half = (np.empty((len(methods), T, r)) for _ in range(3))
-    seconds, val_err = np.empty((len(methods), T)), np.empty((len(methods), T))
     both = "iv" in methods and sensors
-    half_residuals = np.empty((T, r)) if both else None
-    arms = sc.robot.inner_joint_arms_B()
-    for k in range(T):
-        ctx.progress("estimators side by side", k / T)
-        meas = measure(rec, m.with_seed(m.seed + k), arms)
-        q, qd, qdd, tau = (x[keep] for x in joint_data(meas, joints))
-        W1 = regressor(pm, q, qd, qdd, with_friction=sc.torque_friction)[:, cols]
-        for i, name in enumerate(methods):
-            est = ESTIMATORS[name](W1, tau.reshape(-1), n, instruments, lags)
-            beta[i, k], std[i, k], half[i, k], seconds[i, k] = est.beta, est.std, est.ci_half_width, est.seconds
-            val_err[i, k] = np.max(np.abs((Wv @ est.beta).reshape(tauv.shape) - tauv) / load)
-        if both:  # what the data alone would have said of the same estimate
-            half_residuals[k] = iv(W1, tau.reshape(-1), n, from_residuals, lags).ci_half_width
-    ctx.progress("estimators side by side", 1.0)
+    bench = _Bench(pm, rec, m, joints, cols, sc.torque_friction, arms=sc.robot.inner_joint_arms_B(), keep=keep,
+                   methods=tuple(methods), instruments=instruments, from_residuals=from_residuals if both else None,
+                   lags=lags, Wv=Wv, tauv=tauv, load=load)
+    ctx.progress("estimators side by side", 0.0)
+    trials = ctx.workers.map(_setup, (bench,), _trial, range(T),
+                             lambda done, total: ctx.progress("estimators side by side", done / total))
+    beta, std, half, seconds, val_err = (np.stack([t[i] for t in trials], axis=1) for i in range(5))
+    half_residuals = np.stack([t[5] for t in trials]) if both else None
     return Comparison(tuple(methods), base.of(true_parameters(pm, sc.torque_friction)), beta, std, half, seconds,
                       val_err, usable, edge, lags, block, "sensors" if sensors else "residuals", half_residuals)
+
+
+@dataclass(frozen=True, eq=False)
+class _Bench:
+    """What every trial shares: the recording (the truth), its measurement, the instruments and the
+    validation trajectory. Sent once to each worker."""
+
+    pm: object  # the Pinocchio model
+    rec: object  # the ideal recording
+    m: object  # the scenario's Measurement
+    joints: tuple
+    cols: np.ndarray  # the base parameters' columns of the regressor
+    friction: bool
+    arms: object
+    keep: slice
+    methods: tuple[str, ...]
+    instruments: Instruments
+    from_residuals: Instruments | None  # IV again with intervals from the residuals, for comparison
+    lags: int
+    Wv: np.ndarray  # the validation trajectory's regressor, base columns
+    tauv: np.ndarray
+    load: np.ndarray
+
+
+def _setup(bench: _Bench) -> _Bench:
+    return bench
+
+
+def _trial(b: _Bench, k: int) -> tuple:
+    """Trial k: the measurement drawn from seed + k, every method's fit of it."""
+    from harness.stages.identification import joint_data
+
+    n = len(b.joints)
+    meas = measure(b.rec, b.m.with_seed(b.m.seed + k), b.arms)
+    q, qd, qdd, tau = (x[b.keep] for x in joint_data(meas, b.joints))
+    W1 = regressor(b.pm, q, qd, qdd, with_friction=b.friction)[:, b.cols]
+    r = len(b.cols)
+    beta, std, half = (np.empty((len(b.methods), r)) for _ in range(3))
+    seconds, val_err = np.empty(len(b.methods)), np.empty(len(b.methods))
+    for i, name in enumerate(b.methods):
+        est = ESTIMATORS[name](W1, tau.reshape(-1), n, b.instruments, b.lags)
+        beta[i], std[i], half[i], seconds[i] = est.beta, est.std, est.ci_half_width, est.seconds
+        val_err[i] = np.max(np.abs((b.Wv @ est.beta).reshape(b.tauv.shape) - b.tauv) / b.load)
+    # what the data alone would have said of the same estimate
+    half_residuals = (iv(W1, tau.reshape(-1), n, b.from_residuals, b.lags).ci_half_width
+                      if b.from_residuals is not None else None)
+    return beta, std, half, seconds, val_err, half_residuals
 
 
 def serialise(c: Comparison, ctx, config) -> dict:

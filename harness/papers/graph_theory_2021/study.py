@@ -131,10 +131,10 @@ def _lagrange(ctx, config):
     return lagrange(ctx.scenario, config.tested, config.lagrange, model, ctx.recording, ctx.progress)
 
 
-def _sweep(scenario, trials, jobs, progress):
+def _sweep(scenario, trials, workers, progress):
     from harness.papers.graph_theory_2021.sweep import run_sweep
 
-    return run_sweep(scenario, trials, jobs, progress)
+    return run_sweep(scenario, trials, workers, progress)
 
 
 def _render_sweep(sweep: dict) -> str:

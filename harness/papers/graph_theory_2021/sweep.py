@@ -1,6 +1,7 @@
 """Monte Carlo over measurement noise: the simulation runs once, the measurement is drawn N times.
 
-Trial k uses seed (scenario seed + k), so a sweep is the same whatever the number of processes.
+Trial k uses seed (scenario seed + k), so a sweep is the same wherever its trials run (this
+process, forked processes, a Dask cluster: harness/workers.py).
 For every parameter: the distribution of its error over the trials in which it was identifiable,
 and the coverage of its 95 % intervals (the fraction of trials whose interval contains the true
 value), which is what makes the stated uncertainty honest or not. The same is repeated, with
@@ -9,7 +10,7 @@ fewer trials, at scaled noise levels, for the error against noise level.
 
 from __future__ import annotations
 
-import multiprocessing
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -20,25 +21,26 @@ from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.identification import PARAMETERS
 from harness.papers.graph_theory_2021.solve import identify, measured_rows, parameter_scale
 from harness.scenario import Scenario
+from harness.workers import IN_PROCESS, Workers
 
 LEVELS = (0.25, 0.5, 1.0, 2.0, 4.0)
-_STATE: dict = {}  # per worker process: recording, models, scenario
 
 
-def _init(scenario: Scenario, recording) -> None:
+def _setup(scenario: Scenario, recording) -> dict:
+    """Once per worker: the models the trials share."""
     from harness.papers.graph_theory_2021.study import config_of
 
-    _STATE.update(scenario=scenario, recording=recording,
-                  model=build_graph_model(config_of(scenario).tested, scenario.gravity_W),
-                  truth=build_graph_model(scenario.robot, scenario.gravity_W))
+    return dict(scenario=scenario, recording=recording,
+                model=build_graph_model(config_of(scenario).tested, scenario.gravity_W),
+                truth=build_graph_model(scenario.robot, scenario.gravity_W))
 
 
-def _trial(args: tuple[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    seed, level = args
-    sc = _STATE["scenario"]
+def _trial(state: dict, task: tuple[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    seed, level = task
+    sc = state["scenario"]
     m: Measurement = sc.measurement.scaled(level).with_seed(seed)
-    measured = measure(_STATE["recording"], m, sc.robot.inner_joint_arms_B())
-    ident = identify(_STATE["model"], measured, measured_rows(measured, sc.sample_times), m, _STATE["truth"],
+    measured = measure(state["recording"], m, sc.robot.inner_joint_arms_B())
+    ident = identify(state["model"], measured, measured_rows(measured, sc.sample_times), m, state["truth"],
                      with_system=False)
     x = np.stack([ls.x for ls in ident.per_body])
     half = np.stack([ls.ci_half_width for ls in ident.per_body])
@@ -46,8 +48,12 @@ def _trial(args: tuple[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return x, std, half
 
 
-def run_sweep(scenario: Scenario, trials: int, jobs: int = 1,
+def run_sweep(scenario: Scenario, trials: int, workers: Workers = IN_PROCESS,
               progress: Callable[[int, int], None] | None = None, levels: tuple[float, ...] = LEVELS) -> dict:
+    """`trials` measurements at the scenario's noise, and max(trials // 10, 20) at each other level
+    of `levels`, identified on `workers` (harness/workers.py). sweep.json's "run" says where and
+    how long; everything else is the same wherever the trials ran."""
+    t0 = time.perf_counter()
     recording = record(scenario)
     truth = build_graph_model(scenario.robot, scenario.gravity_W)
     true = np.column_stack([truth.m, truth.m, truth.m, truth.J])
@@ -55,20 +61,7 @@ def run_sweep(scenario: Scenario, trials: int, jobs: int = 1,
     level_trials = max(trials // 10, 20)
     tasks = [(base + k, 1.0) for k in range(trials)]
     tasks += [(base + trials + k, f) for f in levels if f != 1.0 for k in range(level_trials)]
-    results = []
-    if jobs > 1:
-        ctx = multiprocessing.get_context("fork")
-        with ctx.Pool(jobs, initializer=_init, initargs=(scenario, recording)) as pool:
-            for r in pool.imap(_trial, tasks, chunksize=8):
-                results.append(r)
-                if progress:
-                    progress(len(results), len(tasks))
-    else:
-        _init(scenario, recording)
-        for task in tasks:
-            results.append(_trial(task))
-            if progress:
-                progress(len(results), len(tasks))
+    results = workers.map(_setup, (scenario, recording), _trial, tasks, progress)
     x, std, half = (np.array([r[i] for r in results]) for i in range(3))  # (tasks, n, 6)
     task_levels = np.array([t[1] for t in tasks])
     main = task_levels == 1.0
@@ -104,8 +97,9 @@ def run_sweep(scenario: Scenario, trials: int, jobs: int = 1,
     return {
         "schema": {"name": "harness-sweep", "version": 1},
         "scenario": scenario.name, "measurement": scenario.measurement.describe(),
-        "trials": trials, "jobs": jobs, "seeds": [base, base + trials - 1],
+        "trials": trials, "seeds": [base, base + trials - 1],
         "coverage_min": min(covered) if covered else None,
         "coverage_max": max(covered) if covered else None,
         "parameters": rows, "levels": by_level,
+        "run": {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)},
     }

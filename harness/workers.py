@@ -1,0 +1,161 @@
+"""Where a sweep's trials run: in this process, in forked processes on this machine, or on a Dask
+cluster (a local one, or a scheduler at an address).
+
+A sweep is `setup(*shared) -> state` once per worker, then `trial(state, task)` for every task;
+the results come back in the order of the tasks, so a sweep whose trials draw their noise from
+seeds fixed by the task gives the same numbers wherever it runs. `setup` and `trial` must be
+module-level functions (a worker imports them by name), and on a remote cluster every worker needs
+the same harness installed.
+
+Every trial runs with one BLAS thread, wherever it runs: a matrix product's sum is ordered by how
+it is split over threads, and one thread makes the numbers the same bits in this process, in a
+forked one and on a Dask worker with the same numpy (and the workers do not oversubscribe the
+cores).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import uuid
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+LOCAL = "local"  # --dask with no address: a cluster of processes on this machine
+CHUNK = 8  # tasks sent to a worker at once: a trial takes tens of milliseconds, a round trip about one
+
+
+class WorkersError(Exception):
+    """The workers cannot be reached or started (a bad address, dask.distributed not installed)."""
+
+
+@dataclass(frozen=True)
+class Workers:
+    """`processes` forked worker processes on this machine (1: this process), or, when `dask` is
+    set, the workers of a Dask cluster: LOCAL for one started on this machine (one single-threaded
+    worker per core), otherwise a scheduler address such as "tcp://10.0.0.5:8786"."""
+
+    processes: int = 1
+    dask: str | None = None
+
+    def describe(self) -> str:
+        if self.dask == LOCAL:
+            return "dask, local cluster"
+        if self.dask:
+            return f"dask, scheduler {self.dask}"
+        return "this process" if self.processes == 1 else f"{self.processes} forked processes"
+
+    def map(self, setup: Callable[..., Any], shared: tuple, trial: Callable[[Any, Any], Any], tasks: Sequence,
+            progress: Callable[[int, int], None] | None = None) -> list:
+        """[trial(setup(*shared), task) for task in tasks], setup run once per worker."""
+        tasks = list(tasks)
+        if self.dask:
+            return _on_dask(self.dask, setup, shared, trial, tasks, progress)
+        if self.processes > 1:
+            return _on_fork_pool(self.processes, setup, shared, trial, tasks, progress)
+        from threadpoolctl import threadpool_limits
+
+        out = []
+        with threadpool_limits(1, user_api="blas"):
+            state = setup(*shared)
+            for task in tasks:
+                out.append(trial(state, task))
+                if progress:
+                    progress(len(out), len(tasks))
+        return out
+
+
+IN_PROCESS = Workers()  # the default: every trial in this process, one after the other
+
+
+# --- forked processes ---------------------------------------------------------------------------
+
+_FORKED: dict = {}  # per forked worker: its state and trial function
+
+
+def _fork_init(setup, shared, trial) -> None:
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1, user_api="blas")  # for the life of the worker
+    _FORKED.update(state=setup(*shared), trial=trial)
+
+
+def _fork_trial(task):
+    return _FORKED["trial"](_FORKED["state"], task)
+
+
+def _on_fork_pool(processes, setup, shared, trial, tasks, progress) -> list:
+    import multiprocessing
+
+    out = []
+    with multiprocessing.get_context("fork").Pool(processes, initializer=_fork_init,
+                                                  initargs=(setup, shared, trial)) as pool:
+        for r in pool.imap(_fork_trial, tasks, chunksize=CHUNK):
+            out.append(r)
+            if progress:
+                progress(len(out), len(tasks))
+    return out
+
+
+# --- Dask ---------------------------------------------------------------------------------------
+
+_STATES: dict = {}  # per Dask worker process: {sweep token: state}, the latest sweep only
+_LOCK = threading.Lock()
+
+
+def _dask_chunk(token: str, setup, trial, tasks: list, *shared) -> list:
+    """Runs on a Dask worker: the sweep's state is built once per worker process (by the first
+    chunk that reaches it) and kept for the sweep's other chunks."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1, user_api="blas"):
+        with _LOCK:
+            if token not in _STATES:
+                _STATES.clear()
+                _STATES[token] = setup(*shared)
+            state = _STATES[token]
+        return [trial(state, t) for t in tasks]
+
+
+def _client(address: str):
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise WorkersError("needs dask.distributed: pip install 'dask[distributed]'") from None
+    if address == LOCAL:
+        import logging
+
+        cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                               dashboard_address=":0",  # any free port: clusters on one machine do not collide
+                               silence_logs=logging.ERROR)
+        return Client(cluster), cluster
+    try:
+        return Client(address, timeout="10s"), None
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise WorkersError(f"cannot reach a Dask scheduler at {address!r} ({exc})") from None
+
+
+def _on_dask(address, setup, shared, trial, tasks, progress) -> list:
+    from distributed import as_completed
+
+    client, cluster = _client(address)
+    try:
+        token = uuid.uuid4().hex
+        shared_on_workers = client.scatter(list(shared), broadcast=True) if shared else []
+        chunks = [tasks[i:i + CHUNK] for i in range(0, len(tasks), CHUNK)]
+        futures = {client.submit(_dask_chunk, token, setup, trial, chunk, *shared_on_workers, pure=False): i
+                   for i, chunk in enumerate(chunks)}
+        results: list = [None] * len(chunks)
+        done = 0
+        for future in as_completed(futures):
+            i = futures[future]
+            results[i] = future.result()
+            done += len(chunks[i])
+            if progress:
+                progress(done, len(tasks))
+        return [r for chunk in results for r in chunk]
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,130 @@
+"""Where a sweep's trials run (harness/workers.py): this process, forked processes, a Dask cluster
+started here, or a Dask scheduler at an address. The claim is the same everywhere: the same
+numbers, to the bit, in the order of the tasks; only sweep.json's "run" (where, how long) and the
+estimators' seconds per fit differ."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness.workers import IN_PROCESS, LOCAL, Workers
+from tests.conftest import SCENARIOS
+
+
+def _random_problem(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal((3000, 60)), rng.standard_normal(3000)
+
+
+def _toy_setup(offset: int) -> dict:
+    return {"offset": offset, "setups": os.getpid()}
+
+
+def _toy_trial(state: dict, task: int) -> tuple[int, np.ndarray, int]:
+    """A least-squares fit whose matrix products are long enough to be split over BLAS threads."""
+    from threadpoolctl import threadpool_info
+
+    A, b = _random_problem(task)
+    x = np.linalg.solve(A.T @ A, A.T @ b)
+    blas_threads = max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+    return task + state["offset"], x, blas_threads
+
+
+def test_trials_come_back_in_task_order_with_the_same_bits_in_this_process_and_forked_ones():
+    tasks = list(range(40))
+    here = IN_PROCESS.map(_toy_setup, (1000,), _toy_trial, tasks)
+    forked = Workers(processes=2).map(_toy_setup, (1000,), _toy_trial, tasks)
+    assert [r[0] for r in here] == [r[0] for r in forked] == [t + 1000 for t in tasks]
+    for (_, a, _), (_, b, _) in zip(here, forked, strict=True):
+        assert np.array_equal(a, b)
+
+
+def test_every_trial_runs_with_one_blas_thread_and_the_caller_keeps_its_own():
+    """One BLAS thread per trial is what makes the bits independent of where the trial ran (a
+    product's partial sums follow its split over threads); the caller's setting is restored."""
+    from threadpoolctl import threadpool_info
+
+    before = [i["num_threads"] for i in threadpool_info()]
+    progress = []
+    out = IN_PROCESS.map(_toy_setup, (0,), _toy_trial, range(3), lambda done, total: progress.append((done, total)))
+    assert [r[2] for r in out] == [1, 1, 1]
+    assert [r[2] for r in Workers(processes=2).map(_toy_setup, (0,), _toy_trial, range(3))] == [1, 1, 1]
+    assert [i["num_threads"] for i in threadpool_info()] == before
+    assert progress == [(1, 3), (2, 3), (3, 3)]
+
+
+@pytest.fixture(scope="module")
+def scheduler(tmp_path_factory):
+    """A Dask scheduler and two single-threaded workers started as a user would on a cluster's
+    nodes (`dask scheduler`, `dask worker`), here as local processes; yields the address."""
+    dask = shutil.which("dask", path=str(Path(sys.executable).parent)) or shutil.which("dask")
+    if dask is None:
+        pytest.fail("the dask command line is not installed (pip install 'dask[distributed]')")
+    folder = tmp_path_factory.mktemp("dask")
+    file = folder / "scheduler.json"
+    quiet = {"cwd": folder, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    procs = [subprocess.Popen([dask, "scheduler", "--port", "0", "--dashboard-address", ":0",
+                               "--scheduler-file", str(file)], **quiet)]
+    try:
+        deadline = time.monotonic() + 60
+        while not file.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(file.read_text())["address"]
+        procs.append(subprocess.Popen([dask, "worker", address, "--nworkers", "2", "--nthreads", "1",
+                                       "--no-dashboard"], **quiet))
+        from distributed import Client
+
+        with Client(address, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+            p.wait(timeout=30)
+
+
+@pytest.mark.slow  # a Dask cluster and three sweeps of kr500_noise: about 20 s
+def test_a_force_path_sweep_is_the_same_in_this_process_in_forked_processes_and_on_dask(scheduler):
+    from harness.papers.graph_theory_2021.sweep import run_sweep
+    from harness.scenario import load_scenario
+
+    sc = load_scenario(SCENARIOS / "kr500_noise.toml")
+    runs = {w.describe(): run_sweep(sc, 6, w, levels=(1.0, 2.0))
+            for w in (IN_PROCESS, Workers(processes=2), Workers(dask=LOCAL), Workers(dask=scheduler))}
+    where = [r.pop("run")["workers"] for r in runs.values()]
+    assert where == list(runs) and len(set(where)) == 4
+    first = next(iter(runs.values()))
+    assert all(r == first for r in runs.values())
+
+
+@pytest.mark.slow  # ur5_estimators twice over 4 trials: about 15 s
+def test_harness_sweep_runs_the_estimators_on_a_dask_scheduler_with_the_same_results(scheduler, tmp_path):
+    """`harness sweep SCENARIO --dask ADDRESS` against `--jobs 1`: the same sweep.json apart from
+    where and how long ("run") and the seconds per fit."""
+    from harness.cli import main
+
+    source = (SCENARIOS / "ur5_estimators.toml").read_text()
+    source = (source.replace('"../models/', f'"{SCENARIOS.parent / "models"}/')
+              .replace('"ur5_friction_validation.toml"', f'"{SCENARIOS / "ur5_friction_validation.toml"}"')
+              .replace('methods = ["ols", "wls", "irls", "iv"]', 'methods = ["ols", "iv"]'))
+    (tmp_path / "s.toml").write_text(source)
+    sweeps = {}
+    for name, flags in (("here", ["--jobs", "1"]), ("dask", ["--dask", scheduler])):
+        out = tmp_path / name
+        assert main(["sweep", str(tmp_path / "s.toml"), "--trials", "4", "--out", str(out), *flags]) == 0
+        sweeps[name] = json.loads((out / "sweep.json").read_text())
+    assert sweeps["dask"]["run"]["workers"] == f"dask, scheduler {scheduler}"
+    for s in sweeps.values():
+        del s["run"]
+        for m in s["estimators"]["methods"].values():
+            del m["seconds_per_fit"]
+    assert sweeps["here"] == sweeps["dask"]
