@@ -90,3 +90,19 @@ def test_axis_rotation_is_scipys_rotation_vector():
         s = rng.uniform(-20.0, 20.0, 200)
         expected = Rotation.from_rotvec(np.outer(s, axis)).as_matrix()
         np.testing.assert_allclose(axis_rotation(axis, s), expected, rtol=0, atol=1e-14 * max(1, np.abs(s).max()))
+
+
+def test_cross_and_skew_are_numpys_cross_product_to_the_bit():
+    """harness.kinematics.cross (written for its per-call cost) gives np.cross's bits for every
+    broadcast of shapes the models use, and skew(a) b = a x b within a few roundings of |a| |b|
+    (the same two products, summed with an exact zero in another order)."""
+    from harness.kinematics import cross, skew
+
+    rng = np.random.default_rng(5)
+    for sa, sb in (((3,), (3,)), ((5, 3), (3,)), ((3,), (4, 2, 3)), ((4, 1, 3), (1, 6, 3)), ((100, 7, 3),) * 2):
+        a, b = rng.normal(size=sa), rng.normal(size=sb)
+        np.testing.assert_array_equal(cross(a, b), np.cross(a, b))
+    a, b = rng.normal(size=(50, 7, 3)), rng.normal(size=(50, 7, 3))
+    scale = np.max(np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
+    np.testing.assert_allclose(np.einsum("...ab,...b->...a", skew(a), b), np.cross(a, b), rtol=0,
+                               atol=4 * np.finfo(float).eps * scale)

@@ -19,13 +19,14 @@ cos(beta) = 0, so Eq. 111 is too (B1 of kr500 at t = 0).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from harness import friction
 from harness.cardano import GIMBAL_COND_D, D, D_dot
-from harness.kinematics import skew
+from harness.kinematics import cross, skew
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
 from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, at_rest_floor
 from harness.recording import Recording
@@ -37,36 +38,45 @@ def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.n
     """Drive forces and moments (about each centre of mass) on every body from the drive forces
     and torques tau (N, joints of the spec), world components, (N, n, 3) each.
     A: (N, n, 3, 3), r: (N, n, 3) in graph order."""
-    top_bodies = model.topology.bodies
-    index = {b: i for i, b in enumerate(top_bodies)}
     N = tau.shape[0]
-    F = np.zeros((N, len(index), 3))
-    M = np.zeros((N, len(index), 3))
-    for jj, joint in enumerate(spec.joints):
+    F = np.zeros((N, model.topology.n, 3))
+    M = np.zeros((N, model.topology.n, 3))
+    for jj, revolute, j, inner, frame, u_frame, c in _drives(spec, model):
         tau_j = tau[:, jj]
-        carrier = spec.carried_joint(joint.name).child  # a carriage: the drive acts on the body it carries
-        j = index[carrier]
-        inner = index.get(joint.parent)
-        # a revolute axis turns with the outer body, a prismatic one with the inner body (or ground)
-        frame = j if joint.revolute else inner
-        if frame is None:
-            u = np.broadcast_to(joint.axis_W0, (N, 3))
-        else:
-            u = np.einsum("nab,b->na", A[:, frame], spec.body(top_bodies[frame]).R_WB0.T @ joint.axis_W0)
-        if joint.revolute:
+        u = np.broadcast_to(u_frame, (N, 3)) if frame is None else np.einsum("nab,b->na", A[:, frame], u_frame)
+        if revolute:
             M[:, j] += tau_j[:, None] * u
             if inner is not None:
                 M[:, inner] -= tau_j[:, None] * u
         else:
-            c = model.topology.c_B[j, model.topology.joints.index(spec.inner_joint(carrier).name)]
             point = r[:, j] + np.einsum("nab,b->na", A[:, j], c)
             force = tau_j[:, None] * u
             F[:, j] += force
-            M[:, j] += np.cross(point - r[:, j], force)
+            M[:, j] += cross(point - r[:, j], force)
             if inner is not None:
                 F[:, inner] -= force
-                M[:, inner] -= np.cross(point - r[:, inner], force)
+                M[:, inner] -= cross(point - r[:, inner], force)
     return F, M
+
+
+@functools.lru_cache(maxsize=8)
+def _drives(spec: RobotSpec, model: GraphModel) -> tuple:
+    """Per joint of the spec, where its drive acts: (joint, revolute, body j it drives (a carriage's
+    drive acts on the body it carries), inner body or None, the body whose frame carries the axis
+    (a revolute axis turns with the outer body, a prismatic one with the inner body or the ground;
+    None: the world), the axis in that frame, the joint point in body j)."""
+    top = model.topology
+    index = {b: i for i, b in enumerate(top.bodies)}
+    out = []
+    for jj, joint in enumerate(spec.joints):
+        carrier = spec.carried_joint(joint.name).child
+        j = index[carrier]
+        inner = index.get(joint.parent)
+        frame = j if joint.revolute else inner
+        u = joint.axis_W0 if frame is None else spec.body(top.bodies[frame]).R_WB0.T @ joint.axis_W0
+        c = None if joint.revolute else top.c_B[j, top.joints.index(spec.inner_joint(carrier).name)]
+        out.append((jj, joint.revolute, j, inner, frame, u, c))
+    return tuple(out)
 
 
 def generalized_mass(model: GraphModel, theta: np.ndarray) -> np.ndarray:

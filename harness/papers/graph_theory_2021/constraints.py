@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import A_0i, D, D_dot
-from harness.kinematics import skew
+from harness.kinematics import cross, skew
 from harness.papers.graph_theory_2021.topology import Topology
 from harness.spec import WORLD, RobotSpec
 
@@ -113,6 +113,9 @@ class ConstraintSet:
         self._body = [np.array([e.body if e.body >= 0 else n for e in sl]) for sl in slots]
         self._vec = [np.array([e.vec for e in sl], dtype=float) for sl in slots]
         self._point = [np.array([e.point for e in sl]) for sl in slots]
+        # a slot whose elements are all fixed in the world is a constant: its rates and its
+        # Jacobian (the motionless body's columns) vanish
+        self._fixed = [not any(e.body >= 0 for e in sl) for sl in slots]
         self._rows = np.arange(len(rows))
 
     @property
@@ -130,12 +133,19 @@ class ConstraintSet:
         A, Dm = pad(s.A, np.eye(3)), pad(s.D, np.eye(3))
         r, r_dot = pad(s.r, np.zeros(3)), pad(s.r_dot, np.zeros(3))
         w, Dd = pad(s.omega, np.zeros(3)), pad(s.Dd_rate, np.zeros(3))
+        rotating = s.Dd_rate.any()  # D' theta' is zero for quasi-velocities
         el = []
-        for b, v, pt in zip(self._body, self._vec, self._point, strict=True):
+        for b, v, pt, fixed in zip(self._body, self._vec, self._point, self._fixed, strict=True):
+            if fixed:  # A = E and r = 0 for the world: the element is v itself
+                zero = np.zeros((N, len(b), 3))
+                el.append((np.broadcast_to(v, (N, len(b), 3)), zero, zero, None))
+                continue
             Ab, wb = A[:, b], w[:, b]
+            w_x_v = cross(wb, v)
             value = np.einsum("nkab,kb->nka", Ab, v) + pt[None, :, None] * r[:, b]
-            vel = np.einsum("nkab,nkb->nka", Ab, np.cross(wb, v)) + pt[None, :, None] * r_dot[:, b]
-            gamma = np.einsum("nkab,nkb->nka", Ab, np.cross(Dd[:, b], v) + np.cross(wb, np.cross(wb, v)))
+            vel = np.einsum("nkab,nkb->nka", Ab, w_x_v) + pt[None, :, None] * r_dot[:, b]
+            gamma = np.einsum("nkab,nkb->nka", Ab, (cross(Dd[:, b], v) + cross(wb, w_x_v)) if rotating
+                              else cross(wb, w_x_v))
             d_rot = -Ab @ skew(v) @ Dm[:, b]  # (N, m, 3, 3): d value / d rate_b
             el.append((value, vel, gamma, d_rot))
         X = [el[0][k] - el[1][k] for k in range(3)]
@@ -145,6 +155,8 @@ class ConstraintSet:
                  + np.einsum("nka,nka->nk", X[0], Y[2]))
         jac = np.zeros((N, self.m, 6 * (n + 1)))
         for slot, (sign, other) in enumerate(((1, Y[0]), (-1, Y[0]), (1, X[0]), (-1, X[0]))):
+            if self._fixed[slot]:
+                continue
             b = self._body[slot]
             rot = sign * np.einsum("nka,nkab->nkb", other, el[slot][3])
             lin = sign * other * self._point[slot][None, :, None]
@@ -158,9 +170,9 @@ class ConstraintSet:
 def _normals(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors normal to u and to each other."""
     helper = np.eye(3)[np.argmin(np.abs(u))]
-    n1 = np.cross(u, helper)
+    n1 = cross(u, helper)
     n1 /= np.linalg.norm(n1)
-    return n1, np.cross(u, n1)
+    return n1, cross(u, n1)
 
 
 def _e(body: int, v, point: bool = False) -> Element:

@@ -31,6 +31,7 @@ import numpy as np
 
 from harness import quaternion
 from harness.cardano import A_0i
+from harness.kinematics import cross
 from harness.papers.graph_theory_2021.constrained import active_wrenches
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
 from harness.papers.graph_theory_2021.dynamics import GraphModel
@@ -72,7 +73,7 @@ def composite_inertia(spec: RobotSpec, model: GraphModel) -> np.ndarray:
             if joint.revolute:
                 u, d = joint.axis_W0, body.p_W_com0 - joint.p_W0
                 J_W = body.R_WB0 @ body.I_B @ body.R_WB0.T
-                total += u @ J_W @ u + body.mass * np.sum(np.cross(d, u) ** 2)
+                total += u @ J_W @ u + body.mass * np.sum(cross(d, u) ** 2)
             else:
                 total += body.mass
         out.append(total)
@@ -101,13 +102,14 @@ def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: Constraint
     K[: 6 * n, : 6 * n] = M0
     gain = composite_inertia(spec, model)
     revolute = np.array([j.revolute for j in spec.joints])
+    read_joints = JointReader(spec, model)
     largest_correction = np.zeros(len(spec.joints))
 
     def f(x: np.ndarray, tau: np.ndarray, t: float) -> np.ndarray:
         r, Q, v, w = _unpack(x, n)
         A = quaternion.to_matrix(Q / np.linalg.norm(Q, axis=1, keepdims=True))
         if reference is not None:
-            q, qd = joint_state(spec, model, r[None], A[None], v[None], w[None])
+            q, qd = read_joints(r[None], A[None], v[None], w[None])
             q_ref, qd_ref = reference(np.array([t]))
             e = q_ref[0] - q[0]
             e = np.where(revolute, (e + np.pi) % (2 * np.pi) - np.pi, e)  # one state: angle mod 2 pi
@@ -119,7 +121,7 @@ def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: Constraint
         F_a, M_a = (a[0] for a in active_wrenches(spec, model, tau[None], A[None], r[None]))
         Jw = model.J * w
         Q0 = np.concatenate([model.m[:, None] * model.g_W + F_a,
-                             np.einsum("iba,ib->ia", A, M_a) - np.cross(w, Jw)], axis=1).ravel()
+                             np.einsum("iba,ib->ia", A, M_a) - cross(w, Jw)], axis=1).ravel()
         K[: 6 * n, 6 * n:] = G.T
         K[6 * n:, : 6 * n] = G
         rhs = np.concatenate([Q0, zeta - 2 * BAUMGARTE * (G @ s.q_dot[0]) - BAUMGARTE**2 * phi])
@@ -142,7 +144,7 @@ def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: Constraint
             if on_progress is not None:
                 on_progress((step + 1) / drive_stages.shape[0])
             X = x.reshape(1, n, 13)
-            q_now = joint_state(spec, model, X[..., :3], quaternion.to_matrix(X[..., 3:7]),
+            q_now = read_joints(X[..., :3], quaternion.to_matrix(X[..., 3:7]),
                                 X[..., 7:10], X[..., 10:])[0][0]
             if np.max(np.abs(q_now - q_rec[len(rows) - 1])) > stop_above:
                 completed = False
@@ -150,7 +152,7 @@ def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: Constraint
 
     X = np.array(rows).reshape(len(rows), n, 13)
     r, A = X[..., :3], quaternion.to_matrix(X[..., 3:7])
-    q, _ = joint_state(spec, model, r, A, X[..., 7:10], X[..., 10:])
+    q, _ = read_joints(r, A, X[..., 7:10], X[..., 10:])
     phi = constraints.evaluate(State.quasi(r, A, X[..., 7:10], X[..., 10:]))[0]
     k = len(rows)
     drive = np.max(np.abs(rec.tau[:, [rec.joint_index(j) for j in spec.joint_names]]), axis=0)
@@ -166,46 +168,73 @@ def joint_state(spec: RobotSpec, model: GraphModel, r: np.ndarray, A: np.ndarray
     a revolute angle from the relative rotation about the axis and its rate from the relative
     angular velocity; a prismatic displacement of the joint point along the axis and its rate.
     Angles are unwrapped along the series."""
-    top = model.topology
-    index = {b: i for i, b in enumerate(top.bodies)}
-    N = r.shape[0]
+    return JointReader(spec, model)(r, A, v, omega_B)
 
-    def frame(body: str) -> tuple[np.ndarray, np.ndarray]:
-        """Rotation from the initial pose, and the body index, of a body or the ground."""
-        if body in index:
-            i = index[body]
-            return A[:, i] @ spec.body(body).R_WB0.T, i
-        return np.broadcast_to(np.eye(3), (N, 3, 3)), None  # world, or a carriage (never turns)
 
-    w_W = np.einsum("niab,nib->nia", A, omega_B)
-    zero = np.zeros((N, 3))
-    out = np.zeros((N, len(spec.joints)))
-    rate = np.zeros((N, len(spec.joints)))
-    for jj, joint in enumerate(spec.joints):
-        carrier = spec.carried_joint(joint.name).child
-        j = index[carrier]
-        k = top.joints.index(spec.inner_joint(carrier).name)
-        if joint.revolute:
-            R_in, _ = frame(joint.parent)
-            R_rel = np.swapaxes(R_in, 1, 2) @ frame(joint.child)[0]
-            vee = np.stack([R_rel[:, 2, 1] - R_rel[:, 1, 2], R_rel[:, 0, 2] - R_rel[:, 2, 0],
-                            R_rel[:, 1, 0] - R_rel[:, 0, 1]], -1) / 2
-            cos = (np.trace(R_rel, axis1=1, axis2=2) - 1) / 2
-            out[:, jj] = np.unwrap(np.arctan2(vee @ joint.axis_W0, cos))
-            i = frame(joint.parent)[1]
+@dataclass(frozen=True, eq=False)
+class _Joint:
+    revolute: bool
+    axis_W0: np.ndarray
+    carrier: int  # the body whose motion the joint's coordinate measures
+    parent: int | None  # None: the world, or a carriage (never turns)
+    child: int | None
+    R0_parent_T: np.ndarray | None  # the parent's / child's initial orientation, transposed
+    R0_child_T: np.ndarray | None
+    arm_carrier: np.ndarray  # the joint point from the carrier's centre of mass, body frame
+    arm_parent: np.ndarray | None  # the joint point from the parent's centre of mass, body frame
+    p_W0: np.ndarray
+
+
+class JointReader:
+    """joint_state with the tree's lookups made once: the forward simulation reads the joints at
+    every evaluation of its right-hand side."""
+
+    def __init__(self, spec: RobotSpec, model: GraphModel):
+        top = model.topology
+        index = {b: i for i, b in enumerate(top.bodies)}
+        self.joints = []
+        for joint in spec.joints:
+            carrier = spec.carried_joint(joint.name).child
+            j = index[carrier]
+            k = top.joints.index(spec.inner_joint(carrier).name)
+            parent, child = index.get(joint.parent), index.get(joint.child)
+            self.joints.append(_Joint(
+                joint.revolute, joint.axis_W0, j, parent, child,
+                None if parent is None else spec.body(joint.parent).R_WB0.T,
+                None if child is None else spec.body(joint.child).R_WB0.T,
+                top.c_B[j, k], None if parent is None else top.c_B[parent, top.joints.index(joint.name)],
+                joint.p_W0))
+
+    def __call__(self, r: np.ndarray, A: np.ndarray, v: np.ndarray,
+                 omega_B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        N = r.shape[0]
+        eye = np.broadcast_to(np.eye(3), (N, 3, 3))
+        w_W = np.einsum("niab,nib->nia", A, omega_B)
+        zero = np.zeros((N, 3))
+        out = np.zeros((N, len(self.joints)))
+        rate = np.zeros((N, len(self.joints)))
+        for jj, joint in enumerate(self.joints):
+            i, j = joint.parent, joint.carrier
+            R_in = eye if i is None else A[:, i] @ joint.R0_parent_T  # rotation from the initial pose
             u = np.einsum("nab,b->na", R_in, joint.axis_W0)
-            rate[:, jj] = np.einsum("na,na->n", u, w_W[:, j] - (zero if i is None else w_W[:, i]))
-        else:
-            arm = np.einsum("nab,b->na", A[:, j], top.c_B[j, k])
-            point, point_dot = r[:, j] + arm, v[:, j] + np.cross(w_W[:, j], arm)
-            R_in, i = frame(joint.parent)
-            u = np.einsum("nab,b->na", R_in, joint.axis_W0)
-            if i is None:
-                origin, origin_dot, w_in = joint.p_W0, zero, zero
+            if joint.revolute:
+                R_out = eye if joint.child is None else A[:, joint.child] @ joint.R0_child_T
+                R_rel = np.swapaxes(R_in, 1, 2) @ R_out
+                vee = np.stack([R_rel[:, 2, 1] - R_rel[:, 1, 2], R_rel[:, 0, 2] - R_rel[:, 2, 0],
+                                R_rel[:, 1, 0] - R_rel[:, 0, 1]], -1) / 2
+                cos = (np.trace(R_rel, axis1=1, axis2=2) - 1) / 2
+                angle = np.arctan2(vee @ joint.axis_W0, cos)
+                out[:, jj] = np.unwrap(angle) if N > 1 else angle
+                rate[:, jj] = np.einsum("na,na->n", u, w_W[:, j] - (zero if i is None else w_W[:, i]))
             else:
-                arm_i = np.einsum("nab,b->na", A[:, i], top.c_B[i, top.joints.index(joint.name)])
-                origin, origin_dot, w_in = r[:, i] + arm_i, v[:, i] + np.cross(w_W[:, i], arm_i), w_W[:, i]
-            out[:, jj] = np.einsum("na,na->n", point - origin, u)
-            rate[:, jj] = (np.einsum("na,na->n", point_dot - origin_dot, u)
-                           + np.einsum("na,na->n", point - origin, np.cross(w_in, u)))
-    return out, rate
+                arm = np.einsum("nab,b->na", A[:, j], joint.arm_carrier)
+                point, point_dot = r[:, j] + arm, v[:, j] + cross(w_W[:, j], arm)
+                if i is None:
+                    origin, origin_dot, w_in = joint.p_W0, zero, zero
+                else:
+                    arm_i = np.einsum("nab,b->na", A[:, i], joint.arm_parent)
+                    origin, origin_dot, w_in = r[:, i] + arm_i, v[:, i] + cross(w_W[:, i], arm_i), w_W[:, i]
+                out[:, jj] = np.einsum("na,na->n", point - origin, u)
+                rate[:, jj] = (np.einsum("na,na->n", point_dot - origin_dot, u)
+                               + np.einsum("na,na->n", point - origin, cross(w_in, u)))
+        return out, rate

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from harness.cardano import A_0i
-from harness.kinematics import skew
+from harness.kinematics import cross, skew
 from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.recording import Recording
 from harness.spec import RobotSpec
@@ -57,7 +57,7 @@ def full_form(spec: RobotSpec, model: GraphModel, rec: Recording, rows: np.ndarr
     rel_W = np.einsum("nilm,nikm->nikl", A, rel_B)
     f = -np.einsum("ik,nkl->nil", top.S.astype(float), F)
     n_O = -(np.einsum("ik,nkl->nil", top.S.astype(float), M)
-            + np.einsum("ik,nikl->nil", top.S.astype(float), np.cross(rel_W, F[:, None])))
+            + np.einsum("ik,nikl->nil", top.S.astype(float), cross(rel_W, F[:, None])))
     a, w, wd = to_J(rec.aO_W[rows][:, b] - model.g_W), to_J(rec.omega_W[rows][:, b]), to_J(rec.omegadot_W[rows][:, b])
     N, n = a.shape[:2]
     Y = np.zeros((N, n, 6, 10))

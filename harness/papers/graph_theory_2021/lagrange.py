@@ -9,6 +9,7 @@ import numpy as np
 
 from harness.cardano import GIMBAL_COND_D, A_0i, D, cond_D
 from harness.compare import largest
+from harness.kinematics import cross
 from harness.papers.graph_theory_2021.constrained import Constrained, solve_constrained
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, build_constraints
 from harness.papers.graph_theory_2021.dynamics import GraphModel, body_series
@@ -102,7 +103,7 @@ def reactions_at(out: LagrangeOutput, spec: RobotSpec, model: GraphModel, rec: R
             "body": top.bodies[j], "joint": joint,
             "labels": [labels[m].split(".")[1] for m in idx], "lambda": lam[idx].tolist(),
             "constraint_force_W": force.tolist(),
-            "constraint_moment_W": (moment_cm - np.cross(arm, force)).tolist(),
+            "constraint_moment_W": (moment_cm - cross(arm, force)).tolist(),
             "static_weight_outboard": float(weight),
         })
     return out_rows

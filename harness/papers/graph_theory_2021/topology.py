@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.kinematics import cross
 from harness.spec import RobotSpec
 
 
@@ -117,8 +118,8 @@ def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarra
     terms summed into each, (N, n) each: the scale at which they cancel."""
     c_out, c_in = joint_arms(top, A, q)
     P_out, P_in = (top.S == -1).astype(float), (top.S == 1).astype(float)
-    on_outer = M_W + np.cross(c_out, F_W)  # -(C_e x F + S M) for S = -1
-    on_inner = M_W + np.cross(c_in, F_W)
+    on_outer = M_W + cross(c_out, F_W)  # -(C_e x F + S M) for S = -1
+    on_inner = M_W + cross(c_in, F_W)
     F_J_W = -(top.S_e.astype(float) @ F_W)
     M_J_W = P_out @ on_outer - P_in @ on_inner
     F_norm = np.linalg.norm(F_W, axis=-1)
@@ -126,6 +127,6 @@ def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarra
     # a moment about the centre of mass is M + c x F: both terms count, since they may cancel (the
     # outermost body of an arm at rest carries no moment about its centre of mass at all)
     M_norm = np.linalg.norm(M_W, axis=-1)
-    M_size = (np.einsum("ik,nk->ni", P_out, M_norm + np.linalg.norm(np.cross(c_out, F_W), axis=-1))
-              + np.einsum("ik,nk->ni", P_in, M_norm + np.linalg.norm(np.cross(c_in, F_W), axis=-1)))
+    M_size = (np.einsum("ik,nk->ni", P_out, M_norm + np.linalg.norm(cross(c_out, F_W), axis=-1))
+              + np.einsum("ik,nk->ni", P_in, M_norm + np.linalg.norm(cross(c_in, F_W), axis=-1)))
     return F_J_W, M_J_W, F_size, M_size
