@@ -44,11 +44,21 @@ class TreeKinematics:
         return self.bodies.index(name)
 
 
-def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis, broadcast: the same operations, so the same bits, as np.cross,
-    at a third of its per-call cost (np.cross moves axes), which dominates on one state at a time
-    (the forward simulation evaluates 16,000 of them)."""
+def cross(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
+    """a x b along `axis`: -1 for (..., 3) arrays, 0 for component-major (3, ...) ones; the rest
+    broadcast. The same operations, so the same bits, as np.cross, at a third of its per-call cost
+    (np.cross moves axes), which dominates on one state at a time (the forward simulation evaluates
+    16,000 of them); component-major, each component is written in place into one array (three
+    times faster on 10,000 states than stacking them)."""
     a, b = np.asarray(a), np.asarray(b)
+    if axis == 0:
+        out = np.empty((3,) + np.broadcast_shapes(a.shape[1:], b.shape[1:]), dtype=np.result_type(a, b))
+        for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+            np.multiply(a[i], b[j], out=out[k, ...])  # [k, ...]: a view even of a 0-d component
+            out[k, ...] -= a[j] * b[i]
+        return out
+    if axis != -1:
+        raise ValueError(f"axis must be 0 or -1, got {axis}")
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     c0 = a1 * b2

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
 from harness.engines.pinocchio import PinocchioModel
-from harness.torque_id import BaseParameters, regressor
+from harness.torque_id import BaseParameters, regressor, regressor_by_joint
 
 CHUNK = 8192  # samples per block: its regressor (7 joints, 98 columns) is 45 MB
 
@@ -46,8 +46,9 @@ def _moving_columns(pm: PinocchioModel, n: int, with_friction: bool) -> list[np.
 def _gram(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray,
           with_friction: bool, chunk: int) -> tuple[np.ndarray, np.ndarray, float]:
     """W^T W, W^T y and y^T y of the samples given, one block's regressor at a time (module docstring).
-    Joint by joint, from the first column that can move its torque on (for joint i of a chain, the
-    bodies it carries and the drives: about a third of the products of the whole W^T W for 7 joints). A block
+    Joint by joint, over the columns that can move its torque: the inertial ones from the first that
+    does (for joint i of a chain, the bodies it carries) and its own drive's (for 7 joints, a quarter
+    of the products of the whole W^T W). A block
     is folded in a second thread while the next one is evaluated: the fold is a few large matrix
     products, during which numpy lets go of the interpreter that Pinocchio's loop needs."""
     from concurrent.futures import ThreadPoolExecutor
@@ -59,21 +60,35 @@ def _gram(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, ta
     first_moving = [int(cols.min()) for cols in _moving_columns(pm, n, with_friction)]
     WtW, Wty, yy = np.zeros((p, p)), np.zeros(p), np.zeros(1)
     # two blocks: one evaluated while the other is folded; reused, the entries written are the same every time
-    buffers = [np.zeros((min(chunk, len(q)), n, p)) for _ in range(2)]
+    buffers = [np.zeros((n, p, min(chunk, len(q)))) for _ in range(2)]
+
+    inertial = 10 * n
+    # joint i's rows: its inertial columns from the first that moves it (for a chain, the bodies it
+    # carries), and its own drive's four columns; the other drives' columns are zero in its rows
+    blocks = [(slice(min(first, inertial), inertial),
+               slice(inertial + 4 * i, inertial + 4 * i + 4) if with_friction else None)
+              for i, first in enumerate(first_moving)]
 
     def fold(W: np.ndarray, y: np.ndarray) -> None:
-        for i, first in enumerate(first_moving):
-            X = W[:, i, first:]  # a view: BLAS reads it in place (gathering only the moving columns cost more)
-            WtW[first:, first:] += X.T @ X
-            Wty[first:] += X.T @ y[:, i]
+        for i, (I, F) in enumerate(blocks):
+            X = W[i, I]  # (columns, samples), a contiguous view: BLAS reads it in place
+            WtW[I, I] += X @ X.T
+            Wty[I] += X @ y[:, i]
+            if F is not None:
+                D = W[i, F]
+                cross_terms = X @ D.T
+                WtW[I, F] += cross_terms
+                WtW[F, I] += cross_terms.T
+                WtW[F, F] += D @ D.T
+                Wty[F] += D @ y[:, i]
         yy[0] += float(np.sum(y * y))
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         pending = None
         for b, start in enumerate(range(0, len(q), chunk)):
             rows = slice(start, start + chunk)
-            W = buffers[b % 2][:len(q[rows])]
-            regressor(pm, q[rows], qd[rows], qdd[rows], with_friction, out=W)
+            W = buffers[b % 2][:, :, :len(q[rows])]
+            regressor_by_joint(pm, q[rows], qd[rows], qdd[rows], with_friction, out=W)
             if pending is not None:
                 pending.result()  # the fold of the block before: its buffer is the next one written
             pending = pool.submit(fold, W, tau[rows])

@@ -21,6 +21,8 @@ from harness import friction
 from harness.engines.pinocchio import PinocchioModel
 from harness.estimators import column_scale, ols
 from harness.identify import WEAK_RATIO, sensitivity, weakly_identifiable
+from harness.regressor import joint_torque_regressor
+from harness.regressor import supports as batched_supports
 from harness.results import finite_or_null
 from harness.spec import parallel_axis
 
@@ -33,37 +35,50 @@ ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off:
 
 
 def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-              with_friction: bool = False, out: np.ndarray | None = None) -> np.ndarray:
+              with_friction: bool = False) -> np.ndarray:
     """(N * n, 10 n [+ 4 n]): the joint torque regressor of every sample, rows sample by sample in
     the spec's joint order, columns joint by joint (the body each joint carries); with friction,
-    then per joint the columns of [armature, viscous, coulomb, offset] (harness/friction.py).
-    `out`: a zeroed (N, n, 10 n [+ 4 n]) array to write into, reused from one call to the next (the
-    entries written are the same every call, the others stay zero)."""
+    then per joint the columns of [armature, viscous, coulomb, offset] (harness/friction.py)."""
+    W = regressor_by_joint(pm, q, qd, qdd, with_friction)  # (n, p, N)
+    return np.ascontiguousarray(W.transpose(2, 0, 1)).reshape(len(q) * W.shape[0], -1)
+
+
+def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                       with_friction: bool = False, out: np.ndarray | None = None) -> np.ndarray:
+    """The same regressor as (n, p, N): out[i, :, k] is joint i's row at sample k, so each joint's
+    rows are one contiguous (p, N) block (what a fold into normal equations reads). Batched
+    (harness/regressor.py) where the model's joints allow, else Pinocchio's call sample by sample.
+    `out`: a zeroed (n, p, N) array, reused from one call to the next (the entries written are the
+    same every call, the others stay zero)."""
     model = pm.model
-    data = model.createData()
     n = len(pm.joint_ids)
-    cols = np.concatenate([np.arange(10 * (j - 1), 10 * j) for j in pm.joint_ids])
+    N = len(q)
+    p = 14 * n if with_friction else 10 * n
     if out is None:
-        out = np.zeros((len(q), n, 14 * n if with_friction else 10 * n))  # friction columns written in place
-    elif not out.flags.c_contiguous:  # the friction block below must be a view of it, not a copy
-        raise ValueError("regressor: `out` must be C-contiguous")
-    inertial = out[:, :, :10 * n]
-    if np.array_equal(pm.q_index, np.arange(model.nv)) and np.array_equal(cols, np.arange(10 * model.njoints - 10)):
-        # the model is the spec's joints, in its order: no rows or columns to pick, no copy of the states
-        for k, (q_k, qd_k, qdd_k) in enumerate(zip(q, qd, qdd, strict=True)):
-            inertial[k] = pin.computeJointTorqueRegressor(model, data, q_k, qd_k, qdd_k)
+        out = np.zeros((n, p, N))
+    cols = np.concatenate([np.arange(10 * (j - 1), 10 * j) for j in pm.joint_ids])
+    in_order = (np.array_equal(pm.q_index, np.arange(model.nv))
+                and np.array_equal(cols, np.arange(10 * model.njoints - 10)))
+    if in_order and model.nq == model.nv:
+        qq, vv, aa = q, qd, qdd
     else:
-        qq, vv, aa = (np.zeros((len(q), model.nq)) for _ in range(3))
+        qq, vv, aa = (np.zeros((N, model.nq)) for _ in range(3))
         qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
-        pick = np.ix_(pm.q_index, cols)
-        for k in range(len(q)):
-            inertial[k] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[pick]
-    if with_friction:
-        # joint j's four columns act on joint j's row only
-        block = out[:, :, 10 * n:].reshape(len(q), n, n, 4)  # a view: written into out
-        idx = np.arange(n)
-        block[:, idx, idx, :] = friction.columns(pm.frictions, qd, qdd)  # (N, n, 4)
-    return out.reshape(len(q) * n, -1)
+    if batched_supports(model) and model.nq == model.nv:
+        if in_order:  # the model is the spec's joints, in its order: written in place
+            joint_torque_regressor(model, qq, vv, aa, out=out[:, : 10 * n])
+        else:
+            out[:, : 10 * n] = joint_torque_regressor(model, qq, vv, aa)[np.ix_(pm.q_index, cols)]
+    else:
+        data = model.createData()
+        for k in range(N):
+            out[:, : 10 * n, k] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[
+                np.ix_(pm.q_index, cols)]
+    if with_friction:  # joint j's four columns act on joint j's row only
+        shapes = friction.columns(pm.frictions, qd, qdd)  # (N, n, 4)
+        for j in range(n):
+            out[j, 10 * n + 4 * j: 10 * n + 4 * j + 4] = shapes[:, j].T
+    return out
 
 
 def true_parameters(pm: PinocchioModel, with_friction: bool = False) -> np.ndarray:

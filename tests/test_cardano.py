@@ -94,7 +94,7 @@ def test_axis_rotation_is_scipys_rotation_vector():
 
 def test_cross_and_skew_are_numpys_cross_product_to_the_bit():
     """harness.kinematics.cross (written for its per-call cost) gives np.cross's bits for every
-    broadcast of shapes the models use, and skew(a) b = a x b within a few roundings of |a| |b|
+    broadcast of shapes the models use, in either layout, and skew(a) b = a x b within a few roundings of |a| |b|
     (the same two products, summed with an exact zero in another order)."""
     from harness.kinematics import cross, skew
 
@@ -102,6 +102,8 @@ def test_cross_and_skew_are_numpys_cross_product_to_the_bit():
     for sa, sb in (((3,), (3,)), ((5, 3), (3,)), ((3,), (4, 2, 3)), ((4, 1, 3), (1, 6, 3)), ((100, 7, 3),) * 2):
         a, b = rng.normal(size=sa), rng.normal(size=sb)
         np.testing.assert_array_equal(cross(a, b), np.cross(a, b))
+        np.testing.assert_array_equal(cross(np.moveaxis(a, -1, 0), np.moveaxis(b, -1, 0), axis=0),
+                                      np.moveaxis(np.cross(a, b), -1, 0))  # component-major
     a, b = rng.normal(size=(50, 7, 3)), rng.normal(size=(50, 7, 3))
     scale = np.max(np.linalg.norm(a, axis=-1) * np.linalg.norm(b, axis=-1))
     np.testing.assert_allclose(np.einsum("...ab,...b->...a", skew(a), b), np.cross(a, b), rtol=0,

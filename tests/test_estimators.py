@@ -30,6 +30,42 @@ def test_exact_data_give_the_truth_to_round_off(name):
     np.testing.assert_allclose(est.beta, beta, rtol=1e-12, atol=1e-12 * np.abs(beta).max())
 
 
+def _irls_by_orthogonal_factorisation(X, y, n, iterations=20, tol=1e-6):
+    """The textbook IRLS: Huber's weights (c = 1.345, the scale per joint from the median absolute
+    deviation), every weighted fit by np.linalg.lstsq."""
+    s = np.linalg.norm(X, axis=0)
+    Xs = X / s
+    z = np.linalg.lstsq(Xs, y, rcond=None)[0]
+    for _ in range(iterations):
+        R = (y - Xs @ z).reshape(-1, n)
+        scale = 1.4826 * np.median(np.abs(R - np.median(R, axis=0)), axis=0)
+        w = (np.minimum(1.0, 1.345 * scale / np.abs(R)) / scale**2).ravel()
+        w /= w.max()
+        z_new = np.linalg.lstsq(Xs * np.sqrt(w)[:, None], y * np.sqrt(w), rcond=None)[0]
+        done = np.linalg.norm(z_new - z) <= tol * np.linalg.norm(z_new)
+        z = z_new
+        if done:
+            break
+    return z / s
+
+
+@pytest.mark.parametrize("duplicated", [False, True], ids=["well conditioned", "two columns almost equal"])
+def test_irls_is_the_textbook_iteration_with_every_fit_factorised(duplicated):
+    """irls solves its iterations from the normal equations (refined once) and falls back to an
+    orthogonal factorisation where they are too ill-conditioned (two columns equal to 1e-9: cond(G)
+    about 1e18). Against the textbook loop, on data with 5 % gross outliers, the estimates agree
+    within 1e-5 of the estimate's norm: both stop once an iteration changes it by 1e-6, and may stop
+    one iteration apart."""
+    rng = np.random.default_rng(7)
+    X, beta = _problem(rng, samples=400)
+    if duplicated:
+        X[:, -1] = X[:, -2] * (1 + 1e-9 * rng.normal(size=len(X)))
+    y = X @ beta + rng.normal(size=len(X)) * 0.1 * np.abs(X @ beta).mean()
+    y[rng.random(len(y)) < 0.05] += 50 * np.abs(y).max()
+    ours, textbook = irls(X, y, N_JOINTS).beta, _irls_by_orthogonal_factorisation(X, y, N_JOINTS)
+    np.testing.assert_allclose(ours, textbook, rtol=0, atol=1e-5 * np.linalg.norm(textbook))
+
+
 def test_a_noisy_regressor_biases_least_squares_and_not_the_instruments():
     """Errors in variables: X read with noise of half its own spread. Least squares converges to
     (X^T X + N 0.25 1)^-1 X^T X beta, about 0.8 beta (the attenuation var(X) / (var(X) + var(noise)));

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import A_0i_components
-from harness.kinematics import forward_kinematics
+from harness.kinematics import cross, forward_kinematics
 from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.papers.graph_theory_2021.topology import joint_arms_components, rotate
 from harness.recording import Recording
@@ -66,19 +66,6 @@ def _components(x: np.ndarray, bodies: list[int]) -> np.ndarray:
     return np.ascontiguousarray(np.moveaxis(_bodies(x, bodies), -1, 0))
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b in component-major form, (3, ...) each (written into one array: three times faster than
-    stacking the three components)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    np.multiply(a[1], b[2], out=out[0])
-    out[0] -= a[2] * b[1]
-    np.multiply(a[2], b[0], out=out[1])
-    out[1] -= a[0] * b[2]
-    np.multiply(a[0], b[1], out=out[2])
-    out[2] -= a[1] * b[0]
-    return out
-
-
 def newton_euler(spec: RobotSpec, model: GraphModel, q: np.ndarray, A_c: np.ndarray, a_c: np.ndarray,
                  w_c: np.ndarray, wd_c: np.ndarray) -> GraphInverse:
     """Eqs. 22-23 solved for the force elements and joint moments, all samples at once. Inputs in
@@ -91,12 +78,12 @@ def newton_euler(spec: RobotSpec, model: GraphModel, q: np.ndarray, A_c: np.ndar
     c_out, c_in = joint_arms_components(top, A_c, q)
     P_out, P_in = (top.S == -1).astype(float), (top.S == 1).astype(float)
     # sum_k C_e,ik x F_k, joint by joint: C = -c on the outer body, +c on the inner one
-    C_x_F = _cross(c_in, F) @ P_in.T - _cross(c_out, F) @ P_out.T
+    C_x_F = cross(c_in, F, axis=0) @ P_in.T - cross(c_out, F, axis=0) @ P_out.T
     # J omega' + omega x J omega with J = A diag(J_B) A^T: in body components, then turned back
     A_T = np.swapaxes(A_c, 0, 1)
     w_B, wd_B = rotate(A_T, w_c), rotate(A_T, wd_c)
     J = model.J.T[:, None, :]  # (3, 1, n)
-    euler = rotate(A_c, J * wd_B + _cross(w_B, J * w_B))
+    euler = rotate(A_c, J * wd_B + cross(w_B, J * w_B, axis=0))
     M = -((euler + C_x_F) @ np.linalg.inv(top.S.astype(float)).T)
 
     # each spec joint's wrench is that of the graph joint it is or carries (a carriage transmits its
