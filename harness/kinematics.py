@@ -83,15 +83,18 @@ def skew(v: np.ndarray) -> np.ndarray:
     return out
 
 
-def axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+def axis_rotation(axis: np.ndarray, angle: np.ndarray, samples_last: bool = False) -> np.ndarray:
     """(N, 3, 3) rotations by angle (N,) |axis| about axis (3,) (a rotation vector s axis, as
     scipy's Rotation.from_rotvec reads it): Rodrigues' formula R = 1 + sin(t) K + (1 - cos(t)) K^2,
     K the cross-product matrix of the unit axis. Written here: scipy.spatial costs 0.25 to 0.6 s
-    to import, more than a whole kr500 run's kinematics."""
+    to import, more than a whole kr500 run's kinematics. `samples_last`: (3, 3, N) instead, each
+    entry's samples contiguous (the batched regressor's layout, harness/regressor.py)."""
     axis = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(axis)
     angle = np.asarray(angle, dtype=float) * norm
     K = skew(axis / norm if norm > 0 else axis)
+    if samples_last:
+        return np.eye(3)[:, :, None] + np.sin(angle) * K[:, :, None] + (1.0 - np.cos(angle)) * (K @ K)[:, :, None]
     return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
 
 

@@ -88,7 +88,7 @@ def joint_torque_regressor(model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
         M = model.jointPlacements[j]
         x, xd, xdd = q_c[k], qd_c[k], qdd_c[k]
         if rev:  # R = R_M exp(u q)
-            R[j] = np.einsum("ab,nbc->acn", M.rotation, axis_rotation(u, x))
+            R[j] = np.einsum("ab,bcn->acn", M.rotation, axis_rotation(u, x, samples_last=True))
             t[j] = np.broadcast_to(M.translation[:, None], (3, N))
         else:
             R[j] = np.broadcast_to(M.rotation[:, :, None], (3, 3, N))

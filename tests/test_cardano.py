@@ -90,6 +90,8 @@ def test_axis_rotation_is_scipys_rotation_vector():
         s = rng.uniform(-20.0, 20.0, 200)
         expected = Rotation.from_rotvec(np.outer(s, axis)).as_matrix()
         np.testing.assert_allclose(axis_rotation(axis, s), expected, rtol=0, atol=1e-14 * max(1, np.abs(s).max()))
+        np.testing.assert_array_equal(axis_rotation(axis, s, samples_last=True),
+                                      np.moveaxis(axis_rotation(axis, s), 0, -1))  # the same bits, samples last
 
 
 def test_cross_and_skew_are_numpys_cross_product_to_the_bit():
