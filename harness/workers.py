@@ -137,9 +137,9 @@ def _client(address: str):
 
 
 def _on_dask(address, setup, shared, trial, tasks, progress) -> list:
+    client, cluster = _client(address)
     from distributed import as_completed
 
-    client, cluster = _client(address)
     try:
         token = uuid.uuid4().hex
         shared_on_workers = client.scatter(list(shared), broadcast=True) if shared else []

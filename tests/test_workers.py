@@ -128,3 +128,16 @@ def test_harness_sweep_runs_the_estimators_on_a_dask_scheduler_with_the_same_res
         for m in s["estimators"]["methods"].values():
             del m["seconds_per_fit"]
     assert sweeps["here"] == sweeps["dask"]
+
+
+def test_without_dask_installed_a_dask_sweep_is_refused_in_one_line(monkeypatch, tmp_path, capsys):
+    """`--dask` where dask.distributed cannot be imported: exit 2, one line naming the flag and what
+    to install, nothing written."""
+    from harness.cli import main
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed now raises ImportError
+    out = tmp_path / "out"
+    assert main(["sweep", str(SCENARIOS / "kr500_noise.toml"), "--trials", "2", "--dask", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--dask" in err and "pip install" in err, err
+    assert not out.exists()
