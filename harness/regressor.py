@@ -109,16 +109,15 @@ def joint_torque_regressor(model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
             v_w[j], v_l[j] = w_in, v_in + S_qd
             a_w[j] = aw_in
             a_l[j] = al_in + u[:, None] * xdd + cross(v_w[j], S_qd, axis=0)
-    # per body: the origin's acceleration beta, and the terms of its coefficients not in s
+    # per body: its origin's (classical) acceleration
     beta = {j: a_l[j] + cross(v_w[j], v_l[j], axis=0) for j in range(1, n + 1)}
     children: dict[int, list[int]] = {j: [] for j in range(n + 1)}
     for j in range(1, n + 1):
         children[parents[j]].append(j)
     for i in range(1, n + 1):
         # joint i's axis carried down its subtree: s_c = X_{c<-p} s_p
-        u = axis[i][:, None]
-        s = {i: (np.broadcast_to(np.zeros(3)[:, None] if revolute[i] else u, (3, 1)),
-                 np.broadcast_to(u if revolute[i] else np.zeros(3)[:, None], (3, 1)))}
+        u, none = axis[i][:, None], np.zeros((3, 1))
+        s = {i: (none, u) if revolute[i] else (u, none)}  # S_i = [0; u] or [u; 0], (linear, angular)
         stack = [i]
         row = out[idx[i]]
         while stack:

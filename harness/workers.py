@@ -10,7 +10,8 @@ the same harness installed.
 Every trial runs with one BLAS thread, wherever it runs: a matrix product's sum is ordered by how
 it is split over threads, and one thread makes the numbers the same bits in this process, in a
 forked one and on a Dask worker with the same numpy (and the workers do not oversubscribe the
-cores).
+cores). BLAS's thread count belongs to a process, so Dask workers are started single-threaded
+(`dask worker ADDRESS --nthreads 1`, as many processes as cores; the local cluster is made so).
 """
 
 from __future__ import annotations
