@@ -19,11 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.compare import joint_load_scale
-from harness.engines.pinocchio import build_model
+from harness.engines.pinocchio import PinocchioModel, build_model
 from harness.estimators import DESCRIPTIONS, ESTIMATORS, Instruments, iv
-from harness.measurement import measure, savgol
+from harness.measurement import Measurement, measure, savgol
 from harness.plugins import Stage
 from harness.propagation import propagates, score_covariance
+from harness.recording import Recording
 from harness.torque_id import beta_scale, parameter_names, regressor, structural_base, true_parameters
 
 
@@ -87,7 +88,7 @@ def run(ctx, config) -> Comparison | None:
     methods = cfg["methods"]
     T = cfg["trials"]
     both = "iv" in methods and sensors
-    bench = _Bench(pm, rec, m, joints, cols, sc.torque_friction, arms=sc.robot.inner_joint_arms_B(), keep=keep,
+    bench = _Bench(pm, rec, m, tuple(joints), cols, sc.torque_friction, arms=sc.robot.inner_joint_arms_B(), keep=keep,
                    methods=tuple(methods), instruments=instruments, from_residuals=from_residuals if both else None,
                    lags=lags, Wv=Wv, tauv=tauv, load=load)
     ctx.progress("estimators side by side", 0.0)
@@ -104,14 +105,14 @@ class _Bench:
     """What every trial shares: the recording (the truth), its measurement, the instruments and the
     validation trajectory. Sent once to each worker."""
 
-    pm: object  # the Pinocchio model
-    rec: object  # the ideal recording
-    m: object  # the scenario's Measurement
-    joints: tuple
+    pm: PinocchioModel
+    rec: Recording  # the ideal recording
+    m: Measurement  # the scenario's
+    joints: tuple[str, ...]
     cols: np.ndarray  # the base parameters' columns of the regressor
     friction: bool
-    arms: object
-    keep: slice
+    arms: np.ndarray  # (bodies, 3) where each body's acceleration is measured (RobotSpec.inner_joint_arms_B)
+    keep: slice  # the rows the differentiating filter leaves whole
     methods: tuple[str, ...]
     instruments: Instruments
     from_residuals: Instruments | None  # IV again with intervals from the residuals, for comparison
