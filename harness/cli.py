@@ -90,7 +90,8 @@ def _parser() -> argparse.ArgumentParser:
     sweep = sub.add_parser(
         "sweep", help="repeat a scenario's noisy measurement N times: error distributions and coverage",
         description="Simulate the scenario once, then draw its measurement noise N times (seeds from the scenario's "
-                    "seed on, so the result does not depend on --jobs), identify the parameters each time, and write "
+                    "seed on, so the result does not depend on where the trials run: this process, --jobs K forked "
+                    "processes or --dask), identify the parameters each time, and write "
                     "the distribution of each parameter's error, how often its 95 % interval contains the true value, "
                     "and the error at scaled noise levels: DIR/sweep.json and DIR/sweep.html. The graph-theory "
                     "study's force path is swept where the scenario has it; otherwise a scenario with [estimators] "
