@@ -68,10 +68,8 @@ def run(scenario: str | Path | Scenario, progress=None, workers=None) -> Result:
     from harness.results import build_results
 
     sc = scenario if isinstance(scenario, Scenario | DataScenario) else load_scenario(scenario)
-    from harness.workers import IN_PROCESS
-
-    out = run_pipeline(sc, progress if progress is not None else (lambda stage, fraction: None),
-                       workers if workers is not None else IN_PROCESS)
+    given = {"progress": progress, "workers": workers}  # the rest: the pipeline's defaults
+    out = run_pipeline(sc, **{k: v for k, v in given.items() if v is not None})
     results = verdict(sc.gates, build_results(out), sc.source)
     rows = tuple(GateRow(**r) for r in results["gates"])
     return Result(sc.name, results["passed"], rows, results, out.recording, out)

@@ -339,9 +339,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise InputError(scenario.source, "measurement", "the scenario measures ideally: there is nothing to sweep")
     out = args.out or Path("reports") / scenario.name
     workers = Workers(args.jobs, args.dask)
-    if study is None:
-        return _sweep_estimators(scenario, args, out, workers)
-    try:
+    try:  # the workers cannot be reached or started: the address, or dask not installed
+        if study is None:
+            return _sweep_estimators(scenario, args, out, workers)
         sweep = study.sweep(scenario, args.trials, workers, Bar(f"{scenario.name} sweep ({workers.describe()})"))
     except WorkersError as exc:
         raise InputError(args.scenario, "--dask", str(exc)) from None
@@ -366,14 +366,10 @@ def _sweep_estimators(scenario, args: argparse.Namespace, out: Path, workers) ->
     from harness.api import run
     from harness.report import STYLE
     from harness.report.sections import estimator_comparison
-    from harness.workers import WorkersError
 
     swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
     t0 = time.perf_counter()
-    try:
-        estimators = run(swept, progress=_Progress(scenario.name, False), workers=workers).results["estimators"]
-    except WorkersError as exc:
-        raise InputError(args.scenario, "--dask", str(exc)) from None
+    estimators = run(swept, progress=_Progress(scenario.name, False), workers=workers).results["estimators"]
     results = {"estimators": estimators,
                "run": {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)}}
     page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(scenario.name)}: '

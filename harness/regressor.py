@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.kinematics import axis_rotation, cross
+from harness.kinematics import axis_rotation, cross, rotate
 
 _REVOLUTE = {"JointModelRX": (1, 0, 0), "JointModelRY": (0, 1, 0), "JointModelRZ": (0, 0, 1)}
 _PRISMATIC = {"JointModelPX": (1, 0, 0), "JointModelPY": (0, 1, 0), "JointModelPZ": (0, 0, 1)}
@@ -94,12 +94,12 @@ def joint_torque_regressor(model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
             R[j] = np.broadcast_to(M.rotation[:, :, None], (3, 3, N))
             t[j] = M.translation[:, None] + (M.rotation @ u)[:, None] * x
         p = parents[j]
-        Rt = R[j]
+        R_T = np.swapaxes(R[j], 0, 1)
         # into j's frame: w_j = R^T w_p, v_j = R^T (v_p + w_p x t)
-        w_in = np.einsum("ban,bn->an", Rt, v_w[p])
-        v_in = np.einsum("ban,bn->an", Rt, v_l[p] + cross(v_w[p], t[j], axis=0))
-        al_in = np.einsum("ban,bn->an", Rt, a_l[p] + cross(a_w[p], t[j], axis=0))
-        aw_in = np.einsum("ban,bn->an", Rt, a_w[p])
+        w_in = rotate(R_T, v_w[p])
+        v_in = rotate(R_T, v_l[p] + cross(v_w[p], t[j], axis=0))
+        al_in = rotate(R_T, a_l[p] + cross(a_w[p], t[j], axis=0))
+        aw_in = rotate(R_T, a_w[p])
         S_qd = u[:, None] * xd
         if rev:
             v_w[j], v_l[j] = w_in + S_qd, v_in
@@ -131,8 +131,7 @@ def joint_torque_regressor(model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
             for c, (y1, y2) in enumerate(zip(_sym(s_w, aw), _sym(sw_x_w, w), strict=True)):
                 np.add(y1, y2, out=cols[4 + c])
             for c in children[j]:
-                Rt = R[c]
-                s[c] = (np.einsum("ban,bn->an", Rt, s_l + cross(s_w, t[c], axis=0)),
-                        np.einsum("ban,bn->an", Rt, s_w))
+                R_T = np.swapaxes(R[c], 0, 1)
+                s[c] = rotate(R_T, s_l + cross(s_w, t[c], axis=0)), rotate(R_T, s_w)
                 stack.append(c)
     return out

@@ -54,19 +54,15 @@ def _gram(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, ta
 
     n = q.shape[1]
     p = 14 * n if with_friction else 10 * n
-    # joint i's torque is moved by no column before its first moving one (for a chain, the bodies
-    # before it): its rows' products start there
-    first_moving = [int(cols.min()) for cols in _moving_columns(pm, n, with_friction)]
     WtW, Wty, yy = np.zeros((p, p)), np.zeros(p), np.zeros(1)
     # two blocks: one evaluated while the other is folded; reused, the entries written are the same every time
     buffers = [np.zeros((n, p, min(chunk, len(q)))) for _ in range(2)]
-
+    # joint i's rows: its inertial columns from the first that moves it (none before it does; for a
+    # chain, the bodies it carries), and its own drive's four columns (the other drives' are zero there)
     inertial = 10 * n
-    # joint i's rows: its inertial columns from the first that moves it (for a chain, the bodies it
-    # carries), and its own drive's four columns; the other drives' columns are zero in its rows
-    blocks = [(slice(min(first, inertial), inertial),
+    blocks = [(slice(min(int(cols.min()), inertial), inertial),
                slice(inertial + 4 * i, inertial + 4 * i + 4) if with_friction else None)
-              for i, first in enumerate(first_moving)]
+              for i, cols in enumerate(_moving_columns(pm, n, with_friction))]
 
     def fold(W: np.ndarray, y: np.ndarray) -> None:
         for i, (I, F) in enumerate(blocks):

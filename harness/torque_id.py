@@ -57,15 +57,16 @@ def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: n
     if out is None:
         out = np.zeros((n, p, N))
     cols = np.concatenate([np.arange(10 * (j - 1), 10 * j) for j in pm.joint_ids])
-    in_order = (np.array_equal(pm.q_index, np.arange(model.nv))
+    # the model is the spec's joints, one coordinate each, in its order: no rows or columns to pick
+    in_order = (model.nq == model.nv and np.array_equal(pm.q_index, np.arange(model.nv))
                 and np.array_equal(cols, np.arange(10 * model.njoints - 10)))
-    if in_order and model.nq == model.nv:
+    if in_order:
         qq, vv, aa = q, qd, qdd
     else:
         qq, vv, aa = (np.zeros((N, model.nq)) for _ in range(3))
         qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
-    if batched_supports(model) and model.nq == model.nv:
-        if in_order:  # the model is the spec's joints, in its order: written in place
+    if model.nq == model.nv and batched_supports(model):
+        if in_order:  # written in place
             joint_torque_regressor(model, qq, vv, aa, out=out[:, : 10 * n])
         else:
             out[:, : 10 * n] = joint_torque_regressor(model, qq, vv, aa)[np.ix_(pm.q_index, cols)]

@@ -162,15 +162,6 @@ def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: Constraint
                          completed)
 
 
-def joint_state(spec: RobotSpec, model: GraphModel, r: np.ndarray, A: np.ndarray, v: np.ndarray,
-                omega_B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Joint coordinates and rates of the spec's joints from the bodies' states (N, n, ...):
-    a revolute angle from the relative rotation about the axis and its rate from the relative
-    angular velocity; a prismatic displacement of the joint point along the axis and its rate.
-    Angles are unwrapped along the series."""
-    return JointReader(spec, model)(r, A, v, omega_B)
-
-
 @dataclass(frozen=True, eq=False)
 class _Joint:
     revolute: bool
@@ -186,8 +177,11 @@ class _Joint:
 
 
 class JointReader:
-    """joint_state with the tree's lookups made once: the forward simulation reads the joints at
-    every evaluation of its right-hand side."""
+    """Joint coordinates and rates of the spec's joints from the bodies' states (N, n, ...):
+    a revolute angle from the relative rotation about the axis and its rate from the relative
+    angular velocity; a prismatic displacement of the joint point along the axis and its rate.
+    Angles are unwrapped along the series. The tree is looked up once, here: the forward
+    simulation reads the joints at every evaluation of its right-hand side."""
 
     def __init__(self, spec: RobotSpec, model: GraphModel):
         top = model.topology

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.cardano import A_0i_components
-from harness.kinematics import cross, forward_kinematics
+from harness.kinematics import cross, forward_kinematics, rotate
 from harness.papers.graph_theory_2021.dynamics import GraphModel
-from harness.papers.graph_theory_2021.topology import joint_arms_components, rotate
+from harness.papers.graph_theory_2021.topology import joint_arms_components
 from harness.recording import Recording
 from harness.spec import RobotSpec
 
