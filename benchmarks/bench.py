@@ -75,7 +75,7 @@ def torques(figures: dict) -> None:
     from harness.scenario import load_scenario
 
     # 10,000 states of kr500 with every joint moving: their body kinematics come from MuJoCo
-    sc = load_scenario(ROOT / "scenarios" / "kr500_all_joints.toml")
+    sc = load_scenario(ROOT / "harness" / "data" / "scenarios" / "kr500_all_joints.toml")
     sc = dataclasses.replace(sc, duration=20.0, output_steps=N - 1, sample_times=np.linspace(0, 20.0, N))
     rec = record(sc)
     spec = sc.robot
@@ -125,7 +125,7 @@ def _panda():
     from harness.spec import load_spec
     from harness.torque_id import structural_base
 
-    spec = load_spec(ROOT / "models" / "panda_arm.toml")
+    spec = load_spec(ROOT / "harness" / "data" / "models" / "panda_arm.toml")
     pm = build_model(spec, np.array([0.0, 0.0, -9.80665]))
     return pm, structural_base(pm, spec.limits, with_friction=True)
 
@@ -274,7 +274,7 @@ def sweeps(figures: dict) -> None:
     from harness.scenario import load_scenario
     from harness.workers import LOCAL, Workers
 
-    noise = load_scenario(ROOT / "scenarios" / "kr500_noise.toml")
+    noise = load_scenario(ROOT / "harness" / "data" / "scenarios" / "kr500_noise.toml")
     trials = 200
     for key, workers in (("sweep_trials_per_s_1_process", Workers(1)), ("sweep_trials_per_s_2_process", Workers(2)),
                          ("sweep_trials_per_s_dask_local", Workers(dask=LOCAL))):

@@ -7,8 +7,10 @@ this package loads neither an engine nor a paper's package: they load when a run
 
 from importlib.metadata import PackageNotFoundError, version
 
+DISTRIBUTION = "robot-dynamics-harness"  # its name on the package index; imported and run as `harness`
+
 try:
-    __version__ = version("harness")
+    __version__ = version(DISTRIBUTION)
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "unknown"
 

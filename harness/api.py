@@ -35,6 +35,7 @@ class GateRow:
     direction: str  # "at_most" or "at_least"
     passed: bool
     reason: str = ""
+    where: str = ""  # where the worst case lies (a joint and time, a parameter), when the result says
 
 
 @dataclass(frozen=True, eq=False)

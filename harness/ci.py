@@ -1,9 +1,13 @@
 """The verdict in the forms CI systems read: JUnit XML (one test case per gate, a failure element
-for each failing gate) and a Markdown table for a job summary."""
+for each failing gate) and a Markdown table for a job summary. A run that ends in bad input or an
+internal error has no verdict: both files then hold one test case with an error carrying the
+one-line message, so that a CI's test tab is never empty when something went wrong."""
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+
+from harness.gates import summary_line
 
 
 def _value(g: dict) -> str:
@@ -16,7 +20,7 @@ def _sign(g: dict) -> str:
 
 def junit_xml(verdicts: list[tuple[str, list[dict]]]) -> str:
     """verdicts: (scenario name, gate rows) per scenario."""
-    root = ET.Element("testsuites", name="harness", tests=str(sum(len(r) for _, r in verdicts)),
+    root = ET.Element("testsuites", name="harness", tests=str(sum(len(r) for _, r in verdicts)), errors="0",
                       failures=str(sum(not g["passed"] for _, r in verdicts for g in r)))
     for name, rows in verdicts:
         suite = ET.SubElement(root, "testsuite", name=name, tests=str(len(rows)),
@@ -25,12 +29,40 @@ def junit_xml(verdicts: list[tuple[str, list[dict]]]) -> str:
             case = ET.SubElement(suite, "testcase", classname=name, name=g["name"])
             ET.SubElement(case, "system-out").text = f"{g['metric']} = {_value(g)} (limit {_sign(g)} {g['limit']:.3g})"
             if not g["passed"]:
-                why = f"{g['metric']} = {_value(g)}, limit {_sign(g)} {g['limit']:.3g}"
-                failure = ET.SubElement(case, "failure", message=why + (f" ({g['reason']})" if g["reason"] else ""),
-                                        type="GateFailed")
+                why = gate_line(g)
+                failure = ET.SubElement(case, "failure", message=why, type="GateFailed")
                 failure.text = why
+    return _xml(root)
+
+
+def _xml(root: ET.Element) -> str:
     ET.indent(root)
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def gate_line(g: dict) -> str:
+    """One gate as a line: `metric = value <= limit`, then why it has no value or where its worst
+    case lies (the joint and time, or the parameter), when the result says so."""
+    sign = _sign(g) if g["passed"] or g["value"] is None else (">" if g["direction"] == "at_most" else "<")
+    line = f"{g['metric']} = {_value(g)} {sign} {g['limit']:.3g}"
+    if g["name"] != g["metric"]:
+        line = f"{g['name']}: {line}"
+    notes = [n for n in (g.get("reason"), g.get("where") and f"worst: {g['where']}") if n]
+    return line + (f" ({'; '.join(notes)})" if notes else "")
+
+
+def error_xml(name: str, kind: str, message: str) -> str:
+    """No verdict: one test case `name` with an <error> (kind: "bad input" or "internal error")."""
+    root = ET.Element("testsuites", name="harness", tests="1", failures="0", errors="1")
+    suite = ET.SubElement(root, "testsuite", name=name, tests="1", failures="0", errors="1", skipped="0")
+    case = ET.SubElement(suite, "testcase", classname=name, name=f"{name}: {kind}")
+    error = ET.SubElement(case, "error", message=message, type=kind.title().replace(" ", ""))
+    error.text = message
+    return _xml(root)
+
+
+def error_summary(name: str, kind: str, message: str) -> str:
+    return f"### {_cell(name)}: ERROR ({kind})\n\n{_cell(message)}\n"
 
 
 def _cell(text: str) -> str:
@@ -40,12 +72,10 @@ def _cell(text: str) -> str:
 def markdown_summary(verdicts: list[tuple[str, list[dict]]]) -> str:
     out = []
     for name, rows in verdicts:
-        ok = all(g["passed"] for g in rows)
-        out.append(f"### {_cell(name)}: {'PASSED' if ok else 'FAILED'} ({sum(g['passed'] for g in rows)} of "
-                   f"{len(rows)} gates)\n")
-        out.append("| gate | metric | value | limit | result |\n|---|---|---:|---:|---|")
+        out.append(f"### {_cell(summary_line(name, rows))}\n")
+        out.append("| gate | metric | value | limit | result | worst case |\n|---|---|---:|---:|---|---|")
         for g in rows:
             out.append(f"| {_cell(g['name'])} | `{_cell(g['metric'])}` | {_value(g)} | {_sign(g)} {g['limit']:.3g} | "
-                       f"{'pass' if g['passed'] else '**FAIL**'} |")
+                       f"{'pass' if g['passed'] else '**FAIL**'} | {_cell(g.get('where') or g.get('reason') or '')} |")
         out.append("")
     return "\n".join(out) + "\n"

@@ -14,6 +14,8 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
+from harness.ci import error_summary, error_xml, gate_line
+from harness.gates import summary_line
 from harness.tomlio import InputError, read_toml
 
 EXIT_OK, EXIT_GATE_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
@@ -45,13 +47,11 @@ and the key, or the plugin), 3 an internal error (one line; the traceback with -
 
 
 def _resolve_scenario(arg: str) -> Path:
-    """A path to a scenario file, or a bare name looked up in ./scenarios/."""
-    path = Path(arg)
-    if not path.exists() and path.suffix == "" and len(path.parts) == 1:
-        named = Path("scenarios") / f"{arg}.toml"
-        if named.exists():
-            return named
-    return path
+    """A path to a scenario file, or a bare name: ./scenarios/NAME.toml, ./NAME.toml, then the
+    built-in scenario of that name (harness/builtin.py)."""
+    from harness.builtin import resolve
+
+    return resolve(arg, "scenarios")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -112,8 +112,17 @@ def _parser() -> argparse.ArgumentParser:
     excite.add_argument("scenario", metavar="SCENARIO", help="scenario file or name (e.g. ur5_excitation)")
     excite.add_argument("--out", metavar="FILE", type=Path, required=True, help="the CSV to write")
     sub.add_parser("list", help="list the models, scenarios and installed plugins",
-                   description="One line per model and per scenario found in ./models and ./scenarios, and per "
-                               "plugin (model, identification method, study) installed by entry point.")
+                   description="One line per model and per scenario found in ./models and ./scenarios and built "
+                               "into the package, and per plugin (model, identification method, study) installed by "
+                               "entry point.")
+    init = sub.add_parser(
+        "init", help="start a project for your own robot: model file, plugins, scenario, test, CI job",
+        description="Write a small project into DIR (which must not exist or be empty): a robot (URDF and model "
+                    "file), a plugin module with a model under test and an identification method to make yours, a "
+                    "scenario with gates and a validation trajectory, a pytest file using the harness_run fixture, "
+                    "and a CI job that uploads the JUnit file. Out of the box `harness run scenario.toml` and "
+                    "`python -m pytest` pass in DIR.")
+    init.add_argument("dir", metavar="DIR", type=Path)
     return parser
 
 
@@ -230,28 +239,22 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def _print_summary(results: dict, out: Path) -> None:
-    name = results["scenario"]["name"]
-    verdict = "PASSED" if results["passed"] else "FAILED"
-    print(f"{name}: {verdict} ({sum(g['passed'] for g in results['gates'])} of {len(results['gates'])} gates)")
+    print(summary_line(results["scenario"]["name"], results["gates"]))
     _print_gates(results["gates"])
     print(f"  report: {out / REPORT_FILE}")
 
 
 def _print_gates(rows: list[dict]) -> None:
     for g in rows:
-        sign = "<=" if g["direction"] == "at_most" else ">="
-        value = "no value" if g["value"] is None else f"{g['value']:.3g}"
-        mark = "pass" if g["passed"] else "FAIL"
-        print(f"  {mark}  {g['name']}: {value} {sign} {g['limit']:.3g}"
-              + (f"  ({g['reason']})" if g["reason"] else ""))
+        print(f"  {'pass' if g['passed'] else 'FAIL'}  {gate_line(g)}")
 
 
 def _read_results(path: Path) -> dict:
+    from harness.tomlio import MAX_DATA_BYTES, read_bounded
+
     try:
-        results = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError(path, "", "file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        results = json.loads(read_bounded(path, MAX_DATA_BYTES).decode("utf-8"))
+    except UnicodeDecodeError as exc:
         raise InputError(path, "", f"cannot read file ({exc})") from None
     except json.JSONDecodeError as exc:
         raise InputError(path, "", f"invalid JSON: {exc}") from None
@@ -267,7 +270,7 @@ def _read_results(path: Path) -> dict:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from harness.report import write_report
+    from harness.report import render_report
 
     results = _read_results(args.results)
     kind = "data" if "data" in results else "recording"  # a measured log, or the bench's recording
@@ -287,9 +290,13 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise InputError(recording, "", f"has {len(rec.t)} rows of joints {list(rec.joints)}; results.json "
                                         f"says {stated.get('rows')} rows of {stated.get('joints')}")
     try:
-        write_report(results, args.results.parent, out)
+        page = render_report(results, args.results.parent)
     except (KeyError, TypeError) as exc:
         raise InputError(args.results, str(exc).strip("'"), "missing or malformed in results.json") from None
+    try:
+        _write_file_atomically(out, page)
+    except OSError as exc:
+        raise InputError(out, "--out", f"cannot write ({exc.strerror or exc})") from None
     print(f"wrote {out}")
     return EXIT_OK
 
@@ -307,7 +314,7 @@ def cmd_gate(args: argparse.Namespace) -> int:
         rows, ok = checked["gates"], checked["passed"]
         name = results.get("scenario", {}).get("name", str(path)) if isinstance(results.get("scenario"), dict) \
             else str(path)
-        print(f"{name}: {'PASSED' if ok else 'FAILED'} ({sum(r['passed'] for r in rows)} of {len(rows)} gates)")
+        print(summary_line(name, rows))
         _print_gates(rows)
         passed &= ok
         verdicts.append((name, rows))
@@ -420,16 +427,13 @@ def cmd_excite(args: argparse.Namespace) -> int:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    for folder, key in (("models", "model"), ("scenarios", "scenario")):
-        files = sorted(Path(folder).glob("*.toml"))
-        print(f"{folder}/ ({len(files)})")
-        for f in files:
-            try:
-                section = read_toml(f).get(key, {})
-                text = section.get("description", "")
-            except InputError as exc:
-                text = f"(unreadable: {exc.message})"
-            print(f"  {f.stem:<24} {text}")
+    from harness.builtin import listing
+
+    for kind, key in (("models", "model"), ("scenarios", "scenario")):
+        for where, files in listing(kind):
+            print(f"{where} ({len(files)})")
+            for f in files:
+                print(f"  {f.stem:<24} {_description(f, key)}")
     from importlib.metadata import entry_points
 
     from harness.plugins import METHOD_GROUP, MODEL_GROUP, STUDY_GROUP
@@ -443,39 +447,181 @@ def cmd_list(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _on_sigterm(signum, frame):
-    raise KeyboardInterrupt
+def cmd_init(args: argparse.Namespace) -> int:
+    from harness import DISTRIBUTION
+    from harness.builtin import DATA
+
+    out: Path = args.dir
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise InputError(out, "DIR", "exists and is not an empty folder: init writes a new project")
+    template = DATA / "init"
+    files = {f.name: f.read_text().replace("HARNESS_DISTRIBUTION", DISTRIBUTION)
+             for f in sorted(template.iterdir()) if f.is_file()}
+    try:
+        _write_atomically(out, {name: (lambda p, text=text: p.write_text(text)) for name, text in files.items()})
+    except OSError as exc:
+        raise InputError(out, "DIR", f"cannot write ({exc.strerror or exc})") from None
+    print(f"wrote {out}/: {', '.join(files)}")
+    print(f"  cd {out} && harness run scenario.toml --out reports && python -m pytest")
+    return EXIT_OK
+
+
+def _description(path: Path, key: str) -> str:
+    """The file's [key] description, or why it cannot be read (a listing never stops at one bad file)."""
+    try:
+        section = read_toml(path).get(key, {})
+    except InputError as exc:
+        return f"(unreadable: {exc.message})"
+    if not isinstance(section, dict):
+        return f"(unreadable: {key!r} is not a table)"
+    text = section.get("description", "")
+    return text if isinstance(text, str) else f"(unreadable: {key}.description is not a string)"
+
+
+class _Stdout:
+    """Standard output that goes quiet once its reader has gone (`harness list | head -1`): a
+    broken pipe is not a verdict, so the command runs to its end and exits with its own status."""
+
+    def __init__(self, stream):
+        self.stream, self.gone = stream, False
+
+    def write(self, text: str) -> int:
+        if not self.gone:
+            try:
+                return self.stream.write(text)
+            except BrokenPipeError:
+                self._gone()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.gone:
+            try:
+                self.stream.flush()
+            except BrokenPipeError:
+                self._gone()
+
+    def _gone(self) -> None:
+        self.gone = True
+        try:  # what is still buffered goes nowhere, also when the interpreter flushes at exit
+            os.dup2(os.open(os.devnull, os.O_WRONLY), self.stream.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name: str):
+        return getattr(self.stream, name)
+
+
+def _no_verdict(args: argparse.Namespace, kind: str, message: str) -> None:
+    """Bad input or an internal error: the CI files asked for still say so, as one test case with
+    an error (harness/ci.py). Nothing is written where the CI file itself is the fault."""
+    given = next((v for v in (getattr(args, k, None) for k in ("scenarios", "results", "scenario")) if v),
+                 [DEFAULT_SCENARIO] if args.command == "run" else [f"harness {args.command}"])
+    name = " ".join(str(s) for s in (given if isinstance(given, list) else [given]))
+    for attr, text in (("junit_xml", error_xml), ("summary", error_summary)):
+        path = getattr(args, attr, None)
+        if path is not None:
+            try:
+                _write_file_atomically(path, text(name, kind, message))
+            except OSError:
+                pass
+
+
+def _origin(exc: BaseException) -> str:
+    where = traceback.extract_tb(exc.__traceback__)
+    return f" (at {Path(where[-1].filename).name}:{where[-1].lineno})" if where else ""
 
 
 def main(argv: list[str] | None = None) -> int:
-    from harness.plugins import PluginError
+    """The command, in this process. Only the harness chooses the exit status: 0 every gate passed,
+    1 a gate failed, 2 bad input (plugin code that raises anything, SystemExit and KeyboardInterrupt
+    included, is bad input), 3 an internal error, 130 the user's Ctrl-C."""
+    from harness.plugins import PluginError, interrupted_by_user, user_interrupts
 
     args = _parser().parse_args(argv)
-    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-        signal.signal(signal.SIGTERM, _on_sigterm)  # unwind, so that no temporary folder is left
+    stdout, sys.stdout = sys.stdout, _Stdout(sys.stdout)
+    status, kind, message = EXIT_INTERNAL, "internal error", ""
     try:
-        return {"run": cmd_run, "report": cmd_report, "gate": cmd_gate, "sweep": cmd_sweep,
-                "excite": cmd_excite, "list": cmd_list}[args.command](args)
+        with user_interrupts():
+            status = {"run": cmd_run, "report": cmd_report, "gate": cmd_gate, "sweep": cmd_sweep,
+                      "excite": cmd_excite, "list": cmd_list, "init": cmd_init}[args.command](args)
     except InputError as exc:
-        print(f"harness: error: {exc.one_line()}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        status, kind, message = EXIT_BAD_INPUT, "bad input", exc.one_line()
     except PluginError as exc:
-        print(f"harness: error: plugin {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except BrokenPipeError:  # the reader went away (| head): stop quietly
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return EXIT_GATE_FAILED
-    except KeyboardInterrupt:
-        print("harness: interrupted", file=sys.stderr)
-        return 130
+        status, kind, message = EXIT_BAD_INPUT, "bad input", f"plugin {exc}"
+    except KeyboardInterrupt as exc:
+        if interrupted_by_user():
+            print("harness: interrupted", file=sys.stderr)
+            status = 130
+        else:  # raised by code, not by the user: a plugin's, reached outside its guard
+            status, kind = EXIT_BAD_INPUT, "bad input"
+            message = f"KeyboardInterrupt raised by code, not by the user{_origin(exc)}"
+    except SystemExit as exc:  # the harness never calls sys.exit inside a command: plugin code did
+        status, kind = EXIT_BAD_INPUT, "bad input"
+        message = f"sys.exit({exc.code!r}) called by code the harness ran{_origin(exc)}: it does not end the run"
     except Exception as exc:
         if args.debug:
-            raise
-        where = traceback.extract_tb(exc.__traceback__)[-1]
-        print(f"harness: internal error: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''} "
-              f"(at {Path(where.filename).name}:{where.lineno}; --debug shows the traceback)", file=sys.stderr)
-        return EXIT_INTERNAL
+            traceback.print_exc()
+        message = (f"internal error: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+                   f"{_origin(exc)}{'' if args.debug else '; --debug shows the traceback'}")
+    finally:
+        sys.stdout.flush()
+        sys.stdout = stdout
+    if message:
+        print(f"harness: {'error: ' if kind == 'bad input' else ''}{message}", file=sys.stderr)
+        _no_verdict(args, kind, message)
+    return status
+
+
+def entry() -> None:
+    """The `harness` command. The command runs in a child process and this one chooses the exit
+    status: a child that ends without handing back its status (plugin code calling os._exit, or
+    crashing the interpreter) is an internal error, exit 3, with the CI files still written.
+    Where processes cannot be forked, it runs here."""
+    argv = sys.argv[1:]
+    if not hasattr(os, "fork"):
+        sys.exit(main(argv))
+    args = _parser().parse_args(argv)  # usage errors: exit 2 here, before anything is started
+    sys.stdout.flush()
+    sys.stderr.flush()
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: the command
+        os.close(read_end)
+        status = EXIT_INTERNAL
+        try:
+            status = main(argv)
+        finally:
+            for stream in (sys.stdout, sys.stderr):
+                try:
+                    stream.flush()
+                except (OSError, ValueError):
+                    pass
+            os.write(write_end, bytes([status]))
+            os._exit(status)
+    os.close(write_end)
+    # Ctrl-C reaches the child from the terminal and it answers 130; SIGTERM is passed on
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda signum, frame: os.kill(pid, signal.SIGTERM))
+    _, wait_status = os.waitpid(pid, 0)
+    os.set_blocking(read_end, False)  # processes the child started may hold the pipe open: read what is there
+    try:
+        handed = os.read(read_end, 1)
+    except BlockingIOError:
+        handed = b""
+    os.close(read_end)
+    if handed:
+        sys.exit(handed[0])
+    if os.WIFSIGNALED(wait_status) and os.WTERMSIG(wait_status) in (signal.SIGINT, signal.SIGTERM):
+        print("harness: interrupted", file=sys.stderr)
+        sys.exit(130)
+    how = (f"killed by signal {signal.Signals(os.WTERMSIG(wait_status)).name}" if os.WIFSIGNALED(wait_status)
+           else f"exit status {os.WEXITSTATUS(wait_status)}")
+    message = (f"internal error: the command ended without a verdict ({how}): code it ran (a plugin?) ended the "
+               "process or crashed it")
+    print(f"harness: {message}", file=sys.stderr)
+    _no_verdict(args, "internal error", message)
+    sys.exit(EXIT_INTERNAL)
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    entry()

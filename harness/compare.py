@@ -53,7 +53,7 @@ def wrench_metrics(a: np.ndarray, b: np.ndarray, t: np.ndarray, joints: list[str
     with np.errstate(invalid="ignore", divide="ignore"):
         rel = err / np.max(np.linalg.norm(b, axis=-1), axis=0)
     k, j = np.unravel_index(np.argmax(rel), rel.shape)
-    return {"max_rel_error": float(rel[k, j]), "joint": joints[j], "t": float(t[k])}
+    return {"max_rel_error": float(rel[k, j]), "max_rel_joint": joints[j], "max_rel_t": float(t[k])}
 
 
 def largest(values: np.ndarray, where: np.ndarray | None = None) -> float | None:

@@ -97,8 +97,43 @@ def check(gates: tuple[Gate, ...] | list[Gate], results: dict) -> tuple[list[dic
         else:
             passed = value <= g.limit if g.direction == "at_most" else value >= g.limit
             reason = ""
-        rows.append({**g.as_dict(), "value": value, "passed": bool(passed), "reason": reason})
+        rows.append({**g.as_dict(), "value": value, "passed": bool(passed), "reason": reason,
+                     "where": where(results, g.metric)})
     return rows, all(r["passed"] for r in rows)
+
+
+def where(results: dict, metric: str) -> str:
+    """Where a metric's worst case lies, read from the keys a stage writes beside it: for a metric
+    `X_error` (or `X`), `X_parameter` (a base parameter, as the combination it stands for),
+    `X_joint`, `X_entry` (of a matrix), `X_state` (a random state's index) and `X_t` (seconds), e.g.
+    `max_rel_joint` and `max_rel_t` beside `max_rel_error` give "elbow at t = 1.23 s". Empty where
+    the stage wrote none."""
+    head, _, leaf = metric.rpartition(".")
+    node = lookup(results, head) if head else results
+    if not isinstance(node, dict):
+        return ""
+    stem = leaf.removesuffix("_error")
+    found = {k: node.get(f"{stem}_{k}") for k in ("parameter", "joint", "entry", "state", "t")}
+    parts = []
+    if isinstance(found["parameter"], str):
+        parts.append(f"parameter {found['parameter']}")
+    if isinstance(found["joint"], str):
+        parts.append(found["joint"])
+    if isinstance(found["entry"], str):
+        parts.append(f"entry {found['entry']}")
+    if isinstance(found["state"], int) and not isinstance(found["state"], bool):
+        parts.append(f"at random state {found['state']}")
+    if isinstance(found["t"], int | float) and not isinstance(found["t"], bool) and math.isfinite(found["t"]):
+        parts.append(f"at t = {found['t']:.4g} s")
+    return " ".join(parts)
+
+
+def summary_line(name: str, rows: list[dict]) -> str:
+    """The verdict in one line, the same words wherever it is shown (terminal, Markdown summary,
+    report): `NAME: PASSED (n gates)` or `NAME: FAILED (k of n gates fail)`."""
+    failing = sum(not r["passed"] for r in rows)
+    count = f"{len(rows)} gate{'s' if len(rows) != 1 else ''}"
+    return f"{name}: PASSED ({count})" if not failing else f"{name}: FAILED ({failing} of {count} fail)"
 
 
 def from_results(results: dict, source) -> tuple[Gate, ...]:

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from harness.spec import RobotSpec
-from harness.tomlio import InputError, Table
+from harness.tomlio import MAX_DATA_BYTES, InputError, Table, read_bounded
 
 if TYPE_CHECKING:  # pandas and scipy.signal are imported where a log is read: a bench run needs neither
     import pandas as pd
@@ -102,8 +102,8 @@ def read_log_csv(path: Path | str) -> JointLog:
     """A conditioned log written by write_csv, read back (for `harness report`)."""
     import pandas as pd
     try:
-        df = pd.read_csv(path)
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        df = pd.read_csv(io.BytesIO(read_bounded(path, MAX_DATA_BYTES)))
+    except (ValueError, pd.errors.ParserError) as exc:
         raise InputError(path, "", f"cannot read the conditioned log ({str(exc).splitlines()[0]})") from None
     joints = tuple(c[2:] for c in df.columns if c.startswith("q_"))
     need = ["t", *(f"{k}_{j}" for j in joints for k in ("q", "qd", "qdd", "tau"))]
@@ -212,17 +212,29 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
     """At load, before any work: the log (and a validation log) has the columns the scenario names."""
     for path in (source.file, source.validation_file):
         if path is not None:
-            _check_header(path, list(_read_frame(path, nrows=0).columns), source, robot)
+            _check_header(path, list(_read_frame(path, nrows=0, content=_first_line(path)).columns), source, robot)
+
+
+HEADER_BYTES = 1 << 20  # a log's header line: thousands of columns fit
+
+
+def _first_line(path: Path) -> bytes:
+    """A log's header line, read no further than HEADER_BYTES."""
+    try:
+        with open(path, "rb") as f:
+            line = f.readline(HEADER_BYTES + 1)
+    except OSError as exc:
+        raise InputError(path, "", f"cannot read ({exc.strerror or exc})") from None
+    if len(line) > HEADER_BYTES:
+        raise InputError(path, "", f"no header line within its first {HEADER_BYTES >> 20} MiB: not a CSV log")
+    return line
 
 
 def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> RawLog:
     """The log's columns for the robot's joints; every refusal names the file and the column."""
     import pandas as pd
     path = file or source.file
-    try:
-        content = Path(path).read_bytes()  # read once: parsed and hashed
-    except OSError as exc:
-        raise InputError(path, "", f"cannot read ({exc.strerror or exc})") from None
+    content = read_bounded(path, MAX_DATA_BYTES)  # read once: parsed and hashed
     df = _read_frame(path, content=content)
     if df.empty:
         raise InputError(path, "", "the log has no rows")

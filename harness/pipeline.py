@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,7 +17,7 @@ import numpy as np
 from harness.bench import record
 from harness.excitation import optimise as optimise_excitation
 from harness.measurement import measure
-from harness.plugins import Stage
+from harness.plugins import Stage, guard
 from harness.recording import Recording
 from harness.scenario import DataScenario, Scenario
 from harness.stages import Context, Progress, core_stages
@@ -81,13 +82,14 @@ class _Timed:
             self.stage = None
 
 
-def stages_of(scenario: Scenario) -> Iterator[tuple[Stage, Any]]:
-    """The stages a scenario runs, with their configuration: the core's, then each study's."""
+def stages_of(scenario: Scenario) -> Iterator[tuple[Stage, Any, str | None]]:
+    """The stages a scenario runs, with their configuration and the study they belong to (None for
+    the core's): the core's, then each study's."""
     for stage in core_stages():
-        yield stage, None
+        yield stage, None, None
     for study, config in scenario.studies:
         for stage in study.stages:
-            yield stage, config
+            yield stage, config, study.name
 
 
 def run_data(scenario: DataScenario, progress: Progress = _quiet) -> RunOutput:
@@ -131,11 +133,13 @@ def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
     measured = measure(recording, scenario.measurement, scenario.robot.inner_joint_arms_B())
     ctx = Context(scenario, recording, measured, timed, workers=workers)
     outputs: dict[str, StageOutput] = {}
-    for stage, config in stages_of(scenario):
+    for stage, config, study in stages_of(scenario):
         timed(stage.progress, None)
         # 0/0 where nothing moves or nothing is loaded is NaN, not an error: results.json writes it
-        # as null, lists it in run.not_finite, and a gate on it fails closed
-        with np.errstate(invalid="ignore", divide="ignore"):
+        # as null, lists it in run.not_finite, and a gate on it fails closed. A study's stage is
+        # plugin code: whatever it raises is the study's failure (exit 2), not the harness's.
+        with np.errstate(invalid="ignore", divide="ignore"), \
+                (guard(f"study {study}", f"stage {stage.key!r}") if study else nullcontext()):
             result = stage.run(ctx, config)
         ctx.done[stage.key] = result
         if result is None:

@@ -37,8 +37,11 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import signal
 import sys
-from collections.abc import Callable, Sequence
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -78,6 +81,69 @@ def _exception(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}".strip().splitlines()[0]
 
 
+# Set by the harness's own SIGINT and SIGTERM handlers (user_interrupts): a KeyboardInterrupt that
+# arrives while it is set is the user's Ctrl-C (exit 130); one that plugin code raises itself is the
+# plugin's failure (exit 2), like any other exception it raises.
+_USER_INTERRUPT = threading.Event()
+
+
+def _interrupt(signum, frame):
+    _USER_INTERRUPT.set()
+    raise KeyboardInterrupt
+
+
+@contextmanager
+def user_interrupts() -> Iterator[None]:
+    """While the harness runs: Ctrl-C (and SIGTERM, where nothing else handles it) marked as the
+    user's, so that `guard` can tell it from a KeyboardInterrupt raised by plugin code. Outside the
+    main thread signals cannot be handled, and nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    kept = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGINT, _interrupt)
+    if kept[signal.SIGTERM] is signal.SIG_DFL:  # unwind on SIGTERM, so that no temporary folder is left
+        signal.signal(signal.SIGTERM, _interrupt)
+    _USER_INTERRUPT.clear()
+    try:
+        yield
+    finally:
+        for s, handler in kept.items():
+            signal.signal(s, handler)
+
+
+def interrupted_by_user() -> bool:
+    return _USER_INTERRUPT.is_set()
+
+
+@contextmanager
+def guard(plugin: str, what: str) -> Iterator[None]:
+    """Plugin code runs inside this: whatever it raises, SystemExit and KeyboardInterrupt included,
+    becomes a PluginError naming the plugin and what it was doing (exit status 2), so that only the
+    harness chooses its exit status. The user's own Ctrl-C passes through; so do the harness's own
+    PluginError and InputError (a study's configuration refusing a key)."""
+    from harness.tomlio import InputError
+
+    try:
+        yield
+    except (PluginError, InputError):
+        raise
+    except KeyboardInterrupt:
+        if interrupted_by_user():
+            raise
+        raise PluginError(plugin, f"{_doing(what)} KeyboardInterrupt (not the user's Ctrl-C)") from None
+    except SystemExit as exc:
+        raise PluginError(plugin, f"{_doing(what)} SystemExit: sys.exit({exc.code!r}) (a plugin cannot end "
+                                  "the run)") from None
+    except BaseException as exc:  # a plugin may raise anything
+        raise PluginError(plugin, f"{_doing(what)} {_exception(exc)}") from None
+
+
+def _doing(what: str) -> str:
+    """'inverse_dynamics' -> 'inverse_dynamics raised'; 'cannot import module x:' stays as it is."""
+    return what if what.endswith(":") else f"{what} raised"
+
+
 def _import_beside(module: str, folder: Path):
     """Import `module` from `folder` if it is there (a file or a package), else from the path."""
     head = module.split(".")[0]
@@ -102,14 +168,13 @@ def load_reference(ref: str, folder: Path) -> Any:
     module, sep, attr = ref.partition(":")
     if not sep or not module or not attr:
         raise PluginError(ref, "expected 'module:attribute'")
-    try:
+    with guard(ref, f"cannot import module {module!r}:"):
         obj = _import_beside(module, folder)
-    except Exception as exc:  # a user's module may raise anything while importing
-        raise PluginError(ref, f"cannot import module {module!r} ({_exception(exc)})") from None
-    for part in attr.split("."):
-        if not hasattr(obj, part):
-            raise PluginError(ref, f"module {module!r} has no attribute {attr!r}")
-        obj = getattr(obj, part)
+    with guard(ref, f"looking up {attr!r}"):
+        for part in attr.split("."):
+            if not hasattr(obj, part):
+                raise PluginError(ref, f"module {module!r} has no attribute {attr!r}")
+            obj = getattr(obj, part)
     return obj
 
 
@@ -119,34 +184,31 @@ def load_entry_point(name: str, group: str) -> Any:
         known = sorted(ep.name for ep in entry_points(group=group))
         raise PluginError(name, f"no installed plugin of that name in {group!r} (installed: "
                                 f"{', '.join(known) or 'none'})")
-    try:
+    with guard(name, f"loading entry point {found[0].value!r}"):
         return found[0].load()
-    except Exception as exc:
-        raise PluginError(name, f"cannot load entry point {found[0].value!r} ({_exception(exc)})") from None
 
 
 def call_factory(plugin: str, factory: Callable, robot, **options) -> Any:
     """Call a plugin's factory with the robot and those keyword options its signature accepts."""
     if not callable(factory):
         raise PluginError(plugin, "is not callable")
-    try:
+    with guard(plugin, "building it"):
         params = inspect.signature(factory).parameters
         takes_all = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
         kwargs = {k: v for k, v in options.items() if takes_all or k in params}
         return factory(robot, **kwargs)
-    except Exception as exc:
-        raise PluginError(plugin, f"raised while being built ({_exception(exc)})") from None
 
 
 def check_protocol(plugin: str, obj: Any, protocol: type, joint_names: Sequence[str]) -> None:
     """The object has the protocol's members and names exactly the robot's joints."""
-    missing = [m for m in ("joint_names", *(n for n in protocol.__dict__ if not n.startswith("_")
-                                             and callable(protocol.__dict__[n])))
-               if not hasattr(obj, m)]
+    with guard(plugin, "reading its members"):
+        missing = [m for m in ("joint_names", *(n for n in protocol.__dict__ if not n.startswith("_")
+                                                 and callable(protocol.__dict__[n])))
+                   if not hasattr(obj, m)]
+        names = None if missing else [str(n) for n in obj.joint_names]
     if missing:
         raise PluginError(plugin, f"the object it returned has no {', '.join(missing)} "
                                   f"(see the {protocol.__name__} protocol in harness/plugins.py)")
-    names = list(obj.joint_names)
     if sorted(names) != sorted(joint_names) or len(set(names)) != len(names):
         raise PluginError(plugin, f"joint_names {names} must be the robot's joints {list(joint_names)}, "
                                   "each once, in any order")
@@ -161,10 +223,8 @@ def column_maps(plugin_joints: Sequence[str], joints: Sequence[str]) -> tuple[li
 
 def invoke(plugin: str, what: str, fn: Callable, *args) -> Any:
     """Call one of a plugin's methods; whatever it raises becomes a PluginError naming it."""
-    try:
+    with guard(plugin, what):
         return fn(*args)
-    except Exception as exc:
-        raise PluginError(plugin, f"{what} raised {_exception(exc)}") from None
 
 
 def check_array(plugin: str, what: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:

@@ -16,13 +16,14 @@ read back from CSV is bit-for-bit the one written.
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from harness.tomlio import InputError
+from harness.tomlio import MAX_DATA_BYTES, InputError, read_bounded
 
 if TYPE_CHECKING:  # imported where a CSV is read or written
     import pandas as pd
@@ -104,8 +105,8 @@ def read_csv(path: Path | str) -> Recording:
     import pandas as pd
 
     try:
-        df = pd.read_csv(path)
-    except (OSError, ValueError, pd.errors.ParserError) as exc:
+        df = pd.read_csv(io.BytesIO(read_bounded(path, MAX_DATA_BYTES)))
+    except (ValueError, pd.errors.ParserError) as exc:
         raise InputError(path, "", f"cannot read the recording ({str(exc).splitlines()[0]})") from None
     bad = [c for c in df.columns if not pd.api.types.is_numeric_dtype(df[c]) or df[c].isna().any()]
     if bad or "t" not in df.columns:

@@ -37,6 +37,7 @@ from harness.plugins import (
     Study,
     call_factory,
     check_protocol,
+    guard,
     load_entry_point,
     load_reference,
     load_study,
@@ -63,6 +64,19 @@ class Simulation:
     integrator: str = "RK4"
     timestep: float = 5e-4
     tracking_bandwidth: float = 20.0
+
+
+@dataclass(frozen=True)
+class RandomStates:
+    """`[random_states]`: every model under test is also judged against Pinocchio at `count` random
+    states (harness/states.py: q within the joint limits, q' and q'' within the largest of each
+    joint over the scenario's motion), drawn with `seed`."""
+
+    count: int = 200
+    seed: int = 0
+
+
+MAX_RANDOM_STATES = 100_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,6 +113,7 @@ class Scenario:
     models: tuple[PluginEntry, ...] = ()  # models under test
     methods: tuple[PluginEntry, ...] = ()  # identification methods under test
     studies: tuple[tuple[Study, Any], ...] = ()  # (study, its configuration), in the file's order
+    random_states: RandomStates = field(default_factory=RandomStates)
 
     @property
     def output_dt(self) -> float:
@@ -232,6 +247,12 @@ def _load(path: Path) -> Scenario | DataScenario:
 
     robot = load_spec(_relative_file(s, "model", model_rel, path))
     simulation = _read_simulation(root.table("simulation", default={}))
+    rt = root.table("random_states", default={})
+    random_states = RandomStates(rt.integer("count", default=RandomStates.count, minimum=1),
+                                 rt.integer("seed", default=RandomStates.seed, minimum=0))
+    if random_states.count > MAX_RANDOM_STATES:
+        raise rt.error("count", f"{random_states.count} states: at most {MAX_RANDOM_STATES:,}")
+    rt.finish()
     measurement = read_measurement(root.table("measurement", default={}))
     gates = _read_all_gates(root, gate_files)
     torque_validation, torque_friction = None, False
@@ -343,6 +364,7 @@ def _load(path: Path) -> Scenario | DataScenario:
         for i, n in enumerate(names):
             if n in names[:i] or n in ("mujoco", "pinocchio"):
                 raise InputError(path, f"{kind}.name", f"{n!r} is used twice, or names a reference engine")
+            unjudged(path, kind, n, gates)
     studies = []
     if root.has("studies"):
         st = root.table("studies")
@@ -355,11 +377,37 @@ def _load(path: Path) -> Scenario | DataScenario:
                 raise table.error("python" if ref else "", exc.message if ref else str(exc)) from None
             if not isinstance(study, Study):
                 raise table.error("python", f"{ref!r} must be a harness.plugins.Study")
-            studies.append((study, study.configure(table, scenario)))
+            with guard(f"study {name}", "configure"):
+                studies.append((study, study.configure(table, scenario)))
             table.finish()
         st.finish()
     root.finish()
-    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
+    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies),
+                               random_states=random_states)
+
+
+def judging_metrics(kind: str, name: str) -> tuple[str, ...]:
+    """The metrics a gate can judge a model under test or an identification method by."""
+    if kind == "model_under_test":
+        return (f"torques.{name}_vs_mujoco.max_rel_error", f"torques.{name}_vs_pinocchio.max_rel_error",
+                f"torques.{name}_random_vs_pinocchio.max_rel_error",
+                f"torques.mass_matrix.{name}_vs_pinocchio.max_rel_error",
+                f"torques.reactions.{name}_vs_mujoco.force.max_rel_error",
+                f"torques.reactions.{name}_vs_mujoco.moment.max_rel_error")
+    return (f"identification_methods.{name}.base_parameters.max_rel_error",
+            f"identification_methods.{name}.validation.max_rel_error",
+            f"identification_methods.{name}.validation.rms_rel_error")
+
+
+def unjudged(path: Path, kind: str, name: str, gates: tuple[Gate, ...]) -> None:
+    """A model under test or identification method that no gate judges would pass whatever it
+    computes: refused, naming the metrics a gate could use."""
+    prefixes = ({f"torques.{name}_vs_", f"torques.{name}_random_vs_", f"torques.mass_matrix.{name}_vs_",
+                 f"torques.reactions.{name}_vs_"} if kind == "model_under_test"
+                else {f"identification_methods.{name}."})
+    if not any(g.metric.startswith(p) for g in gates for p in prefixes):
+        raise InputError(path, f"{kind}.name", f"{name!r} is judged by no gate, so it would pass whatever it "
+                                               f"computes: add [[gates]] on {', '.join(judging_metrics(kind, name))}")
 
 
 def _read_all_gates(root: Table, gate_files: list[Path]) -> tuple[Gate, ...]:

@@ -34,13 +34,33 @@ class InputError(Exception):
         return f"{where}: {self.message}"
 
 
+MiB = 1 << 20
+# No input is read beyond a stated size: an endless file (/dev/zero, a FIFO) or a wrong one is refused
+# after this many bytes instead of filling the memory.
+MAX_TOML_BYTES = 16 * MiB  # a model or scenario file: kilobytes in practice
+MAX_XML_BYTES = 64 * MiB  # a URDF: the largest published ones are a few MiB
+MAX_DATA_BYTES = 2048 * MiB  # a log, a recording or a results.json: 900,000 samples of a 7-joint arm take 0.5 GiB
+
+
+def read_bounded(path: Path | str, limit: int) -> bytes:
+    """A file's bytes, refused (InputError naming the file) beyond `limit` bytes or when unreadable."""
+    try:
+        with open(path, "rb") as f:
+            content = f.read(limit + 1)
+    except FileNotFoundError:
+        raise InputError(path, "", "file not found") from None
+    except OSError as exc:
+        raise InputError(path, "", f"cannot read file ({exc.strerror or exc})") from None
+    if len(content) > limit:
+        raise InputError(path, "", f"larger than {limit // MiB} MiB, the most this kind of file may hold")
+    return content
+
+
 def read_toml(path: Path) -> dict[str, Any]:
     """Parse a TOML file, turning every failure into an `InputError` naming the file."""
     try:
-        text = Path(path).read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise InputError(path, "", "file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        text = read_bounded(path, MAX_TOML_BYTES).decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise InputError(path, "", f"cannot read file ({exc.__class__.__name__}: {exc})") from None
     try:
         return tomllib.loads(text)

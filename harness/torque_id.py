@@ -25,6 +25,7 @@ from harness.regressor import joint_torque_regressor
 from harness.regressor import supports as batched_supports
 from harness.results import finite_or_null
 from harness.spec import parallel_axis
+from harness.states import position_bounds
 
 PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 RANK_TOL = 1e-8  # |R_ii| / |R_00| below this: the column depends on the others (exact data: 1e-14)
@@ -158,14 +159,9 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
     same every time it is asked for."""
     rng = np.random.default_rng(seed)
     n = len(pm.joint_ids)
-    lo, hi = np.empty(n), np.empty(n)
-    for k, jid in enumerate(pm.joint_ids):
-        name = pm.model.names[jid]
-        revolute = pm.model.joints[jid].shortname().startswith("JointModelR")
-        default = (-np.pi, np.pi) if revolute else (-1.0, 1.0)
-        lo[k], hi[k] = (limits or {}).get(name, default)
-        if not (np.isfinite(lo[k]) and np.isfinite(hi[k])):
-            lo[k], hi[k] = default
+    lo, hi = position_bounds([pm.model.names[jid] for jid in pm.joint_ids],
+                             [pm.model.joints[jid].shortname().startswith("JointModelR") for jid in pm.joint_ids],
+                             limits)
     q = rng.uniform(lo, hi, (STRUCTURAL_STATES, n))
     qd, qdd = rng.standard_normal((2, STRUCTURAL_STATES, n))
     return base_parameters(regressor(pm, q, qd, qdd, with_friction), with_friction)
@@ -235,7 +231,7 @@ def friction_section(ti: TorqueIdentification) -> dict:
     alone = {ti.base.independent[k]: k for k in range(len(ti.beta))
              if not np.any(np.abs(ti.base.combination[k]) > COEFFICIENT_FLOOR)}
     joints: dict[str, dict] = {}
-    errors = []
+    errors, where = [], []
     for c, name in enumerate(ti.names):
         joint, term = name.rsplit(".", 1)
         if term not in friction.IDENTIFIED_KEYS:
@@ -249,11 +245,13 @@ def friction_section(ti: TorqueIdentification) -> dict:
         else:
             rel = abs(ti.beta[k] - ti.beta_true[k]) / max(abs(ti.beta_true[k]), BETA_FLOOR)
             errors.append(rel)
+            where.append(name)
             entry = {"true": true, "identified": float(ti.beta[k]), "rel_error": float(rel)}
         joints.setdefault(joint, {})[term] = entry
     return {"definition": "per joint and term; rel_error = |identified - true| / max(|true|, 1e-6) where the term "
                           "is a base parameter on its own, else `in` names the base parameter it enters",
-            "max_rel_error": max(errors, default=None), "joints": joints}
+            "max_rel_error": max(errors, default=None),
+            "max_rel_parameter": where[int(np.argmax(errors))] if errors else None, "joints": joints}
 
 
 BETA_FLOOR = 1e-6  # relative errors of base parameters near zero are taken against 1e-6 of the largest
@@ -294,6 +292,8 @@ def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
                            "median base parameter's; its error is reported apart from max_rel_error "
                            "(harness/identify.py)",
         "max_rel_error": float(rel[~weak].max(initial=0.0)),
+        "max_rel_parameter": (describe_base(ti.names, ti.base, int(np.flatnonzero(~weak)[np.argmax(rel[~weak])]))
+                              if (~weak).any() else None),
         "weakly_identifiable": [describe_base(ti.names, ti.base, k) for k in np.flatnonzero(weak)],
         "max_rel_error_weak": float(rel[weak].max()) if weak.any() else None,
         "coverage_ci95": float(np.mean(np.abs(ti.beta - ti.beta_true) <= ti.ci_half_width)),
@@ -310,7 +310,9 @@ def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
     }
     if ti.validation_error is not None:
         err = np.abs(ti.validation_error) / ti.validation_scale
+        _, worst_joint = np.unravel_index(np.argmax(err), err.shape)
         out["validation"] = {"scenario": validation_name, "max_rel_error": float(err.max()),
+                             "max_rel_joint": ti.names[10 * worst_joint].rsplit(".", 1)[0],
                              "rms_rel_error": float(np.sqrt(np.mean(err**2))),
                              "definition": "|predicted - recorded torque| / L_J of the validation run"}
     return out

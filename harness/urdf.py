@@ -20,7 +20,7 @@ import numpy as np
 
 from harness.friction import JointFriction
 from harness.spec import WORLD, Body, Joint, union
-from harness.tomlio import InputError, Table
+from harness.tomlio import MAX_XML_BYTES, InputError, Table, read_bounded
 
 KNOWN_ROBOTS = {
     "panda": "panda_description/urdf/panda.urdf",
@@ -158,9 +158,10 @@ def read_urdf(path: Path, table: Table, fixed: tuple[str, ...] = ()) -> tuple[li
     """Bodies and joints (world frame at q = 0) of a URDF, plus joint position limits by name and
     velocity and effort limits by name ({"velocity": .., "effort": ..}, where given). The joints
     named in `fixed` are taken as fixed at q = 0 (a gripper's fingers), their bodies merged."""
+    content = read_bounded(path, MAX_XML_BYTES)
     try:
-        root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as exc:
+        root = ET.fromstring(content)
+    except ET.ParseError as exc:
         raise InputError(path, "", f"cannot read URDF ({exc})") from None
     except RecursionError:
         raise InputError(path, "", "cannot read URDF (nested too deeply)") from None

@@ -12,8 +12,9 @@ from harness.recording import Recording, read_csv
 from harness.scenario import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENARIOS = ROOT / "scenarios"
-MODELS = ROOT / "models"
+BUILTIN = ROOT / "harness" / "data"  # the built-in models, scenarios and gate sets (package data)
+SCENARIOS = BUILTIN / "scenarios"
+MODELS = BUILTIN / "models"
 
 
 @pytest.fixture(scope="session")

@@ -20,10 +20,10 @@ from harness.bench import record
 from harness.cli import main
 from harness.engines.pinocchio import build_model, rnea
 from harness.spec import load_spec
-from tests.conftest import ROOT, SCENARIOS
+from tests.conftest import BUILTIN, SCENARIOS
 
-LOG = ROOT / "data" / "panda_gaz2019" / "log.csv"
-PUBLISHED = 0.026  # Gaz et al.'s model on its own training data (data/panda_gaz2019/README.md)
+LOG = BUILTIN / "logs" / "panda_gaz2019" / "log.csv"
+PUBLISHED = 0.026  # Gaz et al.'s model on its own training data (harness/data/logs/panda_gaz2019/README.md)
 
 
 @pytest.fixture(scope="module")
@@ -175,7 +175,7 @@ def test_the_exported_model_run_through_harness_predicts_what_the_fit_predicted(
     out, r = panda
     text = (SCENARIOS / "panda_gaz2019.toml").read_text()
     text = text.replace('model = "../models/panda_arm.toml"', f'model = "{out / "identified" / "robot.toml"}"')
-    text = text.replace('file = "../data/panda_gaz2019/log.csv"', f'file = "{LOG}"')
+    text = text.replace('file = "../logs/panda_gaz2019/log.csv"', f'file = "{LOG}"')
     (tmp_path / "again.toml").write_text(text)
     assert main(["run", str(tmp_path / "again.toml"), "--out", str(tmp_path / "out"), "--quiet"]) in (0, 1)
     again = json.loads((tmp_path / "out" / "results.json").read_text())["log_identification"]

@@ -180,8 +180,10 @@ def test_an_internal_error_exits_3_in_one_line_and_debug_shows_the_traceback(tmp
     assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 3
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "internal error: ZeroDivisionError: a bug" in err
-    with pytest.raises(ZeroDivisionError):
-        main(["--debug", "run", str(path), "--out", str(tmp_path / "out"), "--quiet"])
+    # --debug adds the traceback and changes nothing else: the same exit status
+    assert main(["--debug", "run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 3
+    err = capsys.readouterr().err
+    assert "Traceback (most recent call last)" in err and "ZeroDivisionError: a bug" in err
 
 
 def test_junit_xml_and_summary_count_the_failing_gates(tmp_path, capsys):
@@ -194,7 +196,7 @@ def test_junit_xml_and_summary_count_the_failing_gates(tmp_path, capsys):
     assert root.get("tests") == "2" and root.get("failures") == "2" and len(cases) == 2
     assert all(c.find("failure") is not None for c in cases)
     text = summary.read_text()
-    assert "FAILED (0 of 2 gates)" in text and text.count("**FAIL**") == 2
+    assert "arm: FAILED (2 of 2 gates fail)" in text and text.count("**FAIL**") == 2
     # the same verdict again from results.json, without simulating
     assert main(["gate", str(tmp_path / "out" / "results.json"), "--junit-xml", str(junit)]) == 1
     assert ET.parse(junit).getroot().get("failures") == "2"
@@ -301,6 +303,10 @@ def test_the_parameters_a_method_reports_are_judged_by_the_base_parameters_the_d
 name = "sheet"
 python = "user_arm:method"
 scale = {scale}
+
+[[gates]]
+metric = "identification_methods.sheet.base_parameters.max_rel_error"
+limit = 1e-9
 ''')
     judged = harness.run(path).results["identification_methods"]["sheet"]
     # a planar 2R arm has 6 base parameters: per link the moment of inertia about its joint axis and the two

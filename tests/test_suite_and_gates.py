@@ -12,7 +12,7 @@ import pytest
 
 from harness.cli import main
 from harness.gates import Gate, check
-from tests.conftest import ROOT, SCENARIOS, results_of
+from tests.conftest import MODELS, ROOT, SCENARIOS, results_of
 
 ALL_SCENARIOS = sorted(SCENARIOS.glob("*.toml"))
 
@@ -76,7 +76,7 @@ def test_gate_command_rechecks_with_new_limits_and_refuses_a_metric_that_names_n
     (tmp_path / "gates").mkdir()
     for f in (SCENARIOS / "gates").glob("*.toml"):
         shutil.copy(f, tmp_path / "gates" / f.name)
-    shutil.copytree(ROOT / "models", tmp_path.parent / "models", dirs_exist_ok=True)
+    shutil.copytree(MODELS, tmp_path.parent / "models", dirs_exist_ok=True)
     capsys.readouterr()
     assert main(["gate", str(fast_run / "results.json"), "--scenario", str(tighter)]) == 1
     assert "FAIL  identification at 7 digits" in capsys.readouterr().out
@@ -92,7 +92,7 @@ def test_a_broken_model_fails_the_run_and_the_report_says_where(tmp_path, capsys
     robot. The run exits 1 and the failing gates and the worst joint are in the report."""
     (tmp_path / "models").mkdir()
     (tmp_path / "scenarios").mkdir()
-    truth = (ROOT / "models" / "kr500.toml").read_text()
+    truth = (MODELS / "kr500.toml").read_text()
     (tmp_path / "models" / "kr500.toml").write_text(truth)
     start = truth.index('name = "B3"')
     wrong = truth[:start] + truth[start:].replace(

@@ -78,14 +78,13 @@ def _render(results: dict, rec: Recording, stages: list | None) -> str:
     )
 
 
-def write_report(results: dict, results_dir: Path, out: Path | None = None) -> Path:
-    """Render from a results.json's content and the recording.csv beside it."""
+def render_report(results: dict, results_dir: Path) -> str:
+    """The report of a results.json's content, with the recording (or log) beside it."""
     if "data" in results:
         from harness.log import read_log_csv
 
         rec = read_log_csv(Path(results_dir) / results["data"]["file"])
     else:
         rec = read_csv(Path(results_dir) / results["recording"]["file"])
-    out = out or Path(results_dir) / "report.html"
-    out.write_text(render(results, rec))
-    return out
+    return render(results, rec)
+

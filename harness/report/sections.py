@@ -8,6 +8,7 @@ import html
 import numpy as np
 
 from harness.cardano import GIMBAL_COND_D
+from harness.gates import summary_line
 from harness.recording import Recording
 from harness.report import plots
 
@@ -58,11 +59,8 @@ def verdict(r: dict) -> str:
     ok = r["passed"]
     badge = f'<div class="verdict {"pass" if ok else "fail"}" id="verdict">{"PASSED" if ok else "FAILED"}</div>'
     failing = [g for g in r["gates"] if not g["passed"]]
-    summary = (
-        f"All {len(r['gates'])} gates pass."
-        if ok
-        else f"{len(failing)} of {len(r['gates'])} gates fail: " + ", ".join(esc(g["name"]) for g in failing)
-    )
+    summary = esc(summary_line(r["scenario"]["name"], r["gates"])) + (
+        ": " + ", ".join(esc(g["name"]) for g in failing) if failing else "")
     rows = [
         [
             esc(g["name"]),
@@ -71,6 +69,7 @@ def verdict(r: dict) -> str:
             ("&le; " if g["direction"] == "at_most" else "&ge; ") + num(g["limit"]),
             f'<span class="{"ok" if g["passed"] else "bad"}">{"pass" if g["passed"] else "FAIL"}</span>'
             + (f" ({esc(g['reason'])})" if g["reason"] else ""),
+            esc(g.get("where") or ""),
         ]
         for g in r["gates"]
     ]
@@ -96,7 +95,7 @@ def verdict(r: dict) -> str:
         "verdict",
         "Verdict",
         badge + f"<p>{summary}</p>" + (f"<ul>{''.join(answers)}</ul>" if answers else "")
-        + table(["gate", "metric", "value", "limit", "result"], rows, "gates"),
+        + table(["gate", "metric", "value", "limit", "result", "worst case"], rows, "gates"),
     )
 
 
@@ -307,7 +306,8 @@ def torques(r: dict) -> str:
     styles = {"mujoco": "-", "pinocchio": "--", **{k: "o" for k in tq.get("models", {})}}
     panels = [(j, {k: v[:, n] for k, v in src.items()}, None) for n, j in enumerate(tq["joints"])]
     scale = np.array([tq["load_scale"][j] for j in tq["joints"]])
-    pairs = [k for k in tq if "_vs_" in k and isinstance(tq[k], dict) and "max_rel_error" in tq[k]]
+    pairs = [k for k in tq if "_vs_" in k and all(side in src for side in k.split("_vs_"))]
+    random = {k.removesuffix("_random_vs_pinocchio"): v for k, v in tq.items() if k.endswith("_random_vs_pinocchio")}
     err = [
         (j, {k.replace("_vs_", " vs "): np.abs(src[a][:, n] - src[b][:, n]) / scale[n]
              for k in pairs for a, b in [k.split("_vs_")]}, None)
@@ -329,13 +329,17 @@ def torques(r: dict) -> str:
     react = tq["reactions"]
     rrows = [
         [esc(src_name.replace("_vs_", " vs ")), esc(part), num(v["max_rel_error"]),
-         f"{esc(v['joint'])} at {num(v['t'])} s"]
+         f"{esc(v['max_rel_joint'])} at {num(v['max_rel_t'])} s"]
         for src_name, parts in react.items()
         if src_name != "definition"
         for part, v in parts.items()
     ]
     mm = tq.get("mass_matrix", {})
-    mrows = [[esc(k.replace("_vs_", " vs ")), num(v["max_rel_error"])] for k, v in mm.items() if k != "definition"]
+    mrows = [[esc(k.replace("_vs_", " vs ")), num(v["max_rel_error"]), esc(v.get("max_rel_entry", "")),
+              num(v.get("max_rel_t"))] for k, v in mm.items() if k != "definition"]
+    rand_rows = [[esc(k), num(v["states"]), num(v["seed"]), num(v["max_rel_error"]), esc(v["max_rel_joint"]),
+                  esc(", ".join(f"{j} {num(x)}" for j, x in v["worst_state"]["q"].items()))]
+                 for k, v in random.items()]
     models = tq.get("models", {})
     intro = (
         "<p>Drive torque (force for a prismatic joint) of every joint from MuJoCo (what drove the simulation), "
@@ -356,8 +360,11 @@ def torques(r: dict) -> str:
                  "Relative errors |a - b| / L_J (floored at 1e-18).")
         + f"<h3>Joint reaction wrenches</h3><p>{esc(react['definition'])}.</p>"
         + table(["sources", "part", "largest rel error", "where"], rrows)
-        + (f"<h3>Mass matrix</h3><p>{esc(mm['definition'])}.</p>" + table(["pair", "largest rel error"], mrows)
-           if mrows else ""),
+        + (f"<h3>Mass matrix</h3><p>{esc(mm['definition'])}.</p>"
+           + table(["pair", "largest rel error", "entry", "at t [s]"], mrows) if mrows else "")
+        + (f"<h3>At random states, against Pinocchio</h3><p>{esc(next(iter(random.values()))['definition'])}.</p>"
+           + table(["model", "states", "seed", "largest rel error", "joint", "q at that state"], rand_rows)
+           if rand_rows else ""),
     )
 
 
@@ -382,14 +389,28 @@ def _model_differences(r: dict) -> str:
     return "".join(out)
 
 
+def _interval(ci: list | None) -> str:
+    return f"[{num(ci[0])}, {num(ci[1])}]" if ci else "&ndash;"
+
+
 def identification_methods(r: dict) -> str:
-    rows = []
+    rows, tables = [], []
     for name, m in r["identification_methods"].items():
         b, v = m.get("base_parameters"), m.get("validation")
         rows.append([esc(name), f"<code>{esc(m['plugin'])}</code>", num(b["count"]) if b else "&ndash;",
                      num(b["max_rel_error"]) if b else "&ndash;", esc(v["scenario"]) if v else "&ndash;",
                      num(v["max_rel_error"]) if v else "&ndash;", esc(v["max_rel_joint"]) if v else "&ndash;",
                      num(v["rms_rel_error"]) if v else "&ndash;"])
+        if b and b.get("base"):
+            tables.append(
+                f"<h3>{esc(name)}: base parameters</h3><p>{esc(b['rel_error_definition'])}; {esc(b['uncertainty'])}"
+                + (f"; the 95 % intervals hold the true value for {num(b['coverage_ci95'])} of them"
+                   if b.get("coverage_ci95") is not None else "") + ".</p>"
+                + table(["base parameter", "true", "identified", "rel error", "std", "95 % interval"],
+                        [[esc(p["expression"]), num(p["true"]), num(p["identified"]), num(p["rel_error"]),
+                          num(p["std"]) if p["std"] is not None else "&ndash;", _interval(p["ci95"])]
+                         for p in b["base"]],
+                        "wrap"))
     return section(
         "identification_methods",
         "Identification methods under test",
@@ -397,7 +418,7 @@ def identification_methods(r: dict) -> str:
         "base parameters the torques determine (against the robot's, where the method reports parameters) and on "
         "the torques it predicts for a validation trajectory it never saw, relative to each joint's load L_J.</p>"
         + table(["method", "plugin", "base parameters", "largest rel error", "validation", "largest rel error",
-                 "at joint", "RMS rel error"], rows),
+                 "at joint", "RMS rel error"], rows) + "".join(tables),
     )
 
 

@@ -9,6 +9,7 @@ the model offers them.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,6 +18,7 @@ from harness.compare import DEFINITION, joint_load_scale, pair_metrics, wrench_m
 from harness.engines.pinocchio import build_model, crba, rnea
 from harness.plugins import PluginError, Stage, call, check_array, column_maps, invoke
 from harness.results import floats
+from harness.states import motion_scale, position_bounds, random_states
 
 MASS_MATRIX_SAMPLES = 20  # configurations of the recording at which a model's M(q) is compared
 
@@ -30,6 +32,20 @@ class ModelTorques:
     F_W: np.ndarray | None  # (N, n, 3) joint forces, when the model gives them
     M_W: np.ndarray | None
     mass_matrix_rel_error: float | None  # largest |M - M_pin| / max |M_pin|, when given
+    mass_matrix_worst: tuple[int, int, int] | None = None  # (comparison row, i, j) of that largest entry
+    random_tau: np.ndarray | None = None  # (count, n) at the random states, robot joint order
+
+
+@dataclass(frozen=True, eq=False)
+class RandomStates:
+    """Pinocchio's RNEA at random states (harness/states.py), what every model is also judged at."""
+
+    q: np.ndarray  # (count, n) robot joint order
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray  # Pinocchio's
+    load_scale: np.ndarray  # (n,) the largest moment (revolute) or force (prismatic) each joint transmits
+    seed: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +60,7 @@ class TorqueComparison:
     F_rec: np.ndarray  # recorded joint wrenches
     M_rec: np.ndarray
     models: tuple[ModelTorques, ...]
+    random: RandomStates | None = None  # when there is a model under test
 
     def sources(self) -> dict[str, np.ndarray]:
         return {"mujoco": self.mujoco, "pinocchio": self.pinocchio, **{m.name: m.tau for m in self.models}}
@@ -54,8 +71,7 @@ def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows) -> Mode
     inst, plugin = entry.instance, entry.reference
     to_model, order = column_maps(inst.joint_names, joints)
     N, n = q.shape
-    tau = call(plugin, "inverse_dynamics", inst.inverse_dynamics, q[:, to_model], qd[:, to_model],
-               qdd[:, to_model], shape=(N, n))[:, order]
+    tau = _call_model(entry, "inverse_dynamics", q, qd, qdd, joints)
     F = M = None
     if callable(getattr(inst, "joint_wrenches", None)):
         out = invoke(plugin, "joint_wrenches", inst.joint_wrenches, q[:, to_model], qd[:, to_model],
@@ -69,8 +85,32 @@ def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows) -> Mode
         Mq = call(plugin, "mass_matrix", inst.mass_matrix, q[rows][:, to_model], shape=(len(rows), n, n))
         Mq = Mq[:, order][:, :, order]
         ref = M_pin_at()
-        mm = float(np.max(np.abs(Mq - ref)) / np.max(np.abs(ref)))
+        diff = np.abs(Mq - ref)
+        worst = np.unravel_index(np.argmax(diff), diff.shape)
+        mm = float(diff[worst] / np.max(np.abs(ref)))
+        return ModelTorques(entry.name, plugin, str(entry.robot.source), tau, F, M, mm,
+                            (int(rows[worst[0]]), int(worst[1]), int(worst[2])))
     return ModelTorques(entry.name, plugin, str(entry.robot.source), tau, F, M, mm)
+
+
+def _random_states(sc, pm) -> RandomStates:
+    """Pinocchio at the scenario's random states: q within the limits, q' and q'' within the largest
+    of each joint along the scenario's own motion."""
+    _, qd_run, qdd_run = sc.prescribed(sc.t_out)
+    lo, hi = position_bounds(sc.robot.joint_names, [j.revolute for j in sc.robot.joints], sc.robot.limits)
+    q, qd, qdd = random_states(lo, hi, motion_scale(qd_run), motion_scale(qdd_run), sc.random_states.count,
+                               sc.random_states.seed)
+    pin = rnea(pm, q, qd, qdd)
+    wrench = np.stack([(pin.M_W if j.revolute else pin.F_W)[:, k] for k, j in enumerate(sc.robot.joints)], axis=1)
+    return RandomStates(q, qd, qdd, pin.tau, np.max(np.linalg.norm(wrench, axis=-1), axis=0), sc.random_states.seed)
+
+
+def _call_model(entry, what: str, q, qd, qdd, joints: list[str]) -> np.ndarray:
+    """A model's inverse_dynamics on states in the robot's joint order, brought back to it."""
+    inst = entry.instance
+    to_model, order = column_maps(inst.joint_names, joints)
+    return call(entry.reference, what, inst.inverse_dynamics, q[:, to_model], qd[:, to_model], qdd[:, to_model],
+                shape=q.shape)[:, order]
 
 
 def run(ctx, config) -> TorqueComparison:
@@ -86,8 +126,14 @@ def run(ctx, config) -> TorqueComparison:
         return ctx.once("mass matrix (CRBA) at the comparison rows", lambda: crba(pm, q[rows]))
 
     models = tuple(_model_torques(e, q, qd, qdd, joints, M_pin_at, rows) for e in sc.models)
+    random = None
+    if models:
+        random = _random_states(sc, pm)
+        models = tuple(dataclasses.replace(
+            m, random_tau=_call_model(e, "inverse_dynamics (random states)", random.q, random.qd, random.qdd, joints))
+            for m, e in zip(models, sc.models, strict=True))
     return TorqueComparison(joints, rec.t, joint_load_scale(sc.robot, rec), rec.tau[:, cols], pin.tau,
-                            pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models)
+                            pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models, random)
 
 
 
@@ -137,12 +183,33 @@ def serialise(tc: TorqueComparison, ctx, config) -> dict:
                           "(force of the inner on the outer body, moment about the joint point)",
             **reactions,
         },
+        **{f"{m.name}_random_vs_pinocchio": _random_metrics(m.random_tau, tc.random, joints) for m in tc.models},
         "mass_matrix": {
             "definition": f"largest |M - M_pinocchio| / largest |M_pinocchio| at {MASS_MATRIX_SAMPLES} rows "
                           "of the recording (Pinocchio's CRBA)",
-            **{f"{m.name}_vs_pinocchio": {"max_rel_error": m.mass_matrix_rel_error}
+            **{f"{m.name}_vs_pinocchio": {"max_rel_error": m.mass_matrix_rel_error,
+                                          "max_rel_entry": f"M[{joints[m.mass_matrix_worst[1]]}, "
+                                                           f"{joints[m.mass_matrix_worst[2]]}]",
+                                          "max_rel_t": float(t[m.mass_matrix_worst[0]])}
                for m in tc.models if m.mass_matrix_rel_error is not None},
         },
+    }
+
+
+def _random_metrics(tau: np.ndarray, rs: RandomStates, joints: list[str]) -> dict:
+    rel = np.abs(tau - rs.tau) / rs.load_scale
+    k, j = np.unravel_index(np.argmax(rel), rel.shape)
+    return {
+        "max_rel_error": float(rel[k, j]), "max_rel_joint": joints[j], "max_rel_state": int(k),
+        "max_rel_error_per_joint": dict(zip(joints, (float(x) for x in rel.max(axis=0)), strict=True)),
+        "worst_state": {"q": dict(zip(joints, floats(rs.q[k]), strict=True)),
+                        "qd": dict(zip(joints, floats(rs.qd[k]), strict=True)),
+                        "qdd": dict(zip(joints, floats(rs.qdd[k]), strict=True))},
+        "states": len(rs.q), "seed": rs.seed,
+        "definition": "|tau - tau_pinocchio| / L_J at random states: q uniform within the joint limits (+-pi rad or "
+                      "+-1 m without), q' and q'' uniform within the largest of each joint along the scenario's "
+                      "motion; L_J the largest moment (revolute) or force (prismatic) joint J transmits at them "
+                      "(Pinocchio's RNEA)",
     }
 
 
