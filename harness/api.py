@@ -8,22 +8,37 @@
     result.results                  # the content of results.json
     result.recording                # the recording (harness.recording.Recording)
 
+A model object is judged without a module file or a scenario entry (in a notebook, say):
+
+    result = harness.run("kr500_rail", models={"mine": MyModel()})   # or model=MyModel()
+    result.results["torques"]["mine_vs_pinocchio"]["max_rel_error"]
+
+It is judged like a `[model_under_test]` of that name (default "model"): against MuJoCo and
+Pinocchio on the scenario's motion and at its random states, with the gates the scenario has on
+it, else the standard ones (`model_gates`). A scenario can be a dict with a scenario file's layout
+(`harness.load_scenario(dict, folder=...)`: files it names are relative to `folder`).
+
 `harness.load_scenario(path)` and `harness.load_model(path)` load and validate a scenario or a
-robot description (TOML or URDF model file) without running anything. Bad input raises
+robot description (TOML or URDF model file) without running anything; a bare name is a scenario
+in ./scenarios/, the current folder or built into the package. Bad input raises
 harness.InputError (file, key, message); a plugin that breaks its protocol raises
 harness.PluginError.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from harness.gates import Gate
+from harness.plugins import ModelUnderTest, check_protocol
 from harness.recording import Recording
-from harness.scenario import DataScenario, Scenario
+from harness.scenario import DataScenario, PluginEntry, Scenario, scenario_from_dict, unjudged
 from harness.scenario import load_scenario as _load_scenario
 from harness.spec import RobotSpec, load_spec
+from harness.tomlio import InputError
 
 
 @dataclass(frozen=True)
@@ -52,25 +67,71 @@ class Result:
         return tuple(g for g in self.gates if not g.passed)
 
 
-def load_scenario(path: str | Path) -> Scenario | DataScenario:
-    return _load_scenario(Path(path))
+def load_scenario(scenario: str | Path | dict, folder: str | Path = ".", name: str = "scenario"
+                  ) -> Scenario | DataScenario:
+    """A scenario file (a path, or a bare name: harness/builtin.py), or a dict with its layout whose
+    files are relative to `folder`."""
+    if isinstance(scenario, dict):
+        return scenario_from_dict(scenario, name, folder)
+    from harness.builtin import resolve
+
+    return _load_scenario(resolve(scenario, "scenarios"))
+
+
+MODEL_GATE_LIMIT = 1e-9  # a model of the scenario's own robot agrees with the engines at round-off (about 1e-15)
+
+
+def model_gates(name: str, limit: float = MODEL_GATE_LIMIT) -> tuple[Gate, ...]:
+    """The standard gates on a model under test: its torques against MuJoCo and Pinocchio along the
+    motion, and against Pinocchio at the random states."""
+    return tuple(Gate(m, m, limit) for m in (f"torques.{name}_vs_mujoco.max_rel_error",
+                                             f"torques.{name}_vs_pinocchio.max_rel_error",
+                                             f"torques.{name}_random_vs_pinocchio.max_rel_error"))
+
+
+def with_models(sc: Scenario, models: dict[str, Any]) -> Scenario:
+    """The scenario with model objects added as models under test (checked against the protocol),
+    each with the standard gates where the scenario has none on it."""
+    if not isinstance(sc, Scenario):
+        raise InputError(sc.source, "models", "a scenario with [data] is judged on its log: it takes no model")
+    entries, gates = list(sc.models), list(sc.gates)
+    for name, obj in models.items():
+        if not isinstance(name, str) or not name.isidentifier() or name in ("mujoco", "pinocchio"):
+            raise InputError(sc.source, "models", f"{name!r} must be a plain identifier other than mujoco and "
+                                                  "pinocchio: it names metrics")
+        reference = f"{type(obj).__name__} object"
+        check_protocol(reference, obj, ModelUnderTest, sc.robot.joint_names)
+        entries = [e for e in entries if e.name != name] + [PluginEntry(name, reference, sc.robot, obj)]
+        try:
+            unjudged(sc.source, "model_under_test", name, tuple(gates))
+        except InputError:
+            gates += model_gates(name)
+    return dataclasses.replace(sc, models=tuple(entries), gates=tuple(gates))
 
 
 def load_model(path: str | Path) -> RobotSpec:
     return load_spec(Path(path))
 
 
-def run(scenario: str | Path | Scenario, progress=None, workers=None) -> Result:
-    """Run one scenario (a path, or a loaded Scenario) through the whole pipeline and check its
-    gates. Nothing is written to disk. `workers` (a harness.workers.Workers; default this process)
-    is where a stage's Monte Carlo trials run."""
+def run(scenario: str | Path | dict | Scenario, progress=None, workers=None, models: dict[str, Any] | None = None,
+        model: Any = None, folder: str | Path = ".") -> Result:
+    """Run one scenario (a path or name, a dict, or a loaded Scenario) through the whole pipeline
+    and check its gates. Nothing is written to disk. `models` ({name: object}) or `model` (named
+    "model") are judged as models under test besides the scenario's own. `workers` (a
+    harness.workers.Workers; default this process) is where a stage's Monte Carlo trials run. A
+    dict's files are relative to `folder`."""
     from harness.gates import verdict
     from harness.pipeline import run as run_pipeline
+    from harness.plugins import user_interrupts
     from harness.results import build_results
 
-    sc = scenario if isinstance(scenario, Scenario | DataScenario) else load_scenario(scenario)
+    sc = scenario if isinstance(scenario, Scenario | DataScenario) else load_scenario(scenario, folder)
+    objects = {**({"model": model} if model is not None else {}), **(models or {})}
+    if objects:
+        sc = with_models(sc, objects)
     given = {"progress": progress, "workers": workers}  # the rest: the pipeline's defaults
-    out = run_pipeline(sc, **{k: v for k, v in given.items() if v is not None})
+    with user_interrupts():
+        out = run_pipeline(sc, **{k: v for k, v in given.items() if v is not None})
     results = verdict(sc.gates, build_results(out), sc.source)
     rows = tuple(GateRow(**r) for r in results["gates"])
     return Result(sc.name, results["passed"], rows, results, out.recording, out)

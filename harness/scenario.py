@@ -16,6 +16,7 @@ and holds its settings. `[scenario] gate_sets` includes shared gate files; the s
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import os
 from dataclasses import dataclass, field
@@ -43,7 +44,7 @@ from harness.plugins import (
     load_study,
 )
 from harness.spec import RobotSpec, load_spec
-from harness.tomlio import InputError, Table, read_toml
+from harness.tomlio import InputError, Table, parse_toml, read_toml, read_toml_text
 
 INTEGRATORS = ("RK4", "Euler", "implicitfast")
 _GRID_TOL = 1e-9  # relative to the output interval: a sample time on the grid, a timestep dividing it
@@ -175,9 +176,26 @@ def load_scenario(path: Path | str) -> Scenario | DataScenario:
     path = Path(path)
     _LOADING.append(path.resolve())
     try:
-        return _load(path)
+        text = read_toml_text(path)
+        return _load(parse_toml(text, path), path, text)
     finally:
         _LOADING.pop()
+
+
+def scenario_from_dict(data: dict, name: str = "scenario", folder: Path | str = ".") -> Scenario | DataScenario:
+    """A scenario given as a dict with the layout of a scenario file, validated the same way; the
+    files it names (model, gate sets, plugins' modules) are relative to `folder`, and errors name
+    `folder/NAME.toml` (which need not exist)."""
+    import tomli_w
+
+    if not isinstance(data, dict):
+        raise InputError(name, "", f"a scenario is a dict of tables, got {type(data).__name__}")
+    path = Path(folder).resolve() / f"{name}.toml"
+    try:
+        text = tomli_w.dumps(data)
+    except (TypeError, ValueError) as exc:
+        raise InputError(path, "", f"not a scenario's layout ({exc})") from None
+    return _load(copy.deepcopy(data), path, text)
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,7 +215,7 @@ class DataScenario:
     studies: tuple[tuple[Study, Any], ...] = ()
 
 
-def _load_data(root: Table, path: Path) -> DataScenario:
+def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     s = root.table("scenario")
     description = s.string("description", default="")
     model_rel = s.string("model")
@@ -216,13 +234,13 @@ def _load_data(root: Table, path: Path) -> DataScenario:
             raise root.error(table, "a scenario with [data] is judged on its log: it has no simulated motion, "
                                     "measurement, studies or other identification")
     root.finish()
-    return DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, path.read_text())
+    return DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, text)
 
 
-def _load(path: Path) -> Scenario | DataScenario:
-    root = Table(read_toml(path), path)
+def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
+    root = Table(data, path)
     if root.has("data"):
-        return _load_data(root, path)
+        return _load_data(root, path, text)
     s = root.table("scenario")
     description = s.string("description", default="")
     model_rel = s.string("model")
@@ -353,7 +371,7 @@ def _load(path: Path) -> Scenario | DataScenario:
         raise InputError(path, "simulation.timestep",
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
-                        np.asarray(sample_times), motion, simulation, measurement, gates, path.read_text(),
+                        np.asarray(sample_times), motion, simulation, measurement, gates, text,
                         torque_validation, torque_friction, estimators, payload, excitation)
     models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
                    for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))

@@ -58,10 +58,17 @@ def read_bounded(path: Path | str, limit: int) -> bytes:
 
 def read_toml(path: Path) -> dict[str, Any]:
     """Parse a TOML file, turning every failure into an `InputError` naming the file."""
+    return parse_toml(read_toml_text(path), path)
+
+
+def read_toml_text(path: Path) -> str:
     try:
-        text = read_bounded(path, MAX_TOML_BYTES).decode("utf-8")
+        return read_bounded(path, MAX_TOML_BYTES).decode("utf-8")
     except UnicodeDecodeError as exc:
         raise InputError(path, "", f"cannot read file ({exc.__class__.__name__}: {exc})") from None
+
+
+def parse_toml(text: str, path: Path) -> dict[str, Any]:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

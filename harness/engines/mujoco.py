@@ -143,13 +143,49 @@ def build_model(spec: RobotSpec, gravity_W: np.ndarray, simulation: Simulation) 
 
 
 def _log_warning(message: str) -> None:
-    """MuJoCo's warnings go to the log, not to a MUJOCO_LOG.TXT in the working directory."""
+    """MuJoCo's warnings go to the log, not to a MUJOCO_LOG.TXT in the working directory; while
+    `simulate` runs they are only collected, and it logs them once it has finished."""
     _WARNINGS.append(message)
-    logging.getLogger("harness.mujoco").warning(message)
+    if not _COLLECTING[0]:
+        logging.getLogger("harness.mujoco").warning(message)
 
 
 _WARNINGS: list[str] = []
+_COLLECTING = [False]
 mujoco.set_mju_user_warning(_log_warning)
+
+# MuJoCo's own verdict that a state is not finite or beyond its bounds (it then resets the data)
+_UNSTABLE = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQACC,
+             mujoco.mjtWarning.mjWARN_BADCTRL)
+
+
+class Diverged(Exception):
+    """The motion drove the simulation to non-finite values (or to MuJoCo's bound on them)."""
+
+    def __init__(self, joint: str, t: float, engine_message: str):
+        super().__init__(f"joint {joint} at t = {t:.6g} s")
+        self.joint, self.t, self.engine_message = joint, t, engine_message
+
+
+def _diverged(model: mujoco.MjModel, data: mujoco.MjData, t: float, message: str) -> Diverged:
+    """The joint and time of MuJoCo's first instability warning, `message` ("... in CTRL at
+    ACTUATOR 1. ... Time = 0.0013."), where it can be read; else the last index MuJoCo noted and the
+    end of the step (`t`)."""
+    import re
+
+    said = re.search(r"in (QPOS|QVEL|QACC|CTRL) at (DOF|ACTUATOR) (\d+)", message)
+    when = re.search(r"Time = ([0-9]+(?:\.[0-9]+)?(?:[eE][+-]?[0-9]+)?)", message)
+    if said:
+        kind, index = said.group(2), int(said.group(3))
+    else:
+        stat = next((k for k in _UNSTABLE if data.warning[k].number), mujoco.mjtWarning.mjWARN_BADQACC)
+        kind, index = ("ACTUATOR" if stat == mujoco.mjtWarning.mjWARN_BADCTRL else "DOF"), data.warning[stat].lastinfo
+    joint = "?"
+    if kind == "ACTUATOR" and 0 <= index < model.nu:
+        joint = model.actuator(index).name.removeprefix("drive_")
+    elif kind == "DOF" and 0 <= index < model.nv:
+        joint = model.joint(model.dof_jntid[index]).name
+    return Diverged(joint, float(when.group(1)) if when else t, message)
 
 
 def _as_slice(index: np.ndarray) -> slice | np.ndarray:
@@ -214,6 +250,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     qacc_rows = np.empty((n_rows, n_joints))
     mujoco.set_mjcb_control(drive)
     warned = len(_WARNINGS)
+    _COLLECTING[0] = True
     try:
         for row in range(n_rows):
             data.time = row * substeps * dt
@@ -222,11 +259,17 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
             qacc_rows[row] = data.qacc[vadr]
             if row < n_rows - 1:
                 capture[0] = True
-                for _ in range(substeps):
+                for step in range(substeps):
                     mujoco.mj_step(model, data)
+                    if len(_WARNINGS) > warned and any(data.warning[k].number for k in _UNSTABLE):
+                        # MuJoCo has reset the data: stop at the first such step, with one message
+                        raise _diverged(model, data, (row * substeps + step + 1) * dt, _WARNINGS[warned])
                 capture[0] = False
     finally:
         mujoco.set_mjcb_control(None)
+        _COLLECTING[0] = False
+    for message in _WARNINGS[warned:]:
+        logging.getLogger("harness.mujoco").warning(message)
     per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]
     drive_stages = np.array(stages).reshape(n_steps, per_step, n_joints)
     t = np.arange(n_rows) * substeps * dt
@@ -241,6 +284,12 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
 
     def per_body(kind: str) -> np.ndarray:
         return np.stack([sensor(f"{kind}_{b.name}") for b in spec.massive_bodies], axis=1)
+
+    if not np.all(np.isfinite(sensor_rows)):  # beyond what MuJoCo checks: a body's sensors
+        row = int(np.flatnonzero(~np.all(np.isfinite(sensor_rows), axis=1))[0])
+        bad = [j for j in spec.joint_names if not all(np.all(np.isfinite(sensor(f"{k}_{j}")[row]))
+                                                       for k in ("q", "qd", "tau", "force", "torque"))]
+        raise Diverged(bad[0] if bad else "?", row * substeps * dt, "a sensor reads a value that is not finite")
 
     # Force/torque sensors report the wrench of the parent on the child about the site, in the
     # site frame (the outer body's frame); rotate to world components.

@@ -184,7 +184,16 @@ def motion(r: dict, rec: Recording) -> str:
     )
     sc = r["scenario"]
     mot = table(["joint", "motion"], [[esc(j), esc(m["description"])] for j, m in sc["motion"].items()])
-    return section("motion", "Motion", mot + "".join(figs) + "<h3>Tracking of the prescribed motion</h3>" + track)
+    lim = r.get("motion", {})
+    limits = ""
+    if lim:
+        limits = (f"<h3>Against the model's limits</h3><p>{esc(lim['definition'])}.</p>"
+                  + (f'<p class="warn">Beyond a limit: {esc(", ".join(lim["beyond"]))}.</p>' if lim["beyond"] else "")
+                  + table(["joint", "position", "velocity", "effort"],
+                          [[esc(j), *(num(v[k]) if v[k] is not None else "&ndash;"
+                                      for k in ("position", "velocity", "effort"))] for j, v in lim["limits"].items()]))
+    return section("motion", "Motion", mot + limits + "".join(figs) + "<h3>Tracking of the prescribed motion</h3>"
+                   + track)
 
 
 def data(r: dict, log) -> str:

@@ -37,7 +37,7 @@ class Context:
 
 
 def core_stages() -> tuple[Stage, ...]:
-    from harness.stages import estimators, identification, payload, torques
+    from harness.stages import estimators, identification, limits, payload, torques
 
-    return (torques.STAGE, identification.TORQUE_STAGE, identification.METHODS_STAGE, estimators.STAGE,
+    return (limits.STAGE, torques.STAGE, identification.TORQUE_STAGE, identification.METHODS_STAGE, estimators.STAGE,
             payload.STAGE)
