@@ -1,0 +1,276 @@
+"""A verdict CI can stake a release on: only the harness chooses its exit status, whatever plugin
+code does; the CI files are written on every outcome; a failing gate says where; nothing is judged
+by no gate; bad input of every kind ends in one line and exit 2. The hostile plugins here are
+written by the tests into temporary folders."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import harness
+from harness.builtin import DATA
+from harness.cli import main
+from harness.gates import summary_line
+
+INIT = DATA / "init"
+HARNESS = Path(sys.executable).parent / "harness"  # the console script, as CI runs it
+
+
+def _project(tmp_path: Path, plugin: str, extra: str = "") -> Path:
+    """The `harness init` project with its model under test replaced by `plugin` (module hostile.py)."""
+    assert main(["init", str(tmp_path / "p")]) == 0
+    folder = tmp_path / "p"
+    (folder / "hostile.py").write_text(textwrap.dedent(plugin))
+    text = (folder / "scenario.toml").read_text().replace('python = "my_robot:make_model"',
+                                                         'python = "hostile:make"')
+    (folder / "scenario.toml").write_text(text + extra)
+    return folder / "scenario.toml"
+
+
+EXACT = """
+import sys
+sys.path.insert(0, __file__.rsplit("/", 1)[0])
+from my_robot import TwoLinkArm
+"""
+
+
+@pytest.mark.parametrize("body", [
+    EXACT + "sys.exit(0)\ndef make(robot, gravity_W, parameters): return TwoLinkArm(gravity_W)\n",
+    EXACT + "class M(TwoLinkArm):\n    def inverse_dynamics(self, q, qd, qdd): raise SystemExit(0)\n"
+            "def make(robot, gravity_W, parameters): return M(gravity_W)\n",
+    EXACT + "class M(TwoLinkArm):\n    def inverse_dynamics(self, q, qd, qdd): raise KeyboardInterrupt\n"
+            "def make(robot, gravity_W, parameters): return M(gravity_W)\n",
+    EXACT + "class M(TwoLinkArm):\n    @property\n    def joint_names(self): sys.exit(0)\n"
+            "def make(robot, gravity_W, parameters): return M(gravity_W)\n",
+], ids=["sys.exit at import", "SystemExit in inverse_dynamics", "KeyboardInterrupt it raises",
+        "sys.exit in a property"])
+def test_a_plugin_that_exits_or_interrupts_is_bad_input_with_an_error_in_the_junit_file(tmp_path, capsys, body):
+    path = _project(tmp_path, body)
+    junit, summary = tmp_path / "junit.xml", tmp_path / "summary.md"
+    status = main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet", "--junit-xml", str(junit),
+                   "--summary", str(summary)])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and "hostile:make" in err, err
+    assert not (tmp_path / "out").exists()
+    case = ET.parse(junit).getroot().find("./testsuite/testcase")
+    assert case.find("error") is not None and "hostile:make" in case.find("error").get("message")
+    assert "ERROR (bad input)" in summary.read_text()
+
+
+def test_a_plugin_that_ends_the_process_is_an_internal_error_and_the_junit_file_says_so(tmp_path):
+    """os._exit cannot be caught in the process that calls it: the command runs in a child and the
+    `harness` process chooses the status."""
+    path = _project(tmp_path, EXACT + "import os\nclass M(TwoLinkArm):\n"
+                                      "    def inverse_dynamics(self, q, qd, qdd): os._exit(0)\n"
+                                      "def make(robot, gravity_W, parameters): return M(gravity_W)\n")
+    junit = tmp_path / "junit.xml"
+    done = subprocess.run([str(HARNESS), "run", str(path), "--out", str(tmp_path / "out"), "--quiet",
+                           "--junit-xml", str(junit)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 3, done.stderr
+    assert "ended without a verdict (exit status 0)" in done.stderr and done.stderr.count("\n") == 1
+    assert ET.parse(junit).getroot().find("./testsuite/testcase/error") is not None
+
+
+def test_an_internal_error_writes_an_error_case_too(tmp_path, capsys, monkeypatch):
+    import harness.stages.torques
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(harness.stages.torques, "joint_load_scale", broken)
+    junit = tmp_path / "junit.xml"
+    assert main(["run", str(INIT / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet",
+                 "--junit-xml", str(junit)]) == 3
+    error = ET.parse(junit).getroot().find("./testsuite/testcase/error")
+    assert error.get("type") == "InternalError" and "ZeroDivisionError: a bug" in error.get("message")
+
+
+def test_the_summary_line_counts_the_failing_gates_in_the_same_words_everywhere(tmp_path, capsys):
+    rows = [{"passed": False}] * 5 + [{"passed": True}]
+    assert summary_line("arm", rows) == "arm: FAILED (5 of 6 gates fail)"
+    assert summary_line("arm", [{"passed": True}] * 2) == "arm: PASSED (2 gates)"
+    path = _project(tmp_path, EXACT + "def make(robot, gravity_W, parameters): return TwoLinkArm(gravity_W, m2=1.26)\n")
+    summary = tmp_path / "s.md"
+    capsys.readouterr()
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet", "--summary", str(summary)]) == 1
+    out = capsys.readouterr().out
+    line = "scenario: FAILED (4 of 6 gates fail)"  # the model's four gates; the method's two pass
+    assert out.splitlines()[0] == line and f"### {line}" in summary.read_text()
+    assert line in (tmp_path / "out" / "report.html").read_text()
+
+
+def test_a_failing_gate_names_the_worst_joint_and_time_or_parameter(tmp_path, capsys):
+    path = _project(tmp_path, EXACT + "def make(robot, gravity_W, parameters): return TwoLinkArm(gravity_W, m2=1.26)\n")
+    capsys.readouterr()
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    out = capsys.readouterr().out
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    worst = results["torques"]["mine_vs_mujoco"]
+    assert (f"FAIL  torques.mine_vs_mujoco.max_rel_error = {worst['max_rel_error']:.3g} > 1e-09 (worst: "
+            f"{worst['max_rel_joint']} at t = {worst['max_rel_t']:.4g} s)") in out
+    assert "(worst: elbow at random state" in out
+    # an identification gate names the base parameter: the method is judged against a 5 % lighter truth
+    (path.parent / "robot.urdf").write_text((path.parent / "robot.urdf").read_text().replace(
+        '<mass value="1.2"/>', '<mass value="1.14"/>'))
+    (path.parent / "my_robot.py").write_text((path.parent / "my_robot.py").read_text().replace(
+        'return LeastSquares(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W)',
+        'return LeastSquares(Path(__file__).parent / "true.urdf", gravity_W)'))
+    (path.parent / "true.urdf").write_text((INIT / "robot.urdf").read_text())
+    capsys.readouterr()
+    main(["run", str(path), "--out", str(tmp_path / "out2"), "--quiet"])
+    gate = next(r for r in json.loads((tmp_path / "out2" / "results.json").read_text())["gates"]
+                if r["metric"] == "identification_methods.ls.validation.max_rel_error")
+    assert gate["where"].startswith(("shoulder at t =", "elbow at t ="))
+
+
+def test_a_model_or_method_that_no_gate_judges_is_refused(tmp_path, capsys):
+    path = INIT / "scenario.toml"
+    text = path.read_text()
+    for metric, kind in (("mine_", "mine"), ("identification_methods.ls.", "ls")):
+        blocks = text.split("[[gates]]")
+        kept = "[[gates]]".join(b for b in blocks if metric not in b)
+        (tmp_path / "robot.toml").write_text((INIT / "robot.toml").read_text())
+        for f in ("robot.urdf", "my_robot.py", "validation.toml"):
+            (tmp_path / f).write_text((INIT / f).read_text())
+        (tmp_path / "s.toml").write_text(kept)
+        assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{kind!r} is judged by no gate" in err and metric in err
+
+
+def test_a_broken_pipe_is_not_a_verdict():
+    done = subprocess.run(f"'{HARNESS}' list | head -1; exit ${{PIPESTATUS[0]}}", shell=True, executable="/bin/bash",
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.count("\n") == 1, (done.returncode, done.stderr)
+
+
+def test_a_motion_that_diverges_is_bad_input_in_one_line(tmp_path, capsys, caplog):
+    path = _project(tmp_path, EXACT + "def make(robot, gravity_W, parameters): return TwoLinkArm(gravity_W)\n")
+    path.write_text(path.read_text().replace("sin = [[0.9, 2.1]]", "sin = [[1e4, 400.0]]"))
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "motion." in err and "non-finite values at t = " in err
+    assert len([r for r in caplog.records if r.name == "harness.mujoco"]) <= 1
+
+
+def test_a_motion_beyond_the_limits_warns_and_is_gateable(tmp_path, capsys, caplog):
+    path = _project(tmp_path, EXACT + "def make(robot, gravity_W, parameters): return TwoLinkArm(gravity_W)\n",
+                    '\n[[gates]]\nmetric = "motion.largest.position"\nlimit = 1.0\n')
+    path.write_text(path.read_text().replace("sin = [[0.9, 2.1]]", "sin = [[60.0, 2.1]]"))
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    warned = [r.getMessage() for r in caplog.records if "beyond the model's limits" in r.getMessage()]
+    assert len(warned) == 1 and "shoulder position" in warned[0]
+    limits = json.loads((tmp_path / "out" / "results.json").read_text())["motion"]["limits"]
+    # the URDF's shoulder range is +-3.1 rad about 0; q = -0.3 + 60 sin(2.1 t) on the 201 recorded rows (the
+    # drive tracks it within 1e-9 rad)
+    t = np.linspace(0.0, 2.0, 201)
+    assert limits["shoulder"]["position"] == pytest.approx(np.max(np.abs(-0.3 + 60 * np.sin(2.1 * t))) / 3.1, rel=1e-9)
+
+
+def test_the_built_in_scenario_passes_within_its_limits(tmp_path):
+    assert main(["run", str(INIT / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    motion = json.loads((tmp_path / "o" / "results.json").read_text())["motion"]
+    assert motion["beyond"] == [] and max(motion["largest"].values()) <= 1.0
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="no /dev/zero")
+def test_inputs_that_were_internal_errors_are_refused_in_one_line(tmp_path, capsys):
+    assert main(["run", "/dev/zero"]) == 2
+    assert "larger than 16 MiB" in capsys.readouterr().err
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["run", str(INIT / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["report", str(tmp_path / "o" / "results.json"), "--out", str(blocker / "report.html")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--out" in err
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "odd.toml").write_text('model = "a string"\n')
+    cwd = os.getcwd()
+    try:
+        os.chdir(tmp_path)
+        assert main(["list"]) == 0
+    finally:
+        os.chdir(cwd)
+    assert "odd" in capsys.readouterr().out
+
+
+def test_built_in_scenarios_run_from_any_folder(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["list"]) == 0
+    assert "kr500_rail" in capsys.readouterr().out
+    assert main(["run", "planar6_case1_proposed", "--out", "o", "--quiet"]) == 0
+    assert json.loads((tmp_path / "o" / "results.json").read_text())["passed"]
+    # a file of the same name in the current folder comes first
+    (tmp_path / "planar6_case1_proposed.toml").write_text("not toml [")
+    assert main(["run", "planar6_case1_proposed", "--out", "o2", "--quiet"]) == 2
+
+
+def test_init_writes_a_project_that_passes_out_of_the_box(tmp_path, capsys):
+    assert main(["init", str(tmp_path / "p")]) == 0
+    assert main(["init", str(tmp_path / "p")]) == 2  # never over an existing project
+    names = sorted(p.name for p in (tmp_path / "p").iterdir())
+    assert names == ["README.md", "ci-job.yml", "my_robot.py", "robot.toml", "robot.urdf", "scenario.toml",
+                     "test_my_robot.py", "validation.toml"]
+    assert harness.DISTRIBUTION in (tmp_path / "p" / "ci-job.yml").read_text()
+    done = subprocess.run([str(HARNESS), "run", "scenario.toml", "--out", "reports", "--quiet"],
+                          cwd=tmp_path / "p", capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"], cwd=tmp_path / "p",
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and "1 passed" in done.stdout, done.stdout + done.stderr
+
+
+def test_the_api_judges_a_model_object_and_a_scenario_given_as_a_dict(tmp_path):
+    sys.path.insert(0, str(INIT))
+    try:
+        from my_robot import TwoLinkArm
+    finally:
+        sys.path.remove(str(INIT))
+    g = np.array([0.0, 0.0, -9.80665])
+    scenario = {"scenario": {"model": "robot.toml", "duration": 1.0, "output_steps": 50},
+                "motion": {"shoulder": {"type": "sinusoids", "sin": [[0.5, 2.0]]}, "elbow": {"type": "locked"}},
+                "gates": [{"metric": "torques.pinocchio_vs_mujoco.max_rel_error", "limit": 1e-9}]}
+    good = harness.run(scenario, folder=INIT, models={"exact": TwoLinkArm(g)})
+    assert good.passed and {g.metric for g in good.gates} >= {"torques.exact_random_vs_pinocchio.max_rel_error"}
+    bad = harness.run(scenario, folder=INIT, model=TwoLinkArm(g, m2=1.26))
+    assert {g.metric for g in bad.failed} == {f"torques.model_{k}.max_rel_error"
+                                              for k in ("vs_mujoco", "vs_pinocchio", "random_vs_pinocchio")}
+    with pytest.raises(harness.InputError, match=r"motion\.elbow: missing"):
+        harness.load_scenario({**scenario, "motion": {"shoulder": {"type": "locked"}}}, folder=INIT)
+
+
+def test_random_states_find_an_error_the_scripted_motion_hides(tmp_path, capsys):
+    """A model wrong only where the elbow bends beyond 2 rad, which the scripted motion never reaches."""
+    path = _project(tmp_path, EXACT + textwrap.dedent("""
+        import numpy as np
+        class M(TwoLinkArm):
+            def inverse_dynamics(self, q, qd, qdd):
+                tau = super().inverse_dynamics(q, qd, qdd)
+                return tau + np.where(q[:, 1:2] > 2.0, 0.01, 0.0)
+        def make(robot, gravity_W, parameters): return M(gravity_W)
+        """))
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    gates = {g["metric"]: g for g in json.loads((tmp_path / "out" / "results.json").read_text())["gates"]}
+    assert gates["torques.mine_vs_mujoco.max_rel_error"]["passed"]
+    random = gates["torques.mine_random_vs_pinocchio.max_rel_error"]
+    assert not random["passed"] and random["where"].startswith("elbow at random state")
+
+
+def test_a_methods_parameters_come_back_as_a_base_parameter_table_with_intervals(tmp_path):
+    result = harness.run(INIT / "scenario.toml")
+    table = result.results["identification_methods"]["ls"]["base_parameters"]
+    # the planar 2R arm has 6 base parameters; each names the standard parameters it combines
+    assert table["count"] == 6 and len(table["base"]) == 6
+    assert all(p["expression"].startswith(("shoulder.", "elbow.")) for p in table["base"])
+    assert all(abs(p["identified"] - p["true"]) <= 1e-9 * max(abs(p["true"]), 1.0) for p in table["base"])
+    assert all(p["std"] is not None and p["ci95"][0] <= p["identified"] <= p["ci95"][1] for p in table["base"])
