@@ -329,10 +329,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     study = next((s for s, _ in scenario.studies if s.sweep is not None), None)
-    if study is None and scenario.estimators is None:
+    if study is None and scenario.estimators is None and not scenario.methods:
         raise InputError(scenario.source, "studies", "nothing in this scenario can be swept: the graph-theory study's "
-                                                     "force path ([studies.graph_theory_2021]) or the joint-torque "
-                                                     "estimators ([estimators]) can")
+                                                     "force path ([studies.graph_theory_2021]), the joint-torque "
+                                                     "estimators ([estimators]) or an identification method "
+                                                     "([identification]) can")
     if not 2 <= args.trials <= MAX_TRIALS:
         raise InputError(args.scenario, "--trials", f"needs 2 to {MAX_TRIALS:,} trials, got {args.trials}")
     if not 1 <= args.jobs <= max_jobs():
@@ -348,7 +349,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     workers = Workers(args.jobs, args.dask)
     try:  # the workers cannot be reached or started: the address, or dask not installed
         if study is None:
-            return _sweep_estimators(scenario, args, out, workers)
+            return _sweep_identification(scenario, args, out, workers)
         sweep = study.sweep(scenario, args.trials, workers, Bar(f"{scenario.name} sweep ({workers.describe()})"))
     except WorkersError as exc:
         raise InputError(args.scenario, "--dask", str(exc)) from None
@@ -363,37 +364,68 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _sweep_estimators(scenario, args: argparse.Namespace, out: Path, workers) -> int:
-    """The joint-torque estimators side by side over --trials measurements (harness/stages/estimators.py),
-    on `workers`: sweep.json holds the stage's results, sweep.html its report section."""
+def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers) -> int:
+    """The joint-torque estimators side by side (harness/stages/estimators.py) and every
+    identification method the scenario plugs in (harness/stages/identification.py, sweep_methods)
+    over --trials measurements, on `workers`: sweep.json holds their results, sweep.html their
+    report sections."""
     import dataclasses
     import html
     import time
 
+    import numpy as np
+
     from harness.api import run
     from harness.report import STYLE
-    from harness.report.sections import estimator_comparison
+    from harness.report.sections import estimator_comparison, method_sweep
+    from harness.results import with_nulls
 
-    swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
     t0 = time.perf_counter()
-    estimators = run(swept, progress=_Progress(scenario.name, False), workers=workers).results["estimators"]
-    results = {"estimators": estimators,
-               "run": {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)}}
-    page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(scenario.name)}: '
-            f"estimators over {args.trials} trials</title><style>{STYLE}</style></head><body>"
-            f"<h1>{html.escape(scenario.name)}: estimators over {args.trials} trials</h1>"
-            f"{estimator_comparison(results)}</body></html>")
+    progress = _Progress(scenario.name, False)
+    results: dict = {}
+    if scenario.estimators is not None:
+        swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
+        results["estimators"] = run(swept, progress=progress, workers=workers).results["estimators"]
+    if scenario.methods:
+        from harness.bench import record
+        from harness.stages import Context
+        from harness.stages.identification import sweep_methods
+
+        progress("simulating in MuJoCo", None)
+        recording = record(scenario)
+        ctx = Context(scenario, recording, recording, progress, workers=workers)
+        with np.errstate(invalid="ignore", divide="ignore"):  # a parameter the trials never move: 0/0, null
+            results["identification_methods"] = sweep_methods(ctx, args.trials)
+    results["run"] = {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)}
+    results, results["run"]["not_finite"] = with_nulls(results)
+    title = f"{html.escape(scenario.name)}: identification over {args.trials} trials"
+    page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{title}</title><style>{STYLE}'
+            f"</style></head><body><h1>{title}</h1>"
+            + (estimator_comparison(results) if "estimators" in results else "")
+            + (method_sweep(results) if "identification_methods" in results else "") + "</body></html>")
     try:
-        _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(results, indent=1) + "\n"),
+        _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(results, indent=1,
+                                                                                allow_nan=False) + "\n"),
                                 "sweep.html": lambda p: p.write_text(page)})
     except OSError as exc:
         raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
-    e = results["estimators"]
-    for name, m in e["methods"].items():
+    e = results.get("estimators")
+    for name, m in (e["methods"] if e else {}).items():
         print(f"{scenario.name}: {name}: coverage of the 95 % intervals {m['coverage_min']:.3f} to "
               f"{m['coverage_max']:.3f} over the base parameters, {m['coverage_outside_band']} outside "
               f"{e['coverage_band'][0]:.3f} to {e['coverage_band'][1]:.3f}; largest |bias| "
               f"{m['max_bias_in_sd']:.2f} sd")
+    for name, m in results.get("identification_methods", {}).items():
+        b = m["base_parameters"]
+        if b is None:
+            print(f"{scenario.name}: {name}: no parameters; validation error {m['validation_rel_error_mean']:.3g} "
+                  "on average")
+            continue
+        coverage = ("no intervals (no covariance)" if b["coverage_min"] is None else
+                    f"coverage of the 95 % intervals {b['coverage_min']:.3f} to {b['coverage_max']:.3f}, "
+                    f"{b['coverage_outside_band']} outside {b['coverage_band'][0]:.3f} to {b['coverage_band'][1]:.3f}")
+        print(f"{scenario.name}: {name}: largest |bias| {b['max_bias_in_sd']:.2f} sd ({b['significant_biases']} of "
+              f"{b['count']} beyond 3 standard errors); {coverage}")
     print(f"  report: {out / 'sweep.html'}")
     return EXIT_OK
 

@@ -76,6 +76,9 @@ class PluginError(Exception):
         super().__init__(f"{plugin}: {message}")
         self.plugin, self.message = plugin, message
 
+    def __reduce__(self):  # from a worker process, with both fields
+        return type(self), (self.plugin, self.message)
+
 
 def _exception(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}".strip().splitlines()[0]

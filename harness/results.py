@@ -168,10 +168,14 @@ def build_results(out: RunOutput, when: str | None = None) -> dict:
             results[key] = s.stage.serialise(s.result, out.context, s.config)
     if out.excitation is not None:
         results["excitation"] = out.excitation
-    not_finite: list[str] = []
-    results = _finite(results, "", not_finite)
-    results["run"]["not_finite"] = not_finite
+    results, results["run"]["not_finite"] = with_nulls(results)
     return results
+
+
+def with_nulls(tree: dict) -> tuple[dict, list[str]]:
+    """The tree with every NaN or infinite number replaced by null, and the paths where it was."""
+    found: list[str] = []
+    return _finite(tree, "", found), found
 
 
 def _finite(node, path: str, found: list[str]):

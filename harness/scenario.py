@@ -89,6 +89,16 @@ class PluginEntry:
     robot: RobotSpec  # the description it was built from
     instance: Any  # what the factory returned (checked against the protocol)
     validation: Scenario | None = None  # identification methods: the trajectory they are judged on
+    build: tuple | None = None  # how to build it again elsewhere (a Dask worker): (key, ref, folder, group, gravity_W,
+    # parameters); None for an object handed to the API
+
+    def rebuilt(self) -> Any:
+        """The plugin built again from what the scenario names (in another process), else the instance."""
+        if self.build is None:
+            return self.instance
+        key, ref, folder, group, gravity_W, parameters = self.build
+        factory = load_reference(ref, folder) if key == "python" else load_entry_point(ref, group)
+        return call_factory(ref, factory, self.robot, gravity_W=gravity_W.copy(), parameters=parameters)
 
 
 @dataclass(frozen=True, eq=False)
@@ -472,7 +482,8 @@ def _read_plugin(t: Table, path: Path, scenario: Scenario, group: str, protocol:
     except PluginError as exc:
         raise t.error(key, f"plugin {exc}") from None
     t.finish()
-    return PluginEntry(name, ref, robot, instance, validation)
+    return PluginEntry(name, ref, robot, instance, validation,
+                       (key, ref, path.parent, group, scenario.gravity_W.copy(), parameters))
 
 
 def _read_simulation(t: Table) -> Simulation:

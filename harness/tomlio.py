@@ -29,6 +29,9 @@ class InputError(Exception):
         self.message = message
         super().__init__(self.one_line())
 
+    def __reduce__(self):  # from a worker process, with its three fields
+        return type(self), (self.file, self.key, self.message)
+
     def one_line(self) -> str:
         where = f"{self.file}: {self.key}" if self.key else self.file
         return f"{where}: {self.message}"

@@ -274,3 +274,46 @@ def test_a_methods_parameters_come_back_as_a_base_parameter_table_with_intervals
     assert all(p["expression"].startswith(("shoulder.", "elbow.")) for p in table["base"])
     assert all(abs(p["identified"] - p["true"]) <= 1e-9 * max(abs(p["true"]), 1.0) for p in table["base"])
     assert all(p["std"] is not None and p["ci95"][0] <= p["identified"] <= p["ci95"][1] for p in table["base"])
+
+
+NOISY = "\n[measurement]\nseed = 3\n[measurement.noise.joint_torques]\nrelative = 0.01\n"
+
+
+def _sweep_json(folder: Path) -> dict:
+    out = json.loads((folder / "sweep.json").read_text())
+    out.pop("run")
+    return out
+
+
+def test_sweep_monte_carlos_a_users_method_the_same_wherever_the_trials_run(tmp_path, capsys):
+    """The example method (least squares, 1 % torque noise, 100 trials): unbiased (every |bias| within 3
+    standard errors of the mean over the trials, as least squares on a regressor of noise-free states
+    must be), with intervals from its covariance; forked processes give the same file."""
+    assert main(["init", str(tmp_path / "p")]) == 0
+    path = tmp_path / "p" / "scenario.toml"
+    path.write_text(path.read_text() + NOISY)
+    assert main(["sweep", str(path), "--trials", "100", "--out", str(tmp_path / "one")]) == 0
+    assert main(["sweep", str(path), "--trials", "100", "--out", str(tmp_path / "two"), "--jobs", "2"]) == 0
+    one = _sweep_json(tmp_path / "one")
+    assert one == _sweep_json(tmp_path / "two")
+    b = one["identification_methods"]["ls"]["base_parameters"]
+    assert b["count"] == 6 and b["significant_biases"] == 0 and len(b["base"]) == 6
+    assert 0.0 < b["coverage_min"] <= b["coverage_max"] <= 1.0
+    assert "ls" in capsys.readouterr().out and "Identification methods under measurement noise" in (
+        tmp_path / "one" / "sweep.html").read_text()
+
+
+def test_a_method_that_exits_in_a_worker_process_is_bad_input(tmp_path, capsys):
+    assert main(["init", str(tmp_path / "p")]) == 0
+    folder = tmp_path / "p"
+    (folder / "my_robot.py").write_text((folder / "my_robot.py").read_text().replace(
+        "        W, y = self.regressor(q, qd, qdd), tau.reshape(-1)",
+        "        if tau[0, 0] != tau[0, 0] + 0.0 or tau[3, 1] > 0 or tau[3, 1] <= 0:\n"
+        "            raise SystemExit(0)\n"
+        "        W, y = self.regressor(q, qd, qdd), tau.reshape(-1)"))
+    (folder / "scenario.toml").write_text((folder / "scenario.toml").read_text() + NOISY)
+    capsys.readouterr()
+    assert main(["sweep", str(folder / "scenario.toml"), "--trials", "8", "--jobs", "2", "--out",
+                 str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "my_robot:make_method" in err and "SystemExit" in err and not (tmp_path / "o").exists()

@@ -431,6 +431,34 @@ def identification_methods(r: dict) -> str:
     )
 
 
+def method_sweep(r: dict) -> str:
+    """`harness sweep` of the identification methods (harness/stages/identification.py, sweep_methods)."""
+    parts = []
+    for name, m in r["identification_methods"].items():
+        b = m["base_parameters"]
+        head = (f"<h3>{esc(name)} (<code>{esc(m['plugin'])}</code>), {m['trials']} trials</h3>"
+                + (f"<p>Validation: largest relative torque error {num(m['validation_rel_error_mean'])} on average, "
+                   f"{num(m['validation_rel_error_max'])} at most.</p>" if m["validation_rel_error_mean"] is not None
+                   else ""))
+        if b is None:
+            parts.append(head + "<p>The fitted model reports no parameters.</p>")
+            continue
+        cov = ("no intervals: the method gives no covariance" if b["coverage_min"] is None else
+               f"coverage of the 95 % intervals {num(b['coverage_min'])} to {num(b['coverage_max'])} (median "
+               f"{num(b['coverage_median'])}), {b['coverage_outside_band']} of {b['count']} outside "
+               f"{num(b['coverage_band'][0])} to {num(b['coverage_band'][1])}")
+        parts.append(head + f"<p>{esc(b['definition'])}. Largest |bias| {num(b['max_bias_in_sd'])} sd (median "
+                     f"{num(b['median_bias_in_sd'])}), {b['significant_biases']} of {b['count']} beyond 3 standard "
+                     f"errors; {cov}.</p>"
+                     + table(["base parameter", "true", "bias", "spread", "|bias| / sd", "RMS rel error",
+                              "coverage"],
+                             [[esc(p["expression"]), num(p["true"]), num(p["bias"]), num(p["spread"]),
+                               num(p["bias_in_sd"]) + (" (beyond 3 s.e.)" if p["significant"] else ""),
+                               num(p["rms_rel_error"]), num(p["coverage"]) if p["coverage"] is not None else "&ndash;"]
+                              for p in b["base"]], "wrap"))
+    return section("identification_methods", "Identification methods under measurement noise", "".join(parts))
+
+
 def how(r: dict) -> str:
     run = r["run"]
     timings = run.get("timings") or {}

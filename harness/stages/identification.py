@@ -10,6 +10,7 @@ validation trajectory it never saw, against the recorded ones, relative to each 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -98,34 +99,51 @@ class MethodResult:
     validation_joints: list[str]
 
 
-def base_table(ctx, plugin: str, fitted, joints: list[str]) -> BaseTable | None:
+@dataclass(frozen=True, eq=False)
+class BaseMap:
+    """The robot's structural base parameters as a map from a method's parameters: beta = T theta."""
+
+    expressions: list[str]  # each base parameter as the combination of standard parameters it stands for
+    T: np.ndarray  # (r, 10 n)
+    true: np.ndarray  # (r,) the robot's own
+
+
+def base_map(ctx) -> BaseMap:
+    sc = ctx.scenario
+
+    def make() -> BaseMap:
+        pm = build_model(sc.robot, sc.gravity_W)
+        base = ctx.once(("structural base parameters", False), lambda: structural_base(pm, sc.robot.limits))
+        r, n = len(base.independent), len(sc.robot.joint_names)
+        T = np.zeros((r, 10 * n))
+        T[np.arange(r), base.independent] = 1.0
+        T[:, base.dependent] = base.combination
+        names = parameter_names(sc.robot.joint_names)
+        return BaseMap([describe_base(names, base, k) for k in range(r)], T, base.of(true_parameters(pm)))
+
+    return ctx.once("base parameters of the methods", make)
+
+
+def base_table(plugin: str, fitted, joints: list[str], bm: BaseMap) -> BaseTable | None:
     """The fitted model's `parameters` ((n, 10), its joint order) and, when given, `covariance`
     ((10 n, 10 n), of those parameters flattened row by row) as the robot's structural base
     parameters beta = T theta, with covariance T Sigma T^T. None: it reports no parameters."""
-    sc = ctx.scenario
     with guard(plugin, "reading the fitted model's parameters"):
         theta, cov = getattr(fitted, "parameters", None), getattr(fitted, "covariance", None)
     if theta is None:
         return None
-    pm = build_model(sc.robot, sc.gravity_W)
-    base = ctx.once(("structural base parameters", False), lambda: structural_base(pm, sc.robot.limits))
     n = len(joints)
     _, fit_to_robot = column_maps(fitted.joint_names, joints)
     order = (np.asarray(fit_to_robot)[:, None] * 10 + np.arange(10)).reshape(-1)  # theta's entries, robot order
     theta = check_array(plugin, "parameters", theta, (n, 10)).reshape(-1)[order]
-    T = np.zeros((len(base.independent), 10 * n))
-    T[np.arange(len(base.independent)), base.independent] = 1.0
-    T[:, base.dependent] = base.combination
     std = None
     if cov is not None:
         cov = check_array(plugin, "covariance", cov, (10 * n, 10 * n))[np.ix_(order, order)]
-        var = np.einsum("ij,jk,ik->i", T, cov, T)
+        var = np.einsum("ij,jk,ik->i", bm.T, cov, bm.T)
         if np.any(var < -1e-12 * np.max(np.abs(var), initial=0.0)):
             raise PluginError(plugin, "covariance is not positive semidefinite on the base parameters")
         std = np.sqrt(np.maximum(var, 0.0))
-    names = parameter_names(joints)
-    return BaseTable([describe_base(names, base, k) for k in range(len(base.independent))],
-                     base.of(true_parameters(pm)), T @ theta, std)
+    return BaseTable(bm.expressions, bm.true, bm.T @ theta, std)
 
 
 def fit_method(plugin: str, method, joints: list[str], q, qd, qdd, tau):
@@ -142,7 +160,7 @@ def _judge(ctx, entry) -> MethodResult:
     sc, plugin = ctx.scenario, entry.reference
     joints = sc.robot.joint_names
     fitted = fit_method(plugin, entry.instance, joints, *joint_data(ctx.measured, joints))
-    table = base_table(ctx, plugin, fitted, joints)
+    table = base_table(plugin, fitted, joints, base_map(ctx))
     validation = entry.validation or sc.torque_validation
     val_err = val_t = None
     if validation is not None:
@@ -223,3 +241,112 @@ TORQUE_STAGE = Stage("torque_identification", "joint-torque identification (base
                      serialise_builtin, "Torque identification", _render_builtin)
 METHODS_STAGE = Stage("identification_methods", "identification methods under test", run_methods,
                       serialise_methods, "Identification methods", _render_methods)
+
+
+# --- a method under measurement noise: `harness sweep` ---------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class _MethodBench:
+    """What every trial of one method shares, sent once to each worker: the truth, its measurement,
+    the method (rebuilt on the worker from what the scenario names) and the validation data."""
+
+    entry: Any  # harness.scenario.PluginEntry, without its instance where it can be built again
+    rec: Any  # the ideal recording
+    m: Any  # the scenario's measurement
+    arms: np.ndarray
+    joints: list[str]
+    bm: BaseMap
+    validation: tuple | None  # (q, q', q'', tau, L_J) of the validation trajectory
+
+
+def _method_setup(bench: _MethodBench) -> tuple:
+    """Once per worker: the method built from what the scenario names (its module imported there: on
+    a remote worker it must be importable at the same path, or installed), or the object handed to
+    the API (forked workers inherit it; Dask workers receive it pickled)."""
+    return bench, bench.entry.rebuilt()
+
+
+def _method_trial(state: tuple, k: int) -> tuple:
+    """Trial k: the measurement drawn from seed + k, the method's fit, its base parameters (and
+    standard deviations) and its largest validation error."""
+    from harness.measurement import measure
+
+    b, method = state
+    plugin = b.entry.reference
+    meas = measure(b.rec, b.m.with_seed(b.m.seed + k), b.arms)
+    fitted = fit_method(plugin, method, b.joints, *joint_data(meas, b.joints))
+    table = base_table(plugin, fitted, b.joints, b.bm)
+    val = None
+    if b.validation is not None:
+        qv, qdv, qddv, tauv, load = b.validation
+        f_in, f_out = column_maps(fitted.joint_names, b.joints)
+        pred = call(plugin, "inverse_dynamics of the fitted model", fitted.inverse_dynamics, qv[:, f_in],
+                    qdv[:, f_in], qddv[:, f_in], shape=tauv.shape)[:, f_out]
+        val = float(np.max(np.abs(pred - tauv) / load))
+    if table is None:
+        return None, None, val
+    return table.identified, table.std, val
+
+
+def sweep_methods(ctx, trials: int) -> dict:
+    """Every identification method of the scenario over `trials` measurements of its recording
+    (noise from seeds seed, seed + 1, ...), on `ctx.workers`: per base parameter its bias, spread,
+    RMS error and, where the method gives a covariance, the coverage of its 95 % intervals."""
+    import dataclasses
+
+    from harness.stages.estimators import over_trials
+
+    sc = ctx.scenario
+    joints = sc.robot.joint_names
+    bm = base_map(ctx)
+    out = {}
+    for entry in sc.methods:
+        validation = entry.validation or sc.torque_validation
+        val = None
+        if validation is not None:
+            vrec = validation_recording(ctx, validation)
+            val = (*joint_data(vrec, joints), joint_load_scale(sc.robot, vrec))
+        shipped = entry if entry.build is None else dataclasses.replace(entry, instance=None, validation=None)
+        bench = _MethodBench(shipped, ctx.recording, sc.measurement, sc.robot.inner_joint_arms_B(), joints, bm, val)
+        label = f"identification method {entry.name}"
+        ctx.progress(label, 0.0)
+        rows = ctx.workers.map(_method_setup, (bench,), _method_trial, range(trials),
+                               lambda done, total, label=label: ctx.progress(label, done / total))
+        out[entry.name] = _method_statistics(entry, rows, bm, over_trials)
+    return out
+
+
+def _method_statistics(entry, rows: list[tuple], bm: BaseMap, over_trials) -> dict:
+    vals = [r[2] for r in rows if r[2] is not None]
+    summary: dict = {"plugin": entry.reference, "trials": len(rows),
+                     "validation_rel_error_mean": float(np.mean(vals)) if vals else None,
+                     "validation_rel_error_max": float(np.max(vals)) if vals else None,
+                     "base_parameters": None}
+    if rows and rows[0][0] is not None:
+        beta = np.stack([r[0] for r in rows])  # (trials, r)
+        with_std = all(r[1] is not None for r in rows)
+        half = CI95 * np.stack([r[1] for r in rows]) if with_std else None
+        s = over_trials(beta - bm.true, half, beta_scale(bm.true))
+        lo, hi = s.band
+        summary["base_parameters"] = {
+            "definition": "per base parameter over the trials: bias = mean error, bias_in_sd = |bias| / the error's "
+                          "standard deviation over the trials, significant where |bias| > 3 standard errors of the "
+                          "mean; rms_rel_error = RMS error / max(|true|, 1e-6 x largest); coverage of the method's "
+                          "95 % intervals (identified +- 1.96 std) where it gives a covariance",
+            "count": len(bm.true),
+            "max_bias_in_sd": float(np.max(s.bias_in_sd)), "median_bias_in_sd": float(np.median(s.bias_in_sd)),
+            "significant_biases": int(s.significant.sum()),
+            "median_rms_rel_error": float(np.median(s.rms_rel_error)),
+            "max_rms_rel_error": float(np.max(s.rms_rel_error)),
+            "coverage_band": [float(lo), float(hi)],
+            "coverage_min": float(s.coverage.min()) if with_std else None,
+            "coverage_median": float(np.median(s.coverage)) if with_std else None,
+            "coverage_max": float(s.coverage.max()) if with_std else None,
+            "coverage_outside_band": int(np.sum((s.coverage < lo) | (s.coverage > hi))) if with_std else None,
+            "base": [{"expression": bm.expressions[k], "true": float(bm.true[k]), "bias": float(s.bias[k]),
+                      "spread": float(s.spread[k]), "bias_in_sd": float(s.bias_in_sd[k]),
+                      "significant": bool(s.significant[k]), "rms_rel_error": float(s.rms_rel_error[k]),
+                      "coverage": float(s.coverage[k]) if with_std else None} for k in range(len(bm.true))],
+        }
+    return summary
