@@ -631,9 +631,10 @@ def entry() -> None:
             os.write(write_end, bytes([status]))
             os._exit(status)
     os.close(write_end)
-    # Ctrl-C reaches the child from the terminal and it answers 130; SIGTERM is passed on
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, lambda signum, frame: os.kill(pid, signal.SIGTERM))
+    # Ctrl-C and SIGTERM are passed on to the child, which unwinds and answers 130 (a second one,
+    # from the terminal to the whole process group, finds it already unwinding)
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, lambda signum, frame: os.kill(pid, signum))
     _, wait_status = os.waitpid(pid, 0)
     os.set_blocking(read_end, False)  # processes the child started may hold the pipe open: read what is there
     try:

@@ -91,6 +91,8 @@ _USER_INTERRUPT = threading.Event()
 
 
 def _interrupt(signum, frame):
+    if _USER_INTERRUPT.is_set():  # the same interrupt again (the terminal's and a forwarded one): already unwinding
+        return
     _USER_INTERRUPT.set()
     raise KeyboardInterrupt
 

@@ -317,3 +317,34 @@ def test_a_method_that_exits_in_a_worker_process_is_bad_input(tmp_path, capsys):
                  str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "my_robot:make_method" in err and "SystemExit" in err and not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow  # the run must last long enough to be interrupted
+def test_ctrl_c_is_130_and_leaves_nothing_behind(tmp_path):
+    import signal
+    import time
+
+    proc = subprocess.Popen([str(HARNESS), "run", "kr500_rail_forward", "--out", str(tmp_path / "o"), "--quiet",
+                             "--junit-xml", str(tmp_path / "j.xml")], stderr=subprocess.PIPE, text=True)
+    time.sleep(8)
+    proc.send_signal(signal.SIGINT)  # to the harness process alone: it passes it on
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "interrupted" in err
+    assert list(tmp_path.iterdir()) == []  # no output folder, no temporary one
+
+
+def test_the_readme_is_a_short_front_door_under_the_distributions_own_name():
+    """The README stays under 300 lines, names the distribution of pyproject.toml (not `harness`,
+    which an unrelated project holds on the package index), and every page it links exists."""
+    import re
+    import tomllib
+
+    root = DATA.parents[1]
+    readme = (root / "README.md").read_text()
+    name = tomllib.loads((root / "pyproject.toml").read_text())["project"]["name"]
+    assert readme.count("\n") < 300 and name != "harness" and name == harness.DISTRIBUTION
+    assert f"pip install {name}" in readme
+    links = re.findall(r"\]\(([^)#]+)\)", readme)
+    assert links and all((root / link).is_file() for link in links)
+    first = [line for line in readme.splitlines() if line.startswith("## ")][:2]
+    assert first == ["## Set-up on a fresh machine (Python 3.11+)", "## Your own robot in five minutes"]
