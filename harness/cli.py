@@ -36,14 +36,18 @@ REPORT_FILE = "report.html"
 
 DESCRIPTION = """\
 Validate robot dynamic models and identification methods against reference engines. MuJoCo
-simulates the robot along a scenario's motion and records joint torques, forces, accelerations and
-Cardano angles; Pinocchio's RNEA is the second opinion. Every model under test (a plugin: Python
-code, or a parameter file through a model plugin) is compared with both, every identification
-method is judged on the same measured data, and each study the scenario asks for (the seed papers'
-are two) adds its stages. Each scenario declares accuracy gates.
+simulates the robot along a scenario's motion and records joint torques, forces and
+accelerations; Pinocchio's RNEA is the second opinion. Every model under test (a plugin: Python
+code, or a parameter file through a model plugin) is compared with both, along the motion and at
+random states; every identification method is judged on the same measured data; each study the
+scenario asks for (the seed papers' are two) adds its stages. Each scenario declares accuracy
+gates, and every plugin must be judged by one. Start a project of your own with `harness init DIR`.
 
-exit status: 0 every gate passed, 1 a gate failed, 2 bad input (a one-line message names the file
-and the key, or the plugin), 3 an internal error (one line; the traceback with --debug)."""
+exit status, chosen by the harness alone whatever a plugin does: 0 every gate passed, 1 a gate
+failed, 2 bad input (a one-line message names the file and the key, or the plugin: one that cannot
+be imported, breaks its protocol or raises anything, SystemExit included), 3 an internal error (one
+line; --debug adds the traceback), 130 interrupted. --junit-xml and --summary are written in every
+case."""
 
 
 def _resolve_scenario(arg: str) -> Path:
@@ -94,8 +98,9 @@ def _parser() -> argparse.ArgumentParser:
                     "processes or --dask), identify the parameters each time, and write "
                     "the distribution of each parameter's error, how often its 95 % interval contains the true value, "
                     "and the error at scaled noise levels: DIR/sweep.json and DIR/sweep.html. The graph-theory "
-                    "study's force path is swept where the scenario has it; otherwise a scenario with [estimators] "
-                    "runs its joint-torque estimators side by side over the N trials (bias, coverage, RMS error).")
+                    "study's force path is swept where the scenario has it; otherwise the scenario's joint-torque "
+                    "estimators ([estimators]) and identification methods ([identification]) are fitted to the N "
+                    "trials (bias, spread, RMS error, and the coverage of their intervals where they give them).")
     sweep.add_argument("scenario", metavar="SCENARIO", help="scenario file or name (e.g. kr500_noise)")
     sweep.add_argument("--trials", type=int, default=200, metavar="N", help="number of trials (default 200)")
     sweep.add_argument("--jobs", type=int, default=1, metavar="K", help="forked worker processes (default 1)")
@@ -211,7 +216,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     passed, verdicts = True, []
     for scenario in scenarios:
         if args.out is None:
-            out = Path("reports") / scenario.name
+            out = args.reports / scenario.name
         else:
             out = args.out if len(scenarios) == 1 else args.out / scenario.name
         progress = _Progress(scenario.name, args.quiet)
@@ -345,7 +350,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise InputError(args.scenario, "--dask", "needs a scheduler address (or none, for a local cluster)")
     if scenario.measurement.ideal:
         raise InputError(scenario.source, "measurement", "the scenario measures ideally: there is nothing to sweep")
-    out = args.out or Path("reports") / scenario.name
+    out = args.out or args.reports / scenario.name
     workers = Workers(args.jobs, args.dask)
     try:  # the workers cannot be reached or started: the address, or dask not installed
         if study is None:
@@ -570,6 +575,10 @@ def main(argv: list[str] | None = None) -> int:
     from harness.plugins import PluginError, interrupted_by_user, user_interrupts
 
     args = _parser().parse_args(argv)
+    for attr in ("out", "junit_xml", "summary"):  # where to write, fixed now: plugin code may change directory
+        if getattr(args, attr, None) is not None:
+            setattr(args, attr, Path(os.path.abspath(getattr(args, attr))))
+    args.reports = Path(os.path.abspath("reports"))  # the default output folder's parent
     stdout, sys.stdout = sys.stdout, _Stdout(sys.stdout)
     status, kind, message = EXIT_INTERNAL, "internal error", ""
     try:

@@ -348,3 +348,11 @@ def test_the_readme_is_a_short_front_door_under_the_distributions_own_name():
     assert links and all((root / link).is_file() for link in links)
     first = [line for line in readme.splitlines() if line.startswith("## ")][:2]
     assert first == ["## Set-up on a fresh machine (Python 3.11+)", "## Your own robot in five minutes"]
+
+
+def test_a_plugin_that_changes_directory_does_not_move_the_output(tmp_path, monkeypatch):
+    path = _project(tmp_path, EXACT + "import os\nos.chdir('/')\n"
+                                      "def make(robot, gravity_W, parameters): return TwoLinkArm(gravity_W)\n")
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(path), "--out", "out", "--quiet", "--junit-xml", "j.xml"]) == 0
+    assert (tmp_path / "out" / "results.json").is_file() and (tmp_path / "j.xml").is_file()

@@ -62,6 +62,7 @@ def _so100(tmp_path, exact_axis: bool):
     joints = ["shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper"]
     for name, f0, validation in (("s", 1.1, '[torque_identification]\nvalidation = "v.toml"\n'
                                   '[model_under_test]\nname = "graph"\nplugin = "graph_theory_2021"\n'
+                                  '[[gates]]\nmetric = "torques.graph_vs_pinocchio.max_rel_error"\nlimit = 1e-9\n'
                                   '[studies.graph_theory_2021]\n'), ("v", 0.9, "")):
         motion = "".join(f'[motion.{j}]\ntype = "sinusoids"\nsin = [[0.4, {f0 + 0.3 * k}]]\n'
                          f'cos = [[0.2, {2.3 + 0.4 * k}]]\n' for k, j in enumerate(joints))
