@@ -81,6 +81,23 @@ MAX_RANDOM_STATES = 100_000
 
 
 @dataclass(frozen=True, eq=False)
+class Recipe:
+    """How a scenario names a plugin, enough to build it again in another process (a Dask worker)."""
+
+    key: str  # "python" (module:attribute, looked for in `folder` first) or "plugin" (an entry point of `group`)
+    ref: str
+    folder: Path
+    group: str
+    gravity_W: np.ndarray
+    parameters: dict
+
+    def build(self, robot: RobotSpec) -> Any:
+        factory = load_reference(self.ref, self.folder) if self.key == "python" else \
+            load_entry_point(self.ref, self.group)
+        return call_factory(self.ref, factory, robot, gravity_W=self.gravity_W.copy(), parameters=self.parameters)
+
+
+@dataclass(frozen=True, eq=False)
 class PluginEntry:
     """A model under test or an identification method, as the scenario names it, built."""
 
@@ -89,16 +106,11 @@ class PluginEntry:
     robot: RobotSpec  # the description it was built from
     instance: Any  # what the factory returned (checked against the protocol)
     validation: Scenario | None = None  # identification methods: the trajectory they are judged on
-    build: tuple | None = None  # how to build it again elsewhere (a Dask worker): (key, ref, folder, group, gravity_W,
-    # parameters); None for an object handed to the API
+    recipe: Recipe | None = None  # how to build it again elsewhere; None for an object handed to the API
 
     def rebuilt(self) -> Any:
         """The plugin built again from what the scenario names (in another process), else the instance."""
-        if self.build is None:
-            return self.instance
-        key, ref, folder, group, gravity_W, parameters = self.build
-        factory = load_reference(ref, folder) if key == "python" else load_entry_point(ref, group)
-        return call_factory(ref, factory, self.robot, gravity_W=gravity_W.copy(), parameters=parameters)
+        return self.instance if self.recipe is None else self.recipe.build(self.robot)
 
 
 @dataclass(frozen=True, eq=False)
@@ -475,15 +487,14 @@ def _read_plugin(t: Table, path: Path, scenario: Scenario, group: str, protocol:
     if validation is not None and validation.robot.joint_names != scenario.robot.joint_names:
         raise t.error("validation", "simulates another robot")
     parameters = t.remaining(exclude=("python", "plugin"))
+    recipe = Recipe(key, ref, path.parent, group, scenario.gravity_W.copy(), parameters)
     try:
-        factory = load_reference(ref, path.parent) if key == "python" else load_entry_point(ref, group)
-        instance = call_factory(ref, factory, robot, gravity_W=scenario.gravity_W.copy(), parameters=parameters)
+        instance = recipe.build(robot)
         check_protocol(ref, instance, protocol, robot.joint_names)
     except PluginError as exc:
         raise t.error(key, f"plugin {exc}") from None
     t.finish()
-    return PluginEntry(name, ref, robot, instance, validation,
-                       (key, ref, path.parent, group, scenario.gravity_W.copy(), parameters))
+    return PluginEntry(name, ref, robot, instance, validation, recipe)
 
 
 def _read_simulation(t: Table) -> Simulation:

@@ -356,3 +356,14 @@ def test_a_plugin_that_changes_directory_does_not_move_the_output(tmp_path, monk
     monkeypatch.chdir(tmp_path)
     assert main(["run", str(path), "--out", "out", "--quiet", "--junit-xml", "j.xml"]) == 0
     assert (tmp_path / "out" / "results.json").is_file() and (tmp_path / "j.xml").is_file()
+
+
+@pytest.mark.slow  # starts a local Dask cluster
+def test_a_users_method_swept_on_dask_gives_the_same_file(tmp_path):
+    """On Dask the method is built again on each worker from the scenario (its module by path)."""
+    assert main(["init", str(tmp_path / "p")]) == 0
+    path = tmp_path / "p" / "scenario.toml"
+    path.write_text(path.read_text() + NOISY)
+    assert main(["sweep", str(path), "--trials", "24", "--out", str(tmp_path / "here")]) == 0
+    assert main(["sweep", str(path), "--trials", "24", "--out", str(tmp_path / "dask"), "--dask"]) == 0
+    assert _sweep_json(tmp_path / "here") == _sweep_json(tmp_path / "dask")

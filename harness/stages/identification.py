@@ -307,7 +307,7 @@ def sweep_methods(ctx, trials: int) -> dict:
         if validation is not None:
             vrec = validation_recording(ctx, validation)
             val = (*joint_data(vrec, joints), joint_load_scale(sc.robot, vrec))
-        shipped = entry if entry.build is None else dataclasses.replace(entry, instance=None, validation=None)
+        shipped = entry if entry.recipe is None else dataclasses.replace(entry, instance=None, validation=None)
         bench = _MethodBench(shipped, ctx.recording, sc.measurement, sc.robot.inner_joint_arms_B(), joints, bm, val)
         label = f"identification method {entry.name}"
         ctx.progress(label, 0.0)
