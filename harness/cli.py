@@ -126,8 +126,12 @@ def _parser() -> argparse.ArgumentParser:
                     "file), a plugin module with a model under test and an identification method to make yours, a "
                     "scenario with gates and a validation trajectory, a pytest file using the harness_run fixture, "
                     "and a CI job that uploads the JUnit file. Out of the box `harness run scenario.toml` and "
-                    "`python -m pytest` pass in DIR.")
+                    "`python -m pytest` pass in DIR; with --urdf, for your robot.")
     init.add_argument("dir", metavar="DIR", type=Path)
+    init.add_argument("--urdf", metavar="FILE", type=Path, default=None,
+                      help="your robot's URDF: copied in, every joint given a motion within its limits, and a "
+                           "placeholder model (Pinocchio on the URDF) to replace with yours (default: a two-link arm "
+                           "with a closed-form model)")
     return parser
 
 
@@ -485,15 +489,12 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def cmd_init(args: argparse.Namespace) -> int:
-    from harness import DISTRIBUTION
-    from harness.builtin import DATA
+    from harness.init import project
 
     out: Path = args.dir
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise InputError(out, "DIR", "exists and is not an empty folder: init writes a new project")
-    template = DATA / "init"
-    files = {f.name: f.read_text().replace("HARNESS_DISTRIBUTION", DISTRIBUTION)
-             for f in sorted(template.iterdir()) if f.is_file()}
+    files = project(args.urdf)
     try:
         _write_atomically(out, {name: (lambda p, text=text: p.write_text(text)) for name, text in files.items()})
     except OSError as exc:

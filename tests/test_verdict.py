@@ -20,9 +20,18 @@ import harness
 from harness.builtin import DATA
 from harness.cli import main
 from harness.gates import summary_line
+from harness.init import project
 
-INIT = DATA / "init"
 HARNESS = Path(sys.executable).parent / "harness"  # the console script, as CI runs it
+
+
+@pytest.fixture(scope="module")
+def example(tmp_path_factory) -> Path:
+    """The project `harness init` writes, in a folder of its own (read, never changed, by the tests)."""
+    folder = tmp_path_factory.mktemp("example")
+    for name, text in project().items():
+        (folder / name).write_text(text)
+    return folder
 
 
 def _project(tmp_path: Path, plugin: str, extra: str = "") -> Path:
@@ -80,7 +89,7 @@ def test_a_plugin_that_ends_the_process_is_an_internal_error_and_the_junit_file_
     assert ET.parse(junit).getroot().find("./testsuite/testcase/error") is not None
 
 
-def test_an_internal_error_writes_an_error_case_too(tmp_path, capsys, monkeypatch):
+def test_an_internal_error_writes_an_error_case_too(example, tmp_path, capsys, monkeypatch):
     import harness.stages.torques
 
     def broken(*args, **kwargs):
@@ -88,7 +97,7 @@ def test_an_internal_error_writes_an_error_case_too(tmp_path, capsys, monkeypatc
 
     monkeypatch.setattr(harness.stages.torques, "joint_load_scale", broken)
     junit = tmp_path / "junit.xml"
-    assert main(["run", str(INIT / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet",
+    assert main(["run", str(example / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet",
                  "--junit-xml", str(junit)]) == 3
     error = ET.parse(junit).getroot().find("./testsuite/testcase/error")
     assert error.get("type") == "InternalError" and "ZeroDivisionError: a bug" in error.get("message")
@@ -108,7 +117,7 @@ def test_the_summary_line_counts_the_failing_gates_in_the_same_words_everywhere(
     assert line in (tmp_path / "out" / "report.html").read_text()
 
 
-def test_a_failing_gate_names_the_worst_joint_and_time_or_parameter(tmp_path, capsys):
+def test_a_failing_gate_names_the_worst_joint_and_time_or_parameter(example, tmp_path, capsys):
     path = _project(tmp_path, EXACT + "def make(robot, gravity_W, parameters): return TwoLinkArm(gravity_W, m2=1.26)\n")
     capsys.readouterr()
     assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 1
@@ -124,7 +133,7 @@ def test_a_failing_gate_names_the_worst_joint_and_time_or_parameter(tmp_path, ca
     (path.parent / "my_robot.py").write_text((path.parent / "my_robot.py").read_text().replace(
         'return LeastSquares(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W)',
         'return LeastSquares(Path(__file__).parent / "true.urdf", gravity_W)'))
-    (path.parent / "true.urdf").write_text((INIT / "robot.urdf").read_text())
+    (path.parent / "true.urdf").write_text((example / "robot.urdf").read_text())
     capsys.readouterr()
     main(["run", str(path), "--out", str(tmp_path / "out2"), "--quiet"])
     gate = next(r for r in json.loads((tmp_path / "out2" / "results.json").read_text())["gates"]
@@ -132,15 +141,15 @@ def test_a_failing_gate_names_the_worst_joint_and_time_or_parameter(tmp_path, ca
     assert gate["where"].startswith(("shoulder at t =", "elbow at t ="))
 
 
-def test_a_model_or_method_that_no_gate_judges_is_refused(tmp_path, capsys):
-    path = INIT / "scenario.toml"
+def test_a_model_or_method_that_no_gate_judges_is_refused(example, tmp_path, capsys):
+    path = example / "scenario.toml"
     text = path.read_text()
     for metric, kind in (("mine_", "mine"), ("identification_methods.ls.", "ls")):
         blocks = text.split("[[gates]]")
         kept = "[[gates]]".join(b for b in blocks if metric not in b)
-        (tmp_path / "robot.toml").write_text((INIT / "robot.toml").read_text())
+        (tmp_path / "robot.toml").write_text((example / "robot.toml").read_text())
         for f in ("robot.urdf", "my_robot.py", "validation.toml"):
-            (tmp_path / f).write_text((INIT / f).read_text())
+            (tmp_path / f).write_text((example / f).read_text())
         (tmp_path / "s.toml").write_text(kept)
         assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 2
         err = capsys.readouterr().err
@@ -176,19 +185,19 @@ def test_a_motion_beyond_the_limits_warns_and_is_gateable(tmp_path, capsys, capl
     assert limits["shoulder"]["position"] == pytest.approx(np.max(np.abs(-0.3 + 60 * np.sin(2.1 * t))) / 3.1, rel=1e-9)
 
 
-def test_the_built_in_scenario_passes_within_its_limits(tmp_path):
-    assert main(["run", str(INIT / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+def test_the_built_in_scenario_passes_within_its_limits(example, tmp_path):
+    assert main(["run", str(example / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
     motion = json.loads((tmp_path / "o" / "results.json").read_text())["motion"]
     assert motion["beyond"] == [] and max(motion["largest"].values()) <= 1.0
 
 
 @pytest.mark.skipif(not Path("/dev/zero").exists(), reason="no /dev/zero")
-def test_inputs_that_were_internal_errors_are_refused_in_one_line(tmp_path, capsys):
+def test_inputs_that_were_internal_errors_are_refused_in_one_line(example, tmp_path, capsys):
     assert main(["run", "/dev/zero"]) == 2
     assert "larger than 16 MiB" in capsys.readouterr().err
     blocker = tmp_path / "file"
     blocker.write_text("")
-    assert main(["run", str(INIT / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    assert main(["run", str(example / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
     capsys.readouterr()
     assert main(["report", str(tmp_path / "o" / "results.json"), "--out", str(blocker / "report.html")]) == 2
     err = capsys.readouterr().err
@@ -230,23 +239,23 @@ def test_init_writes_a_project_that_passes_out_of_the_box(tmp_path, capsys):
     assert done.returncode == 0 and "1 passed" in done.stdout, done.stdout + done.stderr
 
 
-def test_the_api_judges_a_model_object_and_a_scenario_given_as_a_dict(tmp_path):
-    sys.path.insert(0, str(INIT))
+def test_the_api_judges_a_model_object_and_a_scenario_given_as_a_dict(example, tmp_path):
+    sys.path.insert(0, str(example))
     try:
         from my_robot import TwoLinkArm
     finally:
-        sys.path.remove(str(INIT))
+        sys.path.remove(str(example))
     g = np.array([0.0, 0.0, -9.80665])
     scenario = {"scenario": {"model": "robot.toml", "duration": 1.0, "output_steps": 50},
                 "motion": {"shoulder": {"type": "sinusoids", "sin": [[0.5, 2.0]]}, "elbow": {"type": "locked"}},
                 "gates": [{"metric": "torques.pinocchio_vs_mujoco.max_rel_error", "limit": 1e-9}]}
-    good = harness.run(scenario, folder=INIT, models={"exact": TwoLinkArm(g)})
+    good = harness.run(scenario, folder=example, models={"exact": TwoLinkArm(g)})
     assert good.passed and {g.metric for g in good.gates} >= {"torques.exact_random_vs_pinocchio.max_rel_error"}
-    bad = harness.run(scenario, folder=INIT, model=TwoLinkArm(g, m2=1.26))
+    bad = harness.run(scenario, folder=example, model=TwoLinkArm(g, m2=1.26))
     assert {g.metric for g in bad.failed} == {f"torques.model_{k}.max_rel_error"
                                               for k in ("vs_mujoco", "vs_pinocchio", "random_vs_pinocchio")}
     with pytest.raises(harness.InputError, match=r"motion\.elbow: missing"):
-        harness.load_scenario({**scenario, "motion": {"shoulder": {"type": "locked"}}}, folder=INIT)
+        harness.load_scenario({**scenario, "motion": {"shoulder": {"type": "locked"}}}, folder=example)
 
 
 def test_random_states_find_an_error_the_scripted_motion_hides(tmp_path, capsys):
@@ -266,8 +275,8 @@ def test_random_states_find_an_error_the_scripted_motion_hides(tmp_path, capsys)
     assert not random["passed"] and random["where"].startswith("elbow at random state")
 
 
-def test_a_methods_parameters_come_back_as_a_base_parameter_table_with_intervals(tmp_path):
-    result = harness.run(INIT / "scenario.toml")
+def test_a_methods_parameters_come_back_as_a_base_parameter_table_with_intervals(example):
+    result = harness.run(example / "scenario.toml")
     table = result.results["identification_methods"]["ls"]["base_parameters"]
     # the planar 2R arm has 6 base parameters; each names the standard parameters it combines
     assert table["count"] == 6 and len(table["base"]) == 6
@@ -367,3 +376,35 @@ def test_a_users_method_swept_on_dask_gives_the_same_file(tmp_path):
     assert main(["sweep", str(path), "--trials", "24", "--out", str(tmp_path / "here")]) == 0
     assert main(["sweep", str(path), "--trials", "24", "--out", str(tmp_path / "dask"), "--dask"]) == 0
     assert _sweep_json(tmp_path / "here") == _sweep_json(tmp_path / "dask")
+
+
+def test_init_from_a_urdf_moves_every_joint_within_its_limits_and_passes(tmp_path, capsys):
+    """A robot nobody here wrote a scenario for (UR5 of example-robot-data, as shipped): every joint moves
+    within its position and velocity limits, and the placeholder model and the method pass out of the box."""
+    from harness.urdf import example_robot_data_path
+
+    urdf = example_robot_data_path("ur5")
+    assert main(["init", str(tmp_path / "p"), "--urdf", str(urdf)]) == 0
+    folder = tmp_path / "p"
+    assert main(["run", str(folder / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    results = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert set(results["scenario"]["motion"]) == {"shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
+                                                 "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"}
+    largest = results["motion"]["largest"]
+    assert largest["position"] <= 1 / 3 + 1e-9 and largest["velocity"] <= 0.5 + 1e-9
+    assert main(["init", str(tmp_path / "q"), "--urdf", str(tmp_path / "nothing.urdf")]) == 2
+    assert "nothing.urdf" in capsys.readouterr().err and not (tmp_path / "q").exists()
+
+
+def test_the_plugin_file_init_writes_passes_the_linter(tmp_path):
+    """my_robot.py is composed of pieces (harness/data/init/): the whole, for both kinds of project."""
+    from harness.urdf import example_robot_data_path
+
+    for name, urdf in (("arm", None), ("ur5", example_robot_data_path("ur5"))):
+        folder = tmp_path / name
+        folder.mkdir()
+        (folder / "my_robot.py").write_text(project(urdf)["my_robot.py"])
+    done = subprocess.run([str(Path(sys.executable).parent / "ruff"), "check", "--no-cache", "--isolated",
+                           "--select", "E,F,W,B", "--line-length", "120", str(tmp_path)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stdout

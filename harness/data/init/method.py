@@ -1,0 +1,81 @@
+# ------------------------------------------------------------------------------------------------
+# The identification method: an object with `joint_names` and `fit(q, qd, qdd, tau)` returning the
+# identified model (a model as above). Where the identified model has `parameters`, (n, 10): per
+# joint the child body's [m, m c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] about the joint point in
+# world axes at q = 0, the harness compares its base parameters with the robot's; with
+# `covariance` (10 n, 10 n) of those parameters, it also reports intervals and their coverage.
+# Here: ordinary least squares on Pinocchio's joint-torque regressor of the URDF, with each joint's
+# viscous and Coulomb friction (URDF's <dynamics damping friction>): any robot of revolute,
+# continuous and prismatic joints.
+
+
+class LeastSquares:
+    def __init__(self, urdf, gravity_W):
+        import pinocchio as pin
+
+        self.pin = pin
+        self.model = pin.buildModelFromUrdf(str(urdf))
+        self.model.gravity.linear = np.asarray(gravity_W, dtype=float)
+        self.data = self.model.createData()
+        self.joint_names = list(self.model.names)[1:]
+        # theta_W = A theta_J: each body's parameters from its joint frame to world axes at q = 0
+        pin.forwardKinematics(self.model, self.data, pin.neutral(self.model))
+        n = self.model.njoints - 1
+        self.A = np.zeros((10 * n, 10 * n))
+        for j in range(n):
+            R = self.data.oMi[j + 1].rotation
+            for k in range(10):
+                self.A[10 * j: 10 * j + 10, 10 * j + k] = _rotate_parameters(R, np.eye(10)[k])
+
+    def regressor(self, q, qd, qdd):
+        """(N n, 12 n): rows sample by sample, columns the 10 inertial parameters of every joint's
+        body (in its joint frame), then every joint's viscous and Coulomb coefficients."""
+        W = np.concatenate([self.pin.computeJointTorqueRegressor(self.model, self.data, a, b, c)
+                            for a, b, c in zip(configuration(self.model, q), qd, qdd, strict=True)])
+        N, n = qd.shape
+        F, j = np.zeros((N, n, 2 * n)), np.arange(n)
+        F[:, j, j], F[:, j, n + j] = qd, np.sign(qd)
+        return np.hstack([W, F.reshape(N * n, 2 * n)])
+
+    def fit(self, q, qd, qdd, tau):
+        W, y = self.regressor(q, qd, qdd), tau.reshape(-1)
+        theta, *_ = np.linalg.lstsq(W, y, rcond=None)  # the minimum-norm solution: exact on the base parameters
+        dof = max(len(y) - np.linalg.matrix_rank(W), 1)
+        cov = np.sum((y - W @ theta) ** 2) / dof * np.linalg.pinv(W.T @ W)
+        k = self.A.shape[0]  # the inertial parameters, turned to world axes; the friction stays the method's own
+        return Fitted(self, theta, self.A @ theta[:k], self.A @ cov[:k, :k] @ self.A.T)
+
+
+class Fitted:
+    def __init__(self, method, theta, theta_W, cov_W):
+        self.method, self.theta = method, theta
+        self.joint_names = method.joint_names
+        self.parameters = theta_W.reshape(-1, 10)
+        self.covariance = cov_W
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return (self.method.regressor(q, qd, qdd) @ self.theta).reshape(q.shape)
+
+
+def configuration(model, q):
+    """Pinocchio's configuration (N, nq) of joint angles and positions q (N, nv): a continuous joint
+    is held as (cos q, sin q)."""
+    out = np.empty((len(q), model.nq))
+    for j in range(1, model.njoints):
+        iq, iv = model.joints[j].idx_q, model.joints[j].idx_v
+        if model.joints[j].nq == 2:
+            out[:, iq], out[:, iq + 1] = np.cos(q[:, iv]), np.sin(q[:, iv])
+        else:
+            out[:, iq] = q[:, iv]
+    return out
+
+
+def _rotate_parameters(R, theta):
+    """[m, h, I about the origin] of a frame turned by R: m, R h, R I R^T."""
+    xx, xy, yy, xz, yz, zz = theta[4:]
+    J = R @ np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) @ R.T
+    return np.concatenate([[theta[0]], R @ theta[1:4], [J[0, 0], J[0, 1], J[1, 1], J[0, 2], J[1, 2], J[2, 2]]])
+
+
+def make_method(robot, gravity_W, parameters):
+    return LeastSquares(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W)

@@ -1,0 +1,49 @@
+"""Your code, judged by the harness: a dynamic model and an identification method.
+
+Both are plugins, named in scenario.toml (`python = "my_robot:make_model"`). The harness calls
+each factory with the robot description (a harness.spec.RobotSpec), the scenario's gravity
+`gravity_W` (world components, m/s^2) and `parameters` (the extra keys of the scenario's table).
+
+The model under test below is a placeholder: Pinocchio's RNEA and CRBA on your URDF, which agree
+with the references by construction. Replace UrdfModel with your own model, and LeastSquares with
+your method (or keep it: it is generic).
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+# ------------------------------------------------------------------------------------------------
+# The model under test: an object with `joint_names` and `inverse_dynamics(q, qd, qdd) -> tau`,
+# arrays (N, n) in SI units, columns in the order of `joint_names`; optionally `mass_matrix(q)`,
+# (N, n, n). Here, until you put yours in its place: Pinocchio on the URDF, sample by sample
+# (`configuration`, with the method below, turns joint angles into Pinocchio's configuration).
+
+
+class UrdfModel:
+    def __init__(self, urdf, gravity_W):
+        import pinocchio as pin
+
+        self.pin = pin
+        self.model = pin.buildModelFromUrdf(str(urdf))
+        self.model.gravity.linear = np.asarray(gravity_W, dtype=float)
+        self.data = self.model.createData()
+        self.joint_names = list(self.model.names)[1:]
+
+    def inverse_dynamics(self, q, qd, qdd):
+        tau = np.array([self.pin.rnea(self.model, self.data, a, b, c)
+                        for a, b, c in zip(configuration(self.model, q), qd, qdd, strict=True)])
+        return tau + self.model.damping * qd + self.model.friction * np.sign(qd)  # the URDF's <dynamics>
+
+    def mass_matrix(self, q):
+        out = []
+        for a in configuration(self.model, q):
+            M = self.pin.crba(self.model, self.data, a)
+            out.append(np.triu(M) + np.triu(M, 1).T)  # CRBA fills the upper triangle
+        return np.array(out)
+
+
+def make_model(robot, gravity_W, parameters):
+    return UrdfModel(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W)
+
+

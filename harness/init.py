@@ -1,0 +1,101 @@
+"""What `harness init DIR` writes: a small project for a robot of the user's (harness/data/init/).
+
+Without a URDF, the two-link arm with a closed-form model; with one, that URDF, a motion of every
+joint within its limits (a sinusoid about the middle of its range, a third of the way to the
+limits and at half its velocity limit at most, a different frequency per joint; the validation
+trajectory at other frequencies), and a placeholder model (Pinocchio on the URDF). Both get the
+same identification method (least squares on Pinocchio's regressor), pytest file and CI job.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import tomli_w
+
+from harness.builtin import DATA
+from harness.tomlio import MAX_XML_BYTES, InputError, read_bounded
+
+TEMPLATE = DATA / "init"
+GATES = [  # the model's round-off agreement (about 1e-15) and the method's on noise-free torques (about 1e-12)
+    ("torques.mine_vs_mujoco.max_rel_error", 1e-9), ("torques.mine_vs_pinocchio.max_rel_error", 1e-9),
+    ("torques.mine_random_vs_pinocchio.max_rel_error", 1e-9),
+    ("torques.mass_matrix.mine_vs_pinocchio.max_rel_error", 1e-9),
+    ("identification_methods.ls.base_parameters.max_rel_error", 1e-6),
+    ("identification_methods.ls.validation.max_rel_error", 1e-6),
+]
+RANGE_FRACTION = 1 / 3  # of the way from the middle of a joint's range to its limits
+VELOCITY_FRACTION = 0.5  # of its velocity limit
+DEFAULT_HALF_RANGE = {True: np.pi, False: 0.5}  # revolute (rad), prismatic (m): a joint without limits
+
+
+def project(urdf: Path | None = None) -> dict[str, str]:
+    """{file name: text} of the project."""
+    from harness import DISTRIBUTION
+
+    files = {f.name: f.read_text() for f in sorted((TEMPLATE / "project").iterdir())}
+    method = (TEMPLATE / "method.py").read_text()
+    if urdf is None:
+        arm = TEMPLATE / "two_link_arm"
+        files.update({f.name: f.read_text() for f in sorted(arm.iterdir()) if f.name != "model.py"})
+        files["my_robot.py"] = (arm / "model.py").read_text() + method
+    else:
+        files["robot.urdf"] = read_bounded(urdf, MAX_XML_BYTES).decode("utf-8", errors="replace")
+        files["scenario.toml"], files["validation.toml"] = scenarios(_joints(urdf))
+        files["my_robot.py"] = (TEMPLATE / "urdf" / "model.py").read_text() + method
+    files["ci-job.yml"] = files["ci-job.yml"].replace("HARNESS_DISTRIBUTION", DISTRIBUTION)
+    return dict(sorted(files.items()))
+
+
+def _joints(urdf: Path) -> list[tuple[str, float, float, float | None]]:
+    """(name, middle, half range, velocity limit) of every joint of the URDF, read as the harness reads
+    it; a URDF it refuses is refused here, naming the file."""
+    from harness.spec import load_spec
+
+    path = Path(urdf).resolve()
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "robot.toml").write_text(tomli_w.dumps({"model": {"name": "my_robot"},
+                                                             "urdf": {"file": str(path)}}))
+        try:
+            spec = load_spec(Path(tmp) / "robot.toml")
+        except InputError as exc:
+            raise InputError(urdf, "--urdf", exc.message.removeprefix(f"{path}: ")) from None
+    out = []
+    for j in spec.joints:
+        lo, hi = (spec.limits or {}).get(j.name, (-np.inf, np.inf))
+        if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
+            middle, half = (lo + hi) / 2, (hi - lo) / 2
+        else:
+            middle, half = 0.0, DEFAULT_HALF_RANGE[j.revolute]
+        out.append((j.name, float(middle), float(half), (spec.drive_limits or {}).get(j.name, {}).get("velocity")))
+    return out
+
+
+def scenarios(joints: list[tuple[str, float, float, float | None]]) -> tuple[str, str]:
+    """scenario.toml (the model, the method, the gates) and validation.toml, both moving every joint."""
+    def motion(base: float, step: float, shift: float) -> dict:
+        table = {}
+        for k, (name, middle, half, velocity) in enumerate(joints):
+            w1, w2 = base + step * k, 2.7 * base + 1.3 * step * k + 0.4  # rad/s: two harmonics, incommensurate
+            amplitude = RANGE_FRACTION * half / 1.5  # the two together reach RANGE_FRACTION at most
+            if velocity:  # |q'| <= a w1 + a/2 w2
+                amplitude = min(amplitude, VELOCITY_FRACTION * velocity / (w1 + w2 / 2))
+            table[name] = {"type": "sinusoids", "offset": middle + shift * half,
+                           "sin": [[amplitude, w1], [amplitude / 2, w2]]}
+        return table
+
+    head = {"model": "robot.toml", "duration": 2.0, "output_steps": 200}
+    main = {"scenario": {"description": "My robot: my model and my identification method against MuJoCo and "
+                                        "Pinocchio", **head},
+            "motion": motion(1.1, 0.3, 0.0),
+            "model_under_test": {"name": "mine", "python": "my_robot:make_model"},
+            "identification": {"name": "ls", "python": "my_robot:make_method", "validation": "validation.toml"},
+            "gates": [{"metric": m, "limit": limit} for m, limit in GATES]}
+    validation = {"scenario": {"description": "Validation trajectory for my robot", **head},
+                  "motion": motion(0.8, 0.25, 0.1),
+                  "gates": [{"metric": "torques.pinocchio_vs_mujoco.max_rel_error", "limit": 1e-9}]}
+    note = ("# Written by `harness init --urdf`: every joint moves about the middle of its range, at most a third of\n"
+            "# the way to its limits and at half its velocity limit. Change the motions to the ones your robot runs.\n")
+    return note + tomli_w.dumps(main), note + tomli_w.dumps(validation)
