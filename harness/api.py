@@ -35,7 +35,7 @@ from typing import Any
 from harness.gates import Gate
 from harness.plugins import ModelUnderTest, check_protocol
 from harness.recording import Recording
-from harness.scenario import DataScenario, PluginEntry, Scenario, scenario_from_dict, unjudged
+from harness.scenario import DataScenario, PluginEntry, Scenario, judged, judging_metrics, scenario_from_dict
 from harness.scenario import load_scenario as _load_scenario
 from harness.spec import RobotSpec, load_spec
 from harness.tomlio import InputError
@@ -84,9 +84,7 @@ MODEL_GATE_LIMIT = 1e-9  # a model of the scenario's own robot agrees with the e
 def model_gates(name: str, limit: float = MODEL_GATE_LIMIT) -> tuple[Gate, ...]:
     """The standard gates on a model under test: its torques against MuJoCo and Pinocchio along the
     motion, and against Pinocchio at the random states."""
-    return tuple(Gate(m, m, limit) for m in (f"torques.{name}_vs_mujoco.max_rel_error",
-                                             f"torques.{name}_vs_pinocchio.max_rel_error",
-                                             f"torques.{name}_random_vs_pinocchio.max_rel_error"))
+    return tuple(Gate(m, m, limit) for m in judging_metrics("model_under_test", name)[:3])
 
 
 def with_models(sc: Scenario, models: dict[str, Any]) -> Scenario:
@@ -102,9 +100,7 @@ def with_models(sc: Scenario, models: dict[str, Any]) -> Scenario:
         reference = f"{type(obj).__name__} object"
         check_protocol(reference, obj, ModelUnderTest, sc.robot.joint_names)
         entries = [e for e in entries if e.name != name] + [PluginEntry(name, reference, sc.robot, obj)]
-        try:
-            unjudged(sc.source, "model_under_test", name, tuple(gates))
-        except InputError:
+        if not judged("model_under_test", name, tuple(gates)):
             gates += model_gates(name)
     return dataclasses.replace(sc, models=tuple(entries), gates=tuple(gates))
 

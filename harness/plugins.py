@@ -249,6 +249,15 @@ def call(plugin: str, what: str, fn: Callable, *args, shape: tuple[int, ...]) ->
     return check_array(plugin, what, invoke(plugin, what, fn, *args), shape)
 
 
+def inverse_dynamics(plugin: str, what: str, model, joints: Sequence[str], q: np.ndarray, qd: np.ndarray,
+                     qdd: np.ndarray) -> np.ndarray:
+    """A model's torques at states (N, n) in the robot's joint order `joints`: the columns given in
+    the model's `joint_names` order, its (N, n) answer checked and brought back to the robot's."""
+    to_model, back = column_maps(model.joint_names, joints)
+    return call(plugin, what, model.inverse_dynamics, q[:, to_model], qd[:, to_model], qdd[:, to_model],
+                shape=q.shape)[:, back]
+
+
 @dataclass(frozen=True, eq=False)
 class Stage:
     """One step of a run. `run(context, config)` returns a typed result, or None when the stage has

@@ -439,13 +439,18 @@ def judging_metrics(kind: str, name: str) -> tuple[str, ...]:
             f"identification_methods.{name}.validation.rms_rel_error")
 
 
-def unjudged(path: Path, kind: str, name: str, gates: tuple[Gate, ...]) -> None:
-    """A model under test or identification method that no gate judges would pass whatever it
-    computes: refused, naming the metrics a gate could use."""
+def judged(kind: str, name: str, gates: tuple[Gate, ...]) -> bool:
+    """Whether a gate judges the model under test or identification method `name`."""
     prefixes = ({f"torques.{name}_vs_", f"torques.{name}_random_vs_", f"torques.mass_matrix.{name}_vs_",
                  f"torques.reactions.{name}_vs_"} if kind == "model_under_test"
                 else {f"identification_methods.{name}."})
-    if not any(g.metric.startswith(p) for g in gates for p in prefixes):
+    return any(g.metric.startswith(p) for g in gates for p in prefixes)
+
+
+def unjudged(path: Path, kind: str, name: str, gates: tuple[Gate, ...]) -> None:
+    """A model under test or identification method that no gate judges would pass whatever it
+    computes: refused, naming the metrics a gate could use."""
+    if not judged(kind, name, gates):
         raise InputError(path, f"{kind}.name", f"{name!r} is judged by no gate, so it would pass whatever it "
                                                f"computes: add [[gates]] on {', '.join(judging_metrics(kind, name))}")
 

@@ -21,11 +21,11 @@ from harness.plugins import (
     ModelUnderTest,
     PluginError,
     Stage,
-    call,
     check_array,
     check_protocol,
     column_maps,
     guard,
+    inverse_dynamics,
     invoke,
 )
 from harness.torque_id import (
@@ -166,9 +166,7 @@ def _judge(ctx, entry) -> MethodResult:
     if validation is not None:
         val = validation_recording(ctx, validation)
         qv, qdv, qddv, tauv = joint_data(val, joints)
-        f_in, f_out = column_maps(fitted.joint_names, joints)
-        pred = call(plugin, "inverse_dynamics of the fitted model", fitted.inverse_dynamics, qv[:, f_in],
-                    qdv[:, f_in], qddv[:, f_in], shape=tauv.shape)[:, f_out]
+        pred = inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, joints, qv, qdv, qddv)
         val_err, val_t = np.abs(pred - tauv) / joint_load_scale(sc.robot, val), val.t
     if table is None and val_err is None:
         raise PluginError(plugin, "cannot be judged: its fitted model reports no parameters and the scenario "
@@ -280,9 +278,7 @@ def _method_trial(state: tuple, k: int) -> tuple:
     val = None
     if b.validation is not None:
         qv, qdv, qddv, tauv, load = b.validation
-        f_in, f_out = column_maps(fitted.joint_names, b.joints)
-        pred = call(plugin, "inverse_dynamics of the fitted model", fitted.inverse_dynamics, qv[:, f_in],
-                    qdv[:, f_in], qddv[:, f_in], shape=tauv.shape)[:, f_out]
+        pred = inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, b.joints, qv, qdv, qddv)
         val = float(np.max(np.abs(pred - tauv) / load))
     if table is None:
         return None, None, val

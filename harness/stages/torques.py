@@ -16,7 +16,7 @@ import numpy as np
 
 from harness.compare import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
 from harness.engines.pinocchio import build_model, crba, rnea
-from harness.plugins import PluginError, Stage, call, check_array, column_maps, invoke
+from harness.plugins import PluginError, Stage, call, check_array, column_maps, inverse_dynamics, invoke
 from harness.results import floats
 from harness.states import motion_scale, position_bounds, random_states
 
@@ -71,7 +71,7 @@ def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows) -> Mode
     inst, plugin = entry.instance, entry.reference
     to_model, order = column_maps(inst.joint_names, joints)
     N, n = q.shape
-    tau = _call_model(entry, "inverse_dynamics", q, qd, qdd, joints)
+    tau = inverse_dynamics(plugin, "inverse_dynamics", inst, joints, q, qd, qdd)
     F = M = None
     if callable(getattr(inst, "joint_wrenches", None)):
         out = invoke(plugin, "joint_wrenches", inst.joint_wrenches, q[:, to_model], qd[:, to_model],
@@ -105,14 +105,6 @@ def _random_states(sc, pm) -> RandomStates:
     return RandomStates(q, qd, qdd, pin.tau, np.max(np.linalg.norm(wrench, axis=-1), axis=0), sc.random_states.seed)
 
 
-def _call_model(entry, what: str, q, qd, qdd, joints: list[str]) -> np.ndarray:
-    """A model's inverse_dynamics on states in the robot's joint order, brought back to it."""
-    inst = entry.instance
-    to_model, order = column_maps(inst.joint_names, joints)
-    return call(entry.reference, what, inst.inverse_dynamics, q[:, to_model], qd[:, to_model], qdd[:, to_model],
-                shape=q.shape)[:, order]
-
-
 def run(ctx, config) -> TorqueComparison:
     sc, rec = ctx.scenario, ctx.recording
     joints = sc.robot.joint_names
@@ -130,7 +122,8 @@ def run(ctx, config) -> TorqueComparison:
     if models:
         random = _random_states(sc, pm)
         models = tuple(dataclasses.replace(
-            m, random_tau=_call_model(e, "inverse_dynamics (random states)", random.q, random.qd, random.qdd, joints))
+            m, random_tau=inverse_dynamics(e.reference, "inverse_dynamics (random states)", e.instance, joints,
+                                           random.q, random.qd, random.qdd))
             for m, e in zip(models, sc.models, strict=True))
     return TorqueComparison(joints, rec.t, joint_load_scale(sc.robot, rec), rec.tau[:, cols], pin.tau,
                             pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models, random)
