@@ -11,13 +11,8 @@
 
 class LeastSquares:
     def __init__(self, urdf, gravity_W):
-        import pinocchio as pin
-
-        self.pin = pin
-        self.model = pin.buildModelFromUrdf(str(urdf))
-        self.model.gravity.linear = np.asarray(gravity_W, dtype=float)
-        self.data = self.model.createData()
-        self.joint_names = list(self.model.names)[1:]
+        pin = self.pin = _pinocchio()
+        self.model, self.data, self.joint_names = urdf_model(urdf, gravity_W)
         # theta_W = A theta_J: each body's parameters from its joint frame to world axes at q = 0
         pin.forwardKinematics(self.model, self.data, pin.neutral(self.model))
         n = self.model.njoints - 1
@@ -55,6 +50,20 @@ class Fitted:
 
     def inverse_dynamics(self, q, qd, qdd):
         return (self.method.regressor(q, qd, qdd) @ self.theta).reshape(q.shape)
+
+
+def _pinocchio():
+    import pinocchio
+
+    return pinocchio
+
+
+def urdf_model(urdf, gravity_W):
+    """Pinocchio's model of the URDF (fixed base) with the scenario's gravity, its data, and its joints'
+    names in its order."""
+    model = _pinocchio().buildModelFromUrdf(str(urdf))
+    model.gravity.linear = np.asarray(gravity_W, dtype=float)
+    return model, model.createData(), list(model.names)[1:]
 
 
 def configuration(model, q):

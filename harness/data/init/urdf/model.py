@@ -17,18 +17,14 @@ import numpy as np
 # The model under test: an object with `joint_names` and `inverse_dynamics(q, qd, qdd) -> tau`,
 # arrays (N, n) in SI units, columns in the order of `joint_names`; optionally `mass_matrix(q)`,
 # (N, n, n). Here, until you put yours in its place: Pinocchio on the URDF, sample by sample
-# (`configuration`, with the method below, turns joint angles into Pinocchio's configuration).
+# (`urdf_model` and `configuration`, with the method below, read the URDF and turn joint angles into
+# Pinocchio's configuration).
 
 
 class UrdfModel:
     def __init__(self, urdf, gravity_W):
-        import pinocchio as pin
-
-        self.pin = pin
-        self.model = pin.buildModelFromUrdf(str(urdf))
-        self.model.gravity.linear = np.asarray(gravity_W, dtype=float)
-        self.data = self.model.createData()
-        self.joint_names = list(self.model.names)[1:]
+        self.pin = _pinocchio()
+        self.model, self.data, self.joint_names = urdf_model(urdf, gravity_W)
 
     def inverse_dynamics(self, q, qd, qdd):
         tau = np.array([self.pin.rnea(self.model, self.data, a, b, c)
