@@ -7,7 +7,6 @@ from __future__ import annotations
 from pathlib import Path
 
 DATA = Path(__file__).resolve().parent / "data"
-KINDS = ("models", "scenarios")
 
 
 def resolve(arg: str | Path, kind: str = "scenarios") -> Path:

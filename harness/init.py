@@ -1,9 +1,10 @@
 """What `harness init DIR` writes: a small project for a robot of the user's (harness/data/init/).
 
 Without a URDF, the two-link arm with a closed-form model; with one, that URDF, a motion of every
-joint within its limits (a sinusoid about the middle of its range, a third of the way to the
-limits and at half its velocity limit at most, a different frequency per joint; the validation
-trajectory at other frequencies), and a placeholder model (Pinocchio on the URDF). Both get the
+joint within its limits (two sinusoids of incommensurate frequencies about the middle of its
+range, together at most a third of the way to the limits and at half its velocity limit, other
+frequencies for each joint and for the validation trajectory), and a placeholder model (Pinocchio
+on the URDF). Both get the
 same identification method (least squares on Pinocchio's regressor), pytest file and CI job.
 """
 

@@ -291,8 +291,6 @@ def sweep_methods(ctx, trials: int) -> dict:
     RMS error and, where the method gives a covariance, the coverage of its 95 % intervals."""
     import dataclasses
 
-    from harness.stages.estimators import over_trials
-
     sc = ctx.scenario
     joints = sc.robot.joint_names
     bm = base_map(ctx)
@@ -309,11 +307,13 @@ def sweep_methods(ctx, trials: int) -> dict:
         ctx.progress(label, 0.0)
         rows = ctx.workers.map(_method_setup, (bench,), _method_trial, range(trials),
                                lambda done, total, label=label: ctx.progress(label, done / total))
-        out[entry.name] = _method_statistics(entry, rows, bm, over_trials)
+        out[entry.name] = _method_statistics(entry, rows, bm)
     return out
 
 
-def _method_statistics(entry, rows: list[tuple], bm: BaseMap, over_trials) -> dict:
+def _method_statistics(entry, rows: list[tuple], bm: BaseMap) -> dict:
+    from harness.stages.estimators import over_trials  # the statistics the estimators' sweep uses
+
     vals = [r[2] for r in rows if r[2] is not None]
     summary: dict = {"plugin": entry.reference, "trials": len(rows),
                      "validation_rel_error_mean": float(np.mean(vals)) if vals else None,
