@@ -5,7 +5,7 @@ things are measured alternately, the best of several rounds of each):
 - joint torques for 10,000 states of kr500: the graph model batched, Pinocchio `rnea` and MuJoCo
   `mj_inverse` called per state from Python (microseconds per state, ratio graph / Pinocchio);
 - identification on the force path (the graph model, 10,000 samples) and on the joint-torque path
-  with friction and rotor inertia (Panda, 7 joints, block by block: harness/streaming.py) at 1e4,
+  with friction and rotor inertia (Panda, 7 joints, block by block: harness/identify/streaming.py) at 1e4,
   1e5 and 9e5 samples; at 9e5, in a process of its own, its time over that of Pinocchio's
   joint-torque regressor alone evaluated once on the same samples from Python, and the peak memory;
 - `harness run` end to end in a fresh process: kr500_rail (seconds, and its stages), and the same
@@ -66,13 +66,13 @@ def torques(figures: dict) -> None:
     import mujoco
     import pinocchio as pin
 
-    from harness.bench import record
     from harness.engines.mujoco import build_model as build_mujoco
     from harness.engines.pinocchio import build_model as build_pinocchio
     from harness.papers.graph_theory_2021.dynamics import build_graph_model
     from harness.papers.graph_theory_2021.inverse import inverse_dynamics
     from harness.papers.graph_theory_2021.model import make as make_graph_model
-    from harness.scenario import load_scenario
+    from harness.runner.scenario import load_scenario
+    from harness.sources.bench import record
 
     # 10,000 states of kr500 with every joint moving: their body kinematics come from MuJoCo
     sc = load_scenario(ROOT / "harness" / "data" / "scenarios" / "kr500_all_joints.toml")
@@ -112,8 +112,8 @@ def torques(figures: dict) -> None:
     }
     figures["torques_ratio_graph_over_pinocchio"] = t_graph / t_pin
 
-    from harness.measurement import Measurement
     from harness.papers.graph_theory_2021.solve import identify
+    from harness.sources.measurement import Measurement
 
     rows = np.arange(N)
     figures["identification_10000_samples_s"] = alternately(
@@ -122,8 +122,8 @@ def torques(figures: dict) -> None:
 
 def _panda():
     from harness.engines.pinocchio import build_model
-    from harness.spec import load_spec
-    from harness.torque_id import structural_base
+    from harness.identify.torque_id import structural_base
+    from harness.model.load import load_spec
 
     spec = load_spec(ROOT / "harness" / "data" / "models" / "panda_arm.toml")
     pm = build_model(spec, np.array([0.0, 0.0, -9.80665]))
@@ -134,7 +134,7 @@ def _torques(pm, q, qd, qdd) -> np.ndarray:
     """Joint torques of the motion with the drives' friction (Pinocchio's rnea, sample by sample)."""
     import pinocchio as pin
 
-    from harness import friction
+    from harness.model import friction
 
     data = pm.model.createData()
     tau = friction.torque(pm.frictions, qd, qdd)
@@ -144,7 +144,7 @@ def _torques(pm, q, qd, qdd) -> np.ndarray:
 
 
 def identification_scaling(figures: dict) -> None:
-    from harness.streaming import fit_long
+    from harness.identify.streaming import fit_long
 
     pm, base = _panda()
     out = {}
@@ -171,8 +171,8 @@ def long_identification() -> None:
     """--long: the 900,000-sample log alone (its motion, torques, then the two timed runs)."""
     import pinocchio as pin
 
-    from harness.streaming import fit_long
-    from harness.torque_id import true_parameters
+    from harness.identify.streaming import fit_long
+    from harness.identify.torque_id import true_parameters
 
     pm, base = _panda()
     q, qd, qdd = joint_motion(7, LONG)
@@ -270,9 +270,9 @@ def sweeps(figures: dict) -> None:
     """Trials per second of `harness sweep kr500_noise` (200 trials at the scenario's noise, the
     simulation included) in this process, in 2 forked processes and on a Dask cluster started on
     this machine (its start and stop included; alone, measured on trials that do nothing)."""
+    from harness.base.workers import LOCAL, Workers
     from harness.papers.graph_theory_2021.sweep import run_sweep
-    from harness.scenario import load_scenario
-    from harness.workers import LOCAL, Workers
+    from harness.runner.scenario import load_scenario
 
     noise = load_scenario(ROOT / "harness" / "data" / "scenarios" / "kr500_noise.toml")
     trials = 200

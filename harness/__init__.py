@@ -1,20 +1,13 @@
 """Validation harness for robot dynamic models against reference engines (MuJoCo, Pinocchio).
 
 Public API (harness/api.py): `run(scenario_path)` -> Result with `.passed`, `.gates`, `.results`;
-`load_scenario(path)`, `load_model(path)`; the plugin protocols are in harness/plugins.py. Importing
+`load_scenario(path)`, `load_model(path)`; the plugin protocols are in harness/base/plugins.py. Importing
 this package loads neither an engine nor a paper's package: they load when a run needs them.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from harness.base.version import DISTRIBUTION, __version__
 
-DISTRIBUTION = "robot-dynamics-harness"  # its name on the package index; imported and run as `harness`
-
-try:
-    __version__ = version(DISTRIBUTION)
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "unknown"
-
-__all__ = ["InputError", "PluginError", "Result", "load_model", "load_scenario", "run"]
+__all__ = ["DISTRIBUTION", "InputError", "PluginError", "Result", "__version__", "load_model", "load_scenario", "run"]
 
 
 def __getattr__(name: str):
@@ -23,11 +16,11 @@ def __getattr__(name: str):
 
         return getattr(api, name)
     if name == "InputError":
-        from harness.tomlio import InputError
+        from harness.base.tomlio import InputError
 
         return InputError
     if name == "PluginError":
-        from harness.plugins import PluginError
+        from harness.base.plugins import PluginError
 
         return PluginError
     raise AttributeError(f"module 'harness' has no attribute {name!r}")

@@ -6,7 +6,7 @@
     for g in result.gates:          # name, metric, value, limit, direction, passed, reason
         print(g.name, g.value, g.limit, g.passed)
     result.results                  # the content of results.json
-    result.recording                # the recording (harness.recording.Recording)
+    result.recording                # the recording (harness.engines.recording.Recording)
 
 A model object is judged without a module file or a scenario entry (in a notebook, say):
 
@@ -32,13 +32,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from harness.gates import Gate
-from harness.plugins import ModelUnderTest, check_protocol
-from harness.recording import Recording
-from harness.scenario import DataScenario, PluginEntry, Scenario, judged, judging_metrics, scenario_from_dict
-from harness.scenario import load_scenario as _load_scenario
-from harness.spec import RobotSpec, load_spec
-from harness.tomlio import InputError
+from harness.base.plugins import ModelUnderTest, check_protocol
+from harness.base.tomlio import InputError
+from harness.engines.recording import Recording
+from harness.model.load import load_spec
+from harness.model.spec import RobotSpec
+from harness.runner.gates import Gate
+from harness.runner.scenario import DataScenario, PluginEntry, Scenario, judged, judging_metrics, scenario_from_dict
+from harness.runner.scenario import load_scenario as _load_scenario
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ class Result:
     gates: tuple[GateRow, ...]
     results: dict  # results.json
     recording: Recording
-    output: Any = None  # the pipeline's typed results (harness.pipeline.RunOutput)
+    output: Any = None  # the pipeline's typed results (harness.runner.pipeline.RunOutput)
 
     @property
     def failed(self) -> tuple[GateRow, ...]:
@@ -69,11 +70,11 @@ class Result:
 
 def load_scenario(scenario: str | Path | dict, folder: str | Path = ".", name: str = "scenario"
                   ) -> Scenario | DataScenario:
-    """A scenario file (a path, or a bare name: harness/builtin.py), or a dict with its layout whose
+    """A scenario file (a path, or a bare name: harness/base/builtin.py), or a dict with its layout whose
     files are relative to `folder`."""
     if isinstance(scenario, dict):
         return scenario_from_dict(scenario, name, folder)
-    from harness.builtin import resolve
+    from harness.base.builtin import resolve
 
     return _load_scenario(resolve(scenario, "scenarios"))
 
@@ -114,12 +115,12 @@ def run(scenario: str | Path | dict | Scenario, progress=None, workers=None, mod
     """Run one scenario (a path or name, a dict, or a loaded Scenario) through the whole pipeline
     and check its gates. Nothing is written to disk. `models` ({name: object}) or `model` (named
     "model") are judged as models under test besides the scenario's own. `workers` (a
-    harness.workers.Workers; default this process) is where a stage's Monte Carlo trials run. A
+    harness.base.workers.Workers; default this process) is where a stage's Monte Carlo trials run. A
     dict's files are relative to `folder`."""
-    from harness.gates import verdict
-    from harness.pipeline import run as run_pipeline
-    from harness.plugins import user_interrupts
-    from harness.results import build_results
+    from harness.base.plugins import user_interrupts
+    from harness.runner.gates import verdict
+    from harness.runner.pipeline import run as run_pipeline
+    from harness.runner.results import build_results
 
     sc = scenario if isinstance(scenario, Scenario | DataScenario) else load_scenario(scenario, folder)
     objects = {**({"model": model} if model is not None else {}), **(models or {})}

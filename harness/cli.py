@@ -14,9 +14,9 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from harness.ci import error_summary, error_xml, gate_line
-from harness.gates import summary_line
-from harness.tomlio import InputError, read_toml
+from harness.base.tomlio import InputError, read_toml
+from harness.runner.ci import error_summary, error_xml, gate_line
+from harness.runner.gates import summary_line
 
 EXIT_OK, EXIT_GATE_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 DEFAULT_SCENARIO = "kr500_rail"
@@ -52,8 +52,8 @@ case."""
 
 def _resolve_scenario(arg: str) -> Path:
     """A path to a scenario file, or a bare name: ./scenarios/NAME.toml, ./NAME.toml, then the
-    built-in scenario of that name (harness/builtin.py)."""
-    from harness.builtin import resolve
+    built-in scenario of that name (harness/base/builtin.py)."""
+    from harness.base.builtin import resolve
 
     return resolve(arg, "scenarios")
 
@@ -143,7 +143,7 @@ def _ci_options(p: argparse.ArgumentParser) -> None:
 
 
 def _write_ci(args: argparse.Namespace, verdicts: list[tuple[str, list[dict]]]) -> None:
-    from harness.ci import junit_xml, markdown_summary
+    from harness.runner.ci import junit_xml, markdown_summary
 
     for path, text in ((args.junit_xml, junit_xml), (args.summary, markdown_summary)):
         if path is not None:
@@ -206,8 +206,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     from harness.api import run
     from harness.report import render
-    from harness.results import RECORDING_FILE, RESULTS_FILE, write_results
-    from harness.scenario import load_scenario
+    from harness.runner.results import RECORDING_FILE, RESULTS_FILE, write_results
+    from harness.runner.scenario import load_scenario
 
     imported = time.perf_counter() - start  # mujoco, pinocchio, numpy, scipy, pandas, matplotlib
     names = args.scenarios or [DEFAULT_SCENARIO]
@@ -259,7 +259,7 @@ def _print_gates(rows: list[dict]) -> None:
 
 
 def _read_results(path: Path) -> dict:
-    from harness.tomlio import MAX_DATA_BYTES, read_bounded
+    from harness.base.tomlio import MAX_DATA_BYTES, read_bounded
 
     try:
         results = json.loads(read_bounded(path, MAX_DATA_BYTES).decode("utf-8"))
@@ -290,8 +290,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     if not recording.is_file():
         raise InputError(recording, "", f"file not found (the report needs the {kind} beside results.json)")
     out = args.out or args.results.parent / REPORT_FILE
-    from harness.log import read_log_csv
-    from harness.recording import read_csv
+    from harness.engines.recording import read_csv
+    from harness.sources.log import read_log_csv
 
     rec = read_log_csv(recording) if kind == "data" else read_csv(recording)
     stated = results[kind]
@@ -311,8 +311,8 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_gate(args: argparse.Namespace) -> int:
-    from harness.gates import from_results, verdict
-    from harness.scenario import load_scenario
+    from harness.runner.gates import from_results, verdict
+    from harness.runner.scenario import load_scenario
 
     gates = None if args.scenario is None else load_scenario(args.scenario).gates
     passed, verdicts = True, []
@@ -332,9 +332,9 @@ def cmd_gate(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from harness.progress import Bar
-    from harness.scenario import load_scenario
-    from harness.workers import Workers, WorkersError
+    from harness.base.progress import Bar
+    from harness.base.workers import Workers, WorkersError
+    from harness.runner.scenario import load_scenario
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     study = next((s for s, _ in scenario.studies if s.sweep is not None), None)
@@ -387,7 +387,7 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
     from harness.api import run
     from harness.report import STYLE
     from harness.report.sections import estimator_comparison, method_sweep
-    from harness.results import with_nulls
+    from harness.runner.results import with_nulls
 
     t0 = time.perf_counter()
     progress = _Progress(scenario.name, False)
@@ -396,7 +396,7 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
         swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
         results["estimators"] = run(swept, progress=progress, workers=workers).results["estimators"]
     if scenario.methods:
-        from harness.bench import record
+        from harness.sources.bench import record
         from harness.stages import Context
         from harness.stages.identification import sweep_methods
 
@@ -440,8 +440,8 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
 
 
 def cmd_excite(args: argparse.Namespace) -> int:
-    from harness.excitation import optimise, trajectory
-    from harness.scenario import Scenario, load_scenario
+    from harness.identify.excitation import optimise, trajectory
+    from harness.runner.scenario import Scenario, load_scenario
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     if not isinstance(scenario, Scenario) or scenario.excitation is None:
@@ -468,7 +468,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    from harness.builtin import listing
+    from harness.base.builtin import listing
 
     for kind, key in (("models", "model"), ("scenarios", "scenario")):
         for where, files in listing(kind):
@@ -477,7 +477,7 @@ def cmd_list(args: argparse.Namespace) -> int:
                 print(f"  {f.stem:<24} {_description(f, key)}")
     from importlib.metadata import entry_points
 
-    from harness.plugins import METHOD_GROUP, MODEL_GROUP, STUDY_GROUP
+    from harness.base.plugins import METHOD_GROUP, MODEL_GROUP, STUDY_GROUP
 
     for title, group in (("model plugins", MODEL_GROUP), ("identification plugins", METHOD_GROUP),
                          ("studies", STUDY_GROUP)):
@@ -551,7 +551,7 @@ class _Stdout:
 
 def _no_verdict(args: argparse.Namespace, kind: str, message: str) -> None:
     """Bad input or an internal error: the CI files asked for still say so, as one test case with
-    an error (harness/ci.py). Nothing is written where the CI file itself is the fault."""
+    an error (harness/runner/ci.py). Nothing is written where the CI file itself is the fault."""
     given = next((v for v in (getattr(args, k, None) for k in ("scenarios", "results", "scenario")) if v),
                  [DEFAULT_SCENARIO] if args.command == "run" else [f"harness {args.command}"])
     name = " ".join(str(s) for s in (given if isinstance(given, list) else [given]))
@@ -573,7 +573,7 @@ def main(argv: list[str] | None = None) -> int:
     """The command, in this process. Only the harness chooses the exit status: 0 every gate passed,
     1 a gate failed, 2 bad input (plugin code that raises anything, SystemExit and KeyboardInterrupt
     included, is bad input), 3 an internal error, 130 the user's Ctrl-C."""
-    from harness.plugins import PluginError, interrupted_by_user, user_interrupts
+    from harness.base.plugins import PluginError, interrupted_by_user, user_interrupts
 
     args = _parser().parse_args(argv)
     for attr in ("out", "junit_xml", "summary"):  # where to write, fixed now: plugin code may change directory

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import tomli_w
 
-from harness.builtin import DATA
-from harness.tomlio import MAX_XML_BYTES, InputError, read_bounded
+from harness.base.builtin import DATA
+from harness.base.tomlio import MAX_XML_BYTES, InputError, read_bounded
 
 TEMPLATE = DATA / "init"
 GATES = [  # the model's round-off agreement (about 1e-15) and the method's on noise-free torques (about 1e-12)
@@ -34,7 +34,7 @@ DEFAULT_HALF_RANGE = {True: np.pi, False: 0.5}  # revolute (rad), prismatic (m):
 
 def project(urdf: Path | None = None) -> dict[str, str]:
     """{file name: text} of the project."""
-    from harness import DISTRIBUTION
+    from harness.base.version import DISTRIBUTION
 
     files = {f.name: f.read_text() for f in sorted((TEMPLATE / "project").iterdir())}
     method = (TEMPLATE / "method.py").read_text()
@@ -53,7 +53,7 @@ def project(urdf: Path | None = None) -> dict[str, str]:
 def _joints(urdf: Path) -> list[tuple[str, float, float, float | None]]:
     """(name, middle, half range, velocity limit) of every joint of the URDF, read as the harness reads
     it; a URDF it refuses is refused here, naming the file."""
-    from harness.spec import load_spec
+    from harness.model.load import load_spec
 
     path = Path(urdf).resolve()
     with tempfile.TemporaryDirectory() as tmp:

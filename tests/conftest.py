@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from harness.bench import record
 from harness.cli import main
-from harness.recording import Recording, read_csv
-from harness.scenario import Scenario, load_scenario
+from harness.engines.recording import Recording, read_csv
+from harness.runner.scenario import Scenario, load_scenario
+from harness.sources.bench import record
 
 ROOT = Path(__file__).resolve().parents[1]
 BUILTIN = ROOT / "harness" / "data"  # the built-in models, scenarios and gate sets (package data)
@@ -48,7 +48,7 @@ DATA = ROOT / "tests" / "data"
 @pytest.fixture(scope="session")
 def run_scenario():
     """The whole pipeline on a scenario file, once per session and file."""
-    from harness.pipeline import run
+    from harness.runner.pipeline import run
 
     cache = {}
 
@@ -62,8 +62,8 @@ def run_scenario():
 
 def results_of(out, when: str | None = None) -> dict:
     """results.json of a pipeline run, with its verdict."""
-    from harness.gates import verdict
-    from harness.results import build_results
+    from harness.runner.gates import verdict
+    from harness.runner.results import build_results
 
     return verdict(out.scenario.gates, build_results(out, when), out.scenario.source)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from harness.cardano import A_0i, D, D_dot, angles_from_rotation, cond_D, gimbal_flags
+from harness.model.cardano import A_0i, D, D_dot, angles_from_rotation, cond_D, gimbal_flags
 
 rng = np.random.default_rng(20211119)
 
@@ -59,7 +59,7 @@ def test_extraction_inverts_A_0i_away_from_lock():
 
 def test_body_spinning_about_the_vertical_has_continuous_angles_through_lock():
     """B1 of kr500: e1 vertical, R = Ry(-pi/2) Rx(phi). Its continuous angles are
-    alpha = gamma = pi/2 and beta = phi - pi/2 (derivation in harness.cardano); the lock rows
+    alpha = gamma = pi/2 and beta = phi - pi/2 (derivation in harness.model.cardano); the lock rows
     (phi = k pi) take the same alpha as their neighbours."""
     phi = np.linspace(0.0, 4.2 * np.pi, 400)
     phi[[0, 95, 190]] = [0.0, np.pi, 2 * np.pi]  # exact lock rows
@@ -79,11 +79,11 @@ def test_gimbal_flags_catch_ill_conditioned_rows_and_crossings_between_rows():
 
 
 def test_axis_rotation_is_scipys_rotation_vector():
-    """harness.kinematics.axis_rotation (Rodrigues' formula, written to spare scipy.spatial's import)
+    """harness.model.kinematics.axis_rotation (Rodrigues' formula, written to spare scipy.spatial's import)
     against scipy's Rotation.from_rotvec: unit and non-unit axes, angles over several turns, 1e-14."""
     from scipy.spatial.transform import Rotation
 
-    from harness.kinematics import axis_rotation
+    from harness.model.kinematics import axis_rotation
 
     rng = np.random.default_rng(3)
     for axis in (rng.normal(size=3), np.array([0.0, 0.0, 1.0]), np.array([0.0, 2.0, 0.0])):
@@ -95,10 +95,10 @@ def test_axis_rotation_is_scipys_rotation_vector():
 
 
 def test_cross_and_skew_are_numpys_cross_product_to_the_bit():
-    """harness.kinematics.cross (written for its per-call cost) gives np.cross's bits for every
+    """harness.model.kinematics.cross (written for its per-call cost) gives np.cross's bits for every
     broadcast of shapes the models use, in either layout, and skew(a) b = a x b within a few roundings of |a| |b|
     (the same two products, summed with an exact zero in another order)."""
-    from harness.kinematics import cross, skew
+    from harness.model.kinematics import cross, skew
 
     rng = np.random.default_rng(5)
     for sa, sb in (((3,), (3,)), ((5, 3), (3,)), ((3,), (4, 2, 3)), ((4, 1, 3), (1, 6, 3)), ((100, 7, 3),) * 2):

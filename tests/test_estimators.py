@@ -1,4 +1,4 @@
-"""The joint-torque estimators (harness/estimators.py) against what statistics says of them, on
+"""The joint-torque estimators (harness/identify/estimators.py) against what statistics says of them, on
 problems whose truth is built in, then side by side on the bench."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from harness.api import run
-from harness.estimators import ESTIMATORS, Instruments, irls, iv, ols, wls
+from harness.identify.estimators import ESTIMATORS, Instruments, irls, iv, ols, wls
 from tests.conftest import SCENARIOS, results_of
 
 N_JOINTS = 3

@@ -1,4 +1,4 @@
-"""Joint friction and rotor inertia (harness/friction.py): the law, how a model declares it (its own
+"""Joint friction and rotor inertia (harness/model/friction.py): the law, how a model declares it (its own
 TOML, a URDF's <dynamics>), MuJoCo simulating it against Pinocchio and the graph model adding it,
 and the joint-torque identification finding it again on the bench where the truth is known."""
 
@@ -9,12 +9,12 @@ import re
 import numpy as np
 import pytest
 
-from harness import friction
 from harness.cli import main
 from harness.engines.pinocchio import build_model, rnea
-from harness.friction import JointFriction
-from harness.spec import load_spec
-from harness.urdf import example_robot_data_path
+from harness.model import friction
+from harness.model.friction import JointFriction
+from harness.model.load import load_spec
+from harness.model.urdf import example_robot_data_path
 from tests.conftest import MODELS, SCENARIOS, results_of
 
 rng = np.random.default_rng(11)

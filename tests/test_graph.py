@@ -6,8 +6,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from harness.cardano import GIMBAL_COND_D, D, D_dot, angles_from_rotation
 from harness.engines.mujoco import build_model
+from harness.model.cardano import GIMBAL_COND_D, D, D_dot, angles_from_rotation
 from harness.papers.graph_theory_2021.dynamics import angle_rates, body_series
 from harness.papers.graph_theory_2021.topology import build_topology
 from tests.conftest import DATA, SCENARIOS, graph_model
@@ -46,7 +46,7 @@ def test_kr500_body_joint_vectors_are_half_lengths_along_e1(kr500_rail):
 def test_branched_tree_incidence():
     """A tree with a branch: T2 and T3 both hang on T1. Every joint ends at exactly one body and
     starts at its inner body unless that is the ground."""
-    from harness.scenario import load_scenario
+    from harness.runner.scenario import load_scenario
 
     top = build_topology(load_scenario(DATA / "scenarios" / "branch_sines.toml").robot)
     assert top.bodies == ("T1", "T2", "T3", "T4") and top.joints == ("J1", "J2", "J3", "J4")

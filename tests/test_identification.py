@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.measurement import Measurement, round_significant
 from harness.papers.graph_theory_2021.identification import PARAMETERS, id_S
+from harness.sources.measurement import Measurement, round_significant
 from tests.conftest import DATA, SCENARIOS
 
 NOT_EXCITED_KR500 = {("B1", "m_e2"), ("B1", "J22"), ("B1", "J33")}
@@ -126,7 +126,7 @@ def test_cr3_covariance_is_the_leave_one_cluster_out_jackknife(sizes):
     the squared change of the estimate when that cluster is left out (the same weights kept):
     beta - beta_(g) = (K^T W K)^-1 K_g^T W (I - H_gg)^-1 r_g. An independent computation: each
     leave-one-out fit is solved afresh by lstsq."""
-    from harness.identify import _weighted, solve
+    from harness.identify.lstsq import _weighted, solve
 
     rng = np.random.default_rng(3)
     cluster = np.repeat(np.arange(len(sizes)), sizes)
@@ -147,7 +147,7 @@ def test_cr3_covariance_is_the_leave_one_cluster_out_jackknife(sizes):
 
 
 def test_a_group_that_fits_exactly_gets_the_largest_weight_not_the_smallest():
-    from harness.identify import _weighted
+    from harness.identify.lstsq import _weighted
 
     # group 0 is a channel that reads exactly zero and is predicted exactly zero (an axis about
     # which nothing turns, ideally measured): its residual is exactly 0; group 1 is noisy

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.cardano import A_0i
+from harness.base.reference import reference_table
+from harness.model.cardano import A_0i
 from harness.papers.graph_theory_2021.constraints import State, build_constraints
 from harness.papers.graph_theory_2021.dynamics import angle_rates, body_series
-from harness.reference import reference_table
 from tests.conftest import DATA, SCENARIOS, graph_model, results_of
 
 KR500 = SCENARIOS / "kr500_rail.toml"
@@ -147,10 +147,10 @@ def test_paper_lambda_i3_are_the_static_weights_not_the_stated_motion(run_scenar
 def test_stable_tree_is_reproduced_open_loop():
     """The branched test tree has no such instability: the recorded stage torques alone drive the
     constrained model along MuJoCo's trajectory within 1e-6 (measured: 6e-9 rad)."""
-    from harness.bench import record
     from harness.papers.graph_theory_2021.dynamics import build_graph_model
     from harness.papers.graph_theory_2021.forward import forward_simulate
-    from harness.scenario import load_scenario
+    from harness.runner.scenario import load_scenario
+    from harness.sources.bench import record
 
     sc = load_scenario(BRANCH)
     rec = record(sc)

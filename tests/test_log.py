@@ -1,5 +1,5 @@
-"""A measured log in, a validated and physically consistent model out (harness/log.py,
-harness/consistent.py, harness/export.py): first proven on a bench recording where the truth is
+"""A measured log in, a validated and physically consistent model out (harness/sources/log.py,
+harness/identify/consistent.py, harness/model/export.py): first proven on a bench recording where the truth is
 known, then on the real Panda log of Gaz et al. (2019), whose exported model is judged by
 Pinocchio's own URDF parser and the friction law written out here, not by the code that fitted it."""
 
@@ -16,10 +16,10 @@ import pinocchio as pin
 import pytest
 
 from harness.api import load_scenario
-from harness.bench import record
 from harness.cli import main
 from harness.engines.pinocchio import build_model, rnea
-from harness.spec import load_spec
+from harness.model.load import load_spec
+from harness.sources.bench import record
 from tests.conftest import BUILTIN, SCENARIOS
 
 LOG = BUILTIN / "logs" / "panda_gaz2019" / "log.csv"

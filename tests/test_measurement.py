@@ -8,11 +8,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from harness.bench import record
-from harness.measurement import Measurement, Noise, measure
+from harness.base.workers import Workers
 from harness.papers.graph_theory_2021.sweep import run_sweep
-from harness.scenario import load_scenario
-from harness.workers import Workers
+from harness.runner.scenario import load_scenario
+from harness.sources.bench import record
+from harness.sources.measurement import Measurement, Noise, measure
 from tests.conftest import SCENARIOS
 
 
@@ -94,7 +94,7 @@ def test_a_bench_samples_then_reads_then_differentiates_what_it_read(recording):
     derivatives of the rounded, sampled readings (not of the full-rate truth)."""
     import dataclasses as dc
 
-    from harness.measurement import add_noise, differentiate, round_significant
+    from harness.sources.measurement import add_noise, differentiate, round_significant
 
     m = Measurement(significant_digits=4, encoder_resolution=1e-4, every=2, differentiate=True, seed=5,
                     noise={"positions": Noise(absolute=1e-4), "angles": Noise(absolute=1e-4)})

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.motion import ConstantAcceleration, Exponential, Locked, Polynomial, Sinusoids
+from harness.sources.motion import ConstantAcceleration, Exponential, Locked, Polynomial, Sinusoids
 
 MOTIONS = [
     Locked(0.3),

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from harness.api import run
-from harness.spec import load_spec
+from harness.model.load import load_spec
 from tests.conftest import MODELS, SCENARIOS, results_of
 
 # models/ur5_payload.toml: 2 kg at com, inertia about com (world axes at q = 0)

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from harness.engines.pinocchio import build_model, crba
+from harness.model.load import dh_transform, load_spec
 from harness.papers.yahya2012.audit import audit_inertia_matrix, corrected_M12, dh_symbols, printed_inertia_matrix
-from harness.spec import dh_transform, load_spec
 from tests.conftest import MODELS, SCENARIOS, copy_gate_sets, results_of
 
 DESIGNS = ("conventional", "proposed")

@@ -1,4 +1,4 @@
-"""The doors of harness/plugins.py, tried as a user outside the project would: a model written as
+"""The doors of harness/base/plugins.py, tried as a user outside the project would: a model written as
 Python code, an identification method, the public API, the pytest fixture, CI artefacts and exit
 statuses. The user's code here is written by these tests into temporary folders: no file of the
 project contains it."""

@@ -1,4 +1,4 @@
-"""The sensors' specification propagated to the IV estimate's covariance (harness/propagation.py),
+"""The sensors' specification propagated to the IV estimate's covariance (harness/identify/propagation.py),
 each piece against an independent computation: the encoder's covariance against quantising with
 random zeros, Pinocchio's RNEA derivatives against finite differences of RNEA, and the whole
 against the spread of the estimates over repeated measurements on the bench."""
@@ -10,9 +10,9 @@ import pytest
 
 from harness.api import run
 from harness.engines.pinocchio import build_model, rnea
-from harness.measurement import read_encoders
-from harness.propagation import encoder_covariance, torque_sensitivities
-from harness.spec import load_spec
+from harness.identify.propagation import encoder_covariance, torque_sensitivities
+from harness.model.load import load_spec
+from harness.sources.measurement import read_encoders
 from tests.conftest import MODELS, SCENARIOS
 
 
@@ -44,7 +44,7 @@ def test_torque_sensitivities_are_the_derivatives_of_the_model_torque():
 
     def tau(q, qd, qdd):
         t = rnea(pm, q, qd, qdd).tau
-        from harness.friction import coulomb_shape
+        from harness.model.friction import coulomb_shape
         v = np.array([f.coulomb_velocity for f in pm.frictions])
         return t - coulomb * coulomb_shape(qd, v)
 

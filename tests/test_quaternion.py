@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from harness import quaternion
+from harness.model import quaternion
 
 
 def test_matrix_round_trip_and_scipy_agreement():

@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.cardano import A_0i, cond_D
-from harness.recording import Recording
+from harness.engines.recording import Recording
+from harness.model.cardano import A_0i, cond_D
 
 REL = 1e-9
 
@@ -133,7 +133,7 @@ def test_joint_points_from_both_bodies_coincide(kr500_rail, kr500_csv):
 
 def test_b1_angles_are_continuous_through_gimbal_lock(kr500_csv):
     """B1 spins about the vertical: A(01) = Ry(-pi/2) Rx(q_O1), whose continuous Cardano angles are
-    alpha = gamma = pi/2, beta = q_O1 - pi/2 (harness.cardano). B1 starts in lock at t = 0 and
+    alpha = gamma = pi/2, beta = q_O1 - pi/2 (harness.model.cardano). B1 starts in lock at t = 0 and
     meets it again at every multiple of pi; the angles stay smooth through all of it."""
     theta = kr500_csv.theta[:, kr500_csv.body_index("B1")]
     q_O1 = kr500_csv.q[:, kr500_csv.joint_index("O1")]

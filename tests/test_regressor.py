@@ -1,5 +1,5 @@
-"""The batched joint-torque regressor (harness/regressor.py) against Pinocchio's own, sample by
-sample, and against Pinocchio's RNEA; the identification's layouts of it (harness/torque_id.py)."""
+"""The batched joint-torque regressor (harness/model/regressor.py) against Pinocchio's own, sample by
+sample, and against Pinocchio's RNEA; the identification's layouts of it (harness/identify/torque_id.py)."""
 
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-import harness.torque_id
+import harness.identify.torque_id
 from harness.engines.pinocchio import build_model, rnea
-from harness.regressor import joint_torque_regressor, supports
-from harness.spec import load_spec
-from harness.torque_id import regressor, regressor_by_joint, true_parameters
+from harness.identify.torque_id import regressor, regressor_by_joint, true_parameters
+from harness.model.load import load_spec
+from harness.model.regressor import joint_torque_regressor, supports
 from tests.conftest import DATA, MODELS
 
 # a chain on a rail with a massless carriage (kr500), a 7-joint arm, a 6-joint arm, and a branched
@@ -43,7 +43,7 @@ def test_the_batched_regressor_is_pinocchios_sample_by_sample(robot):
 @pytest.mark.parametrize("robot", list(ROBOTS))
 def test_regressor_times_the_parameters_is_pinocchios_rnea(robot):
     """W(q, q', q'') theta, friction and rotor inertia included, equals the torques of Pinocchio's
-    RNEA plus the drives' law (harness/friction.py) within 1e-12 of the largest torque."""
+    RNEA plus the drives' law (harness/model/friction.py) within 1e-12 of the largest torque."""
     spec = load_spec(ROBOTS[robot])
     pm = build_model(spec, GRAVITY)
     q, qd, qdd = _states(len(spec.joint_names), 300, seed=1)
@@ -66,6 +66,6 @@ def test_the_two_layouts_and_pinocchios_loop_give_one_regressor(monkeypatch):
     out = np.zeros_like(by_joint)
     regressor_by_joint(pm, *_states(n, 64, seed=3), True, out=out)
     np.testing.assert_array_equal(regressor_by_joint(pm, q, qd, qdd, True, out=out), by_joint)
-    monkeypatch.setattr(harness.torque_id, "batched_supports", lambda model: False)
+    monkeypatch.setattr(harness.identify.torque_id, "batched_supports", lambda model: False)
     looped = regressor_by_joint(pm, q, qd, qdd, True)
     np.testing.assert_allclose(looped, by_joint, rtol=0, atol=1e-13 * np.abs(by_joint).max())

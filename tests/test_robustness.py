@@ -158,7 +158,7 @@ def test_robots_of_example_robot_data_run_from_two_line_model_files(tmp_path, ca
     """No crash: a verdict. Kinova keeps its models in */robots/, as Solo12 and Bolt do; Bolt's feet
     are massless links with inertia. The double pendulum's links sit in Cardano gimbal lock, so
     there Eq. 111's gates fail with no value; everything else passes."""
-    from harness.spec import load_spec
+    from harness.model.load import load_spec
 
     (tmp_path / f"{robot}.toml").write_text(f'[urdf]\nrobot = "{robot}"\n')
     copy_gate_sets(tmp_path)

@@ -8,7 +8,8 @@ from importlib.resources import files
 import numpy as np
 import pytest
 
-from harness.spec import Cylinder, load_spec
+from harness.model.load import load_spec
+from harness.model.spec import Cylinder
 from tests.conftest import MODELS
 
 

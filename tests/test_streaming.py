@@ -1,4 +1,4 @@
-"""Least squares over a long log, block by block (harness/streaming.py), against the dense fit."""
+"""Least squares over a long log, block by block (harness/identify/streaming.py), against the dense fit."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from harness.engines.pinocchio import build_model, rnea
-from harness.estimators import ols
-from harness.spec import load_spec
-from harness.streaming import fit_long
-from harness.torque_id import regressor, structural_base, true_parameters
+from harness.identify.estimators import ols
+from harness.identify.streaming import fit_long
+from harness.identify.torque_id import regressor, structural_base, true_parameters
+from harness.model.load import load_spec
 from tests.conftest import MODELS
 
 

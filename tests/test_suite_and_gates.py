@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from harness.cli import main
-from harness.gates import Gate, check
+from harness.runner.gates import Gate, check
 from tests.conftest import MODELS, ROOT, SCENARIOS, results_of
 
 ALL_SCENARIOS = sorted(SCENARIOS.glob("*.toml"))
@@ -22,7 +22,7 @@ def test_every_scenario_loads_and_declares_gates(path):
     """Every scenario is valid and checks something. Whether each passes its gates is what
     `harness run scenarios/*.toml` decides in .ci/run, once (exit status 1 on a failed gate); running
     them all here too would run every scenario twice."""
-    from harness.scenario import load_scenario
+    from harness.runner.scenario import load_scenario
 
     assert load_scenario(path).gates, "a scenario without gates checks nothing"
 
@@ -44,8 +44,8 @@ def test_gates_fail_closed():
 
 
 def test_same_scenario_twice_gives_the_same_results_but_for_the_time(run_scenario):
-    from harness.pipeline import run
-    from harness.scenario import load_scenario
+    from harness.runner.pipeline import run
+    from harness.runner.scenario import load_scenario
 
     path = SCENARIOS / "kr500_rail_7digits.toml"
     first = results_of(run_scenario(path), when="first")

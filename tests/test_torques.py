@@ -8,11 +8,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from harness.cardano import A_0i
-from harness.compare import joint_load_scale, pair_metrics
 from harness.engines.pinocchio import rnea_on_recording
+from harness.model.cardano import A_0i
 from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.inverse import inverse_dynamics
+from harness.stages.metrics import joint_load_scale, pair_metrics
 from tests.conftest import DATA, SCENARIOS, graph_model, results_of
 
 SCENARIO_PATHS = pytest.mark.parametrize(

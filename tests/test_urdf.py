@@ -9,8 +9,8 @@ import pytest
 
 from harness.cli import main
 from harness.engines.pinocchio import build_model, crba
-from harness.spec import load_spec
-from harness.urdf import example_robot_data_path
+from harness.model.load import load_spec
+from harness.model.urdf import example_robot_data_path
 from tests.conftest import MODELS, ROOT, SCENARIOS, copy_gate_sets, results_of
 
 ARMS = ("panda", "ur5")
@@ -192,8 +192,8 @@ def test_d_optimality_raises_the_information_and_keeps_the_limits():
     import dataclasses
 
     from harness.api import load_scenario
-    from harness.excitation import _criterion, _series, at_rest, optimise
-    from harness.torque_id import structural_base
+    from harness.identify.excitation import _criterion, _series, at_rest, optimise
+    from harness.identify.torque_id import structural_base
 
     sc = load_scenario(SCENARIOS / "ur5_excitation.toml")
     settings = dict(sc.excitation, criterion="d-optimality", evaluations=40)

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 import harness
-from harness.builtin import DATA
+from harness.base.builtin import DATA
 from harness.cli import main
-from harness.gates import summary_line
 from harness.init import project
+from harness.runner.gates import summary_line
 
 HARNESS = Path(sys.executable).parent / "harness"  # the console script, as CI runs it
 
@@ -381,7 +381,7 @@ def test_a_users_method_swept_on_dask_gives_the_same_file(tmp_path):
 def test_init_from_a_urdf_moves_every_joint_within_its_limits_and_passes(tmp_path, capsys):
     """A robot nobody here wrote a scenario for (UR5 of example-robot-data, as shipped): every joint moves
     within its position and velocity limits, and the placeholder model and the method pass out of the box."""
-    from harness.urdf import example_robot_data_path
+    from harness.model.urdf import example_robot_data_path
 
     urdf = example_robot_data_path("ur5")
     assert main(["init", str(tmp_path / "p"), "--urdf", str(urdf)]) == 0
@@ -398,7 +398,7 @@ def test_init_from_a_urdf_moves_every_joint_within_its_limits_and_passes(tmp_pat
 
 def test_the_plugin_file_init_writes_passes_the_linter(tmp_path):
     """my_robot.py is composed of pieces (harness/data/init/): the whole, for both kinds of project."""
-    from harness.urdf import example_robot_data_path
+    from harness.model.urdf import example_robot_data_path
 
     for name, urdf in (("arm", None), ("ur5", example_robot_data_path("ur5"))):
         folder = tmp_path / name

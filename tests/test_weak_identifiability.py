@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from harness.api import run
-from harness.identify import WEAK_RATIO, sensitivity, weakly_identifiable
-from harness.urdf import example_robot_data_path
+from harness.identify.lstsq import WEAK_RATIO, sensitivity, weakly_identifiable
+from harness.model.urdf import example_robot_data_path
 
 rng = np.random.default_rng(3)
 
@@ -104,12 +104,12 @@ def test_so100_tilted_pan_axis_is_reported_in_the_ten_parameter_identification_t
 
 
 def test_t_quantile_agrees_with_scipy_stats():
-    """harness.identify.t_quantile (quadrature and Newton; Cornish-Fisher beyond 1000 degrees of
+    """harness.identify.lstsq.t_quantile (quadrature and Newton; Cornish-Fisher beyond 1000 degrees of
     freedom) against scipy.stats.t.ppf: 1e-12 relative at the 97.5 % of every interval the harness
     states, 1e-10 out to 99.95 %."""
     from scipy.stats import t
 
-    from harness.identify import t_quantile
+    from harness.identify.lstsq import t_quantile
 
     for dof in [*range(1, 40), 62, 100, 500, 999, 1000, 1001, 5000, 10**5, 10**8]:
         assert abs(t_quantile(dof) / t.ppf(0.975, dof) - 1) < 1e-12, dof

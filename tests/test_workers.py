@@ -1,4 +1,4 @@
-"""Where a sweep's trials run (harness/workers.py): this process, forked processes, a Dask cluster
+"""Where a sweep's trials run (harness/base/workers.py): this process, forked processes, a Dask cluster
 started here, or a Dask scheduler at an address. The claim is the same everywhere: the same
 numbers, to the bit, in the order of the tasks; only sweep.json's "run" (where, how long) and the
 estimators' seconds per fit differ."""
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.workers import IN_PROCESS, LOCAL, Workers
+from harness.base.workers import IN_PROCESS, LOCAL, Workers
 from tests.conftest import SCENARIOS
 
 
@@ -95,7 +95,7 @@ def scheduler(tmp_path_factory):
 @pytest.mark.slow  # a Dask cluster and three sweeps of kr500_noise: about 20 s
 def test_a_force_path_sweep_is_the_same_in_this_process_in_forked_processes_and_on_dask(scheduler):
     from harness.papers.graph_theory_2021.sweep import run_sweep
-    from harness.scenario import load_scenario
+    from harness.runner.scenario import load_scenario
 
     sc = load_scenario(SCENARIOS / "kr500_noise.toml")
     runs = {w.describe(): run_sweep(sc, 6, w, levels=(1.0, 2.0))

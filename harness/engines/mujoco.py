@@ -9,7 +9,7 @@ actuator-force sensors; every centre of mass gets a site with an accelerometer a
 frame) and frame sensors (world frame: position, orientation, linear and angular velocity and
 acceleration). Contacts are disabled. A joint's rotor inertia is MuJoCo's `armature` and its viscous
 friction MuJoCo's `damping`; Coulomb friction and offset are applied at every evaluation of the
-dynamics as the generalised force of harness/friction.py.
+dynamics as the generalised force of harness/model/friction.py.
 
 MuJoCo refuses a moving body with a zero principal moment of inertia, which the paper's thin rods
 (about their own axis) and point masses have. Such a moment is given MOMENT_FLOOR times the
@@ -29,19 +29,16 @@ from __future__ import annotations
 import logging
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
-from harness import friction
-from harness.cardano import angles_from_rotation, gimbal_flags
-from harness.quaternion import to_matrix
-from harness.recording import Recording
-from harness.spec import WORLD, Body, Joint, RobotSpec
-
-if TYPE_CHECKING:
-    from harness.scenario import Simulation
+from harness.engines.recording import Recording
+from harness.engines.simulation import Simulation
+from harness.model import friction
+from harness.model.cardano import angles_from_rotation, gimbal_flags
+from harness.model.quaternion import to_matrix
+from harness.model.spec import WORLD, Body, Joint, RobotSpec
 
 _MJ_INTEGRATOR = {"RK4": "RK4", "Euler": "Euler", "implicitfast": "implicitfast"}
 MOMENT_FLOOR = 1e-12
@@ -91,7 +88,7 @@ def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
         for joint in chain:
             # rotor inertia enters MuJoCo's mass matrix, viscous friction its passive force -f_v q';
             # Coulomb friction and offset are applied by `simulate` (MuJoCo's frictionloss is a
-            # constraint solved with regularisation, not the smooth law of harness/friction.py)
+            # constraint solved with regularisation, not the smooth law of harness/model/friction.py)
             f = joint.friction
             extra = {"armature": repr(f.armature)} if f.armature else {}
             extra |= {"damping": repr(f.viscous)} if f.viscous else {}

@@ -6,7 +6,7 @@ Every joint frame sits at its joint point with world-aligned axes at the initial
 axis is its world axis there. Each massive body is attached to its inner joint with its mass,
 its centre of mass relative to the joint point, and its inertia about the centre of mass rotated
 into the joint frame (R_WB0 I_B R_WB0^T). A massless carriage is a joint with no body. Gravity is
-the scenario's. The joints' rotor inertia and friction (harness/friction.py) are added to RNEA's
+the scenario's. The joints' rotor inertia and friction (harness/model/friction.py) are added to RNEA's
 torques and the armature to CRBA's diagonal by that module's law, outside Pinocchio (its own
 armature would cover the rotor inertia only).
 """
@@ -18,10 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from harness import friction
-from harness.friction import JointFriction
-from harness.recording import Recording
-from harness.spec import WORLD, RobotSpec
+from harness.engines.recording import Recording
+from harness.model import friction
+from harness.model.friction import JointFriction
+from harness.model.spec import WORLD, RobotSpec
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,2 +1,2 @@
-"""The seed papers, each a package that plugs into the harness through harness/plugins.py exactly
+"""The seed papers, each a package that plugs into the harness through harness/base/plugins.py exactly
 as a user's code does. Nothing in the core imports them."""

@@ -1,6 +1,6 @@
 """report.html: one self-contained file (figures inline as SVG, no scripts, nothing fetched),
 read top to bottom: verdict and gates, model, motion, one section per stage that ran (the core's,
-then each study's, drawn by the stage's own renderer), how the run was made."""
+then each study's: the core's drawn by RENDERERS, a study's by its stage's own renderer), how the run was made."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.recording import Recording, read_csv
+from harness.engines.recording import Recording, read_csv
 from harness.report import sections
 
 STYLE = """
@@ -29,13 +29,24 @@ pre { background: #f7f7f7; padding: 0.5rem; font-size: 0.75rem; overflow-x: auto
 nav a { margin-right: 0.8rem; font-size: 0.85rem; }
 """
 
+# The core stages' sections, by the stage's key; a study's stages bring their own (Stage.render).
+RENDERERS = {
+    "torques": lambda r, rec: sections.torques(r),
+    "torque_identification": lambda r, rec: sections.torque_identification(r),
+    "identification_methods": lambda r, rec: sections.identification_methods(r),
+    "estimators": lambda r, rec: sections.estimator_comparison(r),
+    "payload": lambda r, rec: sections.payload(r),
+    "log_identification": sections.log_identification,
+}
+
+
 def _registered_stages(results: dict) -> list:
     """The core's stages, then those of the studies that ran, found through the same registry the
     run used (a study that is no longer installed: its sections are left out, the rest is drawn)."""
-    from harness.plugins import PluginError, load_study
-    from harness.stages import core_stages
+    from harness.base.plugins import PluginError, load_study
+    from harness.stages import core_stages, log_stages
 
-    stages = list(core_stages())
+    stages = list(log_stages() if "data" in results else core_stages())
     for name in results["run"].get("studies", []):
         try:
             stages += load_study(name).stages
@@ -63,8 +74,9 @@ def _render(results: dict, rec: Recording, stages: list | None) -> str:
         parts.append(sections.excitation(results))
         nav.append(("excitation", "Excitation"))
     for stage in stages if stages is not None else _registered_stages(results):
-        if stage.render is not None and stage.key in results:
-            parts.append(stage.render(results, rec))
+        draw = stage.render or RENDERERS.get(stage.key)
+        if draw is not None and stage.key in results:
+            parts.append(draw(results, rec))
             nav.append((stage.key, stage.title))
     parts.append(sections.how(results))
     nav.append(("how", "How the run was made"))
@@ -81,7 +93,7 @@ def _render(results: dict, rec: Recording, stages: list | None) -> str:
 def render_report(results: dict, results_dir: Path) -> str:
     """The report of a results.json's content, with the recording (or log) beside it."""
     if "data" in results:
-        from harness.log import read_log_csv
+        from harness.sources.log import read_log_csv
 
         rec = read_log_csv(Path(results_dir) / results["data"]["file"])
     else:

@@ -7,10 +7,10 @@ import html
 
 import numpy as np
 
-from harness.cardano import GIMBAL_COND_D
-from harness.gates import summary_line
-from harness.recording import Recording
+from harness.engines.recording import Recording
+from harness.model.cardano import GIMBAL_COND_D
 from harness.report import plots
+from harness.runner.gates import summary_line
 
 
 def esc(x) -> str:
@@ -288,7 +288,7 @@ def estimator_comparison(r: dict) -> str:
     fig_cov = figure(plots.bars(labels, coverage, "coverage", "Coverage of the 95 % intervals", logy=False),
                      f"Fraction of the {e['trials']} trials whose 95 % interval holds the truth; a calibrated "
                      f"interval falls within {num(lo)} to {num(hi)} (3 binomial standard errors).")
-    source = {"sensors": "propagated from the sensors' specification (harness/propagation.py)",
+    source = {"sensors": "propagated from the sensors' specification (harness/identify/propagation.py)",
               "residuals": "estimated from the residuals"}[e["iv_intervals_from"]]
     iv_note = ""
     if residual:
@@ -529,3 +529,13 @@ def excitation(r: dict) -> str:
             "<h3>Limits (none where empty)</h3>" + limits
         ),
     )
+
+
+def payload(results: dict) -> str:
+    """The payload identified from the runs with and without it (harness/stages/payload.py)."""
+    p = results["payload"]
+    rows = [[esc(x["name"]), num(x["true"]), num(x["identified"]), num(x["rel_error"]), num(x["std"]),
+             "yes" if x["within_ci95"] else "no"] for x in p["parameters"]]
+    return section("payload", "Payload", f"<p>{esc(p['method'])}; on {esc(p['body'])} (joint {esc(p['joint'])}). "
+                   f"Largest relative error {num(p['max_rel_error'])} ({esc(p['rel_error_definition'])}).</p>"
+                   + table(["parameter", "true", "identified", "rel error", "std", "in 95 % interval"], rows))

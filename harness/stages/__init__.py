@@ -1,15 +1,18 @@
 """The generic stages of a run, registered in the order they run. A study (a paper's package, or a
-user's) adds its own stages through harness.plugins.Study; the pipeline treats both alike."""
+user's) adds its own stages through harness.base.plugins.Study; the pipeline treats both alike."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-from harness.plugins import Stage
-from harness.recording import Recording
-from harness.scenario import Scenario
-from harness.workers import IN_PROCESS, Workers
+from harness.base.plugins import Stage
+from harness.base.workers import IN_PROCESS, Workers
+from harness.engines.recording import Recording
+
+if TYPE_CHECKING:  # annotations only: the scenario is read, never built, here
+    from harness.runner.scenario import Scenario
 
 Progress = Callable[[str, float | None], None]
 
@@ -27,13 +30,20 @@ class Context:
     progress: Progress
     done: dict[str, object] = field(default_factory=dict)
     cache: dict[object, object] = field(default_factory=dict)
-    workers: Workers = IN_PROCESS  # where a stage's independent trials may run (harness/workers.py)
+    workers: Workers = IN_PROCESS  # where a stage's independent trials may run (harness/base/workers.py)
 
     def once(self, key: object, make: Callable[[], object]) -> object:
         """`make()` the first time `key` is asked for in this run, the same object after that."""
         if key not in self.cache:
             self.cache[key] = make()
         return self.cache[key]
+
+
+def log_stages() -> tuple[Stage, ...]:
+    """The stages of a measured log's run (harness/sources/log.py)."""
+    from harness.stages import log_identification
+
+    return (log_identification.STAGE,)
 
 
 def core_stages() -> tuple[Stage, ...]:

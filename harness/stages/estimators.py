@@ -1,4 +1,4 @@
-"""Estimators side by side on the joint-torque path (harness/estimators.py), on the bench where the
+"""Estimators side by side on the joint-torque path (harness/identify/estimators.py), on the bench where the
 truth is known: the recording is measured `trials` times under the scenario's measurement (noise
 drawn from seeds seed, seed + 1, ...), every estimator fits every trial, and each is judged per base
 parameter by its bias (the mean error, in units of its spread over the trials, and against the
@@ -18,14 +18,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.compare import joint_load_scale
+from harness.base.numerics import parameter_scale
+from harness.base.plugins import Stage
 from harness.engines.pinocchio import PinocchioModel, build_model
-from harness.estimators import DESCRIPTIONS, ESTIMATORS, Instruments, iv
-from harness.measurement import Measurement, measure, savgol
-from harness.plugins import Stage
-from harness.propagation import propagates, score_covariance
-from harness.recording import Recording
-from harness.torque_id import beta_scale, parameter_names, regressor, structural_base, true_parameters
+from harness.engines.recording import Recording
+from harness.identify.estimators import DESCRIPTIONS, ESTIMATORS, Instruments, iv
+from harness.identify.propagation import propagates, score_covariance
+from harness.identify.torque_id import parameter_names, regressor, structural_base, true_parameters
+from harness.identify.trials import over_trials
+from harness.sources.measurement import Measurement, measure, savgol
+from harness.stages.metrics import joint_load_scale
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,7 +41,7 @@ class Comparison:
     validation_rel_error: np.ndarray  # (methods, trials): largest |predicted - recorded| / L_J
     samples: int
     edge: int  # samples dropped at each end (the differentiating filter's end effects)
-    lags: int  # samples over which the noise stays correlated (harness/estimators.py)
+    lags: int  # samples over which the noise stays correlated (harness/identify/estimators.py)
     block: int  # samples per cluster of the least-squares family's standard deviations
     interval: str  # where the IV intervals come from: "sensors" or "residuals"
     iv_half_from_residuals: np.ndarray | None  # (trials, r) beside the sensors' intervals
@@ -62,7 +64,7 @@ def run(ctx, config) -> Comparison | None:
     edge = m.filter_window // 2 if m.differentiate else 0
     # two outputs of the differentiating filter share no encoder reading beyond a window apart
     lags = m.filter_window - 1 if m.differentiate else 0
-    block = 3 * (lags + 1) if lags else 1  # the least-squares family's clusters (harness/estimators.py)
+    block = 3 * (lags + 1) if lags else 1  # the least-squares family's clusters (harness/identify/estimators.py)
     rows = np.arange(0, len(rec.t), m.every)
     usable = (len(rows) - 2 * edge) // block * block  # whole clusters only
     keep = slice(edge, edge + usable)
@@ -74,7 +76,7 @@ def run(ctx, config) -> Comparison | None:
     if m.differentiate:
         qd_ref, qdd_ref = (savgol(q_ref, rec.t[rows], m.filter_window, k) for k in (1, 2))
     Z1 = regressor(pm, q_ref[keep], qd_ref[keep], qdd_ref[keep], with_friction=sc.torque_friction)[:, cols]
-    # the Coulomb shapes s(q') are the columns nonlinear in a measured signal (harness/estimators.py)
+    # the Coulomb shapes s(q') are the columns nonlinear in a measured signal (harness/identify/estimators.py)
     names = parameter_names(joints, sc.torque_friction)
     nonlinear = np.array([names[c].endswith(".coulomb") for c in cols])
     from_residuals = Instruments(Z1, nonlinear)
@@ -147,40 +149,10 @@ def _trial(b: _Bench, k: int) -> tuple:
     return beta, std, half, seconds, val_err, half_residuals
 
 
-@dataclass(frozen=True, eq=False)
-class OverTrials:
-    """Errors of estimates over Monte Carlo trials, per base parameter (the trials' axis reduced)."""
-
-    bias: np.ndarray  # mean error
-    spread: np.ndarray  # the errors' standard deviation over the trials
-    bias_in_sd: np.ndarray  # |bias| / spread
-    significant: np.ndarray  # |bias| beyond 3 standard errors of the mean
-    coverage: np.ndarray | None  # how often the 95 % interval holds the true value
-    rms_rel_error: np.ndarray  # RMS error / the parameter's scale
-    binomial: float  # the standard error of a calibrated interval's coverage over these trials
-
-    @property
-    def band(self) -> tuple[float, float]:
-        """A calibrated 95 % interval's coverage falls within 3 binomial standard errors of 0.95 but for
-        0.27 % of the parameters."""
-        return 0.95 - 3 * self.binomial, 0.95 + 3 * self.binomial
-
-
-def over_trials(err: np.ndarray, half: np.ndarray | None, scale: np.ndarray) -> OverTrials:
-    """err (..., trials, r): estimate - truth; half: the 95 % intervals' half widths (same shape), or None."""
-    T = err.shape[-2]
-    bias = err.mean(axis=-2)
-    spread = err.std(axis=-2, ddof=1) if T > 1 else np.full_like(bias, np.nan)
-    # the mean of T errors has a standard error spread / sqrt(T): beyond 3 of them a bias is real
-    return OverTrials(bias, spread, np.abs(bias) / spread, np.abs(bias) > 3 * spread / np.sqrt(T),
-                      (np.abs(err) <= half).mean(axis=-2) if half is not None else None,
-                      np.sqrt(np.mean(err**2, axis=-2)) / scale, float(np.sqrt(0.95 * 0.05 / T)))
-
-
 def serialise(c: Comparison, ctx, config) -> dict:
     T = c.beta.shape[1]
     err = c.beta - c.beta_true  # (methods, trials, r)
-    stats = over_trials(err, c.half, beta_scale(c.beta_true))
+    stats = over_trials(err, c.half, parameter_scale(c.beta_true))
     bias_in_sd, significant, covered, rms = stats.bias_in_sd, stats.significant, stats.coverage, stats.rms_rel_error
     binomial = stats.binomial
     out = {
@@ -223,11 +195,5 @@ def serialise(c: Comparison, ctx, config) -> dict:
     return out
 
 
-def render(results: dict, rec) -> str:
-    from harness.report.sections import estimator_comparison
-
-    return estimator_comparison(results)
-
-
 STAGE = Stage("estimators", "estimators side by side (Monte Carlo over the measurement noise)", run, serialise,
-              "Estimators side by side", render)
+              "Estimators side by side")

@@ -1,4 +1,4 @@
-"""Identification from joint torques: the built-in method (harness/torque_id.py) and every
+"""Identification from joint torques: the built-in method (harness/identify/torque_id.py) and every
 identification method the scenario plugs in, on the same measured data and judged the same way.
 
 Judged twice: the base parameters (the combinations of the 10 inertial parameters per body that
@@ -14,10 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from harness.bench import record
-from harness.compare import joint_load_scale
-from harness.engines.pinocchio import build_model
-from harness.plugins import (
+from harness.base.numerics import PARAMETER_FLOOR, parameter_scale, relative_error
+from harness.base.plugins import (
     ModelUnderTest,
     PluginError,
     Stage,
@@ -28,17 +26,19 @@ from harness.plugins import (
     inverse_dynamics,
     invoke,
 )
-from harness.torque_id import (
-    BETA_FLOOR,
+from harness.engines.pinocchio import build_model
+from harness.identify.torque_id import (
     TorqueIdentification,
-    beta_scale,
     describe_base,
     identify_from_torques,
     parameter_names,
     structural_base,
     true_parameters,
 )
-from harness.torque_id import section as torque_id_section
+from harness.identify.torque_id import section as torque_id_section
+from harness.identify.trials import over_trials
+from harness.sources.bench import record
+from harness.stages.metrics import joint_load_scale
 
 
 def joint_data(rec, joints: list[str]) -> tuple[np.ndarray, ...]:
@@ -76,7 +76,7 @@ def serialise_builtin(ti: TorqueIdentification, ctx, config) -> dict:
 
 @dataclass(frozen=True, eq=False)
 class BaseTable:
-    """A method's parameters reduced to the robot's structural base parameters (harness/torque_id.py)."""
+    """A method's parameters reduced to the robot's structural base parameters (harness/identify/torque_id.py)."""
 
     expressions: list[str]  # each base parameter as the combination of standard parameters it stands for
     true: np.ndarray  # (r,) the robot's
@@ -85,7 +85,7 @@ class BaseTable:
 
     @property
     def rel_error(self) -> np.ndarray:
-        return np.abs(self.identified - self.true) / beta_scale(self.true)
+        return relative_error(self.identified, self.true, parameter_scale(self.true))
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,7 +167,7 @@ def _judge(ctx, entry) -> MethodResult:
         val = validation_recording(ctx, validation)
         qv, qdv, qddv, tauv = joint_data(val, joints)
         pred = inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, joints, qv, qdv, qddv)
-        val_err, val_t = np.abs(pred - tauv) / joint_load_scale(sc.robot, val), val.t
+        val_err, val_t = relative_error(pred, tauv, joint_load_scale(sc.robot, val)), val.t
     if table is None and val_err is None:
         raise PluginError(plugin, "cannot be judged: its fitted model reports no parameters and the scenario "
                                   "names no validation trajectory ([identification] validation = ...)")
@@ -195,8 +195,8 @@ def serialise_methods(results: tuple[MethodResult, ...], ctx, config) -> dict:
                 "count": len(b.true),
                 "max_rel_error": float(rel[worst]),
                 "max_rel_parameter": b.expressions[worst],
-                "rel_error_definition": f"|identified - true| / max(|true|, {BETA_FLOOR:g} x largest |true|), the "
-                                        "structural base parameters of the robot (harness/torque_id.py)",
+                "rel_error_definition": f"|identified - true| / max(|true|, {PARAMETER_FLOOR:g} x largest |true|), the "
+                                        "structural base parameters of the robot (harness/identify/torque_id.py)",
                 "uncertainty": ("std from the method's covariance of its parameters, carried to the base parameters "
                                 "(T Sigma T^T); ci95 = identified +- 1.96 std" if b.std is not None else
                                 "the method gives no covariance"),
@@ -223,22 +223,10 @@ def serialise_methods(results: tuple[MethodResult, ...], ctx, config) -> dict:
     return out
 
 
-def _render_builtin(results: dict, rec) -> str:
-    from harness.report.sections import torque_identification
-
-    return torque_identification(results)
-
-
-def _render_methods(results: dict, rec) -> str:
-    from harness.report.sections import identification_methods
-
-    return identification_methods(results)
-
-
 TORQUE_STAGE = Stage("torque_identification", "joint-torque identification (base parameters)", run_builtin,
-                     serialise_builtin, "Torque identification", _render_builtin)
+                     serialise_builtin, "Torque identification")
 METHODS_STAGE = Stage("identification_methods", "identification methods under test", run_methods,
-                      serialise_methods, "Identification methods", _render_methods)
+                      serialise_methods, "Identification methods")
 
 
 # --- a method under measurement noise: `harness sweep` ---------------------------------------------
@@ -249,7 +237,7 @@ class _MethodBench:
     """What every trial of one method shares, sent once to each worker: the truth, its measurement,
     the method (rebuilt on the worker from what the scenario names) and the validation data."""
 
-    entry: Any  # harness.scenario.PluginEntry, without its instance where it can be built again
+    entry: Any  # harness.runner.scenario.PluginEntry, without its instance where it can be built again
     rec: Any  # the ideal recording
     m: Any  # the scenario's measurement
     arms: np.ndarray
@@ -268,7 +256,7 @@ def _method_setup(bench: _MethodBench) -> tuple:
 def _method_trial(state: tuple, k: int) -> tuple:
     """Trial k: the measurement drawn from seed + k, the method's fit, its base parameters (and
     standard deviations) and its largest validation error."""
-    from harness.measurement import measure
+    from harness.sources.measurement import measure
 
     b, method = state
     plugin = b.entry.reference
@@ -279,7 +267,7 @@ def _method_trial(state: tuple, k: int) -> tuple:
     if b.validation is not None:
         qv, qdv, qddv, tauv, load = b.validation
         pred = inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, b.joints, qv, qdv, qddv)
-        val = float(np.max(np.abs(pred - tauv) / load))
+        val = float(np.max(relative_error(pred, tauv, load)))
     if table is None:
         return None, None, val
     return table.identified, table.std, val
@@ -312,7 +300,6 @@ def sweep_methods(ctx, trials: int) -> dict:
 
 
 def _method_statistics(entry, rows: list[tuple], bm: BaseMap) -> dict:
-    from harness.stages.estimators import over_trials  # the statistics the estimators' sweep uses
 
     vals = [r[2] for r in rows if r[2] is not None]
     summary: dict = {"plugin": entry.reference, "trials": len(rows),
@@ -323,7 +310,7 @@ def _method_statistics(entry, rows: list[tuple], bm: BaseMap) -> dict:
         beta = np.stack([r[0] for r in rows])  # (trials, r)
         with_std = all(r[1] is not None for r in rows)
         half = CI95 * np.stack([r[1] for r in rows]) if with_std else None
-        s = over_trials(beta - bm.true, half, beta_scale(bm.true))
+        s = over_trials(beta - bm.true, half, parameter_scale(bm.true))
         lo, hi = s.band
         summary["base_parameters"] = {
             "definition": "per base parameter over the trials: bias = mean error, bias_in_sd = |bias| / the error's "

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.plugins import Stage
+from harness.base.plugins import Stage
 
 KINDS = ("position", "velocity", "effort")
 

@@ -1,14 +1,14 @@
-"""Identification from a measured joint log (harness/log.py): the pipeline proven on the bench,
+"""Identification from a measured joint log (harness/sources/log.py): the pipeline proven on the bench,
 on data whose truth nobody knows, judged on a part of the log the fit never saw.
 
 1. Least squares of the structural base parameters with each joint's friction and rotor
-   inertia (harness/torque_id.py), with standard deviations and weakly identifiable parameters.
-2. The physically consistent fit of all parameters (harness/consistent.py), closest to the
+   inertia (harness/identify/torque_id.py), with standard deviations and weakly identifiable parameters.
+2. The physically consistent fit of all parameters (harness/identify/consistent.py), closest to the
    model's own values where the data cannot tell.
 3. Both, and the model as it was given (its URDF with its own friction), predict the torques of
    the validation span: per joint RMS and relative error, and over all joints
    ||tau_pred - tau||_F / ||tau||_F (the figure published identifications quote).
-4. The consistent model is exported (harness/export.py).
+4. The consistent model is exported (harness/model/export.py).
 """
 
 from __future__ import annotations
@@ -17,28 +17,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness import consistent
-from harness.compare import torque_errors
+from harness.base.numerics import parameter_scale, relative_error
+from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model
-from harness.export import export
-from harness.friction import IDENTIFIED_KEYS
-from harness.friction import values as friction_values
-from harness.log import JointLog
-from harness.plugins import Stage
-from harness.stages.identification import joint_data
-from harness.torque_id import (
-    PARAMETER_NAMES,
+from harness.identify import consistent
+from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
-    beta_scale,
     describe_base,
     fit_base,
-    kind_scale,
     parameter_names,
     regressor,
     structural_base,
     true_parameters,
 )
+from harness.model.export import export
+from harness.model.friction import IDENTIFIED_KEYS
+from harness.model.friction import values as friction_values
+from harness.model.inertia import PARAMETER_NAMES, kind_scale
+from harness.sources.log import JointLog
+from harness.stages.identification import joint_data
+from harness.stages.metrics import torque_errors
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,12 +108,12 @@ def _span_errors(li: LogIdentification, span: str) -> dict:
 
 
 def serialise(li: LogIdentification, ctx, config) -> dict:
-    from harness.consistent import consistency
-    from harness.results import finite_or_null
+    from harness.base.numerics import finite_or_null
+    from harness.identify.consistent import consistency
 
     n = len(li.joints)
     ls = li.ls
-    rel = np.abs(ls.beta - li.beta_model) / beta_scale(li.beta_model)
+    rel = relative_error(ls.beta, li.beta_model, parameter_scale(li.beta_model))
 
     def expression(k: int) -> str:
         return describe_base(li.names, li.base, k)
@@ -128,8 +127,9 @@ def serialise(li: LogIdentification, ctx, config) -> dict:
                     **{f"{key}": value for key, value in consistency(li.fit.theta[k]).items()}}
     return {
         "method": "least squares of the structural base parameters with friction and rotor inertia, then all "
-                  "parameters under the pseudo-inertia LMI (harness/consistent.py, Clarabel)",
-        "friction_law": "I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o per joint (harness/friction.py), v_c from the model",
+                  "parameters under the pseudo-inertia LMI (harness/identify/consistent.py, Clarabel)",
+        "friction_law": ("I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o per joint (harness/model/friction.py), v_c from "
+                         "the model"),
         "rel_error_definition": "||tau_predicted - tau_measured||_F / ||tau_measured||_F over every sample and joint "
                                 "of the span; per joint the same over its samples, and the RMS error in N m",
         "spans": {span: {"samples": len(li.t[span]), "t_start": float(li.t[span][0]), "t_end": float(li.t[span][-1])}
@@ -177,11 +177,5 @@ def _series(li: LogIdentification) -> dict:
                for model, pred in li.predictions[span].items()}}
 
 
-def render(results: dict, log) -> str:
-    from harness.report.sections import log_identification
-
-    return log_identification(results, log)
-
-
 STAGE = Stage("log_identification", "identification from the measured log", run, serialise,
-              "Identification from the log", render, lambda li: li.files)
+              "Identification from the log", files=lambda li: li.files)

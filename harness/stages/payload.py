@@ -4,9 +4,9 @@
 
 where W_b holds the 10 columns of the body that carries the payload. The robot's own part is
 predicted at the loaded run's states from the base parameters identified on the run without it
-(harness/torque_id.py), and least squares of the difference on W_b gives the payload's ten
+(harness/identify/torque_id.py), and least squares of the difference on W_b gives the payload's ten
 parameters (m, m c, inertia about the joint point, world axes at q = 0, as the body's own in
-Pinocchio's joint frame), by the ordinary least squares of harness/estimators.py (CR3 standard
+Pinocchio's joint frame), by the ordinary least squares of harness/identify/estimators.py (CR3 standard
 deviations clustered by sample).
 A scenario asks for it with
 
@@ -23,11 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model
-from harness.estimators import ols
-from harness.measurement import measure
-from harness.plugins import Stage
-from harness.torque_id import PARAMETER_NAMES, kind_scale, regressor, structural_base, true_parameters
+from harness.identify.estimators import ols
+from harness.identify.torque_id import regressor, structural_base, true_parameters
+from harness.model.inertia import PARAMETER_NAMES, kind_scale
+from harness.sources.measurement import measure
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,15 +95,4 @@ def serialise(p: Payload, ctx, config) -> dict:
     }
 
 
-def render(results: dict, rec) -> str:
-    from harness.report.sections import esc, num, section, table
-
-    p = results["payload"]
-    rows = [[esc(x["name"]), num(x["true"]), num(x["identified"]), num(x["rel_error"]), num(x["std"]),
-             "yes" if x["within_ci95"] else "no"] for x in p["parameters"]]
-    return section("payload", "Payload", f"<p>{esc(p['method'])}; on {esc(p['body'])} (joint {esc(p['joint'])}). "
-                   f"Largest relative error {num(p['max_rel_error'])} ({esc(p['rel_error_definition'])}).</p>"
-                   + table(["parameter", "true", "identified", "rel error", "std", "in 95 % interval"], rows))
-
-
-STAGE = Stage("payload", "payload from the runs with and without it", run, serialise, "Payload", render)
+STAGE = Stage("payload", "payload from the runs with and without it", run, serialise, "Payload")

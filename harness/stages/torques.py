@@ -1,9 +1,9 @@
 """Joint torques of every model under test against the reference engines, on the recorded motion.
 
 References: MuJoCo's torques (what drove the simulation) and Pinocchio's RNEA on a model built
-from the same robot description. Each model under test (harness/plugins.py) gets the recorded
+from the same robot description. Each model under test (harness/base/plugins.py) gets the recorded
 (q, q', q'') and returns its torques; the three are compared pairwise with one definition of
-relative error (harness/compare.py). Its joint wrenches and mass matrix are compared too when
+relative error (harness/stages/metrics.py). Its joint wrenches and mass matrix are compared too when
 the model offers them.
 """
 
@@ -14,11 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.compare import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
+from harness.base.numerics import floats, relative_error
+from harness.base.plugins import PluginError, Stage, call, check_array, column_maps, inverse_dynamics, invoke
 from harness.engines.pinocchio import build_model, crba, rnea
-from harness.plugins import PluginError, Stage, call, check_array, column_maps, inverse_dynamics, invoke
-from harness.results import floats
-from harness.states import motion_scale, position_bounds, random_states
+from harness.model.states import motion_scale, position_bounds, random_states
+from harness.stages.metrics import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
 
 MASS_MATRIX_SAMPLES = 20  # configurations of the recording at which a model's M(q) is compared
 
@@ -38,7 +38,7 @@ class ModelTorques:
 
 @dataclass(frozen=True, eq=False)
 class RandomStates:
-    """Pinocchio's RNEA at random states (harness/states.py), what every model is also judged at."""
+    """Pinocchio's RNEA at random states (harness/model/states.py), what every model is also judged at."""
 
     q: np.ndarray  # (count, n) robot joint order
     qd: np.ndarray
@@ -190,7 +190,7 @@ def serialise(tc: TorqueComparison, ctx, config) -> dict:
 
 
 def _random_metrics(tau: np.ndarray, rs: RandomStates, joints: list[str]) -> dict:
-    rel = np.abs(tau - rs.tau) / rs.load_scale
+    rel = relative_error(tau, rs.tau, rs.load_scale)
     k, j = np.unravel_index(np.argmax(rel), rel.shape)
     return {
         "max_rel_error": float(rel[k, j]), "max_rel_joint": joints[j], "max_rel_state": int(k),
@@ -206,11 +206,4 @@ def _random_metrics(tau: np.ndarray, rs: RandomStates, joints: list[str]) -> dic
     }
 
 
-def _render(results: dict, rec) -> str:
-    from harness.report.sections import torques
-
-    return torques(results)
-
-
-STAGE = Stage("torques", "joint torques: reference engines and models under test", run, serialise,
-              "Torques", _render)
+STAGE = Stage("torques", "joint torques: reference engines and models under test", run, serialise, "Torques")

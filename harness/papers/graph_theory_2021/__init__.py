@@ -2,7 +2,7 @@
 incidence matrix, Newton-Euler equations in Cardano coordinates, constraints and Lagrange
 multipliers, and a least-squares identification of each body's mass and principal inertias.
 
-It plugs into the harness through the doors any user's code uses (harness/plugins.py):
+It plugs into the harness through the doors any user's code uses (harness/base/plugins.py):
 - `model.make`: the graph model as a model under test (entry point `harness.models:graph_theory_2021`);
 - `study.STUDY`: its stages, asked for by `[studies.graph_theory_2021]` in a scenario.
 

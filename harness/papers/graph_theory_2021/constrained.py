@@ -24,13 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness import friction
-from harness.cardano import GIMBAL_COND_D, D, D_dot
-from harness.kinematics import cross, skew
+from harness.engines.recording import Recording
+from harness.model import friction
+from harness.model.cardano import GIMBAL_COND_D, D, D_dot
+from harness.model.kinematics import cross, skew
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
 from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, at_rest_floor
-from harness.recording import Recording
-from harness.spec import RobotSpec
 
 
 def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.ndarray, r: np.ndarray

@@ -40,10 +40,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.cardano import A_0i, D, D_dot
-from harness.kinematics import cross, skew
+from harness.model.cardano import A_0i, D, D_dot
+from harness.model.kinematics import cross, skew
+from harness.model.spec import WORLD, RobotSpec
 from harness.papers.graph_theory_2021.topology import Topology
-from harness.spec import WORLD, RobotSpec
 
 FORMULATIONS = ("paper", "normal")
 

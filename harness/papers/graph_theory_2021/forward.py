@@ -29,14 +29,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness import quaternion
-from harness.cardano import A_0i
-from harness.kinematics import cross
+from harness.engines.recording import Recording
+from harness.model import quaternion
+from harness.model.cardano import A_0i
+from harness.model.kinematics import cross
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.constrained import active_wrenches
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
 from harness.papers.graph_theory_2021.dynamics import GraphModel
-from harness.recording import Recording
-from harness.spec import RobotSpec
 
 BAUMGARTE = 10.0  # rad/s: constraint errors decay like exp(-10 t), critically damped
 # The correction must be stiffer than the instability it holds (growth rate about 31/s in

@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.cardano import A_0i
-from harness.kinematics import cross, skew
+from harness.engines.recording import Recording
+from harness.model.cardano import A_0i
+from harness.model.kinematics import cross, skew
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.dynamics import GraphModel
-from harness.recording import Recording
-from harness.spec import RobotSpec
 
 FULL_PARAMETERS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 GROUPS = ((0,), (1, 2, 3), (4, 5, 6, 7, 8, 9))

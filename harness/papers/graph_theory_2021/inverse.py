@@ -16,12 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.cardano import A_0i_components
-from harness.kinematics import cross, forward_kinematics, rotate
+from harness.engines.recording import Recording
+from harness.model.cardano import A_0i_components
+from harness.model.kinematics import cross, forward_kinematics, rotate
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.papers.graph_theory_2021.topology import joint_arms_components
-from harness.recording import Recording
-from harness.spec import RobotSpec
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,7 +45,7 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
 def inverse_dynamics_of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray,
                                qdd: np.ndarray) -> GraphInverse:
     """From joint coordinates alone (spec joint order, (N, n)): the body motion by forward
-    kinematics of the tree (harness/kinematics.py), then Newton-Euler as on a recording."""
+    kinematics of the tree (harness/model/kinematics.py), then Newton-Euler as on a recording."""
     kin = forward_kinematics(spec, q, qd, qdd)
     top = model.topology
     b = [kin.body_index(x) for x in top.bodies]

@@ -7,16 +7,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.cardano import GIMBAL_COND_D, A_0i, D, cond_D
-from harness.compare import largest
-from harness.kinematics import cross
+from harness.engines.recording import Recording
+from harness.model.cardano import GIMBAL_COND_D, A_0i, D, cond_D
+from harness.model.kinematics import cross
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.constrained import Constrained, solve_constrained
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, build_constraints
 from harness.papers.graph_theory_2021.dynamics import GraphModel, body_series
 from harness.papers.graph_theory_2021.forward import ForwardResult, forward_simulate
-from harness.recording import Recording
-from harness.scenario import Scenario
-from harness.spec import RobotSpec
+from harness.runner.scenario import Scenario
+from harness.stages.metrics import largest
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,4 +1,4 @@
-"""The graph-theory model as a model under test (harness/plugins.py, ModelUnderTest): joint
+"""The graph-theory model as a model under test (harness/base/plugins.py, ModelUnderTest): joint
 torques and joint wrenches from (q, q', q'') by the paper's Newton-Euler equations (Eqs. 17-23)
 solved with the incidence matrix (harness/papers/graph_theory_2021/inverse.py), the body motion
 from the tree's forward kinematics."""
@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import friction
+from harness.model import friction
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.inverse import GraphInverse, inverse_dynamics_of_motion
-from harness.spec import RobotSpec
 
 STANDARD_GRAVITY_W = np.array([0.0, 0.0, -9.80665])
 
@@ -28,7 +28,7 @@ class GraphTheoryModel:
 
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """The drive torques: the joint wrenches' components along the axes, plus the drives' own
-        rotor inertia and friction (harness/friction.py)."""
+        rotor inertia and friction (harness/model/friction.py)."""
         return self.solve(q, qd, qdd).tau + friction.torque(self.spec.frictions, qd, qdd)
 
     def joint_wrenches(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

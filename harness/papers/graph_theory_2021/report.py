@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.recording import Recording
+from harness.engines.recording import Recording
 from harness.report import plots
 from harness.report.sections import esc, figure, identifiability, num, section, table
 

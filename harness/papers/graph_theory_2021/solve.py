@@ -1,6 +1,6 @@
 """Section 2.3 on the bench: the paper's identification form (Eqs. 49-64) and the form with all 10
 inertial parameters per body, solved by least squares with the measurement-error floor of each
-column (harness/identify.py); and the results.json sections of the paper's stages."""
+column (harness/identify/lstsq.py); and the results.json sections of the paper's stages."""
 
 from __future__ import annotations
 
@@ -9,18 +9,18 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from harness.compare import largest
-from harness.identify import WEAK_RATIO, LeastSquares, solve, weakly_identifiable
-from harness.measurement import Measurement, dither
+from harness.base.numerics import finite_or_null, floats
+from harness.base.reference import reference_table
+from harness.engines.recording import Recording
+from harness.identify.lstsq import WEAK_RATIO, LeastSquares, solve, weakly_identifiable
+from harness.model.inertia import kind_scale
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.dynamics import GraphModel, Residual, body_series
 from harness.papers.graph_theory_2021.full import FULL_PARAMETERS, full_form
 from harness.papers.graph_theory_2021.identification import PARAMETERS, id_Y, id_Z, stack_per_body, stack_system
 from harness.papers.graph_theory_2021.lagrange import LagrangeOutput, reactions_at
-from harness.recording import Recording
-from harness.reference import reference_table
-from harness.results import finite_or_null, floats
-from harness.spec import RobotSpec
-from harness.torque_id import kind_scale
+from harness.sources.measurement import Measurement, dither
+from harness.stages.metrics import largest
 
 PACKAGE = "harness.papers.graph_theory_2021"  # its reference tables are in its reference/ folder
 
@@ -142,7 +142,7 @@ def parameter_scale(true: np.ndarray) -> np.ndarray:
 
 WEAK_DEFINITION = (f"identifiable, but its sensitivity to the data (relative change per relative change of the "
                    f"data, worst direction) is more than {WEAK_RATIO:g} times the median parameter's; its error "
-                   "is reported apart from max_abs_rel_error (harness/identify.py)")
+                   "is reported apart from max_abs_rel_error (harness/identify/lstsq.py)")
 
 
 def _weakness(ls: LeastSquares, c: int) -> dict:
@@ -217,7 +217,7 @@ def identification_section(ident: Identification, paper_identified: str | None, 
     return {
         "method": "least squares per body (Eq. 56) and for the whole system (Eq. 64)",
         "uncertainty": "std and 95 % interval from the cluster-robust (CR3) covariance over the sample times, "
-                       "t quantile with G - 1 degrees of freedom (harness/identify.py)",
+                       "t quantile with G - 1 degrees of freedom (harness/identify/lstsq.py)",
         "rel_error_definition": "(identified - true) / |true|; where the true value is zero, relative to the "
                                 "largest true value of the same kind (mass or moment of inertia) in the model",
         "sample_times": floats(ident.sample_times),
@@ -228,7 +228,7 @@ def identification_section(ident: Identification, paper_identified: str | None, 
         "measurement_resolution": ident.resolution,
         "excitation": "a parameter is identifiable when its regressor column is at least 10 times "
                       "what measurement error alone produces, and its column is not collinear "
-                      "with others (harness/identify.py)",
+                      "with others (harness/identify/lstsq.py)",
         "weak_definition": WEAK_DEFINITION,
         "max_abs_rel_error": max((abs(r["rel_error"]) for r in strong), default=None),
         "not_identifiable": [f"{r['body']}.{r['name']}" for r in rows if not r["identifiable"]],

@@ -18,7 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.plugins import Stage, Study
+from harness.base.reference import has_reference_table
+from harness.base.tomlio import InputError, Table
 from harness.engines.pinocchio import build_model as build_pinocchio
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021 import report
 from harness.papers.graph_theory_2021.dynamics import (
     D_error,
@@ -39,11 +43,8 @@ from harness.papers.graph_theory_2021.solve import (
     lagrange_section,
     measured_rows,
 )
-from harness.plugins import Stage, Study
-from harness.reference import has_reference_table
-from harness.scenario import load_variant
-from harness.spec import RobotSpec
-from harness.tomlio import InputError, Table
+from harness.papers.graph_theory_2021.sweep import run_sweep
+from harness.runner.scenario import load_variant
 
 _GRID_TOL = 1e-9
 
@@ -84,11 +85,6 @@ def configure(t: Table, scenario) -> Config:
                                              "rotor inertia, which this robot's model declares")
     lt.finish()
     return Config(tested, _table_name(t, "paper_identified"), _table_name(t, "paper_abs_error"), settings)
-
-
-def config_of(scenario) -> Config:
-    """This study's configuration in a scenario that asks for it."""
-    return next(c for s, c in scenario.studies if s.name == "graph_theory_2021")
 
 
 def _models(ctx, config: Config) -> tuple[GraphModel, GraphModel]:
@@ -132,7 +128,6 @@ def _lagrange(ctx, config):
 
 
 def _sweep(scenario, trials, workers, progress):
-    from harness.papers.graph_theory_2021.sweep import run_sweep
 
     return run_sweep(scenario, trials, workers, progress)
 

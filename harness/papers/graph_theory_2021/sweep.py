@@ -1,7 +1,7 @@
 """Monte Carlo over measurement noise: the simulation runs once, the measurement is drawn N times.
 
 Trial k uses seed (scenario seed + k), so a sweep is the same wherever its trials run (this
-process, forked processes, a Dask cluster: harness/workers.py).
+process, forked processes, a Dask cluster: harness/base/workers.py).
 For every parameter: the distribution of its error over the trials in which it was identifiable,
 and the coverage of its 95 % intervals (the fraction of trials whose interval contains the true
 value), which is what makes the stated uncertainty honest or not. The same is repeated, with
@@ -15,21 +15,24 @@ from collections.abc import Callable
 
 import numpy as np
 
-from harness.bench import record
-from harness.measurement import Measurement, measure
+from harness.base.workers import IN_PROCESS, Workers
 from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.identification import PARAMETERS
 from harness.papers.graph_theory_2021.solve import identify, measured_rows, parameter_scale
-from harness.scenario import Scenario
-from harness.workers import IN_PROCESS, Workers
+from harness.runner.scenario import Scenario
+from harness.sources.bench import record
+from harness.sources.measurement import Measurement, measure
 
 LEVELS = (0.25, 0.5, 1.0, 2.0, 4.0)
 
 
+def config_of(scenario: Scenario):
+    """This study's configuration (study.Config) in a scenario that asks for it."""
+    return next(c for s, c in scenario.studies if s.name == "graph_theory_2021")
+
+
 def _setup(scenario: Scenario, recording) -> dict:
     """Once per worker: the models the trials share."""
-    from harness.papers.graph_theory_2021.study import config_of
-
     return dict(scenario=scenario, recording=recording,
                 model=build_graph_model(config_of(scenario).tested, scenario.gravity_W),
                 truth=build_graph_model(scenario.robot, scenario.gravity_W))
@@ -51,7 +54,7 @@ def _trial(state: dict, task: tuple[int, float]) -> tuple[np.ndarray, np.ndarray
 def run_sweep(scenario: Scenario, trials: int, workers: Workers = IN_PROCESS,
               progress: Callable[[int, int], None] | None = None, levels: tuple[float, ...] = LEVELS) -> dict:
     """`trials` measurements at the scenario's noise, and max(trials // 10, 20) at each other level
-    of `levels`, identified on `workers` (harness/workers.py). sweep.json's "run" says where and
+    of `levels`, identified on `workers` (harness/base/workers.py). sweep.json's "run" says where and
     how long; everything else is the same wherever the trials ran."""
     t0 = time.perf_counter()
     recording = record(scenario)

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.kinematics import cross, rotate
-from harness.spec import RobotSpec
+from harness.model.kinematics import cross, rotate
+from harness.model.spec import RobotSpec
 
 
 @dataclass(frozen=True, eq=False)

@@ -2,4 +2,4 @@
 one motor per joint against one motor driving joints 3..6 through gears. Its study
 (`study.STUDY`, asked for by `[studies.yahya2012]`) checks the paper's design claims against the
 conventional design on the same path, and audits the printed closed-form inertia matrix against
-Pinocchio's CRBA. It plugs in through harness/plugins.py like any user's study."""
+Pinocchio's CRBA. It plugs in through harness/base/plugins.py like any user's study."""

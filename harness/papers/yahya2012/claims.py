@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.compare import joint_load_scale
-from harness.recording import Recording
-from harness.spec import RobotSpec
+from harness.engines.recording import Recording
+from harness.model.spec import RobotSpec
+from harness.stages.metrics import joint_load_scale
 
 
 def _peak_rms(x: np.ndarray) -> tuple[float, float]:

@@ -13,13 +13,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from harness.bench import record
+from harness.base.plugins import Stage, Study
+from harness.base.tomlio import Table
 from harness.papers.yahya2012 import report
 from harness.papers.yahya2012.audit import audit_inertia_matrix
 from harness.papers.yahya2012.claims import design_claims
-from harness.plugins import Stage, Study
-from harness.scenario import Scenario, load_related
-from harness.tomlio import Table
+from harness.runner.scenario import Scenario, load_related
+from harness.sources.bench import record
 
 
 @dataclass(frozen=True, eq=False)

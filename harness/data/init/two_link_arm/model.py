@@ -1,7 +1,7 @@
 """Your code, judged by the harness: a dynamic model and an identification method.
 
 Both are plugins, named in scenario.toml (`python = "my_robot:make_model"`). The harness calls
-each factory with the robot description (a harness.spec.RobotSpec), the scenario's gravity
+each factory with the robot description (a harness.model.spec.RobotSpec), the scenario's gravity
 `gravity_W` (world components, m/s^2) and `parameters` (the extra keys of the scenario's table).
 
 This file starts as a working example for robot.urdf, a two-link arm swinging about y: replace

@@ -10,7 +10,7 @@ point that an installed package declares:
     [project.entry-points."harness.identification"]  # an identification method
     [project.entry-points."harness.studies"]         # a study: its own stages and report sections
 
-Model under test: the attribute is called with the robot description (a `harness.spec.RobotSpec`)
+Model under test: the attribute is called with the robot description (a `harness.model.spec.RobotSpec`)
 and, if its signature accepts them, keyword arguments `gravity_W` (the scenario's gravity, world
 components, m/s^2) and `parameters` (the scenario's table for this model, as a dict). It returns an
 object with
@@ -30,7 +30,7 @@ per joint in the fitted model's `joint_names` order, the child body's
 [m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] about the joint point, in world axes at
 the initial pose (all q = 0) (Pinocchio's dynamic parameters of a frame at the joint point with
 those axes). They are judged where the data determine them: reduced to the robot's structural base
-parameters (harness/torque_id.py, structural_base) and compared with the robot's own.
+parameters (harness/identify/torque_id.py, structural_base) and compared with the robot's own.
 """
 
 from __future__ import annotations
@@ -127,7 +127,7 @@ def guard(plugin: str, what: str) -> Iterator[None]:
     becomes a PluginError naming the plugin and what it was doing (exit status 2), so that only the
     harness chooses its exit status. The user's own Ctrl-C passes through; so do the harness's own
     PluginError and InputError (a study's configuration refusing a key)."""
-    from harness.tomlio import InputError
+    from harness.base.tomlio import InputError
 
     try:
         yield
@@ -213,7 +213,7 @@ def check_protocol(plugin: str, obj: Any, protocol: type, joint_names: Sequence[
         names = None if missing else [str(n) for n in obj.joint_names]
     if missing:
         raise PluginError(plugin, f"the object it returned has no {', '.join(missing)} "
-                                  f"(see the {protocol.__name__} protocol in harness/plugins.py)")
+                                  f"(see the {protocol.__name__} protocol in harness/base/plugins.py)")
     if sorted(names) != sorted(joint_names) or len(set(names)) != len(names):
         raise PluginError(plugin, f"joint_names {names} must be the robot's joints {list(joint_names)}, "
                                   "each once, in any order")
@@ -278,10 +278,10 @@ output folder ({relative path: text}, e.g. an exported model). `context` is a ha
 @dataclass(frozen=True, eq=False)
 class Study:
     """A package of stages that a scenario asks for by name (`[studies.NAME]`): `configure(table,
-    scenario_file, robot)` validates the scenario's table (raising harness.tomlio.InputError) and
+    scenario_file, robot)` validates the scenario's table (raising harness.base.tomlio.InputError) and
     returns the configuration its stages receive. `sweep(scenario, trials, workers, progress)`,
     when given, repeats the study's identification under measurement noise (`harness sweep`) on
-    `workers` (a harness.workers.Workers) and returns what sweep.json holds; `render_sweep` draws it."""
+    `workers` (a harness.base.workers.Workers) and returns what sweep.json holds; `render_sweep` draws it."""
 
     name: str
     configure: Callable[[Any, Path, Any], Any]
@@ -293,5 +293,5 @@ class Study:
 def load_study(name: str) -> Study:
     study = load_entry_point(name, STUDY_GROUP)
     if not isinstance(study, Study):
-        raise PluginError(name, f"entry point must name a harness.plugins.Study, found {type(study).__name__}")
+        raise PluginError(name, f"entry point must name a harness.base.plugins.Study, found {type(study).__name__}")
     return study

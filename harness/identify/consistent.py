@@ -36,22 +36,14 @@ from dataclasses import dataclass
 import cvxpy as cp
 import numpy as np
 
-from harness.torque_id import about_centre_of_mass, inertia_about_origin
+from harness.base.numerics import column_scale
+from harness.model.inertia import about_centre_of_mass, pseudo_inertia
 
 PULL = 1e-4  # weight of the pull towards the model's values, relative to the least-squares residual
 # the objective is 1 at the least-squares optimum: 1e-7 of it is far below anything the data resolve
 # (Clarabel's default 1e-8 flags the Panda's fit "inaccurate" without changing it in any digit shown)
 SOLVER_TOLERANCES = {"tol_gap_abs": 1e-7, "tol_gap_rel": 1e-7, "tol_feas": 1e-7}
 MARGIN = 1e-6  # J_i >= MARGIN * (model's largest pseudo-inertia eigenvalue) 1: strictly physical
-
-
-def pseudo_inertia(theta: np.ndarray) -> np.ndarray:
-    """(4, 4) J of one link's [m, h_x, h_y, h_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] (about its
-    frame origin): numbers in, numbers out (cvxpy expressions are built the same way in `fit`)."""
-    inertia = inertia_about_origin(theta)
-    sigma = 0.5 * np.trace(inertia) * np.eye(3) - inertia
-    h = np.asarray(theta[1:4], dtype=float)
-    return np.block([[sigma, h[:, None]], [h[None, :], np.array([[theta[0]]])]])
 
 
 def _pseudo_inertia_expr(t) -> cp.Expression:
@@ -84,13 +76,12 @@ class ConsistentFit:
 def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model: np.ndarray,
         scale: np.ndarray) -> ConsistentFit:
     """W: (rows, 10 n + 4 n) regressor (inertial columns, then friction columns, joint by joint,
-    harness/torque_id.py); tau: (rows,); theta_model (n, 10) and friction_model (n, 4): the
+    harness/identify/torque_id.py); tau: (rows,); theta_model (n, 10) and friction_model (n, 4): the
     model's own values; scale: (14 n,) the magnitude of each parameter's kind in the model."""
     n = len(theta_model)
     p = W.shape[1]
     x0 = np.concatenate([theta_model.ravel(), friction_model.ravel()])
-    col = np.linalg.norm(W, axis=0)
-    col = np.where(col > 0, col, 1.0)
+    col = column_scale(W)
     Q, R = np.linalg.qr(W / col)
     b = Q.T @ tau
     norm_tau = float(np.linalg.norm(tau))

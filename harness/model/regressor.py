@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.kinematics import axis_rotation, cross, rotate
+from harness.model.kinematics import axis_rotation, cross, rotate
 
 _REVOLUTE = {"JointModelRX": (1, 0, 0), "JointModelRY": (0, 1, 0), "JointModelRZ": (0, 0, 1)}
 _PRISMATIC = {"JointModelPX": (1, 0, 0), "JointModelPY": (0, 1, 0), "JointModelPZ": (0, 0, 1)}

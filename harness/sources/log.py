@@ -36,8 +36,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from harness.spec import RobotSpec
-from harness.tomlio import MAX_DATA_BYTES, InputError, Table, read_bounded
+from harness.base.tomlio import MAX_DATA_BYTES, InputError, Table, read_bounded
+from harness.model.spec import RobotSpec
 
 if TYPE_CHECKING:  # pandas and scipy.signal are imported where a log is read: a bench run needs neither
     import pandas as pd

@@ -3,10 +3,14 @@ recorded (the truth every stage is judged against)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+from harness.base.tomlio import InputError
 from harness.engines.mujoco import Diverged, simulate
-from harness.recording import Recording
-from harness.scenario import Scenario
-from harness.tomlio import InputError
+from harness.engines.recording import Recording
+
+if TYPE_CHECKING:  # annotations only: the scenario is read, never built, here
+    from harness.runner.scenario import Scenario
 
 
 def record(scenario: Scenario) -> Recording:

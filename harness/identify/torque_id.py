@@ -17,17 +17,23 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from harness import friction
+from harness.base.numerics import (
+    PARAMETER_FLOOR,
+    column_scale,
+    equilibrated_singular_values,
+    finite_or_null,
+    parameter_scale,
+    relative_error,
+)
 from harness.engines.pinocchio import PinocchioModel
-from harness.estimators import column_scale, ols
-from harness.identify import WEAK_RATIO, sensitivity, weakly_identifiable
-from harness.regressor import joint_torque_regressor
-from harness.regressor import supports as batched_supports
-from harness.results import finite_or_null
-from harness.spec import parallel_axis
-from harness.states import position_bounds
+from harness.identify.estimators import ols
+from harness.identify.lstsq import WEAK_RATIO, sensitivity, weakly_identifiable
+from harness.model import friction
+from harness.model.inertia import PARAMETER_NAMES
+from harness.model.regressor import joint_torque_regressor
+from harness.model.regressor import supports as batched_supports
+from harness.model.states import position_bounds
 
-PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 RANK_TOL = 1e-8  # |R_ii| / |R_00| below this: the column depends on the others (exact data: 1e-14)
 ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off: the parameter has no
 # effect on any torque (e.g. a body's mass moment along its own joint axis); such columns sit at
@@ -39,7 +45,7 @@ def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
               with_friction: bool = False) -> np.ndarray:
     """(N * n, 10 n [+ 4 n]): the joint torque regressor of every sample, rows sample by sample in
     the spec's joint order, columns joint by joint (the body each joint carries); with friction,
-    then per joint the columns of [armature, viscous, coulomb, offset] (harness/friction.py)."""
+    then per joint the columns of [armature, viscous, coulomb, offset] (harness/model/friction.py)."""
     W = regressor_by_joint(pm, q, qd, qdd, with_friction)  # (n, p, N)
     return np.ascontiguousarray(W.transpose(2, 0, 1)).reshape(len(q) * W.shape[0], -1)
 
@@ -48,7 +54,7 @@ def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: n
                        with_friction: bool = False, out: np.ndarray | None = None) -> np.ndarray:
     """The same regressor as (n, p, N): out[i, :, k] is joint i's row at sample k, so each joint's
     rows are one contiguous (p, N) block (what a fold into normal equations reads). Batched
-    (harness/regressor.py) where the model's joints allow, else Pinocchio's call sample by sample.
+    (harness/model/regressor.py) where the model's joints allow, else Pinocchio's call sample by sample.
     `out`: a zeroed (n, p, N) array, reused from one call to the next (the entries written are the
     same every call, the others stay zero)."""
     model = pm.model
@@ -86,31 +92,6 @@ def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: n
 def true_parameters(pm: PinocchioModel, with_friction: bool = False) -> np.ndarray:
     inertial = np.concatenate([pm.model.inertias[j].toDynamicParameters() for j in pm.joint_ids])
     return np.concatenate([inertial, friction.values(pm.frictions).ravel()]) if with_friction else inertial
-
-
-def inertia_about_origin(theta: np.ndarray) -> np.ndarray:
-    """(3, 3) the inertia about the frame origin of one body's ten parameters (PARAMETER_NAMES)."""
-    xx, xy, yy, xz, yz, zz = theta[4:]
-    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-
-
-def about_centre_of_mass(theta: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """(m, c, I_c) of one body's ten parameters: its mass, centre of mass and inertia about it,
-    in the frame of the parameters (m > 0)."""
-    m = float(theta[0])
-    c = theta[1:4] / m
-    return m, c, inertia_about_origin(theta) - parallel_axis(m, c)
-
-
-def kind_scale(true: np.ndarray) -> np.ndarray:
-    """(10,) the largest value of each parameter's kind in one body (m; m c, at least m r_g with
-    r_g = sqrt(max I / m) the radius of gyration, since a centre of mass on the joint point has
-    m c = 0 and its own largest value is round-off; I_O)."""
-    out = np.zeros(10)
-    for g in ((0,), (1, 2, 3), (4, 5, 6, 7, 8, 9)):  # m; m c; the inertia
-        out[list(g)] = np.max(np.abs(true[list(g)]))
-    out[1:4] = max(out[1], np.sqrt(true[0] * out[4]))
-    return out
 
 
 def parameter_names(joints: list[str], with_friction: bool = False) -> list[str]:
@@ -176,7 +157,7 @@ class TorqueIdentification:
     condition_number: float  # of the column-scaled base regressor
     std: np.ndarray  # (r,) standard deviation of each base parameter (CR3 over the samples; inf: undetermined)
     ci_half_width: np.ndarray  # (r,) half width of its 95 % interval
-    sensitivity: np.ndarray  # (r,) kappa relative to the model's own base parameters (harness/identify.py)
+    sensitivity: np.ndarray  # (r,) kappa relative to the model's own base parameters (harness/identify/lstsq.py)
     weak: np.ndarray  # (r,) bool: weakly identifiable
     validation_error: np.ndarray | None  # (N_val, n) predicted - recorded torques, validation trajectory
     validation_scale: np.ndarray | None = None  # (n,) joint loads L_J of the validation recording
@@ -206,7 +187,7 @@ class BaseFit:
     beta: np.ndarray  # (r,)
     std: np.ndarray
     ci_half_width: np.ndarray
-    sensitivity: np.ndarray  # kappa (harness/identify.py)
+    sensitivity: np.ndarray  # kappa (harness/identify/lstsq.py)
     weak: np.ndarray
     condition_number: float  # of the column-scaled base regressor
 
@@ -214,14 +195,14 @@ class BaseFit:
 def fit_base(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit:
     """Least squares of the base parameters from torques tau (N, n) and their regressor W1 (N n, r):
     ordinary least squares on the column-scaled regressor with CR3 intervals clustered by sample (a
-    sample's joints share noise; harness/estimators.py), the scaled regressor's condition number,
+    sample's joints share noise; harness/identify/estimators.py), the scaled regressor's condition number,
     and each parameter's sensitivity relative to its size in the model or, where the model has it
     zero (a friction the model does not declare), in the estimate."""
     L = tau.reshape(-1)
     est = ols(W1, L, tau.shape[1])
     s = column_scale(W1)
-    sv = np.linalg.svd(W1 / s, compute_uv=False)
-    kappa = sensitivity(W1 / s, L) / (s * beta_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
+    sv = equilibrated_singular_values(W1)
+    kappa = sensitivity(W1 / s, L) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
     return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), float(sv[0] / sv[-1]))
 
 
@@ -243,7 +224,7 @@ def friction_section(ti: TorqueIdentification) -> dict:
                                  if ti.base.independent[b] == c or c in ti.base.dependent[
                                      np.abs(ti.base.combination[b]) > COEFFICIENT_FLOOR]), None)}
         else:
-            rel = abs(ti.beta[k] - ti.beta_true[k]) / max(abs(ti.beta_true[k]), BETA_FLOOR)
+            rel = float(relative_error(ti.beta[k], ti.beta_true[k], max(abs(ti.beta_true[k]), PARAMETER_FLOOR)))
             errors.append(rel)
             where.append(name)
             entry = {"true": true, "identified": float(ti.beta[k]), "rel_error": float(rel)}
@@ -252,14 +233,6 @@ def friction_section(ti: TorqueIdentification) -> dict:
                           "is a base parameter on its own, else `in` names the base parameter it enters",
             "max_rel_error": max(errors, default=None),
             "max_rel_parameter": where[int(np.argmax(errors))] if errors else None, "joints": joints}
-
-
-BETA_FLOOR = 1e-6  # relative errors of base parameters near zero are taken against 1e-6 of the largest
-
-
-def beta_scale(beta: np.ndarray) -> np.ndarray:
-    """What a base parameter's error is relative to: |beta|, at least BETA_FLOOR of the largest."""
-    return np.maximum(np.abs(beta), BETA_FLOOR * np.max(np.abs(beta), initial=0.0))
 
 
 COEFFICIENT_FLOOR = 1e-12  # coefficients of the base combinations below this are QR round-off
@@ -276,21 +249,21 @@ def describe_base(names: list[str], base: BaseParameters, k: int) -> str:
 
 def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
     """The results.json section."""
-    rel = np.abs(ti.beta - ti.beta_true) / beta_scale(ti.beta_true)
+    rel = relative_error(ti.beta, ti.beta_true, parameter_scale(ti.beta_true))
     weak = ti.weak
     out = {
         "method": "joint torques only: Pinocchio's joint torque regressor, base parameters by QR with column "
                   f"pivoting of the regressor at {STRUCTURAL_STATES} random states (the model's structure), "
-                  "least squares (harness/torque_id.py)",
+                  "least squares (harness/identify/torque_id.py)",
         "parameters": len(ti.names), "base_parameters": len(ti.beta),
         "condition_number": ti.condition_number,
-        "rel_error_definition": f"|identified - true| / max(|true|, {BETA_FLOOR:g} x largest |true|)",
+        "rel_error_definition": f"|identified - true| / max(|true|, {PARAMETER_FLOOR:g} x largest |true|)",
         "uncertainty": "std and 95 % interval from the cluster-robust (CR3) covariance over the samples, "
                        "t quantile with N - 1 degrees of freedom; infinite where the data leave a direction "
-                       "undetermined (harness/identify.py)",
+                       "undetermined (harness/identify/lstsq.py)",
         "weak_definition": f"identifiable, but its sensitivity to the data is more than {WEAK_RATIO:g} times the "
                            "median base parameter's; its error is reported apart from max_rel_error "
-                           "(harness/identify.py)",
+                           "(harness/identify/lstsq.py)",
         "max_rel_error": float(rel[~weak].max(initial=0.0)),
         "max_rel_parameter": (describe_base(ti.names, ti.base, int(np.flatnonzero(~weak)[np.argmax(rel[~weak])]))
                               if (~weak).any() else None),

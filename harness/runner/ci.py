@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from harness.gates import summary_line
+from harness.runner.gates import summary_line
 
 
 def _value(g: dict) -> str:

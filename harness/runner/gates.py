@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from harness.tomlio import InputError, Table
+from harness.base.tomlio import InputError, Table
 
 DIRECTIONS = ("at_most", "at_least")
 

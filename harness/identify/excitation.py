@@ -9,7 +9,7 @@ the last harmonic's coefficients are solved for, so every series the optimiser t
 ends at rest (and needs two harmonics at least).
 
 Objective (`criterion`): the condition number of the column-scaled base regressor
-(harness/torque_id.py; the base set is chosen once, structurally, before optimising), or
+(harness/identify/torque_id.py; the base set is chosen once, structurally, before optimising), or
 D-optimality, -log det of its information matrix per parameter, at samples over one period; plus a
 penalty where the trajectory passes `limit_fraction` of a limit. Limits: the joints' position
 ranges, their velocity and effort limits (the URDF's <limit velocity effort>) and an acceleration
@@ -23,14 +23,18 @@ cannot hold even at rest (an effort below its own weight's torque) is refused.
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from harness.base.numerics import equilibrated_condition_number, equilibrated_singular_values
+from harness.base.tomlio import InputError
 from harness.engines.pinocchio import build_model, rnea
-from harness.motion import Sinusoids
-from harness.scenario import Scenario
-from harness.tomlio import InputError
-from harness.torque_id import regressor, structural_base
+from harness.identify.torque_id import regressor, structural_base
+from harness.sources.motion import Sinusoids
+
+if TYPE_CHECKING:  # annotations only: the scenario is read, never built, here
+    from harness.runner.scenario import Scenario
 
 SAMPLES = 60  # regressor samples over one period
 DENSE = 400  # samples a period on which the limits are checked
@@ -65,13 +69,12 @@ def at_rest(free: np.ndarray) -> np.ndarray:
 def condition_number(pm, q, qd, qdd, base) -> float:
     """Of the column-scaled regressor of the (structural) base parameters along the trajectory."""
     W1 = regressor(pm, q, qd, qdd, base.with_friction)[:, base.independent]
-    sv = np.linalg.svd(W1 / np.linalg.norm(W1, axis=0), compute_uv=False)
-    return float(sv[0] / sv[-1])
+    return equilibrated_condition_number(W1)
 
 
 def _criterion(pm, q, qd, qdd, base, criterion: str) -> float:
     W1 = regressor(pm, q, qd, qdd, base.with_friction)[:, base.independent]
-    sv = np.linalg.svd(W1 / np.linalg.norm(W1, axis=0), compute_uv=False)
+    sv = equilibrated_singular_values(W1)
     if criterion == "condition":
         return float(np.log(sv[0] / sv[-1]))
     return float(-np.mean(np.log(sv**2)))  # -log det(W^T W) / p of the scaled regressor

@@ -12,7 +12,7 @@ from typing import ClassVar, Protocol
 
 import numpy as np
 
-from harness.tomlio import Table
+from harness.base.tomlio import Table
 
 
 class Motion(Protocol):

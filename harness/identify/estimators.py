@@ -32,11 +32,11 @@ since two of its outputs share no input beyond that; 0: every sample's noise its
 Standard deviations are robust to that correlation (the joints of one sample share the noise of the
 state they are computed from; velocities and accelerations differentiated by a filter share noise
 with their neighbours, partly negatively correlated: a differentiator's kernel sums to zero).
-- Least-squares family: CR3 cluster-robust (harness/identify.py) over clusters of 3 (lags + 1)
+- Least-squares family: CR3 cluster-robust (harness/identify/lstsq.py) over clusters of 3 (lags + 1)
   consecutive samples (1 sample where lags = 0), which hold most of the correlated pairs.
 - IV: the sandwich (Z^T W)^-1 S (W^T Z)^-1, S the covariance of the scores Z^T e. Where the
   sensors are specified (`Instruments.score_covariance`), S is propagated from their specification
-  (harness/propagation.py) and the interval takes the normal quantile. Otherwise S is estimated from
+  (harness/identify/propagation.py) and the interval takes the normal quantile. Otherwise S is estimated from
   the residuals by the truncated (Hansen) long-run covariance sum_t sum_{|l| <= lags} g_t g_{t+l}^T
   of the per-sample scores g_t = Z_t^T r_t, times rows / (rows - r), with Student's t on
   samples / (lags + 1) - 1 degrees of freedom: exact for noise correlated over `lags` samples, but
@@ -55,7 +55,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.identify import sandwich_std, t_quantile
+from harness.base.numerics import column_scale
+from harness.identify.lstsq import sandwich_std, t_quantile
 
 HUBER_C = 1.345  # Huber's constant: 95 % efficiency under Gaussian noise
 IRLS_ITERATIONS = 20
@@ -69,7 +70,7 @@ class Instruments:
 
     Z1: np.ndarray  # (rows, r): the regressor of the reference motion
     nonlinear: np.ndarray | None = None  # (r,) bool: columns nonlinear in a measured signal, taken from Z1
-    score_covariance: np.ndarray | None = None  # (r, r) Cov(Z1^T e) from the sensors (harness/propagation.py)
+    score_covariance: np.ndarray | None = None  # (r, r) Cov(Z1^T e) from the sensors (harness/identify/propagation.py)
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,13 +79,6 @@ class Estimate:
     std: np.ndarray
     ci_half_width: np.ndarray
     seconds: float
-
-
-def column_scale(W1: np.ndarray) -> np.ndarray:
-    """Each column's norm (1 for a column the trajectory never moves: undetermined, not a
-    division by zero)."""
-    s = np.linalg.norm(W1, axis=0)
-    return np.where(s > 0, s, 1.0)
 
 
 def _weighted_fit(W1: np.ndarray, tau: np.ndarray, n: int, w: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -4,7 +4,7 @@ SI units; world components (frame W = e(0)) unless a name says otherwise. Per jo
 order): q, q', q'' and the drive force or torque along the joint axis, and the wrench the inner
 body applies to the outer body across J: force F_W and moment M_W about the joint point O_J.
 Per massive body B: centre of mass p_W and its velocity v_W, orientation R_WB with its Cardano
-angles theta (see harness.cardano), centre-of-mass acceleration a_W, angular velocity omega_W and angular
+angles theta (see harness.model.cardano), centre-of-mass acceleration a_W, angular velocity omega_W and angular
 acceleration omegadot_W.
 
 CSV columns (`to_frame`): t; q_J qd_J qdd_J tau_J; B_x B_y B_z; B_vx B_vy B_vz; B_alpha B_beta B_gamma;
@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from harness.tomlio import MAX_DATA_BYTES, InputError, read_bounded
+from harness.base.tomlio import MAX_DATA_BYTES, InputError, read_bounded
 
 if TYPE_CHECKING:  # imported where a CSV is read or written
     import pandas as pd

@@ -14,14 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from harness.bench import record
-from harness.excitation import optimise as optimise_excitation
-from harness.measurement import measure
-from harness.plugins import Stage, guard
-from harness.recording import Recording
-from harness.scenario import DataScenario, Scenario
-from harness.stages import Context, Progress, core_stages
-from harness.workers import IN_PROCESS, Workers
+from harness.base.plugins import Stage, guard
+from harness.base.workers import IN_PROCESS, Workers
+from harness.engines.recording import Recording
+from harness.identify.excitation import optimise as optimise_excitation
+from harness.runner.scenario import DataScenario, Scenario
+from harness.sources.bench import record
+from harness.sources.measurement import measure
+from harness.stages import Context, Progress, core_stages, log_stages
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,9 +93,8 @@ def stages_of(scenario: Scenario) -> Iterator[tuple[Stage, Any, str | None]]:
 
 
 def run_data(scenario: DataScenario, progress: Progress = _quiet) -> RunOutput:
-    """A measured log (harness/log.py): read and condition it, then the log's stages."""
-    from harness.log import load
-    from harness.stages import log_identification
+    """A measured log (harness/sources/log.py): read and condition it, then the log's stages."""
+    from harness.sources.log import load
 
     timed = _Timed(progress)
     timed("reading and conditioning the log", None)
@@ -103,7 +102,7 @@ def run_data(scenario: DataScenario, progress: Progress = _quiet) -> RunOutput:
     ctx = Context(scenario, full, train, timed)
     ctx.cache["validation log"] = validation
     outputs: dict[str, StageOutput] = {}
-    for stage in (log_identification.STAGE,):
+    for stage in log_stages():
         timed(stage.progress, None)
         with np.errstate(invalid="ignore", divide="ignore"):
             result = stage.run(ctx, None)
@@ -120,7 +119,7 @@ def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
         workers: Workers = IN_PROCESS) -> RunOutput:
     """The engines are built from the scenario's robot (the truth); each model under test and each
     identification method from what the scenario names, and judged against them. A stage's Monte
-    Carlo trials run on `workers` (harness/workers.py)."""
+    Carlo trials run on `workers` (harness/base/workers.py)."""
     if isinstance(scenario, DataScenario):
         return run_data(scenario, progress)
     timed = _Timed(progress)

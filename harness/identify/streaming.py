@@ -1,7 +1,7 @@
 """Least squares of the joint-torque base parameters over a log too long to hold its regressor: a
 1 kHz arm over 15 minutes is 900,000 samples, whose regressor with friction (7 joints, 98 columns)
 would take 4.9 GB. The samples are taken in blocks of CHUNK: each block's regressor, batched over
-its samples (harness/regressor.py) and laid out joint by joint with samples last, is folded into
+its samples (harness/model/regressor.py) and laid out joint by joint with samples last, is folded into
 the normal equations (W^T W, W^T y), each joint's rows over the columns that can move its torque,
 in a second thread while the next block is evaluated. Memory: two blocks' regressors (90 MB) and a
 p^2 matrix. Measured on a 2-core virtual machine (README, "Speed"): 0.9 to 1.2 times the time of
@@ -9,7 +9,7 @@ Pinocchio's regressor called sample by sample from Python alone.
 
 Normal equations square the condition number of the column-scaled regressor (18.5 on the test's
 Panda motion, 1e2 to 1e3 on others), so the estimate keeps round-off times its square: within 1e-12
-of the dense QR fit of harness/estimators.py in the torque each parameter moves
+of the dense QR fit of harness/identify/estimators.py in the torque each parameter moves
 (tests/test_streaming.py), far below any measured log's noise. The standard deviations are the
 classical sigma^2 (W^T W)^-1 with sigma^2 the residual variance: white, equal noise on every row
 (the dense fit's cluster-robust ones need every residual, a second pass over the log).
@@ -23,7 +23,7 @@ import numpy as np
 from scipy.linalg import cho_factor, cho_solve
 
 from harness.engines.pinocchio import PinocchioModel
-from harness.torque_id import BaseParameters, regressor, regressor_by_joint
+from harness.identify.torque_id import BaseParameters, regressor, regressor_by_joint
 
 CHUNK = 8192  # samples per block: its regressor (7 joints, 98 columns) is 45 MB
 

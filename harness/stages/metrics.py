@@ -1,6 +1,6 @@
 """Metrics between two sources of the same joint quantity.
 
-Relative error, defined once: for joint J at time t,
+Relative error (harness/base/numerics.py) of a joint quantity: for joint J at time t,
 
     rel(J, t) = |a(J, t) - b(J, t)| / L_J,
 
@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.recording import Recording
-from harness.spec import RobotSpec
+from harness.base.numerics import relative_error
+from harness.engines.recording import Recording
+from harness.model.spec import RobotSpec
 
 DEFINITION = ("relative error = |a - b| / L_J, L_J the largest magnitude over the run of the moment "
               "(revolute) or force (prismatic) that joint J transmits in the recording")
@@ -36,8 +37,7 @@ def pair_metrics(a: np.ndarray, b: np.ndarray, scale: np.ndarray, t: np.ndarray,
                  joints: list[str]) -> dict:
     """Largest absolute and relative error of (N, joints) series, with where they occur."""
     err = np.abs(a - b)
-    with np.errstate(invalid="ignore", divide="ignore"):  # a joint that carries nothing: 0/0 is NaN, reported
-        rel = err / scale
+    rel = relative_error(a, b, scale)  # a joint that carries nothing: 0/0 is NaN, reported
     ka, ja = np.unravel_index(np.argmax(err), err.shape)
     kr, jr = np.unravel_index(np.argmax(rel), rel.shape)
     return {
@@ -49,9 +49,8 @@ def pair_metrics(a: np.ndarray, b: np.ndarray, scale: np.ndarray, t: np.ndarray,
 
 def wrench_metrics(a: np.ndarray, b: np.ndarray, t: np.ndarray, joints: list[str]) -> dict:
     """(N, joints, 3) wrenches: largest |a - b| relative to the largest |b| of each joint."""
-    err = np.linalg.norm(a - b, axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rel = err / np.max(np.linalg.norm(b, axis=-1), axis=0)
+    size = np.linalg.norm(b, axis=-1)
+    rel = relative_error(np.linalg.norm(a - b, axis=-1), 0.0, np.max(size, axis=0))
     k, j = np.unravel_index(np.argmax(rel), rel.shape)
     return {"max_rel_error": float(rel[k, j]), "max_rel_joint": joints[j], "max_rel_t": float(t[k])}
 

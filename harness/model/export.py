@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from harness.friction import FRICTION_KEYS, JointFriction
-from harness.spec import RobotSpec
-from harness.torque_id import about_centre_of_mass
+from harness.model.friction import FRICTION_KEYS, JointFriction
+from harness.model.inertia import about_centre_of_mass
+from harness.model.spec import RobotSpec
 
 URDF_FILE, JOINTS_FILE, MODEL_FILE = "robot.urdf", "joints.toml", "robot.toml"
 

@@ -1,7 +1,7 @@
 """The covariance of a joint-torque identification from the sensors' specification: first-order
-propagation of the measurement's declared errors (harness/measurement.py) through the regressor,
+propagation of the measurement's declared errors (harness/sources/measurement.py) through the regressor,
 as the GUM propagates an instrument's uncertainty, for the instrumental-variable estimator
-(harness/estimators.py, `iv`).
+(harness/identify/estimators.py, `iv`).
 
 The IV estimate is beta_hat - beta = (Z^T W)^-1 Z^T e with e = tau_read - W(x_read) beta, the
 residual at the true parameters. To first order in the reading errors
@@ -31,9 +31,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from harness import friction
 from harness.engines.pinocchio import PinocchioModel
-from harness.measurement import GROUPS, Measurement, savgol
+from harness.model import friction
+from harness.sources.measurement import GROUPS, Measurement, savgol
 
 
 def propagates(m: Measurement) -> bool:

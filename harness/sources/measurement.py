@@ -39,9 +39,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from harness.cardano import A_0i, D, D_dot
-from harness.recording import Recording
-from harness.tomlio import Table
+from harness.base.tomlio import Table
+from harness.engines.recording import Recording
+from harness.model.cardano import A_0i, D, D_dot
 
 CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W", "aO_W", "omega_W",
             "omegadot_W")

@@ -18,9 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.friction import JointFriction
-from harness.spec import WORLD, Body, Joint, union
-from harness.tomlio import MAX_XML_BYTES, InputError, Table, read_bounded
+from harness.base.tomlio import MAX_XML_BYTES, InputError, Table, read_bounded
+from harness.model.friction import JointFriction
+from harness.model.inertia import union
+from harness.model.spec import WORLD, Body, Joint
 
 KNOWN_ROBOTS = {
     "panda": "panda_description/urdf/panda.urdf",

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.spec import WORLD, RobotSpec
+from harness.model.spec import WORLD, RobotSpec
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,7 +104,7 @@ def axis_rotation(axis: np.ndarray, angle: np.ndarray, samples_last: bool = Fals
     scipy's Rotation.from_rotvec reads it): Rodrigues' formula R = 1 + sin(t) K + (1 - cos(t)) K^2,
     K the cross-product matrix of the unit axis. Written here: scipy.spatial costs 0.25 to 0.6 s
     to import, more than a whole kr500 run's kinematics. `samples_last`: (3, 3, N) instead, each
-    entry's samples contiguous (the batched regressor's layout, harness/regressor.py)."""
+    entry's samples contiguous (the batched regressor's layout, harness/model/regressor.py)."""
     axis = np.asarray(axis, dtype=float)
     norm = np.linalg.norm(axis)
     angle = np.asarray(angle, dtype=float) * norm

@@ -5,11 +5,11 @@ every joint of that model (no joint is left implicit), and states the output gri
 split into `output_steps` equal steps, so the recording has output_steps + 1 rows from t = 0.
 `sample_times` (the identification instants of the paper, section 3.1) must lie on that grid, or
 be "all" for every output step. `[measurement]` states what the test bench reports
-(harness.measurement).
+(harness.sources.measurement).
 
 What is judged is named, never implied: `[model_under_test]` (one table, or `[[model_under_test]]`
 for several) names each model under test, `[identification]` each identification method, both
-plugins (harness/plugins.py); `[studies.NAME]` asks for a study's stages (a paper's, or a user's)
+plugins (harness/base/plugins.py); `[studies.NAME]` asks for a study's stages (a paper's, or a user's)
 and holds its settings. `[scenario] gate_sets` includes shared gate files; the scenario's own
 `[[gates]]` add to them and replace an included gate on the same metric.
 """
@@ -25,11 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.gates import Gate, read_gates
-from harness.log import DataSource, check_columns, read_source
-from harness.measurement import Measurement, read_measurement
-from harness.motion import Motion, read_motion
-from harness.plugins import (
+from harness.base.plugins import (
     METHOD_GROUP,
     MODEL_GROUP,
     IdentificationMethod,
@@ -43,10 +39,15 @@ from harness.plugins import (
     load_reference,
     load_study,
 )
-from harness.spec import RobotSpec, load_spec
-from harness.tomlio import InputError, Table, parse_toml, read_toml, read_toml_text
+from harness.base.tomlio import InputError, Table, parse_toml, read_toml, read_toml_text
+from harness.engines.simulation import INTEGRATORS, Simulation
+from harness.model.load import load_spec
+from harness.model.spec import RobotSpec
+from harness.runner.gates import Gate, read_gates
+from harness.sources.log import DataSource, check_columns, read_source
+from harness.sources.measurement import Measurement, read_measurement
+from harness.sources.motion import Motion, read_motion
 
-INTEGRATORS = ("RK4", "Euler", "implicitfast")
 _GRID_TOL = 1e-9  # relative to the output interval: a sample time on the grid, a timestep dividing it
 MAX_OUTPUT_STEPS = 1_000_000  # rows of a recording: about 1 GB for an arm of ten joints
 MAX_TRIALS = 100_000  # estimator trials of one run, each a measurement and a regressor (hours beyond)
@@ -54,23 +55,9 @@ MAX_SIMULATION_STEPS = 20_000_000  # MuJoCo steps of one run, each with a Python
 
 
 @dataclass(frozen=True)
-class Simulation:
-    """How the reference engine integrates the motion.
-
-    The joints are driven by computed torque (inverse dynamics of the prescribed acceleration)
-    with a critically damped correction of bandwidth `tracking_bandwidth` rad/s on the tracking
-    error: q''_cmd = q''_d + 2 w (q'_d - q') + w^2 (q_d - q).
-    """
-
-    integrator: str = "RK4"
-    timestep: float = 5e-4
-    tracking_bandwidth: float = 20.0
-
-
-@dataclass(frozen=True)
 class RandomStates:
     """`[random_states]`: every model under test is also judged against Pinocchio at `count` random
-    states (harness/states.py: q within the joint limits, q' and q'' within the largest of each
+    states (harness/model/states.py: q within the joint limits, q' and q'' within the largest of each
     joint over the scenario's motion), drawn with `seed`."""
 
     count: int = 200
@@ -132,7 +119,7 @@ class Scenario:
     torque_friction: bool = False  # ... with each joint's rotor inertia, viscous, Coulomb friction and offset
     estimators: dict | None = None  # estimators side by side on the joint-torque path (harness/stages/estimators.py)
     payload: dict | None = None  # {"without": Scenario, "body": name} (harness/stages/payload.py)
-    excitation: dict | None = None  # Fourier-series excitation to optimise (harness/excitation.py)
+    excitation: dict | None = None  # Fourier-series excitation to optimise (harness/identify/excitation.py)
     models: tuple[PluginEntry, ...] = ()  # models under test
     methods: tuple[PluginEntry, ...] = ()  # identification methods under test
     studies: tuple[tuple[Study, Any], ...] = ()  # (study, its configuration), in the file's order
@@ -222,7 +209,7 @@ def scenario_from_dict(data: dict, name: str = "scenario", folder: Path | str = 
 
 @dataclass(frozen=True, eq=False)
 class DataScenario:
-    """A scenario whose data come from a measured log (`[data]`, harness/log.py) instead of the bench."""
+    """A scenario whose data come from a measured log (`[data]`, harness/sources/log.py) instead of the bench."""
 
     name: str
     description: str
@@ -310,7 +297,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         if torque_validation is None:
             raise et.error("methods", "estimators are judged on a validation trajectory: give "
                                       "[torque_identification] validation = ...")
-        from harness.estimators import ESTIMATORS
+        from harness.identify.estimators import ESTIMATORS
 
         estimators = {"methods": et.strings("methods", choices=tuple(ESTIMATORS), default=list(ESTIMATORS)),
                       "trials": et.integer("trials", default=200, minimum=2)}
@@ -331,7 +318,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     excitation = None
     if root.has("excitation"):
         et = root.table("excitation")
-        from harness.excitation import CRITERIA
+        from harness.identify.excitation import CRITERIA
 
         excitation = {"harmonics": et.integer("harmonics", default=2, minimum=2),
                       "base_frequency": et.number("base_frequency", positive=True),
@@ -416,7 +403,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             except PluginError as exc:
                 raise table.error("python" if ref else "", exc.message if ref else str(exc)) from None
             if not isinstance(study, Study):
-                raise table.error("python", f"{ref!r} must be a harness.plugins.Study")
+                raise table.error("python", f"{ref!r} must be a harness.base.plugins.Study")
             with guard(f"study {name}", "configure"):
                 studies.append((study, study.configure(table, scenario)))
             table.finish()

@@ -1,5 +1,5 @@
 """results.json: the one place its layout is defined. This module only serialises: each stage
-serialises its own typed result (harness/plugins.py, Stage.serialise), and the verdict is added by
+serialises its own typed result (harness/base/plugins.py, Stage.serialise), and the verdict is added by
 harness.gates.
 
 Top-level sections, in order: `schema`, `passed` and `gates` (the verdict), `run` (when, with
@@ -22,27 +22,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from harness.recording import Recording
-from harness.scenario import Scenario
-from harness.spec import RobotSpec
+from harness.base.numerics import floats
+from harness.engines.recording import Recording
+from harness.model.spec import RobotSpec
+from harness.runner.scenario import Scenario
 
 if TYPE_CHECKING:
-    from harness.pipeline import RunOutput
+    from harness.runner.pipeline import RunOutput
 
 SCHEMA = {"name": "harness-results", "version": 1}
 RECORDING_FILE = "recording.csv"
 RESULTS_FILE = "results.json"
-
-
-def floats(v) -> list[float]:
-    """An array as a flat list of Python floats, for JSON."""
-    return [float(x) for x in np.ravel(v)]
-
-
-def finite_or_null(x: float) -> float | None:
-    """A number that may be meaningfully infinite or undefined (a condition number, the standard
-    deviation of an undetermined parameter): null in the file, and not a fault of the run."""
-    return float(x) if np.isfinite(x) else None
 
 
 def scenario_section(s: Scenario) -> dict:
@@ -72,8 +62,8 @@ def data_scenario_section(s) -> dict:
 
 
 def data_section(log) -> dict:
-    """The measured log and every step of its conditioning (harness/log.py)."""
-    from harness.log import LOG_FILE
+    """The measured log and every step of its conditioning (harness/sources/log.py)."""
+    from harness.sources.log import LOG_FILE
 
     return {"file": LOG_FILE, "rows": len(log.t), "joints": list(log.joints), "t_start": float(log.t[0]),
             "t_end": float(log.t[-1]), "conditioning": log.conditioning}
@@ -133,7 +123,7 @@ def run_section(out: RunOutput, when: str) -> dict:
     import mujoco
     import pinocchio
 
-    from harness import __version__
+    from harness.base.version import __version__
 
     return {
         "time": when,
@@ -150,10 +140,10 @@ def run_section(out: RunOutput, when: str) -> dict:
 
 
 def build_results(out: RunOutput, when: str | None = None) -> dict:
-    """results.json without the verdict (harness.gates.verdict adds it). `when` (ISO time) defaults
+    """results.json without the verdict (harness.runner.gates.verdict adds it). `when` (ISO time) defaults
     to now; it and `run.timings` are the only fields that differ between two runs of a scenario."""
     when = when or datetime.now(UTC).isoformat(timespec="seconds")
-    from harness.scenario import DataScenario
+    from harness.runner.scenario import DataScenario
 
     data = isinstance(out.scenario, DataScenario)
     results = {

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parent.parent / "data"
 
 
 def resolve(arg: str | Path, kind: str = "scenarios") -> Path:

@@ -1,0 +1,1 @@
+"""Foundation: errors and TOML reading, the plugin doors, workers, progress, the built-in data."""

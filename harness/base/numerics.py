@@ -1,0 +1,68 @@
+"""Numbers every layer defines the same way, written once: relative errors and their floor, column
+scaling of a regressor and its equilibrated condition number, and how a number goes into
+results.json.
+
+Relative error. A difference is reported relative to a scale that says how large the quantity
+is where it is measured, never to the quantity at the same sample (a torque through zero would
+make any error infinite):
+- a joint quantity of a run: |a - b| / L_J, L_J the largest load the joint carries over the run
+  (harness/stages/metrics.py, joint_load_scale);
+- a parameter: |identified - true| / max(|true|, PARAMETER_FLOOR x the largest |true| of its set)
+  (`parameter_scale`), since a parameter that is zero in truth has no size of its own.
+0/0 (a joint that carries nothing) is NaN and is reported, not hidden.
+
+Column scaling. Each regressor column is divided by its norm, so that a least-squares solve and a
+condition number see the columns' directions, not their units. A column below ZERO_COLUMN of the
+largest column's norm is round-off (a parameter with no effect on any torque, or an axis written
+with twelve digits): it keeps scale 1, so that it stays negligible instead of being blown up to
+look independent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+PARAMETER_FLOOR = 1e-6  # relative errors of parameters near zero are taken against 1e-6 of the largest
+ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off (see above)
+
+
+def relative_error(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """|a - b| / scale, elementwise (scale broadcast); 0/0 is NaN, without a warning."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.abs(a - b) / scale
+
+
+def parameter_scale(true: np.ndarray, floor: float = PARAMETER_FLOOR) -> np.ndarray:
+    """What a parameter's error is relative to: |true|, at least `floor` of the largest |true|."""
+    return np.maximum(np.abs(true), floor * np.max(np.abs(true), initial=0.0))
+
+
+def column_scale(W: np.ndarray) -> np.ndarray:
+    """(p,) each column's norm; 1 for a column below ZERO_COLUMN of the largest (round-off or
+    never moved by the trajectory: left as it is, not divided by zero or blown up)."""
+    s = np.linalg.norm(W, axis=0)
+    return np.where(s > ZERO_COLUMN * np.max(s, initial=0.0), s, 1.0)
+
+
+def equilibrated_singular_values(W: np.ndarray) -> np.ndarray:
+    """The singular values of W with its columns scaled (`column_scale`), largest first."""
+    return np.linalg.svd(W / column_scale(W), compute_uv=False)
+
+
+def equilibrated_condition_number(W: np.ndarray) -> float:
+    """sigma_max / sigma_min of the column-scaled W: the condition number a least-squares solve of
+    the scaled problem meets (inf when a column is zero or dependent)."""
+    sv = equilibrated_singular_values(W)
+    with np.errstate(divide="ignore"):
+        return float(sv[0] / sv[-1])
+
+
+def floats(v) -> list[float]:
+    """An array as a flat list of Python floats, for JSON."""
+    return [float(x) for x in np.ravel(v)]
+
+
+def finite_or_null(x: float) -> float | None:
+    """A number that may be meaningfully infinite or undefined (a condition number, the standard
+    deviation of an undetermined parameter): null in the file, and not a fault of the run."""
+    return float(x) if np.isfinite(x) else None

@@ -1,0 +1,1 @@
+"""Identification: least squares, estimators, base parameters, consistency, excitation."""

@@ -1,0 +1,1 @@
+"""The robot: its description (TOML, URDF), inertia, friction, kinematics, regressor, export."""

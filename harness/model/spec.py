@@ -1,0 +1,149 @@
+"""RobotSpec: a tree of rigid bodies and one-degree-of-freedom joints, as harness/model/load.py
+reads it from a model file (TOML, or a URDF named by one). Geometry in the world frame at the initial
+pose (all joint coordinates zero): each body's centre of mass `p_W_com0`, principal axes `R_WB0` and
+moments `I_B`; each joint's point `p_W0` and axis `axis_W0`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.model.friction import NO_FRICTION, JointFriction
+
+WORLD = "world"
+JOINT_TYPES = ("revolute", "prismatic")
+BODY_SHAPES = ("cylinder", "rod", "point", "explicit", "massless")
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A homogeneous cylinder whose axis is the body's e1 direction."""
+
+    length: float
+    radius: float
+    density: float
+
+    @property
+    def mass(self) -> float:
+        return self.density * np.pi * self.radius**2 * self.length
+
+    @property
+    def principal_inertia(self) -> np.ndarray:
+        """[J11, J22, J33] about the centre of mass (Eq. 24)."""
+        m, r, l = self.mass, self.radius, self.length
+        transverse = m * (3.0 * r**2 + l**2) / 12.0
+        return np.array([m * r**2 / 2.0, transverse, transverse])
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """A rigid body B_i. Frames: W is the world frame e(0), B the body frame e(i) at O_ci."""
+
+    name: str
+    mass: float  # kg; 0 only for a massless body
+    I_B: np.ndarray  # (3, 3) inertia tensor about the centre of mass, body components
+    R_WB0: np.ndarray  # (3, 3) orientation at the initial pose: columns e1(i), e2(i), e3(i)
+    p_W_com0: np.ndarray  # (3,) centre of mass O_ci at the initial pose
+    cylinder: Cylinder | None = None
+
+    @property
+    def massless(self) -> bool:
+        return self.mass == 0.0
+
+    @property
+    def principal_inertia(self) -> np.ndarray:
+        """[J11, J22, J33]: the diagonal of I_B (the body axes are principal axes)."""
+        return np.diag(self.I_B).copy()
+
+    def arm_B(self, point_W0: np.ndarray) -> np.ndarray:
+        """(3,) the body-fixed vector from O_ci to a point of the body given at the initial pose
+        (a joint point O_J: the paper's c_{i,j}), in body components."""
+        return self.R_WB0.T @ (np.asarray(point_W0) - self.p_W_com0)
+
+
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """A joint O_j between its inner (parent) and outer (child) body."""
+
+    name: str
+    type: str  # "revolute" or "prismatic"
+    parent: str  # body name or "world"
+    child: str
+    p_W0: np.ndarray  # (3,) joint point at the initial pose
+    axis_W0: np.ndarray  # (3,) unit axis at the initial pose
+    friction: JointFriction = NO_FRICTION  # rotor inertia and friction of its drive (harness/model/friction.py)
+
+    @property
+    def revolute(self) -> bool:
+        return self.type == "revolute"
+
+
+@dataclass(frozen=True, eq=False)
+class RobotSpec:
+    """A validated tree. Bodies and joints are ordered from the root outwards."""
+
+    name: str
+    description: str
+    source: Path
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    dh: tuple[tuple[float, float, float, float], ...] | None = None  # (alpha, a, d, theta) when given
+    limits: dict[str, tuple[float, float]] | None = None  # joint position limits, when the source has them
+    urdf: Path | None = None  # the URDF it was read from, if any
+    urdf_fixed: tuple[str, ...] = ()  # joints of that URDF taken as fixed
+    drive_limits: dict[str, dict[str, float]] | None = None  # per joint "velocity" and "effort", when given
+
+    def body(self, name: str) -> Body:
+        return next(b for b in self.bodies if b.name == name)
+
+    def joint(self, name: str) -> Joint:
+        return next(j for j in self.joints if j.name == name)
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j.name for j in self.joints]
+
+    @property
+    def massive_bodies(self) -> tuple[Body, ...]:
+        """The bodies that carry mass: the paper's B_1 .. B_n."""
+        return tuple(b for b in self.bodies if not b.massless)
+
+    @property
+    def frictions(self) -> tuple[JointFriction, ...]:
+        """Each joint's friction and rotor inertia, in the spec's joint order."""
+        return tuple(j.friction for j in self.joints)
+
+    def inner_joint(self, body: str) -> Joint:
+        return next(j for j in self.joints if j.child == body)
+
+    def inner_joint_arms_B(self) -> np.ndarray:
+        """(nb, 3) for each massive body, the arm from its centre of mass to its inner joint point
+        O (where aO_W is recorded), in body components."""
+        return np.array([b.arm_B(self.inner_joint(b.name).p_W0) for b in self.massive_bodies]).reshape(-1, 3)
+
+    def outer_joints(self, body: str) -> list[Joint]:
+        return [j for j in self.joints if j.parent == body]
+
+    def subtree(self, body: str) -> list[str]:
+        """The body and every body outboard of it, root first."""
+        out = [body]
+        for j in self.outer_joints(body):
+            out += self.subtree(j.child)
+        return out
+
+    def carried_joint(self, joint: str) -> Joint:
+        """The joint itself, or, for the inner joint of a massless carriage, the joint the carriage
+        carries: they share point and wrench, and its child is the massive body that moves."""
+        j = self.joint(joint)
+        while self.body(j.child).massless:
+            j = self.outer_joints(j.child)[0]
+        return j
+
+    def outboard_bodies(self, joint: str) -> list[Body]:
+        """Bodies whose motion the joint carries (the child's subtree), in tree order."""
+        names = set(self.subtree(self.joint(joint).child))
+        return [b for b in self.bodies if b.name in names]
+
+

@@ -1,0 +1,1 @@
+"""The runner: scenario, pipeline, gates, results.json."""

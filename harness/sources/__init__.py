@@ -1,0 +1,1 @@
+"""Where data comes from: the bench (motion, simulation, measurement) and a measured log."""
