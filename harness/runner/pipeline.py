@@ -99,8 +99,10 @@ def run_data(scenario: DataScenario, progress: Progress = _quiet) -> RunOutput:
     timed = _Timed(progress)
     timed("reading and conditioning the log", None)
     full, train, validation = load(scenario.data, scenario.robot)
-    ctx = Context(scenario, full, train, timed)
-    ctx.cache["validation log"] = validation
+    if validation is not None and scenario.data.validation_file is None and not train.t[-1] < validation.t[0]:
+        raise RuntimeError(f"the training span (to {train.t[-1]:g} s) and the validation span (from "
+                           f"{validation.t[0]:g} s) overlap")
+    ctx = Context(scenario, full, train, timed, validation=validation)
     outputs: dict[str, StageOutput] = {}
     for stage in log_stages():
         timed(stage.progress, None)

@@ -23,7 +23,9 @@ Conditioning, in this order, each step stated in results.json (`data.conditionin
 4. velocities (where the log has none) and accelerations by central differences of the filtered
    signals (numpy.gradient, second order);
 5. `trim` seconds dropped at both ends (filter and difference transients), then decimation.
-The file's sha256 is recorded.
+A log split by time (`validation.from`) is split after the checks and before step 2: steps 2-5 run
+on each span alone, so nothing of the validation span reaches the training span. The file's sha256
+is recorded.
 """
 
 from __future__ import annotations
@@ -172,6 +174,11 @@ class RawLog:
     qd: np.ndarray | None
     tau: np.ndarray
     rows: int
+
+    def span(self, keep: np.ndarray) -> RawLog:
+        """The rows where `keep` holds."""
+        return RawLog(self.file, self.sha256, self.t[keep], self.q[keep], None if self.qd is None else self.qd[keep],
+                      self.tau[keep], int(keep.sum()))
 
 
 def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
@@ -356,17 +363,31 @@ def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> JointLog:
 
 def load(source: DataSource, robot: RobotSpec) -> tuple[JointLog, JointLog, JointLog | None]:
     """The conditioned log, its training span and its validation span (the last part by time, or
-    another log): the identification never sees the validation data."""
-    full = condition(read_raw(source, robot), source, robot)
+    another log): the identification never sees the validation data. A log split by time is split
+    before it is conditioned: each span is resampled, filtered, differentiated and trimmed on its
+    own, so that no filter or difference reaches across the split (the trim is the guard band on
+    both sides of it). `full` is then both spans, one after the other (data.csv, the report); its
+    conditioning record is the whole file's, with the split beside it."""
+    raw = read_raw(source, robot)
     if source.validation_file is not None:
+        full = condition(raw, source, robot)
         return full, full, condition(read_raw(source, robot, source.validation_file), source, robot)
     if source.validation_from is None:
+        full = condition(raw, source, robot)
         return full, full, None
-    t_split = full.t[0] + source.validation_from * (full.t[-1] - full.t[0])
-    train, val = full.t < t_split, full.t >= t_split
-    if train.sum() < 10 or val.sum() < 10:
-        raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few samples "
-                                                         f"({int(train.sum())} and {int(val.sum())})")
-    full.conditioning["validation"] = {"from_fraction": source.validation_from, "t_split": float(t_split),
-                                       "training_samples": int(train.sum()), "validation_samples": int(val.sum())}
-    return full, full.span(train), full.span(val)
+    t_split = raw.t[0] + source.validation_from * (raw.t[-1] - raw.t[0])
+    before = raw.t < t_split
+    if before.sum() < 10 or (~before).sum() < 10:
+        raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few rows "
+                                                         f"({int(before.sum())} and {int((~before).sum())})")
+    train, val = condition(raw.span(before), source, robot), condition(raw.span(~before), source, robot)
+    conditioning = condition(raw, source, robot).conditioning
+    conditioning["validation"] = {
+        "from_fraction": source.validation_from, "t_split": float(t_split),
+        "training_samples": len(train.t), "validation_samples": len(val.t),
+        "conditioned": "each span on its own (resampling, filter, derivatives, trim): nothing crosses the split",
+        "training": {"t_start": train.conditioning["t_start"], "t_end": train.conditioning["t_end"]},
+        "validation": {"t_start": val.conditioning["t_start"], "t_end": val.conditioning["t_end"]}}
+    joined = (np.concatenate([getattr(train, k), getattr(val, k)]) for k in ("q", "qd", "qdd", "tau"))
+    full = JointLog(np.concatenate([train.t, val.t]), train.joints, *joined, conditioning)
+    return full, train, val

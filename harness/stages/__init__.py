@@ -19,10 +19,12 @@ Progress = Callable[[str, float | None], None]
 
 @dataclass(frozen=True, eq=False)
 class Context:
-    """What every stage may read: the scenario, the ideal recording (the truth), what the
-    measurement gives, and the results of the stages that ran before it, by key. `cache` holds
-    what several stages need and is made once per run (a validation recording, a built model).
-    `workers` is where a stage with independent trials (a Monte Carlo) runs them."""
+    """What every stage may read: the scenario; `recording`, the truth (the bench's ideal recording,
+    or a measured log whole); `measured`, what the fit may use (the measurement of the recording, or
+    the log's training span); `validation`, a log's validation span, which the pipeline checks is
+    disjoint from the training span; and the results of the stages that ran before, by key.
+    `cache` holds what several stages need and is made once per run (a validation recording, a
+    built model). `workers` is where a stage with independent trials (a Monte Carlo) runs them."""
 
     scenario: Scenario
     recording: Recording
@@ -31,6 +33,7 @@ class Context:
     done: dict[str, object] = field(default_factory=dict)
     cache: dict[object, object] = field(default_factory=dict)
     workers: Workers = IN_PROCESS  # where a stage's independent trials may run (harness/base/workers.py)
+    validation: object | None = None  # a measured log's validation span, disjoint from `measured` (the training span)
 
     def once(self, key: object, make: Callable[[], object]) -> object:
         """`make()` the first time `key` is asked for in this run, the same object after that."""

@@ -61,7 +61,7 @@ def run(ctx, config) -> LogIdentification | None:
     robot = sc.robot
     joints = robot.joint_names
     train: JointLog = ctx.measured
-    validation: JointLog | None = ctx.cache.get("validation log")
+    validation: JointLog | None = ctx.validation
     pm = build_model(robot, sc.gravity_W)
     ctx.progress("structural base parameters (with friction and rotor inertia)", None)
     base = structural_base(pm, robot.limits, with_friction=True)
