@@ -183,28 +183,10 @@ def _write_atomically(out: Path, files: dict[str, Callable[[Path], object]]) -> 
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-class _Progress:
-    """Stage messages on stderr, with a percentage for long stages, once a run has taken more
-    than a moment (1 s)."""
-
-    def __init__(self, name: str, quiet: bool):
-        self.name, self.quiet, self.start, self.last = name, quiet, time.monotonic(), -1.0
-
-    def __call__(self, stage: str, fraction: float | None) -> None:
-        elapsed = time.monotonic() - self.start
-        if self.quiet or (elapsed < 1.0 and fraction is None):
-            return
-        if fraction is not None:
-            if fraction - self.last < 0.1 and fraction < 1.0:
-                return
-            self.last = fraction if fraction < 1.0 else -1.0
-            stage = f"{stage} {100 * fraction:3.0f}%"
-        print(f"  [{self.name} {elapsed:5.1f} s] {stage}", file=sys.stderr, flush=True)
-
-
 def cmd_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     from harness.api import run
+    from harness.base.progress import Progress
     from harness.report import render
     from harness.runner.results import RECORDING_FILE, RESULTS_FILE, write_results
     from harness.runner.scenario import load_scenario
@@ -223,8 +205,11 @@ def cmd_run(args: argparse.Namespace) -> int:
             out = args.reports / scenario.name
         else:
             out = args.out if len(scenarios) == 1 else args.out / scenario.name
-        progress = _Progress(scenario.name, args.quiet)
-        result = run(scenario, progress)
+        progress = Progress(scenario.name, args.quiet)
+        try:
+            result = run(scenario, progress)
+        finally:  # a bar in progress ends its line before anything else is printed
+            progress.close()
         progress("writing the report", None)
         results = result.results
         results["run"]["timings"] = {"importing the engines and libraries": imported, **results["run"]["timings"]}
@@ -332,7 +317,7 @@ def cmd_gate(args: argparse.Namespace) -> int:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from harness.base.progress import Bar
+    from harness.base.progress import Progress
     from harness.base.workers import Workers, WorkersError
     from harness.runner.scenario import load_scenario
 
@@ -359,7 +344,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     try:  # the workers cannot be reached or started: the address, or dask not installed
         if study is None:
             return _sweep_identification(scenario, args, out, workers)
-        sweep = study.sweep(scenario, args.trials, workers, Bar(f"{scenario.name} sweep ({workers.describe()})"))
+        progress = Progress(scenario.name, after=0.0)
+        try:
+            sweep = study.sweep(scenario, args.trials, workers, progress.counting(f"sweep ({workers.describe()})"))
+        finally:
+            progress.close()
     except WorkersError as exc:
         raise InputError(args.scenario, "--dask", str(exc)) from None
     try:
@@ -381,30 +370,32 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
     import dataclasses
     import html
     import time
+    from contextlib import closing
 
     import numpy as np
 
     from harness.api import run
+    from harness.base.progress import Progress
     from harness.report import STYLE
     from harness.report.sections import estimator_comparison, method_sweep
     from harness.runner.results import with_nulls
 
     t0 = time.perf_counter()
-    progress = _Progress(scenario.name, False)
-    results: dict = {}
-    if scenario.estimators is not None:
-        swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
-        results["estimators"] = run(swept, progress=progress, workers=workers).results["estimators"]
-    if scenario.methods:
-        from harness.sources.bench import record
-        from harness.stages import Context
-        from harness.stages.identification import sweep_methods
+    with closing(Progress(scenario.name)) as progress:  # a bar in progress ends its line on any exit
+        results: dict = {}
+        if scenario.estimators is not None:
+            swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
+            results["estimators"] = run(swept, progress=progress, workers=workers).results["estimators"]
+        if scenario.methods:
+            from harness.sources.bench import record
+            from harness.stages import Context
+            from harness.stages.identification import sweep_methods
 
-        progress("simulating in MuJoCo", None)
-        recording = record(scenario)
-        ctx = Context(scenario, recording, recording, progress, workers=workers)
-        with np.errstate(invalid="ignore", divide="ignore"):  # a parameter the trials never move: 0/0, null
-            results["identification_methods"] = sweep_methods(ctx, args.trials)
+            progress("simulating in MuJoCo", None)
+            recording = record(scenario)
+            ctx = Context(scenario, recording, recording, progress, workers=workers)
+            with np.errstate(invalid="ignore", divide="ignore"):  # a parameter the trials never move: 0/0, null
+                results["identification_methods"] = sweep_methods(ctx, args.trials)
     results["run"] = {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)}
     results, results["run"]["not_finite"] = with_nulls(results)
     title = f"{html.escape(scenario.name)}: identification over {args.trials} trials"

@@ -1,6 +1,6 @@
 """MuJoCo as the test bench (the part ADAMS plays in the paper, section 3).
 
-`build_mjcf` writes an MJCF model from a RobotSpec: one MuJoCo body per massive body, whose
+`build_spec` builds MuJoCo's model description (mujoco.MjSpec) from a RobotSpec: one MuJoCo body per massive body, whose
 frame is the paper's body frame (O_ci, e(i)), with its mass and principal inertias stated
 explicitly; a massless carriage is merged into its child (MuJoCo refuses moving bodies without
 mass), its joint placed before the child's own. Every joint gets a motor (gear 1), a site at its
@@ -27,7 +27,6 @@ are kept in `meta["drive_stages"]`, so that another model can be driven by exact
 from __future__ import annotations
 
 import logging
-import xml.etree.ElementTree as ET
 from collections.abc import Callable
 
 import mujoco
@@ -40,12 +39,10 @@ from harness.model.cardano import angles_from_rotation, gimbal_flags
 from harness.model.quaternion import to_matrix
 from harness.model.spec import WORLD, Body, Joint, RobotSpec
 
-_MJ_INTEGRATOR = {"RK4": "RK4", "Euler": "Euler", "implicitfast": "implicitfast"}
+_MJ_INTEGRATOR = {"RK4": mujoco.mjtIntegrator.mjINT_RK4, "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+                  "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}
+_JOINT_TYPE = {True: mujoco.mjtJoint.mjJNT_HINGE, False: mujoco.mjtJoint.mjJNT_SLIDE}
 MOMENT_FLOOR = 1e-12
-
-
-def _fmt(v) -> str:
-    return " ".join(repr(float(x)) for x in np.ravel(v))
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
@@ -64,17 +61,21 @@ def _massive_parent(spec: RobotSpec, body: Body) -> tuple[str, list[Joint]]:
     return parent, chain
 
 
-def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
-               timestep: float = 5e-4) -> str:
-    root = ET.Element("mujoco", model=spec.name)
-    ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
-    option = ET.SubElement(root, "option", gravity=_fmt(gravity_W),
-                           integrator=_MJ_INTEGRATOR[integrator], timestep=repr(float(timestep)))
-    ET.SubElement(option, "flag", contact="disable")
-    world = ET.SubElement(root, "worldbody")
-    actuators = ET.SubElement(root, "actuator")
-    sensors = ET.SubElement(root, "sensor")
-    elements = {WORLD: world}
+def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
+               timestep: float = 5e-4) -> mujoco.MjSpec:
+    """The robot as MuJoCo's own model description (mujoco.MjSpec), which `build_model` compiles.
+    Every number is set as the double it is, never through text (MuJoCo's own XML writer,
+    `MjSpec.to_xml`, keeps six significant digits: a file for a reader, not one to reload)."""
+    ms = mujoco.MjSpec()
+    ms.modelname = spec.name
+    ms.compiler.degree = False
+    ms.compiler.autolimits = True
+    ms.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    ms.option.gravity = np.asarray(gravity_W, dtype=float)
+    ms.option.integrator = _MJ_INTEGRATOR[integrator]
+    ms.option.timestep = float(timestep)
+    ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    elements = {WORLD: ms.worldbody}
     frames = {WORLD: (np.eye(3), np.zeros(3))}
     floor = MOMENT_FLOOR * max(float(np.max(b.principal_inertia)) for b in spec.massive_bodies)
 
@@ -82,50 +83,50 @@ def build_mjcf(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
         parent, chain = _massive_parent(spec, body)
         R_WP, p_WP = frames[parent]
         R_WB, p_WB = body.R_WB0, body.p_W_com0
-        el = ET.SubElement(elements[parent], "body", name=body.name,
-                           pos=_fmt(R_WP.T @ (p_WB - p_WP)), quat=_fmt(_quat(R_WP.T @ R_WB)))
+        el = elements[parent].add_body(name=body.name, pos=R_WP.T @ (p_WB - p_WP), quat=_quat(R_WP.T @ R_WB))
         elements[body.name], frames[body.name] = el, (R_WB, p_WB)
         for joint in chain:
             # rotor inertia enters MuJoCo's mass matrix, viscous friction its passive force -f_v q';
             # Coulomb friction and offset are applied by `simulate` (MuJoCo's frictionloss is a
             # constraint solved with regularisation, not the smooth law of harness/model/friction.py)
-            f = joint.friction
-            extra = {"armature": repr(f.armature)} if f.armature else {}
-            extra |= {"damping": repr(f.viscous)} if f.viscous else {}
-            ET.SubElement(el, "joint", name=joint.name,
-                          type="hinge" if joint.revolute else "slide",
-                          pos=_fmt(body.arm_B(joint.p_W0)), axis=_fmt(R_WB.T @ joint.axis_W0), **extra)
-        ET.SubElement(el, "inertial", pos="0 0 0", mass=repr(body.mass),
-                      diaginertia=_fmt(np.maximum(body.principal_inertia, floor)))
+            el.add_joint(name=joint.name, type=_JOINT_TYPE[joint.revolute], pos=body.arm_B(joint.p_W0),
+                         axis=R_WB.T @ joint.axis_W0, armature=joint.friction.armature, damping=joint.friction.viscous)
+        el.explicitinertial = True
+        el.mass, el.ipos, el.iquat = body.mass, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
+        el.inertia = np.maximum(body.principal_inertia, floor)
         if body.cylinder is not None:
             half = body.cylinder.length / 2
-            ET.SubElement(el, "geom", type="cylinder", size=_fmt([body.cylinder.radius]),
-                          fromto=_fmt([-half, 0, 0, half, 0, 0]), contype="0", conaffinity="0")
-        ET.SubElement(el, "site", name=f"com_{body.name}", pos="0 0 0")
+            el.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[body.cylinder.radius, 0, 0],
+                        fromto=[-half, 0, 0, half, 0, 0], contype=0, conaffinity=0)
+        el.add_site(name=f"com_{body.name}", pos=np.zeros(3))
         # A carriage's joint shares its point with the child's joint (checked by the spec).
-        ET.SubElement(el, "site", name=f"joint_{chain[-1].name}",
-                      pos=_fmt(body.arm_B(chain[-1].p_W0)))
+        el.add_site(name=f"joint_{chain[-1].name}", pos=body.arm_B(chain[-1].p_W0))
 
     for joint in spec.joints:
-        ET.SubElement(actuators, "motor", name=f"drive_{joint.name}", joint=joint.name, gear="1")
+        ms.add_actuator(name=f"drive_{joint.name}", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                        gear=[1.0, 0, 0, 0, 0, 0])
+    S, site, jnt = mujoco.mjtSensor, mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_JOINT
+
+    def sensor(kind, name: str, objtype, objname: str) -> None:
+        ms.add_sensor(name=name, type=kind, objtype=objtype, objname=objname)
+
     for joint in spec.joints:
-        site = f"joint_{_measured_at(spec, joint).name}"
-        ET.SubElement(sensors, "force", name=f"force_{joint.name}", site=site)
-        ET.SubElement(sensors, "torque", name=f"torque_{joint.name}", site=site)
-        ET.SubElement(sensors, "jointpos", name=f"q_{joint.name}", joint=joint.name)
-        ET.SubElement(sensors, "jointvel", name=f"qd_{joint.name}", joint=joint.name)
-        ET.SubElement(sensors, "jointactuatorfrc", name=f"tau_{joint.name}", joint=joint.name)
+        at = f"joint_{_measured_at(spec, joint).name}"
+        sensor(S.mjSENS_FORCE, f"force_{joint.name}", site, at)
+        sensor(S.mjSENS_TORQUE, f"torque_{joint.name}", site, at)
+        sensor(S.mjSENS_JOINTPOS, f"q_{joint.name}", jnt, joint.name)
+        sensor(S.mjSENS_JOINTVEL, f"qd_{joint.name}", jnt, joint.name)
+        sensor(S.mjSENS_JOINTACTFRC, f"tau_{joint.name}", jnt, joint.name)
     for body in spec.massive_bodies:
-        ET.SubElement(sensors, "framelinacc", name=f"jointacc_{body.name}", objtype="site",
-                      objname=f"joint_{_massive_parent(spec, body)[1][-1].name}")
-        site = f"com_{body.name}"
-        ET.SubElement(sensors, "accelerometer", name=f"acc_{body.name}", site=site)
-        ET.SubElement(sensors, "gyro", name=f"gyro_{body.name}", site=site)
-        for kind in ("framepos", "framequat", "framelinvel", "frameangvel", "framelinacc",
-                     "frameangacc"):
-            ET.SubElement(sensors, kind, name=f"{kind}_{body.name}", objtype="site", objname=site)
-    ET.indent(root)
-    return ET.tostring(root, encoding="unicode")
+        sensor(S.mjSENS_FRAMELINACC, f"jointacc_{body.name}", site, f"joint_{_massive_parent(spec, body)[1][-1].name}")
+        com = f"com_{body.name}"
+        sensor(S.mjSENS_ACCELEROMETER, f"acc_{body.name}", site, com)
+        sensor(S.mjSENS_GYRO, f"gyro_{body.name}", site, com)
+        for kind, name in ((S.mjSENS_FRAMEPOS, "framepos"), (S.mjSENS_FRAMEQUAT, "framequat"),
+                           (S.mjSENS_FRAMELINVEL, "framelinvel"), (S.mjSENS_FRAMEANGVEL, "frameangvel"),
+                           (S.mjSENS_FRAMELINACC, "framelinacc"), (S.mjSENS_FRAMEANGACC, "frameangacc")):
+            sensor(kind, f"{name}_{body.name}", site, com)
+    return ms
 
 
 def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
@@ -135,8 +136,7 @@ def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
 
 
 def build_model(spec: RobotSpec, gravity_W: np.ndarray, simulation: Simulation) -> mujoco.MjModel:
-    xml = build_mjcf(spec, gravity_W, simulation.integrator, simulation.timestep)
-    return mujoco.MjModel.from_xml_string(xml)
+    return build_spec(spec, gravity_W, simulation.integrator, simulation.timestep).compile()
 
 
 def _log_warning(message: str) -> None:

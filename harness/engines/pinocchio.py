@@ -1,5 +1,5 @@
 """Pinocchio as the independent second opinion: a model built from the RobotSpec directly (not
-from the generated MJCF, so that a mistake in either builder shows up as a disagreement), and
+from the MuJoCo model built for it, so that a mistake in either builder shows up as a disagreement), and
 inverse dynamics by RNEA.
 
 Every joint frame sits at its joint point with world-aligned axes at the initial pose; a joint's

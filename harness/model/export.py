@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+import tomli_w
 
 from harness.model.friction import FRICTION_KEYS, JointFriction
 from harness.model.inertia import about_centre_of_mass
@@ -96,19 +97,22 @@ def write_urdf(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFrictio
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
+def _joints_table(frictions: tuple[JointFriction, ...], names: list[str]) -> dict:
+    return {"joints": {jname: {k: float(getattr(f, k)) for k in FRICTION_KEYS}
+                       for jname, f in zip(names, frictions, strict=True)}}
+
+
 def joints_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...]) -> str:
-    """[joints.<name>] armature, viscous, coulomb, offset, coulomb_velocity (SI), as a model file reads them."""
-    out = []
-    for jname, f in zip(spec.joint_names, frictions, strict=True):
-        out.append(f"[joints.{jname}]")
-        out += [f"{k} = {float(getattr(f, k))!r}" for k in FRICTION_KEYS]
-        out.append("")
-    return "\n".join(out)
+    """[joints.<name>] armature, viscous, coulomb, offset, coulomb_velocity (SI), as a model file reads
+    them (written by tomli-w: every float to the last bit, any joint name quoted as TOML needs)."""
+    return tomli_w.dumps(_joints_table(frictions, spec.joint_names))
 
 
 def model_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...], description: str) -> str:
-    return (f'# {description}\n\n[model]\nname = "{spec.name}_identified"\n\n[urdf]\nfile = "{URDF_FILE}"\n\n'
-            + joints_toml(spec, frictions))
+    """A model file that `harness run` loads: the exported URDF and each joint's friction."""
+    comment = "".join(f"# {line}\n" for line in description.splitlines())
+    return comment + "\n" + tomli_w.dumps({"model": {"name": f"{spec.name}_identified"}, "urdf": {"file": URDF_FILE},
+                                           **_joints_table(frictions, spec.joint_names)})
 
 
 def export(spec: RobotSpec, theta: np.ndarray, friction_values: np.ndarray, description: str) -> dict[str, str]:
