@@ -6,6 +6,7 @@ reports fractions a bar (tqdm) on a terminal, a line every tenth in a log file."
 
 from __future__ import annotations
 
+import shutil
 import sys
 import time
 from collections.abc import Callable
@@ -42,8 +43,11 @@ class Progress:
             return
         if self.bar is None:
             self.stage = stage
+            size = shutil.get_terminal_size()  # 80 x 24 where the terminal reports none (tqdm would show nothing)
             self.bar = tqdm(total=STEPS, desc=f"  [{self.name} {elapsed:5.1f} s] {stage}", file=sys.stderr,
-                            leave=True, mininterval=0.5, bar_format="{desc} {percentage:3.0f}% |{bar:20}| {elapsed}")
+                            leave=True, mininterval=0.5,
+                            ncols=size.columns, nrows=size.lines,
+                            bar_format="{desc} {percentage:3.0f}% |{bar:20}| {elapsed}")
         self.bar.update(max(0, round(STEPS * fraction) - self.bar.n))
         if fraction >= 1.0:
             self.close()
