@@ -191,7 +191,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.runner.results import RECORDING_FILE, RESULTS_FILE, write_results
     from harness.runner.scenario import load_scenario
 
-    imported = time.perf_counter() - start  # mujoco, pinocchio, numpy, scipy, pandas, matplotlib
+    imported = time.perf_counter() - start  # mujoco, pinocchio, numpy, scipy, pandas
     names = args.scenarios or [DEFAULT_SCENARIO]
     scenarios = [load_scenario(_resolve_scenario(a)) for a in names]  # all validated before any work
     seen = set()
@@ -368,7 +368,6 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
     over --trials measurements, on `workers`: sweep.json holds their results, sweep.html their
     report sections."""
     import dataclasses
-    import html
     import time
     from contextlib import closing
 
@@ -376,7 +375,7 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
 
     from harness.api import run
     from harness.base.progress import Progress
-    from harness.report import STYLE
+    from harness.report.html import page
     from harness.report.sections import estimator_comparison, method_sweep
     from harness.runner.results import with_nulls
 
@@ -398,15 +397,13 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
                 results["identification_methods"] = sweep_methods(ctx, args.trials)
     results["run"] = {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)}
     results, results["run"]["not_finite"] = with_nulls(results)
-    title = f"{html.escape(scenario.name)}: identification over {args.trials} trials"
-    page = (f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{title}</title><style>{STYLE}'
-            f"</style></head><body><h1>{title}</h1>"
-            + (estimator_comparison(results) if "estimators" in results else "")
-            + (method_sweep(results) if "identification_methods" in results else "") + "</body></html>")
+    title = f"{scenario.name}: identification over {args.trials} trials"
+    text = page(title, title, (estimator_comparison(results) if "estimators" in results else "")
+                + (method_sweep(results) if "identification_methods" in results else ""))
     try:
         _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(results, indent=1,
                                                                                 allow_nan=False) + "\n"),
-                                "sweep.html": lambda p: p.write_text(page)})
+                                "sweep.html": lambda p: p.write_text(text)})
     except OSError as exc:
         raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
     e = results.get("estimators")

@@ -60,6 +60,13 @@ def run_scenario():
     return _run
 
 
+@pytest.fixture(scope="session")
+def fast_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("fast") / "kr500_rail_7digits"
+    assert main(["run", str(SCENARIOS / "kr500_rail_7digits.toml"), "--out", str(out), "--quiet"]) == 0
+    return out
+
+
 def results_of(out, when: str | None = None) -> dict:
     """results.json of a pipeline run, with its verdict."""
     from harness.runner.gates import verdict

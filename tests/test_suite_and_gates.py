@@ -6,7 +6,6 @@ import json
 import os
 import shutil
 import subprocess
-from pathlib import Path
 
 import pytest
 
@@ -52,13 +51,6 @@ def test_same_scenario_twice_gives_the_same_results_but_for_the_time(run_scenari
     second = results_of(run(load_scenario(path)), when="second")
     first["run"]["time"] = second["run"]["time"] = first["run"]["timings"] = second["run"]["timings"] = None
     assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
-
-
-@pytest.fixture(scope="module")
-def fast_run(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("fast") / "kr500_rail_7digits"
-    assert main(["run", str(SCENARIOS / "kr500_rail_7digits.toml"), "--out", str(out), "--quiet"]) == 0
-    return out
 
 
 def test_report_command_re_renders_the_same_report(fast_run, tmp_path):

@@ -4,30 +4,13 @@ then each study's: the core's drawn by RENDERERS, a study's by its stage's own r
 
 from __future__ import annotations
 
-import html
 from pathlib import Path
 
 import numpy as np
 
 from harness.engines.recording import Recording, read_csv
 from harness.report import sections
-
-STYLE = """
-body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 1rem auto; padding: 0 1rem; color: #222; }
-h1 { font-size: 1.5rem; } h2 { border-bottom: 1px solid #ccc; margin-top: 2rem; } h3 { font-size: 1rem; }
-table { border-collapse: collapse; font-size: 0.8rem; margin: 0.5rem 0; }
-th, td { border: 1px solid #ddd; padding: 0.15rem 0.4rem; text-align: right; vertical-align: top; }
-th { background: #f4f4f4; } td:first-child, th:first-child { text-align: left; }
-td { white-space: nowrap; } table.wrap td, td:first-child, td small { white-space: normal; }
-td code { font-size: 0.7rem; }
-.verdict { font-size: 2rem; font-weight: bold; padding: 0.4rem 1rem; display: inline-block; border-radius: 0.3rem; }
-.pass { background: #d8f5d8; color: #145214; } .fail { background: #fbd9d9; color: #7a1010; }
-.ok { color: #145214; } .bad { color: #9b1111; font-weight: bold; } .warn { color: #7a4b00; }
-figure { margin: 0.8rem 0; } figure svg { max-width: 100%; height: auto; }
-figcaption { font-size: 0.8rem; color: #555; }
-pre { background: #f7f7f7; padding: 0.5rem; font-size: 0.75rem; overflow-x: auto; }
-nav a { margin-right: 0.8rem; font-size: 0.85rem; }
-"""
+from harness.report.html import STYLE, page  # noqa: F401 (STYLE: the pages' one style sheet)
 
 # The core stages' sections, by the stage's key; a study's stages bring their own (Stage.render).
 RENDERERS = {
@@ -80,14 +63,8 @@ def _render(results: dict, rec: Recording, stages: list | None) -> str:
             nav.append((stage.key, stage.title))
     parts.append(sections.how(results))
     nav.append(("how", "How the run was made"))
-    body = "".join(parts)
-    nav = "".join(f'<a href="#{a}">{t}</a>' for a, t in nav)
-    return (
-        f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>{html.escape(name)}: '
-        f"{'PASSED' if results['passed'] else 'FAILED'}</title><style>{STYLE}</style></head><body>"
-        f"<h1>{html.escape(name)}</h1><p>{html.escape(results['scenario']['description'])}</p>"
-        f"<nav>{nav}</nav>{body}</body></html>\n"
-    )
+    return page(f"{name}: {'PASSED' if results['passed'] else 'FAILED'}", name, "".join(parts),
+                results["scenario"]["description"], nav)
 
 
 def render_report(results: dict, results_dir: Path) -> str:

@@ -1,5 +1,6 @@
-"""Figures as inline SVG text, written directly: line charts (linear or logarithmic y), small
-multiples and grouped bars, deterministic for the same data.
+"""Figures as inline SVG text, written directly, the one plotting stack of every page: line charts
+(linear or logarithmic axes), small multiples, grouped bars and histograms, deterministic for the
+same data.
 
 Written here rather than drawn with matplotlib: its layout (tick labels measured, tight bounding
 boxes, a second draw for `bbox_inches`) cost 0.1 to 0.3 s per panel, over 5 s for the 45 panels
@@ -189,10 +190,11 @@ def _svg(width: float, height: float, body: str) -> str:
 
 
 def _panel(box, t, series: dict[str, np.ndarray], flags, styles, logy: bool, lw: float, ms: float, title: str,
-           ylabel: str, xlabel: str, size: float, colors: dict[str, str]) -> str:
+           ylabel: str, xlabel: str, size: float, colors: dict[str, str], logx: bool = False) -> str:
     x0, y0, x1, y1 = box
     t = np.asarray(t, dtype=float)
-    sx = _Scale(float(t.min()), float(t.max()), x0, x1) if len(t) else _Scale(0.0, 1.0, x0, x1)
+    sx = (_Scale(float(t.min()), float(t.max()), x0, x1, log=logx) if len(t) and (not logx or t.min() > 0)
+          else _Scale(0.0, 1.0, x0, x1))
     sy = _Scale(*_range(list(series.values()), logy), y1, y0, log=logy)
     body = [_axes(box, sx, sy, title, ylabel, xlabel, size)]
     if flags is not None and np.any(flags):
@@ -209,14 +211,16 @@ def _colors(names) -> dict[str, str]:
 
 
 def lines(t, series: dict[str, np.ndarray], ylabel: str, title: str, logy: bool = False,
-          flags: np.ndarray | None = None, styles: dict[str, str] | None = None, height: float = 2.6) -> str:
+          flags: np.ndarray | None = None, styles: dict[str, str] | None = None, height: float = 2.6,
+          xlabel: str = "t [s]", logx: bool = False) -> str:
+    """Series over one axis (time, unless `xlabel` says otherwise), one legend above."""
     colors = _colors(series)
     heading = f'<text x="{WIDTH / 2:.1f}" y="16" font-size="12" text-anchor="middle">{_esc(title)}</text>'
     legend, lh = _legend([(k, colors[k], (styles or {}).get(k, "-")) for k in series], 70, 34, WIDTH - 80)
     h = 100 * height + lh
     box = (70, 30 + lh, WIDTH - 15, h - 40)
     return _svg(WIDTH, h, heading + legend + _panel(box, t, series, flags, styles, logy, 1.2, 2.5, "", ylabel,
-                                                     "t [s]", 10, colors))
+                                                     xlabel, 10, colors, logx))
 
 
 def grid(t, panels: list[tuple[str, dict[str, np.ndarray], np.ndarray | None]], ylabel: str,
@@ -267,3 +271,31 @@ def bars(labels: list[str], series: dict[str, list[float | None]], ylabel: str, 
         body.append(f'<text x="{xc:.1f}" y="{y1 + 4:.1f}" font-size="6" text-anchor="end" '
                     f'transform="rotate(-90 {xc:.1f} {y1 + 4:.1f})">{_esc(lab)}</text>')
     return _svg(WIDTH, h, "".join(body) + legend)
+
+
+def histograms(panels: list[tuple[str, np.ndarray]], xlabel: str, bins: int = 30, ncols: int = 6) -> str:
+    """Small multiples: one histogram per (title, values), a line at zero where the range holds it."""
+    nrows = -(-len(panels) // ncols)
+    cell_w, cell_h = WIDTH / ncols, 110.0
+    body = []
+    for k, (title, values) in enumerate(panels):
+        r, c = divmod(k, ncols)
+        left, top = c * cell_w, r * cell_h
+        box = (left + 30, top + 16, left + cell_w - 6, top + cell_h - 22)
+        x0, y0, x1, y1 = box
+        v = np.asarray(values, dtype=float)
+        v = v[np.isfinite(v)]
+        counts, edges = np.histogram(v, bins=bins) if len(v) else (np.zeros(bins), np.linspace(0.0, 1.0, bins + 1))
+        sx = _Scale(float(edges[0]), float(edges[-1]), x0, x1)
+        sy = _Scale(0.0, float(max(counts.max(), 1)), y1, y0)
+        body.append(_axes(box, sx, sy, title, "", xlabel if r == nrows - 1 else "", 6))
+        for n, a, b in zip(counts, edges[:-1], edges[1:], strict=True):
+            if n:
+                xa, xb, top_px = float(sx(a)), float(sx(b)), float(sy(n))
+                body.append(f'<rect x="{xa:.1f}" y="{top_px:.1f}" width="{max(xb - xa - 0.3, 0.3):.1f}" '
+                            f'height="{y1 - top_px:.1f}" fill="{COLORS[0]}"/>')
+        if edges[0] <= 0.0 <= edges[-1]:
+            z = float(sx(0.0))
+            body.append(f'<line x1="{z:.1f}" y1="{y0:.1f}" x2="{z:.1f}" y2="{y1:.1f}" stroke="#000" '
+                        'stroke-width="0.8"/>')
+    return _svg(WIDTH, nrows * cell_h + 8, "".join(body))

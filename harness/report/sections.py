@@ -3,56 +3,23 @@ an HTML fragment out. Numbers are formatted here; figures come from report.plots
 
 from __future__ import annotations
 
-import html
-
 import numpy as np
+from markupsafe import Markup
 
 from harness.engines.recording import Recording
 from harness.model.cardano import GIMBAL_COND_D
 from harness.report import plots
+from harness.report.html import DASH, code, esc, figure, mark, num, section, table
 from harness.runner.gates import summary_line
-
-
-def esc(x) -> str:
-    return html.escape(str(x))
-
-
-def num(x, digits: int = 3) -> str:
-    if x is None:
-        return "&ndash;"
-    if isinstance(x, bool):
-        return "yes" if x else "no"
-    if isinstance(x, int):
-        return str(x)
-    x = float(x)
-    if x == 0.0:
-        return "0"
-    if 1e-3 <= abs(x) < 1e6:
-        return f"{x:.{digits + 3}g}"
-    return f"{x:.{digits}e}"
-
-
-def table(header: list[str], rows: list[list], cls: str = "") -> str:
-    head = "".join(f"<th>{esc(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
-    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
 
 
 def identifiability(p: dict) -> str:
     """A parameter's verdict: yes, weak (with its sensitivity) or no (with the reason)."""
     if not p.get("identifiable", True):
-        return f'<span class="bad">no</span> <small>{esc(p.get("reason", ""))}</small>'
+        return mark(False, "no") + Markup(" <small>{}</small>").format(p.get("reason", ""))
     if p.get("weakly_identifiable"):
-        return f'<span class="bad">weak</span> <small>sensitivity {num(p.get("sensitivity"))}</small>'
-    return '<span class="ok">yes</span>'
-
-
-def figure(svg: str, caption: str) -> str:
-    return f"<figure>{svg}<figcaption>{esc(caption)}</figcaption></figure>"
-
-
-def section(anchor: str, title: str, body: str) -> str:
-    return f'<section id="{anchor}"><h2>{esc(title)}</h2>{body}</section>'
+        return mark(False, "weak") + Markup(" <small>sensitivity {}</small>").format(num(p.get("sensitivity")))
+    return mark(True, "yes")
 
 
 def verdict(r: dict) -> str:
@@ -64,11 +31,10 @@ def verdict(r: dict) -> str:
     rows = [
         [
             esc(g["name"]),
-            f"<code>{esc(g['metric'])}</code>",
+            code(g["metric"]),
             num(g["value"]),
-            ("&le; " if g["direction"] == "at_most" else "&ge; ") + num(g["limit"]),
-            f'<span class="{"ok" if g["passed"] else "bad"}">{"pass" if g["passed"] else "FAIL"}</span>'
-            + (f" ({esc(g['reason'])})" if g["reason"] else ""),
+            ("\u2264 " if g["direction"] == "at_most" else "\u2265 ") + num(g["limit"]),
+            mark(g["passed"], "pass" if g["passed"] else "FAIL") + (f" ({g['reason']})" if g["reason"] else ""),
             esc(g.get("where") or ""),
         ]
         for g in r["gates"]
@@ -190,7 +156,7 @@ def motion(r: dict, rec: Recording) -> str:
         limits = (f"<h3>Against the model's limits</h3><p>{esc(lim['definition'])}.</p>"
                   + (f'<p class="warn">Beyond a limit: {esc(", ".join(lim["beyond"]))}.</p>' if lim["beyond"] else "")
                   + table(["joint", "position", "velocity", "effort"],
-                          [[esc(j), *(num(v[k]) if v[k] is not None else "&ndash;"
+                          [[esc(j), *(num(v[k]) if v[k] is not None else DASH
                                       for k in ("position", "velocity", "effort"))] for j, v in lim["limits"].items()]))
     return section("motion", "Motion", mot + limits + "".join(figs) + "<h3>Tracking of the prescribed motion</h3>"
                    + track)
@@ -201,10 +167,11 @@ def data(r: dict, log) -> str:
     d = r["data"]
     c = d["conditioning"]
     src = r["scenario"]["data"]
-    steps = "".join(f"<li><b>{esc(step['step'])}</b>: "
-                    + esc(", ".join(f"{k.replace('_', ' ')} {num(v) if isinstance(v, float) else v}"
-                                    for k, v in step.items() if k != "step" and v not in ({}, None))) + "</li>"
-                    for step in c["steps"])
+    def described(step: dict) -> str:
+        return ", ".join(f"{k.replace('_', ' ')} {num(v) if isinstance(v, float) else v}"
+                         for k, v in step.items() if k != "step" and v not in ({}, None))
+
+    steps = "".join(f"<li><b>{esc(step['step'])}</b>: {esc(described(step))}</li>" for step in c["steps"])
     warnings = "".join(f'<p class="warn">{esc(w)}</p>' for w in c["warnings"])
     val = c.get("validation")
     split = (f"<p>Training: t &lt; {num(val['t_split'])} s ({val['training_samples']} samples); validation, never "
@@ -247,7 +214,7 @@ def log_identification(r: dict, log) -> str:
                    "min eig J", "consistent"],
                   [[esc(k), num(v["mass"]), esc(", ".join(num(x) for x in v.get("principal_moments", []))),
                     num(v.get("triangle_slack")), num(v["min_eig_pseudo_inertia"]),
-                    '<span class="ok">yes</span>' if v["consistent"] else '<span class="bad">no</span>']
+                    mark(v["consistent"], "yes" if v["consistent"] else "no")]
                    for k, v in con["links"].items()])
     fric = table(["joint", "armature", "viscous", "coulomb", "offset", "coulomb_velocity"],
                  [[esc(j), *(num(v[k]) for k in ("armature", "viscous", "coulomb", "offset", "coulomb_velocity"))]
@@ -398,18 +365,18 @@ def _model_differences(r: dict) -> str:
     return "".join(out)
 
 
-def _interval(ci: list | None) -> str:
-    return f"[{num(ci[0])}, {num(ci[1])}]" if ci else "&ndash;"
+def _interval(ci: list | None) -> Markup:
+    return Markup("[{}, {}]").format(num(ci[0]), num(ci[1])) if ci else DASH
 
 
 def identification_methods(r: dict) -> str:
     rows, tables = [], []
     for name, m in r["identification_methods"].items():
         b, v = m.get("base_parameters"), m.get("validation")
-        rows.append([esc(name), f"<code>{esc(m['plugin'])}</code>", num(b["count"]) if b else "&ndash;",
-                     num(b["max_rel_error"]) if b else "&ndash;", esc(v["scenario"]) if v else "&ndash;",
-                     num(v["max_rel_error"]) if v else "&ndash;", esc(v["max_rel_joint"]) if v else "&ndash;",
-                     num(v["rms_rel_error"]) if v else "&ndash;"])
+        rows.append([esc(name), code(m["plugin"]), num(b["count"]) if b else DASH,
+                     num(b["max_rel_error"]) if b else DASH, esc(v["scenario"]) if v else DASH,
+                     num(v["max_rel_error"]) if v else DASH, esc(v["max_rel_joint"]) if v else DASH,
+                     num(v["rms_rel_error"]) if v else DASH])
         if b and b.get("base"):
             tables.append(
                 f"<h3>{esc(name)}: base parameters</h3><p>{esc(b['rel_error_definition'])}; {esc(b['uncertainty'])}"
@@ -417,7 +384,7 @@ def identification_methods(r: dict) -> str:
                    if b.get("coverage_ci95") is not None else "") + ".</p>"
                 + table(["base parameter", "true", "identified", "rel error", "std", "95 % interval"],
                         [[esc(p["expression"]), num(p["true"]), num(p["identified"]), num(p["rel_error"]),
-                          num(p["std"]) if p["std"] is not None else "&ndash;", _interval(p["ci95"])]
+                          num(p["std"]) if p["std"] is not None else DASH, _interval(p["ci95"])]
                          for p in b["base"]],
                         "wrap"))
     return section(
@@ -454,7 +421,7 @@ def method_sweep(r: dict) -> str:
                               "coverage"],
                              [[esc(p["expression"]), num(p["true"]), num(p["bias"]), num(p["spread"]),
                                num(p["bias_in_sd"]) + (" (beyond 3 s.e.)" if p["significant"] else ""),
-                               num(p["rms_rel_error"]), num(p["coverage"]) if p["coverage"] is not None else "&ndash;"]
+                               num(p["rms_rel_error"]), num(p["coverage"]) if p["coverage"] is not None else DASH]
                               for p in b["base"]], "wrap"))
     return section("identification_methods", "Identification methods under measurement noise", "".join(parts))
 

@@ -7,13 +7,14 @@ import numpy as np
 
 from harness.engines.recording import Recording
 from harness.report import plots
-from harness.report.sections import esc, figure, identifiability, num, section, table
+from harness.report.html import DASH, esc, figure, num, section, table
+from harness.report.sections import identifiability
 
 
 def _larger(p: dict) -> str:
     """Whose absolute error is larger, ours or the paper's (Table 4), where both exist."""
     if p["abs_error"] is None or p["paper_abs_error"] is None:
-        return "&ndash;"
+        return DASH
     ours, theirs = abs(p["abs_error"]), abs(p["paper_abs_error"])
     return "ours" if ours > theirs else "paper's" if theirs > ours else "equal"
 
@@ -27,11 +28,11 @@ def identification(r: dict) -> str:
                 esc(p["body"]),
                 esc(p["name"]),
                 f"{p['true']:.4f}",
-                f"{p['identified']:.6f}" if p["identified"] is not None else "&ndash;",
+                f"{p['identified']:.6f}" if p["identified"] is not None else DASH,
                 num(p["abs_error"]),
                 num(p["rel_error"]),
                 num(p.get("std")),
-                "&ndash;" if not p.get("ci95") else f"[{num(p['ci95'][0])}, {num(p['ci95'][1])}]",
+                DASH if not p.get("ci95") else f"[{num(p['ci95'][0])}, {num(p['ci95'][1])}]",
                 num(p["paper_identified"]),
                 num(p["paper_abs_error"]),
                 _larger(p),
@@ -169,7 +170,7 @@ def lagrange(r: dict, rec: Recording) -> str:
             paper = (
                 ", ".join(num(v) for v in b["paper_lambda_magnitudes"])
                 if any(v is not None for v in b["paper_lambda_magnitudes"])
-                else "&ndash;"
+                else DASH
             )
             rows.append(
                 [

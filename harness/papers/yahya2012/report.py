@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from harness.report import plots
-from harness.report.sections import esc, figure, num, section, table
+from harness.report.html import esc, figure, mark, num, section, table
 
 
 def design_comparison(r: dict) -> str:
@@ -29,7 +29,7 @@ def design_comparison(r: dict) -> str:
     claims = [
         [
             esc(c["claim"]),
-            '<span class="ok">holds</span>' if c["holds"] else '<span class="bad">does not hold</span>',
+            mark(c["holds"], "holds" if c["holds"] else "does not hold"),
             esc("; ".join(f"{k.replace('_', ' ')}: {show(v)}" for k, v in c["numbers"].items())),
         ]
         for c in dc["claims"]
@@ -85,7 +85,7 @@ def inertia_audit(r: dict) -> str:
     rows = [
         [
             esc(e["entry"]),
-            f'<span class="{"ok" if e["verdict"] != "disagrees" else "bad"}">{esc(e["verdict"])}</span>',
+            mark(e["verdict"] != "disagrees", e["verdict"]),
             num(e["max_rel_difference"]),
             num(e["max_rel_difference_negated"]),
             num(e["max_rel_difference_at_theta1_zero"]),
