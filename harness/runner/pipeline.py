@@ -1,6 +1,7 @@
-"""The data flow of DESIGN.md for one scenario: (optimise the excitation,) simulate on the bench,
-measure, then run the registered stages in order: the core's (harness/stages/), then those of each
-study the scenario asks for. Each stage is a function from immutable inputs to a typed result;
+"""The data flow of DESIGN.md for one scenario, the same for every scenario: a source gives the
+data (the bench: optimise the excitation where asked, simulate, measure; or a measured log: read,
+condition, split), then the registered stages run in order: the core's (harness/stages/), then
+those of each study the scenario asks for. Each stage is a function from immutable inputs to a typed result;
 this module only chains them, times them and gathers the results.
 """
 
@@ -82,57 +83,62 @@ class _Timed:
             self.stage = None
 
 
-def stages_of(scenario: Scenario) -> Iterator[tuple[Stage, Any, str | None]]:
+def stages_of(scenario: Scenario | DataScenario) -> Iterator[tuple[Stage, Any, str | None]]:
     """The stages a scenario runs, with their configuration and the study they belong to (None for
-    the core's): the core's, then each study's."""
-    for stage in core_stages():
+    the core's): the core's (a measured log's own, for a log), then each study's."""
+    for stage in log_stages() if isinstance(scenario, DataScenario) else core_stages():
         yield stage, None, None
-    for study, config in scenario.studies:
+    for study, config in getattr(scenario, "studies", ()):
         for stage in study.stages:
             yield stage, config, study.name
 
 
-def run_data(scenario: DataScenario, progress: Progress = _quiet) -> RunOutput:
-    """A measured log (harness/sources/log.py): read and condition it, then the log's stages."""
+@dataclass(frozen=True, eq=False)
+class Sourced:
+    """What a source gives the stages: the truth (the bench's ideal recording, or the whole log),
+    what a fit may use (the measurement of the recording, or the log's training span) and, for a
+    log, the validation span."""
+
+    truth: Recording
+    training: Recording
+    validation: Recording | None = None
+
+
+def from_bench(scenario: Scenario, timed: _Timed) -> Sourced:
+    """The scenario's robot simulated in MuJoCo along its motion, then measured."""
+    timed("simulating in MuJoCo", None)
+    recording = record(scenario)
+    return Sourced(recording, measure(recording, scenario.measurement, scenario.robot.inner_joint_arms_B()))
+
+
+def from_log(scenario: DataScenario, timed: _Timed) -> Sourced:
+    """A measured log (harness/sources/log.py) read and conditioned; its spans checked disjoint."""
     from harness.sources.log import load
 
-    timed = _Timed(progress)
     timed("reading and conditioning the log", None)
     full, train, validation = load(scenario.data, scenario.robot)
     if validation is not None and scenario.data.validation_file is None and not train.t[-1] < validation.t[0]:
         raise RuntimeError(f"the training span (to {train.t[-1]:g} s) and the validation span (from "
                            f"{validation.t[0]:g} s) overlap")
-    ctx = Context(scenario, full, train, timed, validation=validation)
-    outputs: dict[str, StageOutput] = {}
-    for stage in log_stages():
-        timed(stage.progress, None)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            result = stage.run(ctx, None)
-        if result is None:
-            timed.drop(stage.progress)
-            continue
-        outputs[stage.key] = StageOutput(stage, None, result)
-        ctx.done[stage.key] = result
-    timed.close()
-    return RunOutput(scenario, full, train, ctx, outputs, None, timed.timings)
+    return Sourced(full, train, validation)
 
 
 def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
         workers: Workers = IN_PROCESS) -> RunOutput:
-    """The engines are built from the scenario's robot (the truth); each model under test and each
-    identification method from what the scenario names, and judged against them. A stage's Monte
-    Carlo trials run on `workers` (harness/base/workers.py)."""
-    if isinstance(scenario, DataScenario):
-        return run_data(scenario, progress)
+    """One pipeline for every scenario: its source (the bench, or a measured log) gives the data,
+    then its stages run in order. The engines are built from the scenario's robot (the truth); each
+    model under test and each identification method from what the scenario names, and judged
+    against them. A stage's Monte Carlo trials run on `workers` (harness/base/workers.py)."""
     timed = _Timed(progress)
     excitation = None
-    if scenario.excitation is not None:
-        timed("optimising the excitation (Fourier series)", None)
-        scenario, excitation = optimise_excitation(scenario, **scenario.excitation)
-    timed("simulating in MuJoCo", None)
-    recording = record(scenario)
-    measured = measure(recording, scenario.measurement, scenario.robot.inner_joint_arms_B())
-    ctx = Context(scenario, recording, measured, timed, workers=workers)
+    if isinstance(scenario, DataScenario):
+        data = from_log(scenario, timed)
+    else:
+        if scenario.excitation is not None:
+            timed("optimising the excitation (Fourier series)", None)
+            scenario, excitation = optimise_excitation(scenario, **scenario.excitation)
+        data = from_bench(scenario, timed)
+    ctx = Context(scenario, data.truth, data.training, timed, workers=workers, validation=data.validation)
     outputs: dict[str, StageOutput] = {}
     for stage, config, study in stages_of(scenario):
         timed(stage.progress, None)
@@ -148,4 +154,4 @@ def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
         else:
             outputs[stage.key] = StageOutput(stage, config, result)
     timed.close()
-    return RunOutput(scenario, recording, measured, ctx, outputs, excitation, timed.timings)
+    return RunOutput(scenario, data.truth, data.training, ctx, outputs, excitation, timed.timings)
