@@ -15,6 +15,11 @@ rigid-body recursions in world components:
 
 with a_P(x) = a_Pc + w'_P x (x - c_P) + w_P x (w_P x (x - c_P)) the acceleration of the point of P
 at x, and u = R_P u_J0 the joint axis now.
+
+Written here rather than taken from Pinocchio's forwardKinematics, which works one state at a time
+from Python: every step here is an operation on (N,) arrays, in the spec's own world-at-q = 0
+frames that the graph model uses. Checked against Pinocchio state by state on five trees
+(tests/test_kinematics.py).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 pi the ten dynamic parameters of every joint's body in Pinocchio's order and frame
 ([m, m c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz], inertia about the joint frame's origin), Y the
 matrix Pinocchio's computeJointTorqueRegressor gives sample by sample (checked against it to
-round-off in tests/test_torque_id.py). Pinocchio's call costs about 7 us a sample from Python; here
+round-off in tests/test_regressor.py). Pinocchio's call costs about 7 us a sample from Python; here
 every step is an operation on (N,) arrays, a few times faster on long logs.
 
 Featherstone's recursion in each joint's frame, spatial vectors [linear; angular] about the frame's
