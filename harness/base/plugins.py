@@ -262,7 +262,8 @@ def inverse_dynamics(plugin: str, what: str, model, joints: Sequence[str], q: np
 class Stage:
     """One step of a run. `run(context, config)` returns a typed result, or None when the stage has
     nothing to do for this scenario; `serialise(result, context, config)` turns it into its part of
-    results.json, under `key`. `render(results, recording)` draws that part of the report, titled
+    results.json, under `key` (the core's stages pass their result type's own method, e.g.
+    `TorqueComparison.serialise`). `render(results, recording)` draws that part of the report, titled
     `title` in the report's navigation. `files(result)`, when given, returns files to write into the
 output folder ({relative path: text}, e.g. an exported model). `context` is a harness.stages.Context."""
 

@@ -18,16 +18,13 @@ import numpy as np
 import pinocchio as pin
 
 from harness.base.numerics import (
-    PARAMETER_FLOOR,
     column_scale,
     equilibrated_singular_values,
-    finite_or_null,
     parameter_scale,
-    relative_error,
 )
 from harness.engines.pinocchio import PinocchioModel
 from harness.identify.estimators import ols
-from harness.identify.lstsq import WEAK_RATIO, sensitivity, weakly_identifiable
+from harness.identify.lstsq import sensitivity, weakly_identifiable
 from harness.model import friction
 from harness.model.inertia import PARAMETER_NAMES
 from harness.model.regressor import joint_torque_regressor
@@ -206,35 +203,6 @@ def fit_base(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit
     return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), float(sv[0] / sv[-1]))
 
 
-def friction_section(ti: TorqueIdentification) -> dict:
-    """Each joint's friction and rotor inertia: identified where it is a base parameter on its own,
-    else the base parameter it enters (a vertical first joint's armature adds to its link's I_zz)."""
-    alone = {ti.base.independent[k]: k for k in range(len(ti.beta))
-             if not np.any(np.abs(ti.base.combination[k]) > COEFFICIENT_FLOOR)}
-    joints: dict[str, dict] = {}
-    errors, where = [], []
-    for c, name in enumerate(ti.names):
-        joint, term = name.rsplit(".", 1)
-        if term not in friction.IDENTIFIED_KEYS:
-            continue
-        k = alone.get(c)
-        true = float(ti.beta_true[k]) if k is not None else None
-        if k is None:
-            entry = {"in": next((describe_base(ti.names, ti.base, b) for b in range(len(ti.beta))
-                                 if ti.base.independent[b] == c or c in ti.base.dependent[
-                                     np.abs(ti.base.combination[b]) > COEFFICIENT_FLOOR]), None)}
-        else:
-            rel = float(relative_error(ti.beta[k], ti.beta_true[k], max(abs(ti.beta_true[k]), PARAMETER_FLOOR)))
-            errors.append(rel)
-            where.append(name)
-            entry = {"true": true, "identified": float(ti.beta[k]), "rel_error": float(rel)}
-        joints.setdefault(joint, {})[term] = entry
-    return {"definition": "per joint and term; rel_error = |identified - true| / max(|true|, 1e-6) where the term "
-                          "is a base parameter on its own, else `in` names the base parameter it enters",
-            "max_rel_error": max(errors, default=None),
-            "max_rel_parameter": where[int(np.argmax(errors))] if errors else None, "joints": joints}
-
-
 COEFFICIENT_FLOOR = 1e-12  # coefficients of the base combinations below this are QR round-off
 
 
@@ -245,47 +213,3 @@ def describe_base(names: list[str], base: BaseParameters, k: int) -> str:
         if abs(c) > COEFFICIENT_FLOOR:
             terms.append(f"{c:+.6g} {names[j]}")
     return " ".join(terms)
-
-
-def section(ti: TorqueIdentification, validation_name: str | None) -> dict:
-    """The results.json section."""
-    rel = relative_error(ti.beta, ti.beta_true, parameter_scale(ti.beta_true))
-    weak = ti.weak
-    out = {
-        "method": "joint torques only: Pinocchio's joint torque regressor, base parameters by QR with column "
-                  f"pivoting of the regressor at {STRUCTURAL_STATES} random states (the model's structure), "
-                  "least squares (harness/identify/torque_id.py)",
-        "parameters": len(ti.names), "base_parameters": len(ti.beta),
-        "condition_number": ti.condition_number,
-        "rel_error_definition": f"|identified - true| / max(|true|, {PARAMETER_FLOOR:g} x largest |true|)",
-        "uncertainty": "std and 95 % interval from the cluster-robust (CR3) covariance over the samples, "
-                       "t quantile with N - 1 degrees of freedom; infinite where the data leave a direction "
-                       "undetermined (harness/identify/lstsq.py)",
-        "weak_definition": f"identifiable, but its sensitivity to the data is more than {WEAK_RATIO:g} times the "
-                           "median base parameter's; its error is reported apart from max_rel_error "
-                           "(harness/identify/lstsq.py)",
-        "max_rel_error": float(rel[~weak].max(initial=0.0)),
-        "max_rel_parameter": (describe_base(ti.names, ti.base, int(np.flatnonzero(~weak)[np.argmax(rel[~weak])]))
-                              if (~weak).any() else None),
-        "weakly_identifiable": [describe_base(ti.names, ti.base, k) for k in np.flatnonzero(weak)],
-        "max_rel_error_weak": float(rel[weak].max()) if weak.any() else None,
-        "coverage_ci95": float(np.mean(np.abs(ti.beta - ti.beta_true) <= ti.ci_half_width)),
-        "base": [{"expression": describe_base(ti.names, ti.base, k), "true": float(ti.beta_true[k]),
-                  "identified": float(ti.beta[k]),
-                  "rel_error": float(rel[k]), "std": finite_or_null(ti.std[k]),
-                  "ci95": [finite_or_null(ti.beta[k] - ti.ci_half_width[k]),
-                           finite_or_null(ti.beta[k] + ti.ci_half_width[k])],
-                  "undetermined": bool(np.isinf(ti.std[k])),
-                  "sensitivity": finite_or_null(ti.sensitivity[k]), "weakly_identifiable": bool(weak[k])}
-                 for k in range(len(ti.beta))],
-        "validation": None,
-        "friction": friction_section(ti) if ti.base.with_friction else None,
-    }
-    if ti.validation_error is not None:
-        err = np.abs(ti.validation_error) / ti.validation_scale
-        _, worst_joint = np.unravel_index(np.argmax(err), err.shape)
-        out["validation"] = {"scenario": validation_name, "max_rel_error": float(err.max()),
-                             "max_rel_joint": ti.names[10 * worst_joint].rsplit(".", 1)[0],
-                             "rms_rel_error": float(np.sqrt(np.mean(err**2))),
-                             "definition": "|predicted - recorded torque| / L_J of the validation run"}
-    return out

@@ -46,6 +46,53 @@ class Comparison:
     interval: str  # where the IV intervals come from: "sensors" or "residuals"
     iv_half_from_residuals: np.ndarray | None  # (trials, r) beside the sensors' intervals
 
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `estimators`: each estimator's bias, spread and coverage over the trials."""
+        T = self.beta.shape[1]
+        err = self.beta - self.beta_true  # (methods, trials, r)
+        stats = over_trials(err, self.half, parameter_scale(self.beta_true))
+        bias_in_sd, significant, covered, rms = stats.bias_in_sd, stats.significant, stats.coverage, stats.rms_rel_error
+        binomial = stats.binomial
+        out = {
+            "definition": ("per base parameter over the trials: bias = mean error, bias_in_sd = |bias| / the "
+                           "error's standard deviation over the trials, significant where |bias| > 3 standard errors "
+                           "of the mean; coverage of the 95 % intervals; rms_rel_error = RMS error / max(|true|, "
+                           "1e-6 x largest); validation: largest |predicted - recorded torque| / L_J on the "
+                           "validation trajectory"),
+            "trials": T, "samples_per_trial": self.samples, "filter_edge_samples_dropped": self.edge,
+            "noise_correlated_over_samples": self.lags, "least_squares_samples_per_cluster": self.block,
+            "coverage_binomial_standard_error": float(binomial),
+            # a calibrated 95 % interval's coverage over T trials falls within 3 binomial standard errors
+            # of 0.95 but for 0.27 % of the parameters
+            "coverage_band": [float(0.95 - 3 * binomial), float(0.95 + 3 * binomial)],
+            "iv_intervals_from": self.interval,
+            "methods": {},
+        }
+        lo, hi = out["coverage_band"]
+        for i, name in enumerate(self.methods):
+            out["methods"][name] = {
+                "description": DESCRIPTIONS[name],
+                "max_bias_in_sd": float(np.max(bias_in_sd[i])),
+                "median_bias_in_sd": float(np.median(bias_in_sd[i])),
+                "significant_biases": int(significant[i].sum()),
+                "coverage_min": float(covered[i].min()), "coverage_median": float(np.median(covered[i])),
+                "coverage_max": float(covered[i].max()),
+                "coverage_outside_band": int(np.sum((covered[i] < lo) | (covered[i] > hi))),
+                "median_rms_rel_error": float(np.median(rms[i])), "max_rms_rel_error": float(np.max(rms[i])),
+                "validation_rel_error_mean": float(np.mean(self.validation_rel_error[i])),
+                "seconds_per_fit": float(np.mean(self.seconds[i])),
+                "per_parameter": {"bias_in_sd": [float(x) for x in bias_in_sd[i]],
+                                  "coverage": [float(x) for x in covered[i]],
+                                  "rms_rel_error": [float(x) for x in rms[i]]},
+            }
+        if self.iv_half_from_residuals is not None:
+            i = self.methods.index("iv")
+            cov = (np.abs(err[i]) <= self.iv_half_from_residuals).mean(axis=0)
+            out["methods"]["iv"]["coverage_from_residuals"] = {
+                "min": float(cov.min()), "median": float(np.median(cov)), "max": float(cov.max()),
+                "outside_band": int(np.sum((cov < lo) | (cov > hi))), "per_parameter": [float(x) for x in cov]}
+        return out
+
 
 def run(ctx, config) -> Comparison | None:
     sc = ctx.scenario
@@ -149,51 +196,6 @@ def _trial(b: _Bench, k: int) -> tuple:
     return beta, std, half, seconds, val_err, half_residuals
 
 
-def serialise(c: Comparison, ctx, config) -> dict:
-    T = c.beta.shape[1]
-    err = c.beta - c.beta_true  # (methods, trials, r)
-    stats = over_trials(err, c.half, parameter_scale(c.beta_true))
-    bias_in_sd, significant, covered, rms = stats.bias_in_sd, stats.significant, stats.coverage, stats.rms_rel_error
-    binomial = stats.binomial
-    out = {
-        "definition": "per base parameter over the trials: bias = mean error, bias_in_sd = |bias| / the error's "
-                      "standard deviation over the trials, significant where |bias| > 3 standard errors of the mean; "
-                      "coverage of the 95 % intervals; rms_rel_error = RMS error / max(|true|, 1e-6 x largest); "
-                      "validation: largest |predicted - recorded torque| / L_J on the validation trajectory",
-        "trials": T, "samples_per_trial": c.samples, "filter_edge_samples_dropped": c.edge,
-        "noise_correlated_over_samples": c.lags, "least_squares_samples_per_cluster": c.block,
-        "coverage_binomial_standard_error": float(binomial),
-        # a calibrated 95 % interval's coverage over T trials falls within 3 binomial standard errors
-        # of 0.95 but for 0.27 % of the parameters
-        "coverage_band": [float(0.95 - 3 * binomial), float(0.95 + 3 * binomial)],
-        "iv_intervals_from": c.interval,
-        "methods": {},
-    }
-    lo, hi = out["coverage_band"]
-    for i, name in enumerate(c.methods):
-        out["methods"][name] = {
-            "description": DESCRIPTIONS[name],
-            "max_bias_in_sd": float(np.max(bias_in_sd[i])),
-            "median_bias_in_sd": float(np.median(bias_in_sd[i])),
-            "significant_biases": int(significant[i].sum()),
-            "coverage_min": float(covered[i].min()), "coverage_median": float(np.median(covered[i])),
-            "coverage_max": float(covered[i].max()),
-            "coverage_outside_band": int(np.sum((covered[i] < lo) | (covered[i] > hi))),
-            "median_rms_rel_error": float(np.median(rms[i])), "max_rms_rel_error": float(np.max(rms[i])),
-            "validation_rel_error_mean": float(np.mean(c.validation_rel_error[i])),
-            "seconds_per_fit": float(np.mean(c.seconds[i])),
-            "per_parameter": {"bias_in_sd": [float(x) for x in bias_in_sd[i]],
-                              "coverage": [float(x) for x in covered[i]],
-                              "rms_rel_error": [float(x) for x in rms[i]]},
-        }
-    if c.iv_half_from_residuals is not None:
-        i = c.methods.index("iv")
-        cov = (np.abs(err[i]) <= c.iv_half_from_residuals).mean(axis=0)
-        out["methods"]["iv"]["coverage_from_residuals"] = {
-            "min": float(cov.min()), "median": float(np.median(cov)), "max": float(cov.max()),
-            "outside_band": int(np.sum((cov < lo) | (cov > hi))), "per_parameter": [float(x) for x in cov]}
-    return out
-
-
-STAGE = Stage("estimators", "estimators side by side (Monte Carlo over the measurement noise)", run, serialise,
+STAGE = Stage("estimators", "estimators side by side (Monte Carlo over the measurement noise)", run,
+              Comparison.serialise,
               "Estimators side by side")

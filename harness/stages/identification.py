@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.base.numerics import PARAMETER_FLOOR, parameter_scale, relative_error
+from harness.base.numerics import PARAMETER_FLOOR, finite_or_null, parameter_scale, relative_error
 from harness.base.plugins import (
     ModelUnderTest,
     PluginError,
@@ -27,7 +27,10 @@ from harness.base.plugins import (
     invoke,
 )
 from harness.engines.pinocchio import build_model
+from harness.identify.lstsq import WEAK_RATIO
 from harness.identify.torque_id import (
+    COEFFICIENT_FLOOR,
+    STRUCTURAL_STATES,
     TorqueIdentification,
     describe_base,
     identify_from_torques,
@@ -35,8 +38,8 @@ from harness.identify.torque_id import (
     structural_base,
     true_parameters,
 )
-from harness.identify.torque_id import section as torque_id_section
 from harness.identify.trials import over_trials
+from harness.model import friction
 from harness.sources.bench import record
 from harness.stages.metrics import joint_load_scale
 
@@ -56,7 +59,7 @@ def validation_recording(ctx, scenario):
     return ctx.once(("validation recording", str(scenario.source)), make)
 
 
-def run_builtin(ctx, config) -> TorqueIdentification | None:
+def run_builtin(ctx, config) -> BuiltinIdentification | None:
     sc = ctx.scenario
     if sc.torque_validation is None:
         return None
@@ -67,11 +70,91 @@ def run_builtin(ctx, config) -> TorqueIdentification | None:
                     lambda: structural_base(pm, sc.robot.limits, with_friction=sc.torque_friction))
     ti = identify_from_torques(pm, joints, *joint_data(ctx.measured, joints), joint_data(val, joints), base)
     ti.validation_scale = joint_load_scale(sc.robot, val)
-    return ti
+    return BuiltinIdentification(ti, sc.torque_validation.name)
 
 
-def serialise_builtin(ti: TorqueIdentification, ctx, config) -> dict:
-    return torque_id_section(ti, ctx.scenario.torque_validation.name)
+@dataclass(frozen=True, eq=False)
+class BuiltinIdentification:
+    """The run's joint-torque identification (harness/identify/torque_id.py) and the name of the
+    validation trajectory it was judged on."""
+
+    fit: TorqueIdentification
+    validation: str
+
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `torque_identification`: the base parameters against the robot's, their
+        intervals and identifiability, the friction terms and the validation trajectory's torques."""
+        ti = self.fit
+        rel = relative_error(ti.beta, ti.beta_true, parameter_scale(ti.beta_true))
+        weak = ti.weak
+        out = {
+            "method": "joint torques only: Pinocchio's joint torque regressor, base parameters by QR with column "
+                      f"pivoting of the regressor at {STRUCTURAL_STATES} random states (the model's structure), "
+                      "least squares (harness/identify/torque_id.py)",
+            "parameters": len(ti.names), "base_parameters": len(ti.beta),
+            "condition_number": ti.condition_number,
+            "rel_error_definition": f"|identified - true| / max(|true|, {PARAMETER_FLOOR:g} x largest |true|)",
+            "uncertainty": "std and 95 % interval from the cluster-robust (CR3) covariance over the samples, "
+                           "t quantile with N - 1 degrees of freedom; infinite where the data leave a direction "
+                           "undetermined (harness/identify/lstsq.py)",
+            "weak_definition": f"identifiable, but its sensitivity to the data is more than {WEAK_RATIO:g} times the "
+                               "median base parameter's; its error is reported apart from max_rel_error "
+                               "(harness/identify/lstsq.py)",
+            "max_rel_error": float(rel[~weak].max(initial=0.0)),
+            "max_rel_parameter": (describe_base(ti.names, ti.base, int(np.flatnonzero(~weak)[np.argmax(rel[~weak])]))
+                                  if (~weak).any() else None),
+            "weakly_identifiable": [describe_base(ti.names, ti.base, k) for k in np.flatnonzero(weak)],
+            "max_rel_error_weak": float(rel[weak].max()) if weak.any() else None,
+            "coverage_ci95": float(np.mean(np.abs(ti.beta - ti.beta_true) <= ti.ci_half_width)),
+            "base": [{"expression": describe_base(ti.names, ti.base, k), "true": float(ti.beta_true[k]),
+                      "identified": float(ti.beta[k]),
+                      "rel_error": float(rel[k]), "std": finite_or_null(ti.std[k]),
+                      "ci95": [finite_or_null(ti.beta[k] - ti.ci_half_width[k]),
+                               finite_or_null(ti.beta[k] + ti.ci_half_width[k])],
+                      "undetermined": bool(np.isinf(ti.std[k])),
+                      "sensitivity": finite_or_null(ti.sensitivity[k]), "weakly_identifiable": bool(weak[k])}
+                     for k in range(len(ti.beta))],
+            "validation": None,
+            "friction": self.friction_terms() if ti.base.with_friction else None,
+        }
+        if ti.validation_error is not None:
+            err = relative_error(ti.validation_error, 0.0, ti.validation_scale)
+            _, worst_joint = np.unravel_index(np.argmax(err), err.shape)
+            out["validation"] = {"scenario": self.validation, "max_rel_error": float(err.max()),
+                                 "max_rel_joint": ti.names[10 * worst_joint].rsplit(".", 1)[0],
+                                 "rms_rel_error": float(np.sqrt(np.mean(err**2))),
+                                 "definition": "|predicted - recorded torque| / L_J of the validation run"}
+        return out
+
+    def friction_terms(self) -> dict:
+        """Each joint's friction and rotor inertia: identified where it is a base parameter on its own,
+        else the base parameter it enters (a vertical first joint's armature adds to its link's I_zz)."""
+        ti = self.fit
+        alone = {ti.base.independent[k]: k for k in range(len(ti.beta))
+                 if not np.any(np.abs(ti.base.combination[k]) > COEFFICIENT_FLOOR)}
+        joints: dict[str, dict] = {}
+        errors, where = [], []
+        for c, name in enumerate(ti.names):
+            joint, term = name.rsplit(".", 1)
+            if term not in friction.IDENTIFIED_KEYS:
+                continue
+            k = alone.get(c)
+            true = float(ti.beta_true[k]) if k is not None else None
+            if k is None:
+                entry = {"in": next((describe_base(ti.names, ti.base, b) for b in range(len(ti.beta))
+                                     if ti.base.independent[b] == c or c in ti.base.dependent[
+                                         np.abs(ti.base.combination[b]) > COEFFICIENT_FLOOR]), None)}
+            else:
+                rel = float(relative_error(ti.beta[k], ti.beta_true[k],
+                                           max(abs(ti.beta_true[k]), PARAMETER_FLOOR)))
+                errors.append(rel)
+                where.append(name)
+                entry = {"true": true, "identified": float(ti.beta[k]), "rel_error": float(rel)}
+            joints.setdefault(joint, {})[term] = entry
+        return {"definition": "per joint and term; rel_error = |identified - true| / max(|true|, 1e-6) where the term "
+                              "is a base parameter on its own, else `in` names the base parameter it enters",
+                "max_rel_error": max(errors, default=None),
+                "max_rel_parameter": where[int(np.argmax(errors))] if errors else None, "joints": joints}
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,6 +180,42 @@ class MethodResult:
     validation_rel_error: np.ndarray | None  # (N_val, n) |predicted - recorded| / L_J
     validation_t: np.ndarray | None
     validation_joints: list[str]
+
+    def serialise(self) -> dict:
+        """This method's entry in results.json's `identification_methods`."""
+        entry = {"plugin": self.reference, "base_parameters": None, "validation": None}
+        if self.base is not None:
+            b, rel = self.base, self.base.rel_error
+            worst = int(np.argmax(rel))
+            entry["base_parameters"] = {
+                "count": len(b.true),
+                "max_rel_error": float(rel[worst]),
+                "max_rel_parameter": b.expressions[worst],
+                "rel_error_definition": f"|identified - true| / max(|true|, {PARAMETER_FLOOR:g} x largest |true|), the "
+                                        "structural base parameters of the robot (harness/identify/torque_id.py)",
+                "uncertainty": ("std from the method's covariance of its parameters, carried to the base parameters "
+                                "(T Sigma T^T); ci95 = identified +- 1.96 std" if b.std is not None else
+                                "the method gives no covariance"),
+                "coverage_ci95": (float(np.mean(np.abs(b.identified - b.true) <= CI95 * b.std))
+                                  if b.std is not None else None),
+                "base": [{"expression": b.expressions[k], "true": float(b.true[k]),
+                          "identified": float(b.identified[k]), "rel_error": float(rel[k]),
+                          "std": None if b.std is None else float(b.std[k]),
+                          "ci95": None if b.std is None else [float(b.identified[k] - CI95 * b.std[k]),
+                                                              float(b.identified[k] + CI95 * b.std[k])]}
+                         for k in range(len(b.true))],
+            }
+        if self.validation_rel_error is not None:
+            e = self.validation_rel_error
+            k, j = np.unravel_index(np.argmax(e), e.shape)
+            entry["validation"] = {
+                "scenario": self.validation, "max_rel_error": float(e.max()),
+                "max_rel_joint": self.validation_joints[j], "max_rel_t": float(self.validation_t[k]),
+                "rms_rel_error": float(np.sqrt(np.mean(e**2))),
+                "max_rel_error_per_joint": dict(zip(self.validation_joints, (float(x) for x in e.max(axis=0)),
+                                                    strict=True)),
+                "definition": "|predicted - recorded torque| / L_J of the validation run"}
+        return entry
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,58 +294,31 @@ def _judge(ctx, entry) -> MethodResult:
                         val_t, joints)
 
 
-def run_methods(ctx, config) -> tuple[MethodResult, ...] | None:
+@dataclass(frozen=True, eq=False)
+class MethodResults:
+    """Every identification method the scenario plugs in, judged."""
+
+    methods: tuple[MethodResult, ...]
+
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `identification_methods`: per method, its base parameters against the robot's
+        and its torques on the validation trajectory."""
+        return {r.name: r.serialise() for r in self.methods}
+
+
+def run_methods(ctx, config) -> MethodResults | None:
     if not ctx.scenario.methods:
         return None
-    return tuple(_judge(ctx, e) for e in ctx.scenario.methods)
+    return MethodResults(tuple(_judge(ctx, e) for e in ctx.scenario.methods))
 
 
 CI95 = 1.959963984540054  # the normal 97.5 % quantile: a method's covariance states no degrees of freedom
 
 
-def serialise_methods(results: tuple[MethodResult, ...], ctx, config) -> dict:
-    out = {}
-    for r in results:
-        entry = {"plugin": r.reference, "base_parameters": None, "validation": None}
-        if r.base is not None:
-            b, rel = r.base, r.base.rel_error
-            worst = int(np.argmax(rel))
-            entry["base_parameters"] = {
-                "count": len(b.true),
-                "max_rel_error": float(rel[worst]),
-                "max_rel_parameter": b.expressions[worst],
-                "rel_error_definition": f"|identified - true| / max(|true|, {PARAMETER_FLOOR:g} x largest |true|), the "
-                                        "structural base parameters of the robot (harness/identify/torque_id.py)",
-                "uncertainty": ("std from the method's covariance of its parameters, carried to the base parameters "
-                                "(T Sigma T^T); ci95 = identified +- 1.96 std" if b.std is not None else
-                                "the method gives no covariance"),
-                "coverage_ci95": (float(np.mean(np.abs(b.identified - b.true) <= CI95 * b.std))
-                                  if b.std is not None else None),
-                "base": [{"expression": b.expressions[k], "true": float(b.true[k]),
-                          "identified": float(b.identified[k]), "rel_error": float(rel[k]),
-                          "std": None if b.std is None else float(b.std[k]),
-                          "ci95": None if b.std is None else [float(b.identified[k] - CI95 * b.std[k]),
-                                                              float(b.identified[k] + CI95 * b.std[k])]}
-                         for k in range(len(b.true))],
-            }
-        if r.validation_rel_error is not None:
-            e = r.validation_rel_error
-            k, j = np.unravel_index(np.argmax(e), e.shape)
-            entry["validation"] = {
-                "scenario": r.validation, "max_rel_error": float(e.max()), "max_rel_joint": r.validation_joints[j],
-                "max_rel_t": float(r.validation_t[k]),
-                "rms_rel_error": float(np.sqrt(np.mean(e**2))),
-                "max_rel_error_per_joint": dict(zip(r.validation_joints, (float(x) for x in e.max(axis=0)),
-                                                    strict=True)),
-                "definition": "|predicted - recorded torque| / L_J of the validation run"}
-        out[r.name] = entry
-    return out
-
-
 TORQUE_STAGE = Stage("torque_identification", "joint-torque identification (base parameters)", run_builtin,
-                     serialise_builtin, "Torque identification")
+                     BuiltinIdentification.serialise, "Torque identification")
 METHODS_STAGE = Stage("identification_methods", "identification methods under test", run_methods,
-                      serialise_methods, "Identification methods")
+                      MethodResults.serialise, "Identification methods")
 
 
 # --- a method under measurement noise: `harness sweep` ---------------------------------------------

@@ -25,6 +25,21 @@ class LimitRatios:
         return [f"{j} {kind} {r[k]:.3g}x" for kind, r in self.ratios.items() for k, j in enumerate(self.joints)
                 if r[k] > 1.0]
 
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `motion`: each limit's largest ratio over the run."""
+        def value(x: float) -> float | None:
+            return None if np.isnan(x) else float(x)
+
+        return {
+            "definition": "per joint the largest over the run of |q - centre| / half range (position), |q'| / limit "
+                          "(velocity) and |tau| / limit (effort); null where the model states no such limit; above 1 "
+                          "the motion goes beyond it",
+            "limits": {j: {kind: value(self.ratios[kind][k]) for kind in KINDS} for k, j in enumerate(self.joints)},
+            "largest": {kind: value(np.nanmax(self.ratios[kind])) if np.any(~np.isnan(self.ratios[kind])) else None
+                        for kind in KINDS},
+            "beyond": self.beyond(),
+        }
+
 
 def ratios(robot, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> LimitRatios:
     """(N, n) motion and drive torques in the robot's joint order against its limits: position as
@@ -54,19 +69,4 @@ def run(ctx, config) -> LimitRatios:
     return result
 
 
-def serialise(r: LimitRatios, ctx, config) -> dict:
-    def value(x: float) -> float | None:
-        return None if np.isnan(x) else float(x)
-
-    return {
-        "definition": "per joint the largest over the run of |q - centre| / half range (position), |q'| / limit "
-                      "(velocity) and |tau| / limit (effort); null where the model states no such limit; above 1 "
-                      "the motion goes beyond it",
-        "limits": {j: {kind: value(r.ratios[kind][k]) for kind in KINDS} for k, j in enumerate(r.joints)},
-        "largest": {kind: value(np.nanmax(r.ratios[kind])) if np.any(~np.isnan(r.ratios[kind])) else None
-                    for kind in KINDS},
-        "beyond": r.beyond(),
-    }
-
-
-STAGE = Stage("motion", "the motion against the model's limits", run, serialise)
+STAGE = Stage("motion", "the motion against the model's limits", run, LimitRatios.serialise)

@@ -55,6 +55,65 @@ class LogIdentification:
     t: dict[str, np.ndarray]  # span -> times
     files: dict[str, str]  # the export
 
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `log_identification`: the fits, their errors per span, the consistent model and the export."""
+        from harness.base.numerics import finite_or_null
+        from harness.identify.consistent import consistency
+
+        n = len(self.joints)
+        ls = self.ls
+        rel = relative_error(ls.beta, self.beta_model, parameter_scale(self.beta_model))
+
+        def expression(k: int) -> str:
+            return describe_base(self.names, self.base, k)
+
+        errors = {span: _span_errors(self, span) for span in self.predictions}
+        headline = errors.get("validation", errors["training"])
+        links = {}
+        for k, j in enumerate(self.joints):
+            links[j] = {"identified": dict(zip(PARAMETER_NAMES, map(float, self.fit.theta[k]), strict=True)),
+                        "model": dict(zip(PARAMETER_NAMES, map(float, self.theta_model[k]), strict=True)),
+                        **{f"{key}": value for key, value in consistency(self.fit.theta[k]).items()}}
+        return {
+            "method": "least squares of the structural base parameters with friction and rotor inertia, then all "
+                      "parameters under the pseudo-inertia LMI (harness/identify/consistent.py, Clarabel)",
+            "friction_law": ("I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o per joint (harness/model/friction.py), "
+                             "v_c from the model"),
+            "rel_error_definition": ("||tau_predicted - tau_measured||_F / ||tau_measured||_F over every sample and "
+                                     "joint of the span; per joint the same over its samples, and the RMS error in "
+                                     "N m"),
+            "spans": {span: {"samples": len(t), "t_start": float(t[0]), "t_end": float(t[-1])}
+                      for span, t in self.t.items()},
+            "errors": errors,
+            "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()},
+            "consistent_costs": {span: e["consistent"]["rel_error"] - e["least squares"]["rel_error"]
+                                 for span, e in errors.items()},
+            "least_squares": {
+                "base_parameters": len(ls.beta), "parameters": len(self.names), "condition_number": ls.condition_number,
+                "weakly_identifiable": [expression(k) for k in np.flatnonzero(ls.weak)],
+                "base": [{"expression": expression(k), "model": float(self.beta_model[k]),
+                          "identified": float(ls.beta[k]),
+                          "std": finite_or_null(ls.std[k]),
+                          "rel_std_percent": finite_or_null(100 * ls.std[k] / abs(ls.beta[k])) if ls.beta[k] else None,
+                          "ci95": [finite_or_null(ls.beta[k] - ls.ci_half_width[k]),
+                                   finite_or_null(ls.beta[k] + ls.ci_half_width[k])],
+                          "change_from_model": float(rel[k]), "sensitivity": finite_or_null(ls.sensitivity[k]),
+                          "weakly_identifiable": bool(ls.weak[k])} for k in range(len(ls.beta))],
+            },
+            "consistent": {
+                "solver_status": self.fit.status,
+                "training_rel_residual": self.fit.relative_residual,
+                "inconsistent_links": sum(not v["consistent"] for v in links.values()),
+                "links": links,
+                "friction": {j: dict(zip(IDENTIFIED_KEYS, map(float, self.fit.friction[k]), strict=True))
+                             | {"coulomb_velocity": ctx.scenario.robot.frictions[k].coulomb_velocity}
+                             for k, j in enumerate(self.joints)},
+            },
+            "export": sorted(self.files),
+            "joints": n,
+            "series": _series(self),
+        }
+
 
 def run(ctx, config) -> LogIdentification | None:
     sc = ctx.scenario
@@ -107,63 +166,6 @@ def _span_errors(li: LogIdentification, span: str) -> dict:
     return {model: torque_errors(pred, li.measured[span], li.joints) for model, pred in li.predictions[span].items()}
 
 
-def serialise(li: LogIdentification, ctx, config) -> dict:
-    from harness.base.numerics import finite_or_null
-    from harness.identify.consistent import consistency
-
-    n = len(li.joints)
-    ls = li.ls
-    rel = relative_error(ls.beta, li.beta_model, parameter_scale(li.beta_model))
-
-    def expression(k: int) -> str:
-        return describe_base(li.names, li.base, k)
-
-    errors = {span: _span_errors(li, span) for span in li.predictions}
-    headline = errors.get("validation", errors["training"])
-    links = {}
-    for k, j in enumerate(li.joints):
-        links[j] = {"identified": dict(zip(PARAMETER_NAMES, map(float, li.fit.theta[k]), strict=True)),
-                    "model": dict(zip(PARAMETER_NAMES, map(float, li.theta_model[k]), strict=True)),
-                    **{f"{key}": value for key, value in consistency(li.fit.theta[k]).items()}}
-    return {
-        "method": "least squares of the structural base parameters with friction and rotor inertia, then all "
-                  "parameters under the pseudo-inertia LMI (harness/identify/consistent.py, Clarabel)",
-        "friction_law": ("I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o per joint (harness/model/friction.py), v_c from "
-                         "the model"),
-        "rel_error_definition": "||tau_predicted - tau_measured||_F / ||tau_measured||_F over every sample and joint "
-                                "of the span; per joint the same over its samples, and the RMS error in N m",
-        "spans": {span: {"samples": len(li.t[span]), "t_start": float(li.t[span][0]), "t_end": float(li.t[span][-1])}
-                  for span in li.t},
-        "errors": errors,
-        "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()},
-        "consistent_costs": {span: e["consistent"]["rel_error"] - e["least squares"]["rel_error"]
-                             for span, e in errors.items()},
-        "least_squares": {
-            "base_parameters": len(ls.beta), "parameters": len(li.names), "condition_number": ls.condition_number,
-            "weakly_identifiable": [expression(k) for k in np.flatnonzero(ls.weak)],
-            "base": [{"expression": expression(k), "model": float(li.beta_model[k]), "identified": float(ls.beta[k]),
-                      "std": finite_or_null(ls.std[k]),
-                      "rel_std_percent": finite_or_null(100 * ls.std[k] / abs(ls.beta[k])) if ls.beta[k] else None,
-                      "ci95": [finite_or_null(ls.beta[k] - ls.ci_half_width[k]),
-                               finite_or_null(ls.beta[k] + ls.ci_half_width[k])],
-                      "change_from_model": float(rel[k]), "sensitivity": finite_or_null(ls.sensitivity[k]),
-                      "weakly_identifiable": bool(ls.weak[k])} for k in range(len(ls.beta))],
-        },
-        "consistent": {
-            "solver_status": li.fit.status,
-            "training_rel_residual": li.fit.relative_residual,
-            "inconsistent_links": sum(not v["consistent"] for v in links.values()),
-            "links": links,
-            "friction": {j: dict(zip(IDENTIFIED_KEYS, map(float, li.fit.friction[k]), strict=True))
-                         | {"coulomb_velocity": ctx.scenario.robot.frictions[k].coulomb_velocity}
-                         for k, j in enumerate(li.joints)},
-        },
-        "export": sorted(li.files),
-        "joints": n,
-        "series": _series(li),
-    }
-
-
 SERIES_POINTS = 600  # samples per curve kept in results.json for the report's validation plot
 
 
@@ -177,5 +179,5 @@ def _series(li: LogIdentification) -> dict:
                for model, pred in li.predictions[span].items()}}
 
 
-STAGE = Stage("log_identification", "identification from the measured log", run, serialise,
+STAGE = Stage("log_identification", "identification from the measured log", run, LogIdentification.serialise,
               "Identification from the log", files=lambda li: li.files)

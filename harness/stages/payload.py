@@ -41,6 +41,27 @@ class Payload:
     ci_half_width: np.ndarray
     residual_rel: float  # ||delta tau - W_b theta|| / ||delta tau||
 
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `payload`: the payload's ten parameters against the truth."""
+        scale = kind_scale(self.true)
+        rel = np.abs(self.identified - self.true) / np.where(scale > 0, scale, 1.0)
+        inside = np.abs(self.identified - self.true) <= self.ci_half_width
+        return {
+            "method": "least squares of the torques the robot without the payload does not explain, on the 10 columns "
+                      "of the body carrying it (harness/stages/payload.py)",
+            "body": self.body, "joint": self.joint,
+            "rel_error_definition": "|identified - true| / the largest true value of its kind (m; m c, at least m r_g; "
+                                    "inertia) in the payload",
+            "max_rel_error": float(rel.max()),
+            "all_within_ci95": bool(inside.all()),
+            "outside_ci95": int((~inside).sum()),
+            "residual_rel": self.residual_rel,
+            "parameters": [{"name": name, "true": float(self.true[c]), "identified": float(self.identified[c]),
+                            "rel_error": float(rel[c]), "std": float(self.std[c]),
+                            "ci95_half_width": float(self.ci_half_width[c]), "within_ci95": bool(inside[c])}
+                           for c, name in enumerate(PARAMETER_NAMES)],
+        }
+
 
 def run(ctx, config) -> Payload | None:
     sc = ctx.scenario
@@ -74,25 +95,4 @@ def run(ctx, config) -> Payload | None:
                    float(np.linalg.norm(r) / max(np.linalg.norm(delta), np.finfo(float).tiny)))
 
 
-def serialise(p: Payload, ctx, config) -> dict:
-    scale = kind_scale(p.true)
-    rel = np.abs(p.identified - p.true) / np.where(scale > 0, scale, 1.0)
-    inside = np.abs(p.identified - p.true) <= p.ci_half_width
-    return {
-        "method": "least squares of the torques the robot without the payload does not explain, on the 10 columns "
-                  "of the body carrying it (harness/stages/payload.py)",
-        "body": p.body, "joint": p.joint,
-        "rel_error_definition": "|identified - true| / the largest true value of its kind (m; m c, at least m r_g; "
-                                "inertia) in the payload",
-        "max_rel_error": float(rel.max()),
-        "all_within_ci95": bool(inside.all()),
-        "outside_ci95": int((~inside).sum()),
-        "residual_rel": p.residual_rel,
-        "parameters": [{"name": name, "true": float(p.true[c]), "identified": float(p.identified[c]),
-                        "rel_error": float(rel[c]), "std": float(p.std[c]),
-                        "ci95_half_width": float(p.ci_half_width[c]), "within_ci95": bool(inside[c])}
-                       for c, name in enumerate(PARAMETER_NAMES)],
-    }
-
-
-STAGE = Stage("payload", "payload from the runs with and without it", run, serialise, "Payload")
+STAGE = Stage("payload", "payload from the runs with and without it", run, Payload.serialise, "Payload")

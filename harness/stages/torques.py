@@ -65,6 +65,46 @@ class TorqueComparison:
     def sources(self) -> dict[str, np.ndarray]:
         return {"mujoco": self.mujoco, "pinocchio": self.pinocchio, **{m.name: m.tau for m in self.models}}
 
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `torques`: every source against the reference engines, the joint wrenches, the
+        mass matrices and the random states."""
+        sources, joints, t = self.sources(), self.joints, self.t
+        pairs = [(m.name, ref) for m in self.models for ref in ("pinocchio", "mujoco")] + [("pinocchio", "mujoco")]
+        reactions = {"pinocchio_vs_mujoco": {"force": wrench_metrics(self.F_pin, self.F_rec, t, joints),
+                                             "moment": wrench_metrics(self.M_pin, self.M_rec, t, joints)}}
+        for m in self.models:
+            if m.F_W is not None:
+                reactions[f"{m.name}_vs_mujoco"] = {"force": wrench_metrics(m.F_W, self.F_rec, t, joints),
+                                                    "moment": wrench_metrics(m.M_W, self.M_rec, t, joints)}
+        return {
+            "joints": joints,
+            "definition": DEFINITION,
+            "load_scale": dict(zip(joints, floats(self.load_scale), strict=True)),
+            "models": {m.name: {"plugin": m.reference, "model_file": m.model_file,
+                                "joint_wrenches": m.F_W is not None,
+                                "mass_matrix": m.mass_matrix_rel_error is not None} for m in self.models},
+            "parameter_differences": {e.name: parameter_differences(e.robot, ctx.scenario.robot)
+                                      for e in ctx.scenario.models if e.robot is not ctx.scenario.robot},
+            "samples": [{"t": float(ti), **{k: floats(v[i]) for k, v in sources.items()}} for i, ti in enumerate(t)],
+            **{f"{a}_vs_{b}": pair_metrics(sources[a], sources[b], self.load_scale, t, joints) for a, b in pairs},
+            "reactions": {
+                "definition": "|a - b| / largest |b| of the joint over the run, b the recorded wrench "
+                              "(force of the inner on the outer body, moment about the joint point)",
+                **reactions,
+            },
+            **{f"{m.name}_random_vs_pinocchio": _random_metrics(m.random_tau, self.random, joints)
+               for m in self.models},
+            "mass_matrix": {
+                "definition": f"largest |M - M_pinocchio| / largest |M_pinocchio| at {MASS_MATRIX_SAMPLES} rows "
+                              "of the recording (Pinocchio's CRBA)",
+                **{f"{m.name}_vs_pinocchio": {"max_rel_error": m.mass_matrix_rel_error,
+                                              "max_rel_entry": f"M[{joints[m.mass_matrix_worst[1]]}, "
+                                                               f"{joints[m.mass_matrix_worst[2]]}]",
+                                              "max_rel_t": float(t[m.mass_matrix_worst[0]])}
+                   for m in self.models if m.mass_matrix_rel_error is not None},
+            },
+        }
+
 
 def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows) -> ModelTorques:
     """One model under test on the recorded motion, in its own column order, brought to the robot's."""
@@ -151,44 +191,6 @@ def parameter_differences(model, robot) -> list[dict]:
     return out
 
 
-def serialise(tc: TorqueComparison, ctx, config) -> dict:
-    sources, joints, t = tc.sources(), tc.joints, tc.t
-    pairs = [(m.name, ref) for m in tc.models for ref in ("pinocchio", "mujoco")] + [("pinocchio", "mujoco")]
-    reactions = {"pinocchio_vs_mujoco": {"force": wrench_metrics(tc.F_pin, tc.F_rec, t, joints),
-                                         "moment": wrench_metrics(tc.M_pin, tc.M_rec, t, joints)}}
-    for m in tc.models:
-        if m.F_W is not None:
-            reactions[f"{m.name}_vs_mujoco"] = {"force": wrench_metrics(m.F_W, tc.F_rec, t, joints),
-                                                "moment": wrench_metrics(m.M_W, tc.M_rec, t, joints)}
-    return {
-        "joints": joints,
-        "definition": DEFINITION,
-        "load_scale": dict(zip(joints, floats(tc.load_scale), strict=True)),
-        "models": {m.name: {"plugin": m.reference, "model_file": m.model_file,
-                            "joint_wrenches": m.F_W is not None,
-                            "mass_matrix": m.mass_matrix_rel_error is not None} for m in tc.models},
-        "parameter_differences": {e.name: parameter_differences(e.robot, ctx.scenario.robot)
-                                  for e in ctx.scenario.models if e.robot is not ctx.scenario.robot},
-        "samples": [{"t": float(ti), **{k: floats(v[i]) for k, v in sources.items()}} for i, ti in enumerate(t)],
-        **{f"{a}_vs_{b}": pair_metrics(sources[a], sources[b], tc.load_scale, t, joints) for a, b in pairs},
-        "reactions": {
-            "definition": "|a - b| / largest |b| of the joint over the run, b the recorded wrench "
-                          "(force of the inner on the outer body, moment about the joint point)",
-            **reactions,
-        },
-        **{f"{m.name}_random_vs_pinocchio": _random_metrics(m.random_tau, tc.random, joints) for m in tc.models},
-        "mass_matrix": {
-            "definition": f"largest |M - M_pinocchio| / largest |M_pinocchio| at {MASS_MATRIX_SAMPLES} rows "
-                          "of the recording (Pinocchio's CRBA)",
-            **{f"{m.name}_vs_pinocchio": {"max_rel_error": m.mass_matrix_rel_error,
-                                          "max_rel_entry": f"M[{joints[m.mass_matrix_worst[1]]}, "
-                                                           f"{joints[m.mass_matrix_worst[2]]}]",
-                                          "max_rel_t": float(t[m.mass_matrix_worst[0]])}
-               for m in tc.models if m.mass_matrix_rel_error is not None},
-        },
-    }
-
-
 def _random_metrics(tau: np.ndarray, rs: RandomStates, joints: list[str]) -> dict:
     rel = relative_error(tau, rs.tau, rs.load_scale)
     k, j = np.unravel_index(np.argmax(rel), rel.shape)
@@ -206,4 +208,5 @@ def _random_metrics(tau: np.ndarray, rs: RandomStates, joints: list[str]) -> dic
     }
 
 
-STAGE = Stage("torques", "joint torques: reference engines and models under test", run, serialise, "Torques")
+STAGE = Stage("torques", "joint torques: reference engines and models under test", run,
+              TorqueComparison.serialise, "Torques")
