@@ -323,7 +323,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     study = next((s for s, _ in scenario.studies if s.sweep is not None), None)
-    if study is None and scenario.estimators is None and not scenario.methods:
+    if study is None and "estimators" not in scenario.configs and not scenario.methods:
         raise InputError(scenario.source, "studies", "nothing in this scenario can be swept: the graph-theory study's "
                                                      "force path ([studies.graph_theory_2021]), the joint-torque "
                                                      "estimators ([estimators]) or an identification method "
@@ -382,8 +382,9 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
     t0 = time.perf_counter()
     with closing(Progress(scenario.name)) as progress:  # a bar in progress ends its line on any exit
         results: dict = {}
-        if scenario.estimators is not None:
-            swept = dataclasses.replace(scenario, estimators={**scenario.estimators, "trials": args.trials})
+        if "estimators" in scenario.configs:
+            trials = dataclasses.replace(scenario.configs["estimators"], trials=args.trials)
+            swept = dataclasses.replace(scenario, configs={**scenario.configs, "estimators": trials})
             results["estimators"] = run(swept, progress=progress, workers=workers).results["estimators"]
         if scenario.methods:
             from harness.sources.bench import record

@@ -274,6 +274,8 @@ output folder ({relative path: text}, e.g. an exported model). `context` is a ha
     title: str = ""
     render: Callable[[dict, Any], str] | None = None
     files: Callable[[Any], dict[str, str]] | None = None  # files it adds beside results.json: {path: text}
+    table: str | None = None  # the scenario's table that configures it, as `[studies.NAME]` configures a study
+    configure: Callable[[Any, Any], Any] | None = None  # (table, scenario) -> its configuration, validated
 
 
 @dataclass(frozen=True, eq=False)

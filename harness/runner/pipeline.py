@@ -86,8 +86,9 @@ class _Timed:
 def stages_of(scenario: Scenario | DataScenario) -> Iterator[tuple[Stage, Any, str | None]]:
     """The stages a scenario runs, with their configuration and the study they belong to (None for
     the core's): the core's (a measured log's own, for a log), then each study's."""
+    configs = getattr(scenario, "configs", {})
     for stage in log_stages() if isinstance(scenario, DataScenario) else core_stages():
-        yield stage, None, None
+        yield stage, configs.get(stage.key), None
     for study, config in getattr(scenario, "studies", ()):
         for stage in study.stages:
             yield stage, config, study.name

@@ -50,7 +50,6 @@ from harness.sources.motion import Motion, read_motion
 
 _GRID_TOL = 1e-9  # relative to the output interval: a sample time on the grid, a timestep dividing it
 MAX_OUTPUT_STEPS = 1_000_000  # rows of a recording: about 1 GB for an arm of ten joints
-MAX_TRIALS = 100_000  # estimator trials of one run, each a measurement and a regressor (hours beyond)
 MAX_SIMULATION_STEPS = 20_000_000  # MuJoCo steps of one run, each with a Python drive callback (hours)
 
 
@@ -117,13 +116,16 @@ class Scenario:
     text: str = ""  # the scenario file as read, for the report
     torque_validation: Scenario | None = None  # joint-torque identification, validated on this scenario
     torque_friction: bool = False  # ... with each joint's rotor inertia, viscous, Coulomb friction and offset
-    estimators: dict | None = None  # estimators side by side on the joint-torque path (harness/stages/estimators.py)
-    payload: dict | None = None  # {"without": Scenario, "body": name} (harness/stages/payload.py)
     excitation: dict | None = None  # Fourier-series excitation to optimise (harness/identify/excitation.py)
     models: tuple[PluginEntry, ...] = ()  # models under test
     methods: tuple[PluginEntry, ...] = ()  # identification methods under test
     studies: tuple[tuple[Study, Any], ...] = ()  # (study, its configuration), in the file's order
     random_states: RandomStates = field(default_factory=RandomStates)
+    configs: dict[str, Any] = field(default_factory=dict)  # a core stage's key -> its configuration, from its table
+
+    def related(self, t: Table, key: str) -> Scenario:
+        """Another scenario this one names under `key` of table `t` (relative to this file)."""
+        return load_related(t, key, self.source)
 
     @property
     def output_dt(self) -> float:
@@ -291,30 +293,6 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         # default: identify the joints' friction and rotor inertia where the model declares any
         torque_friction = ti.boolean("friction", default=not all(f.none for f in robot.frictions))
         ti.finish()
-    estimators = None
-    if root.has("estimators"):
-        et = root.table("estimators")
-        if torque_validation is None:
-            raise et.error("methods", "estimators are judged on a validation trajectory: give "
-                                      "[torque_identification] validation = ...")
-        from harness.identify.estimators import ESTIMATORS
-
-        estimators = {"methods": et.strings("methods", choices=tuple(ESTIMATORS), default=list(ESTIMATORS)),
-                      "trials": et.integer("trials", default=200, minimum=2)}
-        if estimators["trials"] > MAX_TRIALS:
-            raise et.error("trials", f"{estimators['trials']} trials: at most {MAX_TRIALS:,}")
-        et.finish()
-    payload = None
-    if root.has("payload"):
-        pt = root.table("payload")
-        without = load_related(pt, "without", path)
-        body = pt.string("body")
-        if without.robot.joint_names != robot.joint_names:
-            raise pt.error("without", f"{pt.data['without']!r} moves another robot than {robot.name!r}")
-        if body not in {b.name for b in robot.massive_bodies}:
-            raise pt.error("body", f"no body {body!r} with mass in {robot.name!r}")
-        pt.finish()
-        payload = {"without": without, "body": body}
     excitation = None
     if root.has("excitation"):
         et = root.table("excitation")
@@ -381,7 +359,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                         np.asarray(sample_times), motion, simulation, measurement, gates, text,
-                        torque_validation, torque_friction, estimators, payload, excitation)
+                        torque_validation, torque_friction, excitation)
     models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
                    for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
     methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)
@@ -392,6 +370,14 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             if n in names[:i] or n in ("mujoco", "pinocchio"):
                 raise InputError(path, f"{kind}.name", f"{n!r} is used twice, or names a reference engine")
             unjudged(path, kind, n, gates)
+    from harness.stages import core_stages  # each core stage reads its own table, as a study does
+
+    configs = {}
+    for stage in core_stages():
+        if stage.table is not None and root.has(stage.table):
+            table = root.table(stage.table)
+            configs[stage.key] = stage.configure(table, scenario)
+            table.finish()
     studies = []
     if root.has("studies"):
         st = root.table("studies")
@@ -410,7 +396,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         st.finish()
     root.finish()
     return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies),
-                               random_states=random_states)
+                               random_states=random_states, configs=configs)
 
 
 def judging_metrics(kind: str, name: str) -> tuple[str, ...]:

@@ -94,9 +94,33 @@ class Comparison:
         return out
 
 
-def run(ctx, config) -> Comparison | None:
+MAX_TRIALS = 100_000  # estimator trials of one run, each a measurement and a regressor (hours beyond)
+
+
+@dataclass(frozen=True)
+class EstimatorsConfig:
+    """`[estimators]`: which estimators (harness/identify/estimators.py) and over how many trials."""
+
+    methods: tuple[str, ...]
+    trials: int = 200
+
+
+def configure(t, scenario) -> EstimatorsConfig:
+    """`[estimators] methods = ["ols", "wls", "irls", "iv"], trials = 200`, validated (one-line
+    errors naming the key). The estimators are judged on the scenario's validation trajectory."""
+    if scenario.torque_validation is None:
+        raise t.error("methods", "estimators are judged on a validation trajectory: give "
+                                 "[torque_identification] validation = ...")
+    config = EstimatorsConfig(tuple(t.strings("methods", choices=tuple(ESTIMATORS), default=list(ESTIMATORS))),
+                              t.integer("trials", default=200, minimum=2))
+    if config.trials > MAX_TRIALS:
+        raise t.error("trials", f"{config.trials} trials: at most {MAX_TRIALS:,}")
+    return config
+
+
+def run(ctx, config: EstimatorsConfig | None) -> Comparison | None:
     sc = ctx.scenario
-    cfg = sc.estimators
+    cfg = config
     if cfg is None:
         return None
     from harness.stages.identification import joint_data, validation_recording
@@ -134,8 +158,8 @@ def run(ctx, config) -> Comparison | None:
     qv, qdv, qddv, tauv = joint_data(val, joints)
     Wv = regressor(pm, qv, qdv, qddv, with_friction=sc.torque_friction)[:, cols]
     load = joint_load_scale(sc.robot, val)
-    methods = cfg["methods"]
-    T = cfg["trials"]
+    methods = list(cfg.methods)
+    T = cfg.trials
     both = "iv" in methods and sensors
     bench = _Bench(pm, rec, m, tuple(joints), cols, sc.torque_friction, arms=sc.robot.inner_joint_arms_B(), keep=keep,
                    methods=tuple(methods), instruments=instruments, from_residuals=from_residuals if both else None,
@@ -197,5 +221,4 @@ def _trial(b: _Bench, k: int) -> tuple:
 
 
 STAGE = Stage("estimators", "estimators side by side (Monte Carlo over the measurement noise)", run,
-              Comparison.serialise,
-              "Estimators side by side")
+              Comparison.serialise, "Estimators side by side", table="estimators", configure=configure)

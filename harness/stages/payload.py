@@ -20,6 +20,7 @@ The truth is the difference of the two models' parameters of that body.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,6 +30,9 @@ from harness.identify.estimators import ols
 from harness.identify.torque_id import regressor, structural_base, true_parameters
 from harness.model.inertia import PARAMETER_NAMES, kind_scale
 from harness.sources.measurement import measure
+
+if TYPE_CHECKING:  # annotations only: the scenario is read, never built, here
+    from harness.runner.scenario import Scenario
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,14 +67,35 @@ class Payload:
         }
 
 
-def run(ctx, config) -> Payload | None:
+@dataclass(frozen=True, eq=False)
+class PayloadConfig:
+    """`[payload]`: the same motion without the payload, and the body that carries it."""
+
+    without: Scenario
+    body: str
+
+
+def configure(t, scenario) -> PayloadConfig:
+    """`[payload] without = "ur5_sines.toml", body = "wrist_3_link"`, validated (one-line errors
+    naming the key): the run without it moves the same robot, and the body has mass."""
+    without = scenario.related(t, "without")
+    body = t.string("body")
+    robot = scenario.robot
+    if without.robot.joint_names != robot.joint_names:
+        raise t.error("without", f"{t.data['without']!r} moves another robot than {robot.name!r}")
+    if body not in {b.name for b in robot.massive_bodies}:
+        raise t.error("body", f"no body {body!r} with mass in {robot.name!r}")
+    return PayloadConfig(without, body)
+
+
+def run(ctx, config: PayloadConfig | None) -> Payload | None:
     sc = ctx.scenario
-    if sc.payload is None:
+    if config is None:
         return None
     from harness.stages.identification import joint_data, validation_recording
 
-    without = sc.payload["without"]
-    body = sc.payload["body"]
+    without = config.without
+    body = config.body
     joints = sc.robot.joint_names
     n = len(joints)
     k = joints.index(sc.robot.inner_joint(body).name)
@@ -95,4 +120,5 @@ def run(ctx, config) -> Payload | None:
                    float(np.linalg.norm(r) / max(np.linalg.norm(delta), np.finfo(float).tiny)))
 
 
-STAGE = Stage("payload", "payload from the runs with and without it", run, Payload.serialise, "Payload")
+STAGE = Stage("payload", "payload from the runs with and without it", run, Payload.serialise, "Payload",
+              table="payload", configure=configure)
