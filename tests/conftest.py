@@ -75,6 +75,14 @@ def results_of(out, when: str | None = None) -> dict:
     return verdict(out.scenario.gates, build_results(out, when), out.scenario.source)
 
 
+def readings(out):
+    """The graph-theory study's readings of a run's recording (its Cardano angles, gimbal flags and
+    joint-point accelerations, exact)."""
+    from harness.papers.graph_theory_2021.readings import exact
+
+    return exact(out.recording, out.scenario.robot.inner_joint_arms_B())
+
+
 def graph_model(out):
     """The graph-theory model of a run's robot (the study's model when the scenario names none)."""
     from harness.papers.graph_theory_2021.dynamics import build_graph_model

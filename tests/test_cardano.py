@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from harness.model.cardano import A_0i, D, D_dot, angles_from_rotation, cond_D, gimbal_flags
+from harness.papers.graph_theory_2021.cardano import A_0i, D, D_dot, angles_from_rotation, cond_D, gimbal_flags
 
 rng = np.random.default_rng(20211119)
 
@@ -59,7 +59,7 @@ def test_extraction_inverts_A_0i_away_from_lock():
 
 def test_body_spinning_about_the_vertical_has_continuous_angles_through_lock():
     """B1 of kr500: e1 vertical, R = Ry(-pi/2) Rx(phi). Its continuous angles are
-    alpha = gamma = pi/2 and beta = phi - pi/2 (derivation in harness.model.cardano); the lock rows
+    alpha = gamma = pi/2 and beta = phi - pi/2 (derivation in harness.papers.graph_theory_2021.cardano); the lock rows
     (phi = k pi) take the same alpha as their neighbours."""
     phi = np.linspace(0.0, 4.2 * np.pi, 400)
     phi[[0, 95, 190]] = [0.0, np.pi, 2 * np.pi]  # exact lock rows

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from harness.engines.mujoco import build_model
-from harness.model.cardano import GIMBAL_COND_D, D, D_dot, angles_from_rotation
+from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, D, D_dot, angles_from_rotation
 from harness.papers.graph_theory_2021.dynamics import angle_rates, body_series
 from harness.papers.graph_theory_2021.topology import build_topology
-from tests.conftest import DATA, SCENARIOS, graph_model
+from tests.conftest import DATA, SCENARIOS, graph_model, readings
 
 # Eqs. 7 and 16 as printed for the 6R robot (the extraction lost the signs of S; S_e keeps them):
 # O_i ends at B_i (-1) and O_(i+1) starts at B_i (+1).
@@ -81,7 +81,7 @@ def test_angle_rates_through_D_match_finite_differences_of_the_engines_orientati
     truncation is about h^4 w^6 / 90 ~ 1e-6 rad/s^2 and the round-off 30 eps |theta| / (12 h^2)
     ~ 1e-8: 1e-6 of the largest value is a bound with room, and far below any error in D."""
     out = run_scenario(scenario_path)
-    s = body_series(out.recording, graph_model(out).topology)
+    s = body_series(readings(out), graph_model(out).topology)
     theta_dot, theta_ddot, cond = angle_rates(s.theta, s.omega_B, s.omegadot_B)
     h = 1e-3
     f = {k: _engine_angles(out.scenario, s.t + k * h, s.theta) for k in (-2, -1, 1, 2)}

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from harness.base.reference import reference_table
-from harness.model.cardano import A_0i
+from harness.papers.graph_theory_2021.cardano import A_0i
 from harness.papers.graph_theory_2021.constraints import State, build_constraints
 from harness.papers.graph_theory_2021.dynamics import angle_rates, body_series
-from tests.conftest import DATA, SCENARIOS, graph_model, results_of
+from tests.conftest import DATA, SCENARIOS, graph_model, readings, results_of
 
 KR500 = SCENARIOS / "kr500_rail.toml"
 BRANCH = DATA / "scenarios" / "branch_sines.toml"
@@ -18,7 +18,7 @@ FORMS = pytest.mark.parametrize("form", ["paper", "normal"])
 
 
 def _states(out, rows):
-    rec, top = out.recording, graph_model(out).topology
+    rec, top = readings(out), graph_model(out).topology
     b = [rec.body_index(x) for x in top.bodies]
     s = body_series(rec, top, rows)
     theta_dot, _, _ = angle_rates(s.theta, s.omega_B, s.omegadot_B)
@@ -113,7 +113,7 @@ def test_paper_axis_constraints_lose_rank_exactly_where_the_axis_is_horizontal(r
     assert evaluated == 97
     assert paper.axis_rank_deficient == {"O1": 0, "O2": evaluated, "O3": evaluated, "O4": 0,
                                          "O5": evaluated, "O6": 0}
-    rec, spec = out.recording, out.scenario.robot
+    rec, spec = readings(out), out.scenario.robot
     ev = out["lagrange"].formulations["normal"].solution.evaluated
     assert not paper.solution.evaluated.any()  # singular to double precision at every row
     for joint in ("O2", "O3", "O5", "O4", "O6"):
@@ -149,11 +149,12 @@ def test_stable_tree_is_reproduced_open_loop():
     constrained model along MuJoCo's trajectory within 1e-6 (measured: 6e-9 rad)."""
     from harness.papers.graph_theory_2021.dynamics import build_graph_model
     from harness.papers.graph_theory_2021.forward import forward_simulate
+    from harness.papers.graph_theory_2021.readings import exact
     from harness.runner.scenario import load_scenario
     from harness.sources.bench import record
 
     sc = load_scenario(BRANCH)
-    rec = record(sc)
+    rec = exact(record(sc), sc.robot.inner_joint_arms_B())
     model = build_graph_model(sc.robot, sc.gravity_W)
     cs = build_constraints(sc.robot, model.topology, "normal")
     result = forward_simulate(sc.robot, model, cs, rec, rec.meta["drive_stages"], sc.simulation.timestep,

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from harness.base.workers import Workers
+from harness.papers.graph_theory_2021.readings import exact, read
 from harness.papers.graph_theory_2021.sweep import run_sweep
 from harness.runner.scenario import load_scenario
 from harness.sources.bench import record
@@ -61,14 +62,17 @@ def test_differentiated_accelerations_converge_to_the_sensors():
     errors = []
     for steps in (400, 800, 1600):
         rec = record(dataclasses.replace(sc, output_steps=steps))
-        d = measure(rec, Measurement(differentiate=True), sc.robot.inner_joint_arms_B())
+        m = Measurement(differentiate=True)
+        arms = sc.robot.inner_joint_arms_B()
+        truth = exact(rec, arms)
+        d = read(rec, measure(rec, m), m, arms)  # the core's channels and the study's readings
         inner = slice(10, -10)  # the filter's end effects
-        err = [np.max(np.abs(getattr(d, c)[inner] - getattr(rec, c)[inner])) / np.max(np.abs(getattr(rec, c)))
+        err = [np.max(np.abs(getattr(d, c)[inner] - getattr(truth, c)[inner])) / np.max(np.abs(getattr(truth, c)))
                for c in ("a_W", "aO_W", "omega_W", "omegadot_W")]
         errors.append(err)
         for c in ("qd", "qdd"):
-            exact = getattr(rec, c)[inner]
-            assert np.max(np.abs(getattr(d, c)[inner] - exact)) <= 1e-8 * np.max(np.abs(exact))
+            want = getattr(rec, c)[inner]
+            assert np.max(np.abs(getattr(d, c)[inner] - want)) <= 1e-8 * np.max(np.abs(want))
     errors = np.array(errors)
     assert np.all(errors[1:] < errors[:-1] / 3), errors
     assert errors[-1].max() < 2e-2
@@ -91,31 +95,41 @@ def test_noise_sweep_intervals_cover_about_95_percent():
 
 def test_a_bench_samples_then_reads_then_differentiates_what_it_read(recording):
     """Order of the measurement: sampling, then noise and rounding of each reading, then the
-    derivatives of the rounded, sampled readings (not of the full-rate truth)."""
+    derivatives of the rounded, sampled readings (not of the full-rate truth); the graph-theory
+    study's own readings (its angles, from a stream of its own) in the same order."""
     import dataclasses as dc
 
-    from harness.sources.measurement import add_noise, differentiate, round_significant
+    from harness.papers.graph_theory_2021 import readings
+    from harness.sources.measurement import add_noise, add_noise_to, differentiate, round_significant, study_stream
 
     m = Measurement(significant_digits=4, encoder_resolution=1e-4, every=2, differentiate=True, seed=5,
                     noise={"positions": Noise(absolute=1e-4), "angles": Noise(absolute=1e-4)})
     arms = load_scenario(SCENARIOS / "kr500_rail.toml").robot.inner_joint_arms_B()
-    got = measure(recording, m, arms)
+    got = measure(recording, m)
     rows = np.arange(0, len(recording.t), 2)
-    sampled = dc.replace(recording, t=recording.t[rows], p_W=recording.p_W[rows], v_W=recording.v_W[rows],
-                         theta=recording.theta[rows])
+    sampled = dc.replace(recording, t=recording.t[rows], p_W=recording.p_W[rows], v_W=recording.v_W[rows])
     noisy = add_noise(sampled, m.noise, np.random.default_rng(5))
-    p_read, theta_read = round_significant(noisy["p_W"], 4), round_significant(noisy["theta"], 4)
+    p_read = round_significant(noisy["p_W"], 4)
     np.testing.assert_array_equal(got.p_W, p_read)
-    np.testing.assert_array_equal(got.theta, theta_read)
     # joint positions: rounded to 4 digits, then read in counts of 1e-4 rad from a zero anywhere
     # within a count: on a grid of 1e-4 per joint, within half a count of what was there
     q4 = round_significant(recording.q[rows], 4)
     counts = (got.q - got.q[0]) / 1e-4
     np.testing.assert_allclose(counts, np.round(counts), rtol=0, atol=1e-6)
     assert np.max(np.abs(got.q - q4)) <= 0.5e-4 * (1 + 1e-9)
-    derived = differentiate(sampled.t, got.q, p_read, theta_read, 7, arms)
-    for c in ("qd", "qdd", "a_W", "aO_W", "omega_W", "omegadot_W"):
+    derived = differentiate(sampled.t, got.q, p_read, 7)
+    for c in ("qd", "qdd", "a_W"):
         np.testing.assert_array_equal(getattr(got, c), derived[c])
+    # the study's readings: its angles sampled, read with their noise and rounded, then differentiated
+    view = readings.read(recording, got, m, arms)
+    truth = readings.exact(recording, arms)
+    theta = add_noise_to({"theta": truth.theta[rows]}, {"angles": ("theta",)}, m.noise,
+                         study_stream(m, readings.STREAM))["theta"]
+    theta_read = round_significant(theta, 4)
+    np.testing.assert_array_equal(view.theta, theta_read)
+    derived = readings.differentiate(sampled.t, p_read, theta_read, 7, arms)
+    for c in ("aO_W", "omega_W", "omegadot_W"):
+        np.testing.assert_array_equal(getattr(view, c), derived[c])
 
 
 def test_differentiating_replaces_every_acceleration_sensor(recording):
@@ -123,8 +137,11 @@ def test_differentiating_replaces_every_acceleration_sensor(recording):
     30 % noise on the acceleration sensors changes none of the derived channels, the joint points'
     no more than the centres' (how close they come to the truth: the convergence test above)."""
     arms = load_scenario(SCENARIOS / "kr500_rail.toml").robot.inner_joint_arms_B()
-    clean = measure(recording, Measurement(differentiate=True), arms)
-    noisy = measure(recording, Measurement(differentiate=True, noise={"accelerations": Noise(relative=0.3)}), arms)
+    truth = exact(recording, arms)
+    plain, shaken = Measurement(differentiate=True), Measurement(differentiate=True,
+                                                                  noise={"accelerations": Noise(relative=0.3)})
+    clean = read(recording, measure(recording, plain), plain, arms)
+    noisy = read(recording, measure(recording, shaken), shaken, arms)
     for c in ("a_W", "aO_W"):
         np.testing.assert_array_equal(getattr(noisy, c), getattr(clean, c))
-        assert not np.array_equal(getattr(noisy, c), getattr(recording, c))
+        assert not np.array_equal(getattr(noisy, c), getattr(truth, c))

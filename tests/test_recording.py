@@ -15,7 +15,10 @@ import numpy as np
 import pytest
 
 from harness.engines.recording import Recording
-from harness.model.cardano import A_0i, cond_D
+from harness.model.load import load_spec
+from harness.papers.graph_theory_2021.cardano import A_0i, cond_D
+from harness.papers.graph_theory_2021.readings import Readings, exact
+from tests.conftest import MODELS
 
 REL = 1e-9
 
@@ -79,11 +82,11 @@ def test_joint_moment_is_eulers_law_for_the_bodies_outboard(kr500_rail, kr500_cs
     child = j.child if not robot.body(j.child).massless else robot.outer_joints(j.child)[0].child
     c = rec.body_index(child)
     c_B = robot.body(child).R_WB0.T @ (j.p_W0 - robot.body(child).p_W_com0)  # O_J in child frame
-    O_J = rec.p_W[:, c] + np.einsum("nab,b->na", A_0i(rec.theta[:, c]), c_B)
+    O_J = rec.p_W[:, c] + np.einsum("nab,b->na", rec.R_WB[:, c], c_B)
     expected = np.zeros((len(rec.t), 3))
     for k in _outboard(kr500_rail, rec, joint):
         body = robot.body(rec.bodies[k])
-        A = A_0i(rec.theta[:, k])
+        A = rec.R_WB[:, k]
         J_W = A @ body.I_B @ np.swapaxes(A, 1, 2)
         w, wd = rec.omega_W[:, k], rec.omegadot_W[:, k]
         expected += np.cross(rec.p_W[:, k] - O_J, body.mass * (rec.a_W[:, k] - kr500_rail.gravity_W))
@@ -102,7 +105,7 @@ def test_drive_is_the_wrench_component_along_the_joint_axis(kr500_rail, kr500_cs
         if child is None:  # the carriage translates without turning: its axis stays put
             axis = np.broadcast_to(joint.axis_W0, (len(rec.t), 3))
         else:
-            A = A_0i(rec.theta[:, rec.body_index(child.name)])
+            A = rec.R_WB[:, rec.body_index(child.name)]
             axis = np.einsum("nab,b->na", A, child.R_WB0.T @ joint.axis_W0)
         wrench = rec.M_W[:, j] if joint.revolute else rec.F_W[:, j]
         along = np.einsum("na,na->n", wrench, axis)
@@ -114,7 +117,7 @@ def test_cardano_angles_rebuild_the_engines_orientation(kr500_recording):
     """A(0i) from the recorded angles equals MuJoCo's body orientation at every row, including
     the rows at or near gimbal lock."""
     rec = kr500_recording
-    np.testing.assert_allclose(A_0i(rec.theta), rec.R_WB, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(A_0i(_readings(rec).theta), rec.R_WB, rtol=0, atol=1e-12)
 
 
 def test_joint_points_from_both_bodies_coincide(kr500_rail, kr500_csv):
@@ -122,7 +125,7 @@ def test_joint_points_from_both_bodies_coincide(kr500_rail, kr500_csv):
     angles, O_i = r_(i-1) + l_(i-1)/2 e1(i-1) = r_i - l_i/2 e1(i) (Eqs. 65-69), and O1 rides on the
     rail: O1 = (x_rail, 0, 0)."""
     rec, robot = kr500_csv, kr500_rail.robot
-    e1 = A_0i(rec.theta)[..., 0]  # (n, nb, 3)
+    e1 = rec.R_WB[..., 0]  # (n, nb, 3)
     half = np.array([robot.body(b).cylinder.length / 2 for b in rec.bodies])
     inner_end = rec.p_W - half[None, :, None] * e1
     outer_end = rec.p_W + half[None, :, None] * e1
@@ -133,9 +136,9 @@ def test_joint_points_from_both_bodies_coincide(kr500_rail, kr500_csv):
 
 def test_b1_angles_are_continuous_through_gimbal_lock(kr500_csv):
     """B1 spins about the vertical: A(01) = Ry(-pi/2) Rx(q_O1), whose continuous Cardano angles are
-    alpha = gamma = pi/2, beta = q_O1 - pi/2 (harness.model.cardano). B1 starts in lock at t = 0 and
+    alpha = gamma = pi/2, beta = q_O1 - pi/2 (harness.papers.graph_theory_2021.cardano). B1 starts in lock at t = 0 and
     meets it again at every multiple of pi; the angles stay smooth through all of it."""
-    theta = kr500_csv.theta[:, kr500_csv.body_index("B1")]
+    theta = _readings(kr500_csv).theta[:, kr500_csv.body_index("B1")]
     q_O1 = kr500_csv.q[:, kr500_csv.joint_index("O1")]
     np.testing.assert_allclose(theta[:, 0], np.pi / 2, atol=1e-9)
     np.testing.assert_allclose(theta[:, 1], q_O1 - np.pi / 2, atol=1e-9)
@@ -146,7 +149,8 @@ def test_rows_near_gimbal_lock_are_flagged(kr500_csv):
     """B1 is flagged at t = 0 and on both rows around every time O1 passes a multiple of pi
     (t_k = sqrt(2 k pi / 9.5493)); the arm B2..B6 never comes near lock (cos beta >= 0.866)."""
     rec = kr500_csv
-    b1 = rec.gimbal[:, rec.body_index("B1")]
+    view = _readings(rec)
+    b1 = view.gimbal[:, rec.body_index("B1")]
     assert b1[0]
     dt = rec.t[1] - rec.t[0]
     t_k = np.sqrt(2 * np.pi * np.arange(1, 7) / 9.5493)
@@ -154,12 +158,16 @@ def test_rows_near_gimbal_lock_are_flagged(kr500_csv):
     for tk in t_k:
         before = int(np.floor(tk / dt))
         assert b1[before] and b1[before + 1], f"lock at t = {tk:.4f} s not flagged"
-    assert not rec.gimbal[:, 1:].any()
-    assert np.cos(rec.theta[:, 1:, 1]).min() >= 0.866
-    assert np.all(cond_D(rec.theta[:, 1:]) < 10)
+    assert not view.gimbal[:, 1:].any()
+    assert np.cos(view.theta[:, 1:, 1]).min() >= 0.866
+    assert np.all(cond_D(view.theta[:, 1:]) < 10)
 
 
 def test_csv_round_trip_is_exact(kr500_recording, kr500_csv):
-    for name in ("t", "q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W", "aO_W", "omega_W",
-                 "omegadot_W", "gimbal"):
+    for name in ("t", "q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "R_WB", "a_W", "omega_W", "omegadot_W"):
         np.testing.assert_array_equal(getattr(kr500_csv, name), getattr(kr500_recording, name), name)
+
+
+def _readings(rec: Recording) -> Readings:
+    """The graph-theory study's readings of a kr500 recording: its Cardano angles and gimbal flags."""
+    return exact(rec, load_spec(MODELS / "kr500.toml").inner_joint_arms_B())

@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 
 from harness.engines.pinocchio import rnea_on_recording
-from harness.model.cardano import A_0i
 from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.inverse import inverse_dynamics
 from harness.stages.metrics import joint_load_scale, pair_metrics
-from tests.conftest import DATA, MODELS, SCENARIOS, graph_model, results_of
+from tests.conftest import DATA, MODELS, SCENARIOS, graph_model, readings, results_of
 
 SCENARIO_PATHS = pytest.mark.parametrize(
     "path", [SCENARIOS / "kr500_rail.toml", SCENARIOS / "kr500_all_joints.toml",
@@ -52,8 +51,9 @@ def test_graph_inverse_dynamics_from_the_recorded_body_motion_equals_the_plugin_
     zeroed so that none can leak in, and the model-under-test plugin, which is given (q, q', q'')
     only and finds the body motion by its own forward kinematics of the tree."""
     out = run_scenario(path)
-    blind = dataclasses.replace(out.recording, F_W=np.zeros_like(out.recording.F_W),
-                                M_W=np.zeros_like(out.recording.M_W), tau=np.zeros_like(out.recording.tau))
+    seen = readings(out)
+    blind = dataclasses.replace(seen, F_W=np.zeros_like(seen.F_W), M_W=np.zeros_like(seen.M_W),
+                                tau=np.zeros_like(seen.tau))
     from_recording = inverse_dynamics(out.scenario.robot, graph_model(out), blind).tau
     plugin = next(m for m in out["torques"].models if m.name == "graph").tau
     scale = joint_load_scale(out.scenario.robot, out.recording)
@@ -74,7 +74,7 @@ def test_a_one_percent_mass_error_shows_at_exactly_the_joints_that_carry_it(run_
     carries B_k, 0.01 m_k u_J . (a_k - g) at a prismatic one, and by nothing elsewhere: the joints
     outboard of B_k, and O4, whose axis passes through B4's centre of mass."""
     out = run_scenario(SCENARIOS / "kr500_rail.toml")
-    rec, spec, g = out.recording, out.scenario.robot, out.scenario.gravity_W
+    rec, spec, g = readings(out), out.scenario.robot, out.scenario.gravity_W
     wrong = _with_mass(spec, body, 1.01)
     graph = inverse_dynamics(wrong, build_graph_model(wrong, g), rec).tau
     pin = rnea_on_recording(wrong, g, rec).tau
@@ -89,7 +89,7 @@ def test_a_one_percent_mass_error_shows_at_exactly_the_joints_that_carry_it(run_
         carried = joint if joint.child in rec.bodies else spec.outer_joints(joint.child)[0]
         c = rec.body_index(carried.child)
         child = spec.body(carried.child)
-        A = A_0i(rec.theta[:, c])
+        A = rec.R_WB[:, c]
         O_J = rec.p_W[:, c] + np.einsum("nab,b->na", A, child.R_WB0.T @ (carried.p_W0 - child.p_W_com0))
         load = dm * (rec.a_W[:, k] - g)
         if joint.revolute:

@@ -35,7 +35,6 @@ import numpy as np
 from harness.engines.recording import Recording
 from harness.engines.simulation import Simulation
 from harness.model import friction
-from harness.model.cardano import angles_from_rotation, gimbal_flags
 from harness.model.quaternion import to_matrix
 from harness.model.spec import WORLD, Body, Joint, RobotSpec
 
@@ -118,7 +117,6 @@ def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
         sensor(S.mjSENS_JOINTVEL, f"qd_{joint.name}", jnt, joint.name)
         sensor(S.mjSENS_JOINTACTFRC, f"tau_{joint.name}", jnt, joint.name)
     for body in spec.massive_bodies:
-        sensor(S.mjSENS_FRAMELINACC, f"jointacc_{body.name}", site, f"joint_{_massive_parent(spec, body)[1][-1].name}")
         com = f"com_{body.name}"
         sensor(S.mjSENS_ACCELEROMETER, f"acc_{body.name}", site, com)
         sensor(S.mjSENS_GYRO, f"gyro_{body.name}", site, com)
@@ -295,7 +293,6 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     F_W = np.einsum("njab,njb->nja", site_R, per_joint("force"))
     M_W = np.einsum("njab,njb->nja", site_R, per_joint("torque"))
     R_WB = to_matrix(per_body("framequat"))
-    theta = np.stack([angles_from_rotation(R_WB[:, b]) for b in range(R_WB.shape[1])], axis=1)
     q, qd = per_joint("q")[..., 0], per_joint("qd")[..., 0]
     meta = {
         "engine": "mujoco", "engine_version": mujoco.__version__,
@@ -308,11 +305,9 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     return Recording(
         t=t, joints=tuple(spec.joint_names), bodies=tuple(b.name for b in spec.massive_bodies),
         q=q, qd=qd, qdd=qacc_rows, tau=per_joint("tau")[..., 0], F_W=F_W, M_W=M_W,
-        p_W=per_body("framepos"), v_W=per_body("framelinvel"), theta=theta,
+        p_W=per_body("framepos"), v_W=per_body("framelinvel"), R_WB=R_WB,
         a_W=per_body("framelinacc") + gravity_W,  # framelinacc is a - g (proper)
-        aO_W=per_body("jointacc") + gravity_W,
-        omega_W=per_body("frameangvel"), omegadot_W=per_body("frameangacc"),
-        gimbal=gimbal_flags(theta), R_WB=R_WB, meta=meta,
+        omega_W=per_body("frameangvel"), omegadot_W=per_body("frameangacc"), meta=meta,
     )
 
 

@@ -1,17 +1,17 @@
 """Recording: what the test bench measured, one row per output step (paper section 3.1).
 
-SI units; world components (frame W = e(0)) unless a name says otherwise. Per joint J (robot
-order): q, q', q'' and the drive force or torque along the joint axis, and the wrench the inner
-body applies to the outer body across J: force F_W and moment M_W about the joint point O_J.
-Per massive body B: centre of mass p_W and its velocity v_W, orientation R_WB with its Cardano
-angles theta (see harness.model.cardano), centre-of-mass acceleration a_W, angular velocity omega_W and angular
-acceleration omegadot_W.
+SI units; world components (frame W) unless a name says otherwise. Per joint J (robot order): q,
+q', q'' and the drive force or torque along the joint axis, and the wrench the inner body applies
+to the outer body across J: force F_W and moment M_W about the joint point O_J. Per massive body
+B: its pose (orientation R_WB, the body's principal axes as columns in world components, and
+centre of mass p_W), its twist (centre-of-mass velocity v_W, angular velocity omega_W) and their
+rates (centre-of-mass acceleration a_W, angular acceleration omegadot_W). A study derives what
+else it reads from these: orientation angles, the accelerations of other points.
 
-CSV columns (`to_frame`): t; q_J qd_J qdd_J tau_J; B_x B_y B_z; B_vx B_vy B_vz; B_alpha B_beta B_gamma;
-B_ax B_ay B_az; B_aOx B_aOy B_aOz (the inner joint point); B_wx B_wy B_wz; B_wdx B_wdy B_wdz;
-B_gimbal (1 where cond(D) > GIMBAL_COND_D);
-J_Fx J_Fy J_Fz; J_Mx J_My J_Mz. Floats are written with 17 significant digits, so a recording
-read back from CSV is bit-for-bit the one written.
+CSV columns (`to_frame`): t; q_J qd_J qdd_J tau_J; B_x B_y B_z; B_vx B_vy B_vz;
+B_R11 B_R12 B_R13 B_R21 ... B_R33 (R_WB row by row); B_ax B_ay B_az; B_wx B_wy B_wz;
+B_wdx B_wdy B_wdz; J_Fx J_Fy J_Fz; J_Mx J_My J_Mz. Floats are written with 17 significant digits, so a
+recording read back from CSV is bit-for-bit the one written.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ if TYPE_CHECKING:  # imported where a CSV is read or written
     import pandas as pd
 
 XYZ = ("x", "y", "z")
-ANGLES = ("alpha", "beta", "gamma")
+ROTATION = tuple(f"R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))  # R_WB row by row
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,13 +45,10 @@ class Recording:
     M_W: np.ndarray  # (n, nj, 3) moment of the inner body on the outer body about O_J
     p_W: np.ndarray  # (n, nb, 3) centre of mass
     v_W: np.ndarray  # (n, nb, 3) centre-of-mass velocity
-    theta: np.ndarray  # (n, nb, 3) Cardano angles (alpha, beta, gamma)
+    R_WB: np.ndarray  # (n, nb, 3, 3) orientation: the body's axes in world components
     a_W: np.ndarray  # (n, nb, 3) centre-of-mass acceleration
-    aO_W: np.ndarray  # (n, nb, 3) acceleration of the body's inner joint point (a sensor at a known point)
     omega_W: np.ndarray  # (n, nb, 3)
     omegadot_W: np.ndarray  # (n, nb, 3)
-    gimbal: np.ndarray  # (n, nb) bool: near Cardano gimbal lock
-    R_WB: np.ndarray | None = None  # (n, nb, 3, 3) as the engine reported it, when available
     meta: dict = field(default_factory=dict)
 
     def joint_index(self, name: str) -> int:
@@ -68,14 +65,13 @@ class Recording:
             cols[f"qd_{name}"] = self.qd[:, j]
             cols[f"qdd_{name}"] = self.qdd[:, j]
             cols[f"tau_{name}"] = self.tau[:, j]
+        R = self.R_WB.reshape(len(self.t), len(self.bodies), 9)
         for b, name in enumerate(self.bodies):
-            for groups in ((self.p_W, XYZ, ""), (self.v_W, XYZ, "v"), (self.theta, ANGLES, ""),
-                           (self.a_W, XYZ, "a"), (self.aO_W, XYZ, "aO"),
-                           (self.omega_W, XYZ, "w"), (self.omegadot_W, XYZ, "wd")):
+            for groups in ((self.p_W, XYZ, ""), (self.v_W, XYZ, "v"), (R, ROTATION, ""),
+                           (self.a_W, XYZ, "a"), (self.omega_W, XYZ, "w"), (self.omegadot_W, XYZ, "wd")):
                 arr, suffixes, prefix = groups
                 for k, s in enumerate(suffixes):
                     cols[f"{name}_{prefix}{s}"] = arr[:, b, k]
-            cols[f"{name}_gimbal"] = self.gimbal[:, b].astype(int)
         for j, name in enumerate(self.joints):
             for k, s in enumerate(XYZ):
                 cols[f"{name}_F{s}"] = self.F_W[:, j, k]
@@ -100,7 +96,7 @@ class Recording:
 
 
 def read_csv(path: Path | str) -> Recording:
-    """Read a recording back from CSV: joints from the q_ columns, bodies from the _alpha ones.
+    """Read a recording back from CSV: joints from the q_ columns, bodies from the _R11 ones.
     A missing column, an empty or unparsable cell (a truncated file) is an InputError."""
     import pandas as pd
 
@@ -113,7 +109,7 @@ def read_csv(path: Path | str) -> Recording:
         raise InputError(path, bad[0] if bad else "t", "missing, empty or not a number in some row "
                                                          "(a truncated or edited recording)")
     joints = tuple(c[2:] for c in df.columns if c.startswith("q_"))
-    bodies = tuple(c[: -len("_alpha")] for c in df.columns if c.endswith("_alpha"))
+    bodies = tuple(c[: -len("_R11")] for c in df.columns if c.endswith("_R11"))
 
     def per_joint(prefix: str) -> np.ndarray:
         return df[[f"{prefix}_{j}" for j in joints]].to_numpy()
@@ -121,13 +117,14 @@ def read_csv(path: Path | str) -> Recording:
     def vec(names: tuple[str, ...], fmt: str) -> np.ndarray:
         return np.stack([df[[fmt.format(n=n, s=s) for s in XYZ]].to_numpy() for n in names], axis=1)
 
-    def angles() -> np.ndarray:
-        return np.stack([df[[f"{b}_{a}" for a in ANGLES]].to_numpy() for b in bodies], axis=1)
+    def rotations() -> np.ndarray:
+        R = np.stack([df[[f"{b}_{r}" for r in ROTATION]].to_numpy() for b in bodies], axis=1)
+        return R.reshape(len(df), len(bodies), 3, 3)
 
     expected = ["t", *(f"{k}_{j}" for j in joints for k in ("q", "qd", "qdd", "tau")),
                 *(f"{j}_{k}{a}" for j in joints for k in ("F", "M") for a in XYZ),
-                *(f"{b}_{k}{a}" for b in bodies for k in ("", "v", "a", "aO", "w", "wd") for a in XYZ),
-                *(f"{b}_{a}" for b in bodies for a in (*ANGLES, "gimbal"))]
+                *(f"{b}_{k}{a}" for b in bodies for k in ("", "v", "a", "w", "wd") for a in XYZ),
+                *(f"{b}_{r}" for b in bodies for r in ROTATION)]
     missing = [c for c in expected if c not in df.columns]
     if missing:
         raise InputError(path, missing[0], "column missing: not a complete recording.csv")
@@ -135,8 +132,6 @@ def read_csv(path: Path | str) -> Recording:
         t=df["t"].to_numpy(), joints=joints, bodies=bodies,
         q=per_joint("q"), qd=per_joint("qd"), qdd=per_joint("qdd"), tau=per_joint("tau"),
         F_W=vec(joints, "{n}_F{s}"), M_W=vec(joints, "{n}_M{s}"),
-        p_W=vec(bodies, "{n}_{s}"), v_W=vec(bodies, "{n}_v{s}"), theta=angles(), a_W=vec(bodies, "{n}_a{s}"),
-        aO_W=vec(bodies, "{n}_aO{s}"),
+        p_W=vec(bodies, "{n}_{s}"), v_W=vec(bodies, "{n}_v{s}"), R_WB=rotations(), a_W=vec(bodies, "{n}_a{s}"),
         omega_W=vec(bodies, "{n}_w{s}"), omegadot_W=vec(bodies, "{n}_wd{s}"),
-        gimbal=df[[f"{b}_gimbal" for b in bodies]].to_numpy().astype(bool),
     )

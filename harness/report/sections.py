@@ -7,7 +7,6 @@ import numpy as np
 from markupsafe import Markup
 
 from harness.engines.recording import Recording
-from harness.model.cardano import GIMBAL_COND_D
 from harness.report import plots
 from harness.report.html import DASH, code, esc, figure, mark, num, section, table
 from harness.runner.gates import summary_line
@@ -122,17 +121,6 @@ def motion(r: dict, rec: Recording) -> str:
     figs = [figure(plots.lines(t, rev, "q [rad]", "Revolute joint angles"), "Joint angles as recorded.")]
     if pri:
         figs.append(figure(plots.lines(t, pri, "q [m]", "Prismatic joint positions"), "Joint positions."))
-    panels = [
-        (b, {"alpha": rec.theta[:, i, 0], "beta": rec.theta[:, i, 1], "gamma": rec.theta[:, i, 2]}, rec.gimbal[:, i])
-        for i, b in enumerate(rec.bodies)
-    ]
-    figs.append(
-        figure(
-            plots.grid(t, panels, "[rad]"),
-            "Cardano angles A(0i) = Rx(alpha) Ry(beta) Rz(gamma); shaded: rows near gimbal lock "
-            f"(cond(D) > {GIMBAL_COND_D:g}, or cos(beta) changing sign between rows).",
-        )
-    )
     acc = {b: np.linalg.norm(rec.a_W[:, i], axis=1) for i, b in enumerate(rec.bodies)}
     figs.append(
         figure(

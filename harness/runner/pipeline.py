@@ -109,7 +109,7 @@ def from_bench(scenario: Scenario, timed: _Timed) -> Sourced:
     """The scenario's robot simulated in MuJoCo along its motion, then measured."""
     timed("simulating in MuJoCo", None)
     recording = record(scenario)
-    return Sourced(recording, measure(recording, scenario.measurement, scenario.robot.inner_joint_arms_B()))
+    return Sourced(recording, measure(recording, scenario.measurement))
 
 
 def from_log(scenario: DataScenario, timed: _Timed) -> Sourced:

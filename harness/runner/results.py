@@ -95,8 +95,6 @@ def recording_section(rec: Recording) -> dict:
             "qd_max_abs_error": float(np.max(np.abs(rec.qd[:, j] - meta["qd_ref"][:, j]))),
             "qdd_max_abs_error": float(np.max(np.abs(rec.qdd[:, j] - meta["qdd_ref"][:, j]))),
         }
-    gimbal = {b: floats(rec.t[rec.gimbal[:, i]]) for i, b in enumerate(rec.bodies)
-              if rec.gimbal[:, i].any()}
     return {
         "file": RECORDING_FILE,
         "max_tracking_error": max(v["q_max_abs_error"] for v in tracking.values()),
@@ -113,7 +111,6 @@ def recording_section(rec: Recording) -> dict:
         "tracking_bandwidth": meta["tracking_bandwidth"],
         "tracking_error": tracking,
         "engine_warnings": list(meta.get("warnings", [])),
-        "gimbal_lock_rows": gimbal,
     }
 
 

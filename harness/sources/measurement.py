@@ -17,37 +17,31 @@ A scenario's `[measurement]` table, every key optional:
 Noise on a value x has standard deviation sqrt(absolute^2 + (relative |x|)^2), independently per
 component and sample; angles and positions take absolute noise only (their zero is arbitrary).
 Order, as on a bench: sampling (`every`), then noise and rounding of each reading, then
-differentiation of what was read. With `differentiate`, every acceleration channel is re-derived:
-the joint velocities and accelerations from the measured joint positions (as a controller reads
-its encoders), the centre-of-mass accelerations from the measured positions, the accelerations of the inner joint
-points from the points' positions p_W + A(theta) r_B (measured position and angles, r_B the body-
-fixed arm from the centre of mass to the point, known from the model as a sensor's place on a
-bench is), and the angular velocities and accelerations from the measured Cardano angles
-(omega^(i) = D theta', omega'^(i) = D theta'' + D' theta', Eq. 33, which needs no inverse of D and
-so passes gimbal lock), all by a cubic Savitzky-Golay filter over `filter_window` samples: exact
-for cubic motion, and smoothing noise. On kr500_rail the error falls at second order with the step
-(3 to 4 times per halving). Near gimbal lock of a body whose alpha and gamma then change fast (not
-B1 of kr500_rail, whose angles stay smooth), its angle rates are large and the filter loses
-accuracy: sample finer there.
-Time and the gimbal flags are not measurements.
+differentiation of what was read. With `differentiate`, the joint velocities and accelerations
+are re-derived from the measured joint positions (as a controller reads its encoders) and the
+centre-of-mass accelerations from the measured positions, by a cubic Savitzky-Golay filter over
+`filter_window` samples (`savgol`): exact for cubic motion, and smoothing noise. Angular
+velocities and accelerations are read as a gyroscope reads them. Orientations (R_WB) are passed
+on as recorded: the `angles` group is for a study that reads the bodies' orientation as angles
+and measures them itself (with what it derives from them, from a stream of its own,
+`study_stream`). Time is not a measurement.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from harness.base.tomlio import Table
 from harness.engines.recording import Recording
-from harness.model.cardano import A_0i, D, D_dot
 
-CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "theta", "a_W", "aO_W", "omega_W",
-            "omegadot_W")
+CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "a_W", "omega_W", "omegadot_W")
 GROUPS = {
-    "forces": ("F_W",), "moments": ("M_W",), "accelerations": ("a_W", "aO_W"), "angular_velocities": ("omega_W",),
-    "angular_accelerations": ("omegadot_W",), "angles": ("theta",), "positions": ("p_W", "v_W"),
+    "forces": ("F_W",), "moments": ("M_W",), "accelerations": ("a_W",), "angular_velocities": ("omega_W",),
+    "angular_accelerations": ("omegadot_W",), "angles": (), "positions": ("p_W", "v_W"),
     "joints": ("q", "qd", "qdd", "tau"), "joint_torques": ("tau",),
 }
 
@@ -144,10 +138,19 @@ def read_encoders(q: np.ndarray, resolution: float, rng: np.random.Generator) ->
 
 
 def add_noise(rec: Recording, noise: dict[str, Noise], rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Each channel of `rec` that a noise group names, with its noise drawn from `rng`."""
+    return add_noise_to({c: getattr(rec, c) for c in CHANNELS}, GROUPS, noise, rng)
+
+
+def add_noise_to(values: dict[str, np.ndarray], groups: dict[str, tuple[str, ...]], noise: dict[str, Noise],
+                 rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """`values` (channel -> array) with the noise of each group in `noise` added to the channels
+    `groups` gives it, in the order of `noise` (the scenario's): standard deviation
+    sqrt(absolute^2 + (relative |x|)^2), independently per component and sample."""
     out = {}
     for group, n in noise.items():
-        for c in GROUPS[group]:
-            x = getattr(rec, c)
+        for c in groups.get(group, ()):
+            x = values[c]
             std = np.sqrt(n.absolute**2 + (n.relative * x) ** 2)
             out[c] = x + std * rng.standard_normal(x.shape)
     return out
@@ -161,38 +164,27 @@ def savgol(x: np.ndarray, t: np.ndarray, window: int, deriv: int) -> np.ndarray:
     return savgol_filter(x, window, 3, deriv=deriv, delta=float(t[1] - t[0]), axis=0, mode="interp")
 
 
-def differentiate(t: np.ndarray, q: np.ndarray, p_W: np.ndarray, theta: np.ndarray, window: int,
-                  arm_O_B: np.ndarray) -> dict[str, np.ndarray]:
-    """qd, qdd from joint positions; a_W, aO_W, omega_W, omegadot_W from positions and Cardano
-    angles (cubic Savitzky-Golay). arm_O_B: (nb, 3) each body's arm from its centre of mass to its
-    inner joint point O."""
-    def sg(x: np.ndarray, k: int) -> np.ndarray:
-        return savgol(x, t, window, k)
-
-    theta_d, theta_dd = sg(theta, 1), sg(theta, 2)
-    th = sg(theta, 0)
-    Dm = D(th)
-    omega_B = np.einsum("...ab,...b->...a", Dm, theta_d)
-    omegadot_B = (np.einsum("...ab,...b->...a", Dm, theta_dd)
-                  + np.einsum("...ab,...b->...a", D_dot(th, theta_d), theta_d))
-    A = A_0i(th)
-    pO_W = p_W + np.einsum("...ab,...b->...a", A_0i(theta), arm_O_B)  # the point where it was read
-    return {"qd": sg(q, 1), "qdd": sg(q, 2), "a_W": sg(p_W, 2), "aO_W": sg(pO_W, 2),
-            "omega_W": np.einsum("...ab,...b->...a", A, omega_B),
-            "omegadot_W": np.einsum("...ab,...b->...a", A, omegadot_B)}
+def differentiate(t: np.ndarray, q: np.ndarray, p_W: np.ndarray, window: int) -> dict[str, np.ndarray]:
+    """qd, qdd from joint positions; a_W from centre-of-mass positions (cubic Savitzky-Golay)."""
+    return {"qd": savgol(q, t, window, 1), "qdd": savgol(q, t, window, 2), "a_W": savgol(p_W, t, window, 2)}
 
 
-def measure(rec: Recording, m: Measurement, arm_O_B: np.ndarray | None = None) -> Recording:
-    """What the test bench reports under the measurement conditions `m` (deterministic in m.seed).
-    arm_O_B: (nb, 3) the arms of the inner joint points (RobotSpec.inner_joint_arms_B), needed to
-    re-derive their accelerations when `m.differentiate`."""
+def study_stream(m: Measurement, name: str) -> np.random.Generator:
+    """The random stream of the readings a study measures itself (`name` tells them apart): drawn
+    from the measurement's seed, apart from the bench's own stream, so that what the study reads
+    leaves what the core reads as it is."""
+    return np.random.default_rng([m.seed, zlib.crc32(name.encode())])
+
+
+def measure(rec: Recording, m: Measurement) -> Recording:
+    """What the test bench reports under the measurement conditions `m` (deterministic in m.seed)."""
     if m.ideal:
         return rec
     rng = np.random.default_rng(m.seed)
     # the bench samples; each reading then carries its noise and its resolution; derivatives come
     # from what was read
     rows = np.arange(0, len(rec.t), m.every)
-    sampled = dataclasses.replace(rec, t=rec.t[rows], gimbal=rec.gimbal[rows], R_WB=None,
+    sampled = dataclasses.replace(rec, t=rec.t[rows], R_WB=rec.R_WB[rows],
                                   **{c: getattr(rec, c)[rows] for c in CHANNELS})
     values = {c: getattr(sampled, c) for c in CHANNELS}
     values.update(add_noise(sampled, m.noise, rng))
@@ -201,10 +193,7 @@ def measure(rec: Recording, m: Measurement, arm_O_B: np.ndarray | None = None) -
     if m.encoder_resolution is not None:
         values["q"] = read_encoders(values["q"], m.encoder_resolution, rng)
     if m.differentiate:
-        if arm_O_B is None:
-            raise ValueError("measure: differentiating needs the arms of the inner joint points")
-        values.update(differentiate(sampled.t, values["q"], values["p_W"], values["theta"], m.filter_window,
-                                    arm_O_B))
+        values.update(differentiate(sampled.t, values["q"], values["p_W"], m.filter_window))
     return dataclasses.replace(sampled, **values)
 
 
@@ -221,4 +210,4 @@ def dither(rec: Recording, m: Measurement, rng: np.random.Generator) -> Recordin
         else:
             size = np.max(np.abs(x), axis=1)[:, None]
         values[c] = x + m.resolution * size * rng.uniform(-1.0, 1.0, x.shape)
-    return dataclasses.replace(rec, R_WB=None, **values)
+    return dataclasses.replace(rec, **values)

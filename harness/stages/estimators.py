@@ -161,8 +161,8 @@ def run(ctx, config: EstimatorsConfig | None) -> Comparison | None:
     methods = list(cfg.methods)
     T = cfg.trials
     both = "iv" in methods and sensors
-    bench = _Bench(pm, rec, m, tuple(joints), cols, sc.torque_friction, arms=sc.robot.inner_joint_arms_B(), keep=keep,
-                   methods=tuple(methods), instruments=instruments, from_residuals=from_residuals if both else None,
+    bench = _Bench(pm, rec, m, tuple(joints), cols, sc.torque_friction, keep=keep, methods=tuple(methods),
+                   instruments=instruments, from_residuals=from_residuals if both else None,
                    lags=lags, Wv=Wv, tauv=tauv, load=load)
     ctx.progress("estimators side by side", 0.0)
     trials = ctx.workers.map(_setup, (bench,), _trial, range(T),
@@ -184,7 +184,6 @@ class _Bench:
     joints: tuple[str, ...]
     cols: np.ndarray  # the base parameters' columns of the regressor
     friction: bool
-    arms: np.ndarray  # (bodies, 3) where each body's acceleration is measured (RobotSpec.inner_joint_arms_B)
     keep: slice  # the rows the differentiating filter leaves whole
     methods: tuple[str, ...]
     instruments: Instruments
@@ -204,7 +203,7 @@ def _trial(b: _Bench, k: int) -> tuple:
     from harness.stages.identification import joint_data
 
     n = len(b.joints)
-    meas = measure(b.rec, b.m.with_seed(b.m.seed + k), b.arms)
+    meas = measure(b.rec, b.m.with_seed(b.m.seed + k))
     q, qd, qdd, tau = (x[b.keep] for x in joint_data(meas, b.joints))
     W1 = regressor(b.pm, q, qd, qdd, with_friction=b.friction)[:, b.cols]
     r = len(b.cols)

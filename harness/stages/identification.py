@@ -332,7 +332,6 @@ class _MethodBench:
     entry: Any  # harness.runner.scenario.PluginEntry, without its instance where it can be built again
     rec: Any  # the ideal recording
     m: Any  # the scenario's measurement
-    arms: np.ndarray
     joints: list[str]
     bm: BaseMap
     validation: tuple | None  # (q, q', q'', tau, L_J) of the validation trajectory
@@ -352,7 +351,7 @@ def _method_trial(state: tuple, k: int) -> tuple:
 
     b, method = state
     plugin = b.entry.reference
-    meas = measure(b.rec, b.m.with_seed(b.m.seed + k), b.arms)
+    meas = measure(b.rec, b.m.with_seed(b.m.seed + k))
     fitted = fit_method(plugin, method, b.joints, *joint_data(meas, b.joints))
     table = base_table(plugin, fitted, b.joints, b.bm)
     val = None
@@ -382,7 +381,7 @@ def sweep_methods(ctx, trials: int) -> dict:
             vrec = validation_recording(ctx, validation)
             val = (*joint_data(vrec, joints), joint_load_scale(sc.robot, vrec))
         shipped = entry if entry.recipe is None else dataclasses.replace(entry, instance=None, validation=None)
-        bench = _MethodBench(shipped, ctx.recording, sc.measurement, sc.robot.inner_joint_arms_B(), joints, bm, val)
+        bench = _MethodBench(shipped, ctx.recording, sc.measurement, joints, bm, val)
         label = f"identification method {entry.name}"
         ctx.progress(label, 0.0)
         rows = ctx.workers.map(_method_setup, (bench,), _method_trial, range(trials),

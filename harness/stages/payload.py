@@ -105,7 +105,7 @@ def run(ctx, config: PayloadConfig | None) -> Payload | None:
     # the run without the payload, measured as this one is (its own noise draws)
     rec0 = validation_recording(ctx, without)
     m = sc.measurement
-    meas0 = measure(rec0, m.with_seed(m.seed + 1), without.robot.inner_joint_arms_B())
+    meas0 = measure(rec0, m.with_seed(m.seed + 1))
     q0, qd0, qdd0, tau0 = joint_data(meas0, joints)
     W0 = regressor(pm_without, q0, qd0, qdd0, sc.torque_friction)[:, base.independent]
     beta0 = ols(W0, tau0.reshape(-1), n).beta

@@ -26,9 +26,9 @@ import numpy as np
 
 from harness.engines.recording import Recording
 from harness.model import friction
-from harness.model.cardano import GIMBAL_COND_D, D, D_dot
 from harness.model.kinematics import cross, skew
 from harness.model.spec import RobotSpec
+from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, D, D_dot
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
 from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, at_rest_floor
 

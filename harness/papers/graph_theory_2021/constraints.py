@@ -40,9 +40,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.model.cardano import A_0i, D, D_dot
 from harness.model.kinematics import cross, skew
 from harness.model.spec import WORLD, RobotSpec
+from harness.papers.graph_theory_2021.cardano import A_0i, D, D_dot
 from harness.papers.graph_theory_2021.topology import Topology
 
 FORMULATIONS = ("paper", "normal")

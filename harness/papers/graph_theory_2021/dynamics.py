@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.engines.recording import Recording
-from harness.model.cardano import GIMBAL_COND_D, A_0i, D, D_dot, D_from_rotations, cond_D
 from harness.model.kinematics import skew  # Eq. 31: a~ b = a x b
 from harness.model.spec import RobotSpec
+from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, A_0i, D, D_dot, D_from_rotations, cond_D
 from harness.papers.graph_theory_2021.topology import Topology, build_topology, joint_resultants
 
 

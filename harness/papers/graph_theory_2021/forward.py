@@ -31,9 +31,9 @@ import numpy as np
 
 from harness.engines.recording import Recording
 from harness.model import quaternion
-from harness.model.cardano import A_0i
 from harness.model.kinematics import cross
 from harness.model.spec import RobotSpec
+from harness.papers.graph_theory_2021.cardano import A_0i
 from harness.papers.graph_theory_2021.constrained import active_wrenches
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
 from harness.papers.graph_theory_2021.dynamics import GraphModel

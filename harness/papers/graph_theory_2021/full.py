@@ -22,9 +22,9 @@ from __future__ import annotations
 import numpy as np
 
 from harness.engines.recording import Recording
-from harness.model.cardano import A_0i
 from harness.model.kinematics import cross, skew
 from harness.model.spec import RobotSpec
+from harness.papers.graph_theory_2021.cardano import A_0i
 from harness.papers.graph_theory_2021.dynamics import GraphModel
 
 FULL_PARAMETERS = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")

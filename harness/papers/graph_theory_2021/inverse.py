@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.engines.recording import Recording
-from harness.model.cardano import A_0i_components
 from harness.model.kinematics import cross, forward_kinematics, rotate
 from harness.model.spec import RobotSpec
+from harness.papers.graph_theory_2021.cardano import A_0i_components
 from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.papers.graph_theory_2021.topology import joint_arms_components
 

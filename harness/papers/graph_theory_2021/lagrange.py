@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.engines.recording import Recording
-from harness.model.cardano import GIMBAL_COND_D, A_0i, D, cond_D
 from harness.model.kinematics import cross
 from harness.model.spec import RobotSpec
+from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, A_0i, D, cond_D
 from harness.papers.graph_theory_2021.constrained import Constrained, solve_constrained
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, build_constraints
 from harness.papers.graph_theory_2021.dynamics import GraphModel, body_series

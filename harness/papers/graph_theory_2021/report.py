@@ -1,14 +1,29 @@
-"""The graph-theory paper's report sections: its identification (section 2.3, Tables 3 and 4), all
-10 parameters per body, and constraints and multipliers (sections 2.4, 2.5, 3.2)."""
+"""The graph-theory paper's report sections: the bodies' Cardano angles, its identification (section
+2.3, Tables 3 and 4), all 10 parameters per body, and constraints and multipliers (sections 2.4,
+2.5, 3.2)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from harness.engines.recording import Recording
+from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, angles_from_rotation, gimbal_flags
 from harness.report import plots
 from harness.report.html import DASH, esc, figure, num, section, table
 from harness.report.sections import identifiability
+
+
+def cardano_angles(r: dict, rec: Recording) -> str:
+    """Each body's Cardano angles along the run, derived from its recorded orientation, with the
+    rows near gimbal lock shaded."""
+    theta = np.stack([angles_from_rotation(rec.R_WB[:, b]) for b in range(len(rec.bodies))], axis=1)
+    flags = gimbal_flags(theta)
+    panels = [(b, {"alpha": theta[:, i, 0], "beta": theta[:, i, 1], "gamma": theta[:, i, 2]}, flags[:, i])
+              for i, b in enumerate(rec.bodies)]
+    return section("graph", "Cardano angles", figure(
+        plots.grid(rec.t, panels, "[rad]"),
+        "Cardano angles A(0i) = Rx(alpha) Ry(beta) Rz(gamma) (Eq. 29), from each body's recorded orientation; "
+        f"shaded: rows near gimbal lock (cond(D) > {GIMBAL_COND_D:g}, or cos(beta) changing sign between rows)."))
 
 
 def _larger(p: dict) -> str:

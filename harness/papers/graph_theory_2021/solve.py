@@ -19,7 +19,8 @@ from harness.papers.graph_theory_2021.dynamics import GraphModel, Residual, body
 from harness.papers.graph_theory_2021.full import FULL_PARAMETERS, full_form
 from harness.papers.graph_theory_2021.identification import PARAMETERS, id_Y, id_Z, stack_per_body, stack_system
 from harness.papers.graph_theory_2021.lagrange import LagrangeOutput, reactions_at
-from harness.sources.measurement import Measurement, dither
+from harness.papers.graph_theory_2021.readings import dither
+from harness.sources.measurement import Measurement
 from harness.stages.metrics import largest
 
 PACKAGE = "harness.papers.graph_theory_2021"  # its reference tables are in its reference/ folder

@@ -33,6 +33,7 @@ from harness.papers.graph_theory_2021.dynamics import (
     unconstrained_residual,
 )
 from harness.papers.graph_theory_2021.lagrange import Settings, lagrange
+from harness.papers.graph_theory_2021.readings import Readings, exact, read
 from harness.papers.graph_theory_2021.solve import (
     PACKAGE,
     full_identification_section,
@@ -87,6 +88,15 @@ def configure(t: Table, scenario) -> Config:
     return Config(tested, _table_name(t, "paper_identified"), _table_name(t, "paper_abs_error"), settings)
 
 
+def _readings(ctx) -> tuple[Readings, Readings]:
+    """The paper's readings of the run (harness/papers/graph_theory_2021/readings.py): of the truth,
+    and as measured."""
+    sc = ctx.scenario
+    arms = sc.robot.inner_joint_arms_B()
+    return ctx.once("graph_theory_2021 readings",
+                    lambda: (exact(ctx.recording, arms), read(ctx.recording, ctx.measured, sc.measurement, arms)))
+
+
 def _models(ctx, config: Config) -> tuple[GraphModel, GraphModel]:
     """The graph model of the model's parameters, and of the robot (the truth)."""
     g = ctx.scenario.gravity_W
@@ -98,18 +108,23 @@ def _models(ctx, config: Config) -> tuple[GraphModel, GraphModel]:
 class GraphChecks:
     residual: Residual  # Eq. 36 on the recording
     D_error: float  # Eq. 33's D against a rotation library at every recorded orientation
+    gimbal_rows: dict[str, list[float]]  # per body, the times of the rows near gimbal lock
 
 
 def _graph_checks(ctx, config) -> GraphChecks:
     model, _ = _models(ctx, config)
-    s = body_series(ctx.recording, model.topology)
-    return GraphChecks(unconstrained_residual(model, s), D_error(s.theta))
+    truth = _readings(ctx)[0]
+    s = body_series(truth, model.topology)
+    gimbal = {b: [float(x) for x in truth.t[truth.gimbal[:, i]]] for i, b in enumerate(truth.bodies)
+              if truth.gimbal[:, i].any()}
+    return GraphChecks(unconstrained_residual(model, s), D_error(s.theta), gimbal)
 
 
 def _identification(ctx, config):
     model, truth = _models(ctx, config)
     sc = ctx.scenario
-    return identify(model, ctx.measured, measured_rows(ctx.measured, sc.sample_times), sc.measurement, truth)
+    measured = _readings(ctx)[1]
+    return identify(model, measured, measured_rows(measured, sc.sample_times), sc.measurement, truth)
 
 
 def _identification_full(ctx, config):
@@ -118,13 +133,14 @@ def _identification_full(ctx, config):
     pm = build_pinocchio(sc.robot, sc.gravity_W)
     true10 = np.stack([pm.model.inertias[pm.joint_ids[sc.robot.joint_names.index(
         sc.robot.inner_joint(b).name)]].toDynamicParameters() for b in model.topology.bodies])
-    return identify_full(config.tested, model, ctx.measured, measured_rows(ctx.measured, sc.sample_times),
-                         sc.measurement, true10)
+    measured = _readings(ctx)[1]
+    return identify_full(config.tested, model, measured, measured_rows(measured, sc.sample_times), sc.measurement,
+                         true10)
 
 
 def _lagrange(ctx, config):
     model, _ = _models(ctx, config)
-    return lagrange(ctx.scenario, config.tested, config.lagrange, model, ctx.recording, ctx.progress)
+    return lagrange(ctx.scenario, config.tested, config.lagrange, model, _readings(ctx)[0], ctx.progress)
 
 
 def _sweep(scenario, trials, workers, progress):
@@ -143,7 +159,9 @@ STUDY = Study(
     configure=configure,
     stages=(
         Stage("graph", "graph model: unconstrained dynamics", _graph_checks,
-              lambda r, ctx, c: graph_section(_models(ctx, c)[0], r.residual, r.D_error)),
+              lambda r, ctx, c: {**graph_section(_models(ctx, c)[0], r.residual, r.D_error),
+                                 "gimbal_lock_rows": r.gimbal_rows},
+              "Cardano angles", report.cardano_angles),
         Stage("identification", "identifying parameters (section 2.3)", _identification,
               lambda r, ctx, c: identification_section(r, c.paper_identified, c.paper_abs_error,
                                                        ctx.scenario.measurement.significant_digits),
@@ -153,7 +171,7 @@ STUDY = Study(
               lambda res, rec: report.identification_full(res)),
         Stage("lagrange", "constraints and Lagrange multipliers", _lagrange,
               lambda r, ctx, c: lagrange_section(r, c.lagrange.paper_lambda, c.tested, _models(ctx, c)[0],
-                                                 ctx.recording),
+                                                 _readings(ctx)[0]),
               "Constraints", report.lagrange),
     ),
     sweep=_sweep,
