@@ -97,6 +97,13 @@ class Table:
     def error(self, name: str, message: str) -> InputError:
         return InputError(self.file, self.key(name), message)
 
+    def either(self, first: str, second: str, meaning: str) -> str:
+        """Which of two keys the table gives, when it must give exactly one (`meaning` says what
+        each is, for the error: "robot (from example-robot-data) or file")."""
+        if self.has(first) == self.has(second):
+            raise self.error(first, f"give either {meaning}")
+        return first if self.has(first) else second
+
     def has(self, name: str) -> bool:
         return name in self.data
 

@@ -49,9 +49,7 @@ def load_spec(path: Path | str) -> RobotSpec:
         bodies, joints, body_tables, joint_tables, dh = _read_dh(root.table("dh"))
     elif root.has("urdf"):
         ut = root.table("urdf")
-        if ut.has("robot") == ut.has("file"):
-            raise ut.error("robot", "give either robot (from example-robot-data) or file")
-        if ut.has("robot"):
+        if ut.either("robot", "file", "robot (from example-robot-data) or file") == "robot":
             name_ = ut.string("robot")
             urdf_path = example_robot_data_path(name_)
             if urdf_path is None:

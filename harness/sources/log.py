@@ -145,9 +145,7 @@ def read_source(t: Table, scenario_file: Path) -> DataSource:
     v_from = v_file = None
     if t.has("validation"):
         vt = t.table("validation")
-        if vt.has("from") == vt.has("file"):
-            raise vt.error("from", "give either from (a fraction of the log's duration) or file (another log)")
-        if vt.has("from"):
+        if vt.either("from", "file", "from (a fraction of the log's duration) or file (another log)") == "from":
             v_from = vt.number("from")
             if not 0.0 < v_from < 1.0:
                 raise vt.error("from", f"{v_from:g} is outside the log: a fraction of its duration in (0, 1)")
