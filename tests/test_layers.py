@@ -14,7 +14,7 @@ CORE = tuple(f"harness.{name}" for name in LAYERS + TOP)
 
 @pytest.fixture(scope="module")
 def graph():
-    return grimp.build_graph("harness", exclude_type_checking_imports=True)
+    return grimp.build_graph("harness")  # imports for annotations included
 
 
 def _layer(module: str) -> int | None:

@@ -23,7 +23,7 @@ cannot hold even at rest (an effort below its own weight's torque) is refused.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
@@ -32,9 +32,6 @@ from harness.base.tomlio import InputError
 from harness.engines.pinocchio import build_model, rnea
 from harness.identify.torque_id import regressor, structural_base
 from harness.sources.motion import Sinusoids
-
-if TYPE_CHECKING:  # annotations only: the scenario is read, never built, here
-    from harness.runner.scenario import Scenario
 
 SAMPLES = 60  # regressor samples over one period
 DENSE = 400  # samples a period on which the limits are checked
@@ -122,9 +119,11 @@ def usage(pm, spec, lim: Limits, q, qd, qdd) -> dict[str, float]:
                 "torque": float(np.max(np.nan_to_num(np.abs(tau) / lim.effort)))}
 
 
-def optimise(scenario: Scenario, harmonics: int, base_frequency: float, evaluations: int, seed: int,
+def optimise(scenario: Any, harmonics: int, base_frequency: float, evaluations: int, seed: int,
              criterion: str = "condition", acceleration_limit: float | None = None,
-             limit_fraction: float = 0.9, rate: float = 100.0) -> tuple[Scenario, dict]:
+             limit_fraction: float = 0.9, rate: float = 100.0) -> tuple[Any, dict]:
+    """The scenario (a harness.runner.scenario.Scenario: its robot, gravity and friction flag are
+    read) with its motion replaced by the optimised excitation, and the optimisation's report."""
     spec = scenario.robot
     pm = build_model(spec, scenario.gravity_W)
     base = structural_base(pm, spec.limits, with_friction=scenario.torque_friction)  # chosen once
@@ -187,7 +186,7 @@ def optimise(scenario: Scenario, harmonics: int, base_frequency: float, evaluati
     return dataclasses.replace(scenario, motion=motion), report
 
 
-def trajectory(scenario: Scenario, rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def trajectory(scenario: Any, rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """t, q, q', q'' of the scenario's (optimised) motion over one period of its base frequency,
     sampled at `rate`, both ends included: what a robot's controller plays."""
     period = 2 * np.pi / scenario.excitation["base_frequency"]

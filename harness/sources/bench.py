@@ -3,17 +3,32 @@ recorded (the truth every stage is judged against)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
 
 from harness.base.tomlio import InputError
 from harness.engines.mujoco import Diverged, simulate
 from harness.engines.recording import Recording
+from harness.engines.simulation import Simulation
+from harness.model.spec import RobotSpec
 
-if TYPE_CHECKING:  # annotations only: the scenario is read, never built, here
-    from harness.runner.scenario import Scenario
+
+class Setup(Protocol):
+    """What the bench reads of a scenario (a harness.runner.scenario.Scenario is one)."""
+
+    source: Path  # the scenario file, named in an error
+    robot: RobotSpec
+    gravity_W: np.ndarray  # (3,) m/s^2
+    output_steps: int
+    output_dt: float  # s
+    simulation: Simulation
+    prescribed: Callable  # t -> (q, q', q''), each (len(t), n) in the robot's joint order
 
 
-def record(scenario: Scenario) -> Recording:
+def record(scenario: Setup) -> Recording:
     """The scenario simulated in MuJoCo: `output_steps + 1` rows from t = 0. A motion that drives
     the simulation to non-finite values is bad input, named by its joint and time."""
     try:

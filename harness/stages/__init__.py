@@ -5,14 +5,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Any
 
 from harness.base.plugins import Stage
 from harness.base.workers import IN_PROCESS, Workers
 from harness.engines.recording import Recording
-
-if TYPE_CHECKING:  # annotations only: the scenario is read, never built, here
-    from harness.runner.scenario import Scenario
 
 Progress = Callable[[str, float | None], None]
 
@@ -26,7 +23,7 @@ class Context:
     `cache` holds what several stages need and is made once per run (a validation recording, a
     built model). `workers` is where a stage with independent trials (a Monte Carlo) runs them."""
 
-    scenario: Scenario
+    scenario: Any  # the run's harness.runner.scenario.Scenario (a DataScenario for a measured log)
     recording: Recording
     measured: Recording
     progress: Progress

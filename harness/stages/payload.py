@@ -20,7 +20,6 @@ The truth is the difference of the two models' parameters of that body.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -29,10 +28,8 @@ from harness.engines.pinocchio import build_model
 from harness.identify.estimators import ols
 from harness.identify.torque_id import regressor, structural_base, true_parameters
 from harness.model.inertia import PARAMETER_NAMES, kind_scale
+from harness.sources.bench import Setup
 from harness.sources.measurement import measure
-
-if TYPE_CHECKING:  # annotations only: the scenario is read, never built, here
-    from harness.runner.scenario import Scenario
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,7 +68,7 @@ class Payload:
 class PayloadConfig:
     """`[payload]`: the same motion without the payload, and the body that carries it."""
 
-    without: Scenario
+    without: Setup  # the same motion of the robot without the payload (a scenario)
     body: str
 
 
