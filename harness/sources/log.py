@@ -261,12 +261,25 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     return RawLog(Path(path), digest, t, q, qd, tau, len(t))
 
 
-def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> JointLog:
-    """Steps 1-5 of the module docstring."""
-    from scipy.signal import butter, sosfiltfilt
+@dataclass(frozen=True, eq=False)
+class Checked:
+    """Step 1 of the module docstring, on a whole file: its rows in time order, the step's record
+    and its warnings."""
+
+    kept: RawLog  # the rows kept: no repeated positions, no repeated times
+    record: dict  # the "checks" step of results.json
+    warnings: list[str]
+    median_step: float  # s
+
+    def rate(self, source: DataSource) -> float:
+        """The uniform grid's rate: the scenario's, else one sample per median step."""
+        return source.rate or 1.0 / self.median_step
+
+
+def check(raw: RawLog, robot: RobotSpec) -> Checked:
+    """Step 1 of the module docstring."""
     path, t = raw.file, raw.t
     steps, warnings = [], []
-    # 1. checks
     held = np.r_[False, np.all(raw.q[1:] == raw.q[:-1], axis=1)]
     same_time = np.r_[False, t[1:] == t[:-1]]
     drop = held | same_time
@@ -303,12 +316,28 @@ def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> JointLog:
         warnings.append("positions beyond the model's joint limits: "
                         + ", ".join(f"{k} {v} rows" for k, v in beyond.items()))
     steps[0]["beyond_joint_limits"] = beyond
+    return Checked(raw.span(keep), steps[0], warnings, median)
+
+
+def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> JointLog:
+    """Steps 1-5 of the module docstring."""
+    checked = check(raw, robot)
+    return smooth(checked.kept, source, robot, checked.rate(source), checked.record, checked.warnings)
+
+
+def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, checks: dict,
+           check_warnings: list[str]) -> JointLog:
+    """Steps 2-5 of the module docstring on checked rows (`check`), whose record and warnings
+    open the conditioning's."""
+    from scipy.signal import butter, sosfiltfilt
+
+    path, tk, raw = kept.file, kept.t, kept
+    steps, warnings = [checks], list(check_warnings)
     # 2. uniform grid
-    rate = source.rate or 1.0 / median
     grid = tk[0] + np.arange(int(np.floor((tk[-1] - tk[0]) * rate)) + 1) / rate
 
     def resample(x: np.ndarray) -> np.ndarray:
-        return np.column_stack([np.interp(grid, tk, x[keep, j]) for j in range(x.shape[1])])
+        return np.column_stack([np.interp(grid, tk, x[:, j]) for j in range(x.shape[1])])
 
     q, tau = resample(raw.q), resample(raw.tau)
     qd = resample(raw.qd) if raw.qd is not None else None
@@ -361,11 +390,12 @@ def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> JointLog:
 
 def load(source: DataSource, robot: RobotSpec) -> tuple[JointLog, JointLog, JointLog | None]:
     """The conditioned log, its training span and its validation span (the last part by time, or
-    another log): the identification never sees the validation data. A log split by time is split
-    before it is conditioned: each span is resampled, filtered, differentiated and trimmed on its
-    own, so that no filter or difference reaches across the split (the trim is the guard band on
-    both sides of it). `full` is then both spans, one after the other (data.csv, the report); its
-    conditioning record is the whole file's, with the split beside it."""
+    another log): the identification never sees the validation data. A log split by time is
+    checked whole, then split: each span is resampled, filtered, differentiated and trimmed on its
+    own (on the whole file's grid rate), so that no filter or difference reaches across the split
+    (the trim is the guard band on both sides of it). `full` is then both spans, one after the
+    other (data.csv, the report); its conditioning record is the training span's, with the whole
+    file's checks and the split beside it."""
     raw = read_raw(source, robot)
     if source.validation_file is not None:
         full = condition(raw, source, robot)
@@ -373,13 +403,16 @@ def load(source: DataSource, robot: RobotSpec) -> tuple[JointLog, JointLog, Join
     if source.validation_from is None:
         full = condition(raw, source, robot)
         return full, full, None
-    t_split = raw.t[0] + source.validation_from * (raw.t[-1] - raw.t[0])
-    before = raw.t < t_split
+    checked = check(raw, robot)
+    kept, rate = checked.kept, checked.rate(source)
+    t_split = kept.t[0] + source.validation_from * (kept.t[-1] - kept.t[0])
+    before = kept.t < t_split
     if before.sum() < 10 or (~before).sum() < 10:
         raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few rows "
                                                          f"({int(before.sum())} and {int((~before).sum())})")
-    train, val = condition(raw.span(before), source, robot), condition(raw.span(~before), source, robot)
-    conditioning = condition(raw, source, robot).conditioning
+    train, val = (smooth(kept.span(rows), source, robot, rate, checked.record, checked.warnings)
+                  for rows in (before, ~before))
+    conditioning = dict(train.conditioning)
     conditioning["validation"] = {
         "from_fraction": source.validation_from, "t_split": float(t_split),
         "training_samples": len(train.t), "validation_samples": len(val.t),
