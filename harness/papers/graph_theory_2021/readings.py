@@ -107,7 +107,6 @@ def dither(readings: Readings, m: Measurement, rng: np.random.Generator) -> Read
     return dataclasses.replace(moved, **values)
 
 
-def _with(rec: Recording, **extra) -> Readings:
-    base = {f.name: getattr(rec, f.name) for f in fields(Recording)}
-    return Readings(**{**base, **{k: v for k, v in extra.items() if k in base}},
-                    **{k: v for k, v in extra.items() if k not in base})
+def _with(rec: Recording, **values) -> Readings:
+    """`rec`'s channels, those named in `values` replaced, and the readings in `values`."""
+    return Readings(**{**{f.name: getattr(rec, f.name) for f in fields(Recording)}, **values})
