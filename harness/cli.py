@@ -12,6 +12,7 @@ import tempfile
 import time
 import traceback
 from collections.abc import Callable
+from contextlib import closing
 from pathlib import Path
 
 from harness.base.tomlio import InputError, read_toml
@@ -206,10 +207,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         else:
             out = args.out if len(scenarios) == 1 else args.out / scenario.name
         progress = Progress(scenario.name, args.quiet)
-        try:
+        with closing(progress):  # a bar in progress ends its line before anything else is printed
             result = run(scenario, progress)
-        finally:  # a bar in progress ends its line before anything else is printed
-            progress.close()
         progress("writing the report", None)
         results = result.results
         results["run"]["timings"] = {"importing the engines and libraries": imported, **results["run"]["timings"]}
@@ -344,11 +343,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     try:  # the workers cannot be reached or started: the address, or dask not installed
         if study is None:
             return _sweep_identification(scenario, args, out, workers)
-        progress = Progress(scenario.name, after=0.0)
-        try:
+        with closing(Progress(scenario.name, after=0.0)) as progress:
             sweep = study.sweep(scenario, args.trials, workers, progress.counting(f"sweep ({workers.describe()})"))
-        finally:
-            progress.close()
     except WorkersError as exc:
         raise InputError(args.scenario, "--dask", str(exc)) from None
     try:
@@ -369,7 +365,6 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
     report sections."""
     import dataclasses
     import time
-    from contextlib import closing
 
     import numpy as np
 

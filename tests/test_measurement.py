@@ -65,7 +65,7 @@ def test_differentiated_accelerations_converge_to_the_sensors():
         m = Measurement(differentiate=True)
         arms = sc.robot.inner_joint_arms_B()
         truth = exact(rec, arms)
-        d = read(rec, measure(rec, m), m, arms)  # the core's channels and the study's readings
+        d = read(truth, measure(rec, m), m, arms)  # the core's channels and the study's readings
         inner = slice(10, -10)  # the filter's end effects
         err = [np.max(np.abs(getattr(d, c)[inner] - getattr(truth, c)[inner])) / np.max(np.abs(getattr(truth, c)))
                for c in ("a_W", "aO_W", "omega_W", "omegadot_W")]
@@ -121,8 +121,8 @@ def test_a_bench_samples_then_reads_then_differentiates_what_it_read(recording):
     for c in ("qd", "qdd", "a_W"):
         np.testing.assert_array_equal(getattr(got, c), derived[c])
     # the study's readings: its angles sampled, read with their noise and rounded, then differentiated
-    view = readings.read(recording, got, m, arms)
     truth = readings.exact(recording, arms)
+    view = readings.read(truth, got, m, arms)
     theta = add_noise_to({"theta": truth.theta[rows]}, {"angles": ("theta",)}, m.noise,
                          study_stream(m, readings.STREAM))["theta"]
     theta_read = round_significant(theta, 4)
@@ -140,8 +140,8 @@ def test_differentiating_replaces_every_acceleration_sensor(recording):
     truth = exact(recording, arms)
     plain, shaken = Measurement(differentiate=True), Measurement(differentiate=True,
                                                                   noise={"accelerations": Noise(relative=0.3)})
-    clean = read(recording, measure(recording, plain), plain, arms)
-    noisy = read(recording, measure(recording, shaken), shaken, arms)
+    clean = read(truth, measure(recording, plain), plain, arms)
+    noisy = read(truth, measure(recording, shaken), shaken, arms)
     for c in ("a_W", "aO_W"):
         np.testing.assert_array_equal(getattr(noisy, c), getattr(clean, c))
         assert not np.array_equal(getattr(noisy, c), getattr(truth, c))

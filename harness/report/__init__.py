@@ -10,7 +10,7 @@ import numpy as np
 
 from harness.engines.recording import Recording, read_csv
 from harness.report import sections
-from harness.report.html import STYLE, page  # noqa: F401 (STYLE: the pages' one style sheet)
+from harness.report.html import page
 
 # The core stages' sections, by the stage's key; a study's stages bring their own (Stage.render).
 RENDERERS = {

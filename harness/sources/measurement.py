@@ -204,10 +204,18 @@ def dither(rec: Recording, m: Measurement, rng: np.random.Generator) -> Recordin
     in exact arithmetic comes out as round-off of that size, not as zero)."""
     values = {c: getattr(rec, c) for c in CHANNELS}
     values.update(add_noise(rec, m.noise, rng))
+    return dataclasses.replace(rec, **moved_by_resolution(values, m.resolution, rng))
+
+
+def moved_by_resolution(values: dict[str, np.ndarray], resolution: float,
+                        rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Each channel (N, n) or (N, n, 3) moved by up to `resolution` times its largest value (or
+    vector norm) at each instant, uniformly."""
+    out = {}
     for c, x in values.items():
         if x.ndim == 3:
             size = np.max(np.linalg.norm(x, axis=-1), axis=1)[:, None, None]
         else:
             size = np.max(np.abs(x), axis=1)[:, None]
-        values[c] = x + m.resolution * size * rng.uniform(-1.0, 1.0, x.shape)
-    return dataclasses.replace(rec, **values)
+        out[c] = x + resolution * size * rng.uniform(-1.0, 1.0, x.shape)
+    return out

@@ -140,6 +140,11 @@ def angles_from_rotation(R: np.ndarray, reference: np.ndarray | None = None) -> 
     return out
 
 
+def body_angles(R_WB: np.ndarray) -> np.ndarray:
+    """Continuous Cardano angles of every body along a run, (n, nb, 3, 3) -> (n, nb, 3)."""
+    return np.stack([angles_from_rotation(R_WB[:, b]) for b in range(R_WB.shape[1])], axis=1)
+
+
 def gimbal_flags(theta: np.ndarray) -> np.ndarray:
     """Rows near gimbal lock along a series, (n, ..., 3) -> (n, ...) bool.
 

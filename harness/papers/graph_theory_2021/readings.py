@@ -31,8 +31,15 @@ import numpy as np
 
 from harness.engines.recording import Recording
 from harness.model.kinematics import cross
-from harness.papers.graph_theory_2021.cardano import A_0i, D, D_dot, angles_from_rotation, gimbal_flags
-from harness.sources.measurement import Measurement, add_noise_to, round_significant, savgol, study_stream
+from harness.papers.graph_theory_2021.cardano import A_0i, D, D_dot, body_angles, gimbal_flags
+from harness.sources.measurement import (
+    Measurement,
+    add_noise_to,
+    moved_by_resolution,
+    round_significant,
+    savgol,
+    study_stream,
+)
 from harness.sources.measurement import dither as dither_recording
 
 STREAM = "graph_theory_2021"  # this study's random stream (harness/sources/measurement.py, study_stream)
@@ -55,17 +62,16 @@ def joint_point_accelerations(rec: Recording, arm_O_B: np.ndarray) -> np.ndarray
 
 def exact(rec: Recording, arm_O_B: np.ndarray) -> Readings:
     """The readings of a recording as they are (the truth)."""
-    theta = np.stack([angles_from_rotation(rec.R_WB[:, b]) for b in range(rec.R_WB.shape[1])], axis=1)
+    theta = body_angles(rec.R_WB)
     return _with(rec, theta=theta, aO_W=joint_point_accelerations(rec, arm_O_B), gimbal=gimbal_flags(theta))
 
 
-def read(truth: Recording, measured: Recording, m: Measurement, arm_O_B: np.ndarray) -> Readings:
-    """The readings of `truth` under the measurement `m`, beside the channels `measured` (the
-    harness's measurement of the same truth) holds."""
-    ideal = exact(truth, arm_O_B)
+def read(ideal: Readings, measured: Recording, m: Measurement, arm_O_B: np.ndarray) -> Readings:
+    """The truth's readings (`exact`) under the measurement `m`, beside the channels `measured`
+    (the harness's measurement of the same truth) holds."""
     if m.ideal:
         return _with(measured, theta=ideal.theta, aO_W=ideal.aO_W, gimbal=ideal.gimbal)
-    rows = np.arange(0, len(truth.t), m.every)
+    rows = np.arange(0, len(ideal.t), m.every)
     values = {"theta": ideal.theta[rows], "aO_W": ideal.aO_W[rows]}
     rng = study_stream(m, STREAM)
     values.update(add_noise_to(values, {"angles": ("theta",), "accelerations": ("aO_W",)}, m.noise, rng))
@@ -101,10 +107,7 @@ def dither(readings: Readings, m: Measurement, rng: np.random.Generator) -> Read
     moved = dither_recording(readings, m, rng)
     values = {"theta": readings.theta, "aO_W": readings.aO_W}
     values.update(add_noise_to(values, {"angles": ("theta",), "accelerations": ("aO_W",)}, m.noise, rng))
-    for c, x in values.items():
-        size = np.max(np.linalg.norm(x, axis=-1), axis=1)[:, None, None]
-        values[c] = x + m.resolution * size * rng.uniform(-1.0, 1.0, x.shape)
-    return dataclasses.replace(moved, **values)
+    return dataclasses.replace(moved, **moved_by_resolution(values, m.resolution, rng))
 
 
 def _with(rec: Recording, **values) -> Readings:

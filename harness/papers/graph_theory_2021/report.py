@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from harness.engines.recording import Recording
-from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, angles_from_rotation, gimbal_flags
+from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, body_angles, gimbal_flags
 from harness.report import plots
 from harness.report.html import DASH, esc, figure, num, section, table
 from harness.report.sections import identifiability
@@ -16,7 +16,7 @@ from harness.report.sections import identifiability
 def cardano_angles(r: dict, rec: Recording) -> str:
     """Each body's Cardano angles along the run, derived from its recorded orientation, with the
     rows near gimbal lock shaded."""
-    theta = np.stack([angles_from_rotation(rec.R_WB[:, b]) for b in range(len(rec.bodies))], axis=1)
+    theta = body_angles(rec.R_WB)
     flags = gimbal_flags(theta)
     panels = [(b, {"alpha": theta[:, i, 0], "beta": theta[:, i, 1], "gamma": theta[:, i, 2]}, flags[:, i])
               for i, b in enumerate(rec.bodies)]

@@ -93,8 +93,11 @@ def _readings(ctx) -> tuple[Readings, Readings]:
     and as measured."""
     sc = ctx.scenario
     arms = sc.robot.inner_joint_arms_B()
-    return ctx.once("graph_theory_2021 readings",
-                    lambda: (exact(ctx.recording, arms), read(ctx.recording, ctx.measured, sc.measurement, arms)))
+    def make() -> tuple[Readings, Readings]:
+        truth = exact(ctx.recording, arms)
+        return truth, read(truth, ctx.measured, sc.measurement, arms)
+
+    return ctx.once("graph_theory_2021 readings", make)
 
 
 def _models(ctx, config: Config) -> tuple[GraphModel, GraphModel]:

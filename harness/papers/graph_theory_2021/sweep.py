@@ -18,7 +18,7 @@ import numpy as np
 from harness.base.workers import IN_PROCESS, Workers
 from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.identification import PARAMETERS
-from harness.papers.graph_theory_2021.readings import read
+from harness.papers.graph_theory_2021.readings import exact, read
 from harness.papers.graph_theory_2021.solve import identify, measured_rows, parameter_scale
 from harness.runner.scenario import Scenario
 from harness.sources.bench import record
@@ -34,7 +34,8 @@ def config_of(scenario: Scenario):
 
 def _setup(scenario: Scenario, recording) -> dict:
     """Once per worker: the models the trials share."""
-    return dict(scenario=scenario, recording=recording, arms=scenario.robot.inner_joint_arms_B(),
+    arms = scenario.robot.inner_joint_arms_B()
+    return dict(scenario=scenario, recording=recording, arms=arms, readings=exact(recording, arms),
                 model=build_graph_model(config_of(scenario).tested, scenario.gravity_W),
                 truth=build_graph_model(scenario.robot, scenario.gravity_W))
 
@@ -43,8 +44,7 @@ def _trial(state: dict, task: tuple[int, float]) -> tuple[np.ndarray, np.ndarray
     seed, level = task
     sc = state["scenario"]
     m: Measurement = sc.measurement.scaled(level).with_seed(seed)
-    truth = state["recording"]
-    measured = read(truth, measure(truth, m), m, state["arms"])
+    measured = read(state["readings"], measure(state["recording"], m), m, state["arms"])
     ident = identify(state["model"], measured, measured_rows(measured, sc.sample_times), m, state["truth"],
                      with_system=False)
     x = np.stack([ls.x for ls in ident.per_body])
