@@ -106,6 +106,8 @@ def written(tmp_path_factory) -> Path:
     (lambda text: text[: len(text) // 2], "truncated or edited recording"),
     (lambda text: "\n".join(text.splitlines()[:40]) + "\n", "rows of joints"),
     (lambda text: text.replace("B1_az", "B1_zz", 1), "column missing"),
+    # no body's orientation at all (another layout, as an earlier version wrote it): refused, not a crash
+    (lambda text: text.replace("_R11,", "_alpha,"), "column missing"),
 ])
 def test_report_refuses_a_recording_that_is_cut_short_or_edited(written, tmp_path, capsys, damage, phrase):
     for f in ("results.json", "recording.csv"):

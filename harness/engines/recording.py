@@ -110,6 +110,10 @@ def read_csv(path: Path | str) -> Recording:
                                                          "(a truncated or edited recording)")
     joints = tuple(c[2:] for c in df.columns if c.startswith("q_"))
     bodies = tuple(c[: -len("_R11")] for c in df.columns if c.endswith("_R11"))
+    if not joints or not bodies:
+        raise InputError(path, "q_<joint>" if not joints else "<body>_R11",
+                         "column missing: a recording.csv holds every joint's q_ and every body's orientation "
+                         "R11 .. R33 (a file of another layout, or of an earlier version, cannot be read)")
 
     def per_joint(prefix: str) -> np.ndarray:
         return df[[f"{prefix}_{j}" for j in joints]].to_numpy()
