@@ -315,14 +315,29 @@ def cmd_gate(args: argparse.Namespace) -> int:
     return EXIT_OK if passed else EXIT_GATE_FAILED
 
 
+def _sweep_of(scenario):
+    """What `harness sweep` runs for the scenario: a study's sweep, else the core's (the joint-torque
+    estimators and the identification methods), else None."""
+    from harness.base.plugins import Sweep
+    from harness.report.sections import identification_sweep_page
+    from harness.runner.sweep import identification_summary, identification_sweep, sweepable
+
+    study = next((s for s, _ in scenario.studies if s.sweep is not None), None)
+    if study is not None:
+        return study.sweep
+    return Sweep(identification_sweep, identification_sweep_page, identification_summary) \
+        if sweepable(scenario) else None
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     from harness.base.progress import Progress
     from harness.base.workers import Workers, WorkersError
+    from harness.runner.results import with_nulls
     from harness.runner.scenario import load_scenario
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
-    study = next((s for s, _ in scenario.studies if s.sweep is not None), None)
-    if study is None and "estimators" not in scenario.configs and not scenario.methods:
+    sweep = _sweep_of(scenario)
+    if sweep is None:
         raise InputError(scenario.source, "studies", "nothing in this scenario can be swept: the graph-theory study's "
                                                      "force path ([studies.graph_theory_2021]), the joint-torque "
                                                      "estimators ([estimators]) or an identification method "
@@ -341,84 +356,21 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     out = args.out or args.reports / scenario.name
     workers = Workers(args.jobs, args.dask)
     try:  # the workers cannot be reached or started: the address, or dask not installed
-        if study is None:
-            return _sweep_identification(scenario, args, out, workers)
-        with closing(Progress(scenario.name, after=0.0)) as progress:
-            sweep = study.sweep(scenario, args.trials, workers, progress.counting(f"sweep ({workers.describe()})"))
+        with closing(Progress(scenario.name, after=0.0)) as progress:  # a bar ends its line on any exit
+            results = sweep.run(scenario, args.trials, workers, progress)
     except WorkersError as exc:
         raise InputError(args.scenario, "--dask", str(exc)) from None
-    try:
-        _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(sweep, indent=1) + "\n"),
-                                "sweep.html": lambda p: p.write_text(study.render_sweep(sweep))})
-    except OSError as exc:
-        raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
-    print(f"{scenario.name}: {args.trials} trials; coverage of the 95 % intervals {sweep['coverage_min']:.3f} to "
-          f"{sweep['coverage_max']:.3f} over the parameters identified in every trial")
-    print(f"  report: {out / 'sweep.html'}")
-    return EXIT_OK
-
-
-def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers) -> int:
-    """The joint-torque estimators side by side (harness/stages/estimators.py) and every
-    identification method the scenario plugs in (harness/stages/identification.py, sweep_methods)
-    over --trials measurements, on `workers`: sweep.json holds their results, sweep.html their
-    report sections."""
-    import dataclasses
-    import time
-
-    import numpy as np
-
-    from harness.api import run
-    from harness.base.progress import Progress
-    from harness.report.html import page
-    from harness.report.sections import estimator_comparison, method_sweep
-    from harness.runner.results import with_nulls
-
-    t0 = time.perf_counter()
-    with closing(Progress(scenario.name)) as progress:  # a bar in progress ends its line on any exit
-        results: dict = {}
-        if "estimators" in scenario.configs:
-            trials = dataclasses.replace(scenario.configs["estimators"], trials=args.trials)
-            swept = dataclasses.replace(scenario, configs={**scenario.configs, "estimators": trials})
-            results["estimators"] = run(swept, progress=progress, workers=workers).results["estimators"]
-        if scenario.methods:
-            from harness.sources.bench import record
-            from harness.stages import Context
-            from harness.stages.identification import sweep_methods
-
-            progress("simulating in MuJoCo", None)
-            recording = record(scenario)
-            ctx = Context(scenario, recording, recording, progress, workers=workers)
-            with np.errstate(invalid="ignore", divide="ignore"):  # a parameter the trials never move: 0/0, null
-                results["identification_methods"] = sweep_methods(ctx, args.trials)
-    results["run"] = {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)}
-    results, results["run"]["not_finite"] = with_nulls(results)
-    title = f"{scenario.name}: identification over {args.trials} trials"
-    text = page(title, title, (estimator_comparison(results) if "estimators" in results else "")
-                + (method_sweep(results) if "identification_methods" in results else ""))
+    results, not_finite = with_nulls(results)
+    results.setdefault("run", {})["not_finite"] = not_finite
+    text = sweep.render(results)
     try:
         _write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(results, indent=1,
                                                                                 allow_nan=False) + "\n"),
                                 "sweep.html": lambda p: p.write_text(text)})
     except OSError as exc:
         raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
-    e = results.get("estimators")
-    for name, m in (e["methods"] if e else {}).items():
-        print(f"{scenario.name}: {name}: coverage of the 95 % intervals {m['coverage_min']:.3f} to "
-              f"{m['coverage_max']:.3f} over the base parameters, {m['coverage_outside_band']} outside "
-              f"{e['coverage_band'][0]:.3f} to {e['coverage_band'][1]:.3f}; largest |bias| "
-              f"{m['max_bias_in_sd']:.2f} sd")
-    for name, m in results.get("identification_methods", {}).items():
-        b = m["base_parameters"]
-        if b is None:
-            print(f"{scenario.name}: {name}: no parameters; validation error {m['validation_rel_error_mean']:.3g} "
-                  "on average")
-            continue
-        coverage = ("no intervals (no covariance)" if b["coverage_min"] is None else
-                    f"coverage of the 95 % intervals {b['coverage_min']:.3f} to {b['coverage_max']:.3f}, "
-                    f"{b['coverage_outside_band']} outside {b['coverage_band'][0]:.3f} to {b['coverage_band'][1]:.3f}")
-        print(f"{scenario.name}: {name}: largest |bias| {b['max_bias_in_sd']:.2f} sd ({b['significant_biases']} of "
-              f"{b['count']} beyond 3 standard errors); {coverage}")
+    for line in sweep.summary(results):
+        print(line)
     print(f"  report: {out / 'sweep.html'}")
     return EXIT_OK
 
@@ -426,13 +378,14 @@ def _sweep_identification(scenario, args: argparse.Namespace, out: Path, workers
 def cmd_excite(args: argparse.Namespace) -> int:
     from harness.identify.excitation import optimise, trajectory
     from harness.runner.scenario import Scenario, load_scenario
+    from harness.stages.identification import with_friction
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     if not isinstance(scenario, Scenario) or scenario.excitation is None:
         raise InputError(getattr(scenario, "source", args.scenario), "excitation",
                          "the scenario has no [excitation] to optimise")
-    optimised, report = optimise(scenario, **scenario.excitation)
-    t, q, qd, qdd = trajectory(optimised, scenario.excitation["rate"])
+    optimised, report = optimise(scenario, scenario.excitation, with_friction(scenario))
+    t, q, qd, qdd = trajectory(optimised, scenario.excitation)
     cols = {"t": t}
     for k, j in enumerate(scenario.robot.joint_names):
         cols[f"q_{j}"], cols[f"qd_{j}"], cols[f"qdd_{j}"] = q[:, k], qd[:, k], qdd[:, k]
@@ -445,7 +398,7 @@ def cmd_excite(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise InputError(args.out, "--out", f"cannot write ({exc.strerror or exc})") from None
     used = ", ".join(f"{k} {v:.3f}" for k, v in report["largest_fraction_of_limits"].items())
-    print(f"{scenario.name}: wrote {args.out}: {len(t)} rows over {t[-1]:.3f} s at {scenario.excitation['rate']:g} Hz, "
+    print(f"{scenario.name}: wrote {args.out}: {len(t)} rows over {t[-1]:.3f} s at {scenario.excitation.rate:g} Hz, "
           f"at rest at both ends; condition number {report['initial_condition_number']:.3g} -> "
           f"{report['optimised_condition_number']:.3g}; largest fraction of each limit: {used}")
     return EXIT_OK

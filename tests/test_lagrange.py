@@ -30,7 +30,7 @@ def _states(out, rows):
 def test_constraints_vanish_on_the_recording(run_scenario, path, form):
     """Phi(q) = 0 and Phi_q q' = 0 at every row MuJoCo recorded: at most 1e-9 (m or rad, and per
     second); measured about 1e-14."""
-    f = run_scenario(path)["lagrange"].formulations[form]
+    f = run_scenario(path)["lagrange"].output.formulations[form]
     assert f.max_abs_phi <= 1e-9
     assert f.max_abs_phi_dot <= 1e-9
 
@@ -42,7 +42,7 @@ def test_jacobian_and_zeta_match_finite_differences(run_scenario, path, form):
     zeta = -(Phi_q q')_q q' against central differences of Phi_q q' along q' (h = 1e-6:
     truncation ~1e-12 |Phi'''|, round-off ~1e-10)."""
     out = run_scenario(path)
-    cs = out["lagrange"].formulations[form].constraints
+    cs = out["lagrange"].output.formulations[form].constraints
     r, theta, v, theta_dot, _ = _states(out, np.array([9, 37, 75]))
     q = np.concatenate([r, theta], axis=-1).reshape(3, -1)
     q_dot = np.concatenate([v, theta_dot], axis=-1).reshape(3, -1)
@@ -69,7 +69,7 @@ def test_quasi_velocity_rows_are_the_same_constraints(run_scenario, path):
     """In quasi-velocities (orientation as A, rates omega^(i)) the same rows give G with
     G (r', omega) = Phi_q (r', theta') and zeta_quasi = zeta + G_omega D' theta'."""
     out = run_scenario(path)
-    cs = out["lagrange"].formulations["normal"].constraints
+    cs = out["lagrange"].output.formulations["normal"].constraints
     r, theta, v, theta_dot, s = _states(out, np.arange(10, 90, 7))
     card = State.cardano(r, theta, v, theta_dot)
     quasi = State.quasi(r, A_0i(theta), v, s.omega_B)
@@ -87,7 +87,7 @@ def test_eq111_reproduces_recorded_accelerations_and_joint_reactions(run_scenari
     """The well-conditioned formulation: q'' of Eq. 111 gives the recorded r'' and omega', and
     -Phi_q^T lambda the recorded joint reactions (joint forces less the drives), at most 1e-9
     relative at every row away from gimbal lock (measured: 5e-14 and 2e-14 on kr500)."""
-    sol = run_scenario(path)["lagrange"].formulations["normal"].solution
+    sol = run_scenario(path)["lagrange"].output.formulations["normal"].solution
     ev = sol.evaluated
     assert np.nanmax(sol.acceleration_error[ev]) <= 1e-9
     assert np.nanmax(sol.reaction_error[ev]) <= 1e-9
@@ -96,7 +96,7 @@ def test_eq111_reproduces_recorded_accelerations_and_joint_reactions(run_scenari
 def test_rows_eq111_cannot_solve_are_reported_with_their_condition(run_scenario):
     """B1 starts in Cardano gimbal lock: at t = 0 the system of Eq. 111 is singular (D^T J D)."""
     out = run_scenario(KR500)
-    sol = out["lagrange"].formulations["normal"].solution
+    sol = out["lagrange"].output.formulations["normal"].solution
     np.testing.assert_allclose(sol.t[~sol.evaluated], [0.0, 0.02, 0.04, 0.06], atol=1e-12)
     assert sol.cond_system[0] > 1e16
     assert np.all(sol.cond_system[sol.evaluated] < 1e12)
@@ -108,13 +108,13 @@ def test_paper_axis_constraints_lose_rank_exactly_where_the_axis_is_horizontal(r
     horizontal axes throughout, O1 about the vertical and O4, O6 about the tilting arm: the first
     three lose rank at every evaluated row, the others never."""
     out = run_scenario(KR500)
-    paper = out["lagrange"].formulations["paper"]
-    evaluated = int(out["lagrange"].formulations["normal"].solution.evaluated.sum())  # all regular rows
+    paper = out["lagrange"].output.formulations["paper"]
+    evaluated = int(out["lagrange"].output.formulations["normal"].solution.evaluated.sum())  # all regular rows
     assert evaluated == 97
     assert paper.axis_rank_deficient == {"O1": 0, "O2": evaluated, "O3": evaluated, "O4": 0,
                                          "O5": evaluated, "O6": 0}
     rec, spec = readings(out), out.scenario.robot
-    ev = out["lagrange"].formulations["normal"].solution.evaluated
+    ev = out["lagrange"].output.formulations["normal"].solution.evaluated
     assert not paper.solution.evaluated.any()  # singular to double precision at every row
     for joint in ("O2", "O3", "O5", "O4", "O6"):
         child = spec.body(spec.joint(joint).child)
@@ -123,7 +123,7 @@ def test_paper_axis_constraints_lose_rank_exactly_where_the_axis_is_horizontal(r
         horizontal = np.abs(u[:, 2]) < 1e-12
         assert horizontal.all() == (joint in ("O2", "O3", "O5")), joint
     joints = graph_model(out).topology.joints
-    assert out["lagrange"].formulations["normal"].axis_rank_deficient == dict.fromkeys(joints, 0)
+    assert out["lagrange"].output.formulations["normal"].axis_rank_deficient == dict.fromkeys(joints, 0)
 
 
 def test_paper_lambda_i3_are_the_static_weights_not_the_stated_motion(run_scenario):

@@ -196,8 +196,10 @@ def test_d_optimality_raises_the_information_and_keeps_the_limits():
     from harness.identify.torque_id import structural_base
 
     sc = load_scenario(SCENARIOS / "ur5_excitation.toml")
-    settings = dict(sc.excitation, criterion="d-optimality", evaluations=40)
-    optimised, report = optimise(sc, **settings)
+    from harness.stages.identification import with_friction
+
+    settings = dataclasses.replace(sc.excitation, criterion="d-optimality", evaluations=40)
+    optimised, report = optimise(sc, settings, with_friction(sc))
     assert report["criterion"] == "d-optimality"
     assert max(report["largest_fraction_of_limits"].values()) <= 1.0
     pm = build_model(sc.robot, sc.gravity_W)
@@ -206,7 +208,7 @@ def test_d_optimality_raises_the_information_and_keeps_the_limits():
     q_opt = np.column_stack([m.evaluate(t)[0] for m in optimised.motion.values()])
     qd_opt = np.column_stack([m.evaluate(t)[1] for m in optimised.motion.values()])
     qdd_opt = np.column_stack([m.evaluate(t)[2] for m in optimised.motion.values()])
-    rng = np.random.default_rng(sc.excitation["seed"])
+    rng = np.random.default_rng(sc.excitation.seed)
     lim = np.clip(np.array([sc.robot.limits[j] for j in sc.robot.joint_names]), -np.pi, np.pi)
     half = (lim[:, 1] - lim[:, 0]) / 2
     x0 = rng.uniform(-1, 1, (6, 2, 2)) * 0.3 * half[:, None, None] * 0.8

@@ -279,18 +279,28 @@ output folder ({relative path: text}, e.g. an exported model). `context` is a ha
 
 
 @dataclass(frozen=True, eq=False)
+class Sweep:
+    """What `harness sweep` runs: `run(scenario, trials, workers, progress)` repeats an identification
+    under `trials` draws of the scenario's measurement noise on `workers` (a harness.base.workers.Workers),
+    reporting to `progress` (a harness.base.progress.Progress), and returns what sweep.json holds;
+    `render(sweep)` draws sweep.html; `summary(sweep)` gives the lines printed on the terminal. The
+    core's sweep (the joint-torque estimators and the identification methods) and a study's are alike."""
+
+    run: Callable[[Any, int, Any, Any], dict]
+    render: Callable[[dict], str]
+    summary: Callable[[dict], list[str]]
+
+
+@dataclass(frozen=True, eq=False)
 class Study:
     """A package of stages that a scenario asks for by name (`[studies.NAME]`): `configure(table,
-    scenario_file, robot)` validates the scenario's table (raising harness.base.tomlio.InputError) and
-    returns the configuration its stages receive. `sweep(scenario, trials, workers, progress)`,
-    when given, repeats the study's identification under measurement noise (`harness sweep`) on
-    `workers` (a harness.base.workers.Workers) and returns what sweep.json holds; `render_sweep` draws it."""
+    scenario)` validates the scenario's table (raising harness.base.tomlio.InputError) and returns the
+    configuration its stages receive. `sweep`, when given, is what `harness sweep` runs for it."""
 
     name: str
-    configure: Callable[[Any, Path, Any], Any]
+    configure: Callable[[Any, Any], Any]
     stages: tuple[Stage, ...]
-    sweep: Callable | None = None
-    render_sweep: Callable[[dict], str] | None = None
+    sweep: Sweep | None = None
 
 
 def load_study(name: str) -> Study:

@@ -23,12 +23,13 @@ cannot hold even at rest (an effort below its own weight's torque) is refused.
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from harness.base.numerics import equilibrated_condition_number, equilibrated_singular_values
-from harness.base.tomlio import InputError
+from harness.base.tomlio import InputError, Table
 from harness.engines.pinocchio import build_model, rnea
 from harness.identify.torque_id import regressor, structural_base
 from harness.sources.motion import Sinusoids
@@ -38,6 +39,43 @@ DENSE = 400  # samples a period on which the limits are checked
 PENALTY = 1e3
 CRITERIA = ("condition", "d-optimality")
 LIMIT_KINDS = ("position", "velocity", "acceleration", "torque")
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """`[excitation]`: a Fourier series of `harmonics` harmonics of `base_frequency` (rad/s) per joint,
+    optimised over `evaluations` evaluations of `criterion` from a start drawn with `seed`, every limit
+    (with `acceleration_limit`, rad/s^2 or m/s^2, where given) used to at most `limit_fraction`;
+    `rate` (Hz) is the sampling of the trajectory `harness excite` writes."""
+
+    base_frequency: float
+    harmonics: int = 2
+    evaluations: int = 400
+    seed: int = 0
+    criterion: str = "condition"
+    acceleration_limit: float | None = None
+    limit_fraction: float = 0.9
+    rate: float = 100.0
+
+    @property
+    def period(self) -> float:
+        return 2 * np.pi / self.base_frequency
+
+
+def read_excitation(t: Table) -> Excitation:
+    """`[excitation]`, validated (one-line errors naming the key)."""
+    d = Excitation
+    config = Excitation(t.number("base_frequency", positive=True),
+                        t.integer("harmonics", default=d.harmonics, minimum=2),
+                        t.integer("evaluations", default=d.evaluations, minimum=10),
+                        t.integer("seed", default=d.seed, minimum=0),
+                        t.string("criterion", default=d.criterion, choices=CRITERIA),
+                        t.number("acceleration_limit", positive=True) if t.has("acceleration_limit") else None,
+                        t.number("limit_fraction", default=d.limit_fraction, positive=True),
+                        t.number("rate", default=d.rate, positive=True))
+    if config.limit_fraction > 1.0:
+        raise t.error("limit_fraction", f"{config.limit_fraction:g}: a fraction of each limit, at most 1")
+    return config
 
 
 def _series(coef: np.ndarray, q0: np.ndarray, wf: float, t: np.ndarray):
@@ -119,16 +157,17 @@ def usage(pm, spec, lim: Limits, q, qd, qdd) -> dict[str, float]:
                 "torque": float(np.max(np.nan_to_num(np.abs(tau) / lim.effort)))}
 
 
-def optimise(scenario: Any, harmonics: int, base_frequency: float, evaluations: int, seed: int,
-             criterion: str = "condition", acceleration_limit: float | None = None,
-             limit_fraction: float = 0.9, rate: float = 100.0) -> tuple[Any, dict]:
-    """The scenario (a harness.runner.scenario.Scenario: its robot, gravity and friction flag are
-    read) with its motion replaced by the optimised excitation, and the optimisation's report."""
+def optimise(scenario: Any, excitation: Excitation, with_friction: bool) -> tuple[Any, dict]:
+    """The scenario (a harness.runner.scenario.Scenario: its robot and gravity are read) with its
+    motion replaced by the optimised excitation, and the optimisation's report. `with_friction`: the
+    regressor has each joint's friction and rotor-inertia columns, as the fit it prepares will."""
+    harmonics, base_frequency, evaluations = excitation.harmonics, excitation.base_frequency, excitation.evaluations
+    criterion, limit_fraction = excitation.criterion, excitation.limit_fraction
     spec = scenario.robot
     pm = build_model(spec, scenario.gravity_W)
-    base = structural_base(pm, spec.limits, with_friction=scenario.torque_friction)  # chosen once
+    base = structural_base(pm, spec.limits, with_friction=with_friction)  # chosen once
     n = len(spec.joints)
-    lim = robot_limits(spec, acceleration_limit)
+    lim = robot_limits(spec, excitation.acceleration_limit)
     q0, half = (lim.lower + lim.upper) / 2, (lim.upper - lim.lower) / 2
     period = 2 * np.pi / base_frequency
     t = np.linspace(0.0, period, SAMPLES, endpoint=False)
@@ -144,7 +183,7 @@ def optimise(scenario: Any, harmonics: int, base_frequency: float, evaluations: 
         excess = sum(max(0.0, u - limit_fraction) ** 2 for u in used.values())
         return _criterion(pm, q, qd, qdd, base, criterion) + PENALTY * excess
 
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(excitation.seed)
     x0 = (rng.uniform(-1, 1, (n, harmonics - 1, 2)) * scale).ravel()
     start = float(np.exp(_criterion(pm, *_series(coefficients(x0), q0, base_frequency, t), base, "condition")))
     from scipy.optimize import minimize
@@ -182,14 +221,14 @@ def optimise(scenario: Any, harmonics: int, base_frequency: float, evaluations: 
                            f"every limit within {limit_fraction:g} of itself; at rest at both ends",
               "limits": lim.describe(spec.joint_names), "limit_fraction": limit_fraction,
               "largest_fraction_of_limits": used, "dense_samples": DENSE, "amplitude_shrunk_by": shrink,
-              "rate": rate}
+              "rate": excitation.rate}
     return dataclasses.replace(scenario, motion=motion), report
 
 
-def trajectory(scenario: Any, rate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """t, q, q', q'' of the scenario's (optimised) motion over one period of its base frequency,
-    sampled at `rate`, both ends included: what a robot's controller plays."""
-    period = 2 * np.pi / scenario.excitation["base_frequency"]
+def trajectory(scenario: Any, excitation: Excitation) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """t, q, q', q'' of the scenario's (optimised) motion over one period of the excitation's base
+    frequency, sampled at its `rate`, both ends included: what a robot's controller plays."""
+    period, rate = excitation.period, excitation.rate
     t = np.arange(int(np.floor(period * rate + 1e-9)) + 1) / rate
     t = np.append(t, period) if t[-1] < period - 1e-12 else t
     out = [m.evaluate(t) for m in scenario.motion.values()]

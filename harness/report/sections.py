@@ -8,7 +8,7 @@ from markupsafe import Markup
 
 from harness.engines.recording import Recording
 from harness.report import plots
-from harness.report.html import DASH, code, esc, figure, mark, num, section, table
+from harness.report.html import DASH, code, esc, figure, mark, num, page, section, table
 from harness.runner.gates import summary_line
 
 
@@ -384,6 +384,13 @@ def identification_methods(r: dict) -> str:
         + table(["method", "plugin", "base parameters", "largest rel error", "validation", "largest rel error",
                  "at joint", "RMS rel error"], rows) + "".join(tables),
     )
+
+
+def identification_sweep_page(r: dict) -> str:
+    """sweep.html of the core's sweep (harness/runner/sweep.py): the estimators and the identification methods."""
+    title = f"{r['scenario']}: identification over {r['trials']} trials"
+    return page(title, title, (estimator_comparison(r) if "estimators" in r else "")
+                + (method_sweep(r) if "identification_methods" in r else ""))
 
 
 def method_sweep(r: dict) -> str:

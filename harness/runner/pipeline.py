@@ -23,6 +23,7 @@ from harness.runner.scenario import DataScenario, Scenario
 from harness.sources.bench import record
 from harness.sources.measurement import measure
 from harness.stages import Context, Progress, core_stages, log_stages
+from harness.stages.identification import with_friction
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,7 +138,7 @@ def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
     else:
         if scenario.excitation is not None:
             timed("optimising the excitation (Fourier series)", None)
-            scenario, excitation = optimise_excitation(scenario, **scenario.excitation)
+            scenario, excitation = optimise_excitation(scenario, scenario.excitation, with_friction(scenario))
         data = from_bench(scenario, timed)
     ctx = Context(scenario, data.truth, data.training, timed, workers=workers, validation=data.validation)
     outputs: dict[str, StageOutput] = {}

@@ -21,7 +21,7 @@ import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -48,22 +48,12 @@ from harness.sources.log import DataSource, check_columns, read_source
 from harness.sources.measurement import Measurement, read_measurement
 from harness.sources.motion import Motion, read_motion
 
+if TYPE_CHECKING:
+    from harness.identify.excitation import Excitation
+
 _GRID_TOL = 1e-9  # relative to the output interval: a sample time on the grid, a timestep dividing it
 MAX_OUTPUT_STEPS = 1_000_000  # rows of a recording: about 1 GB for an arm of ten joints
 MAX_SIMULATION_STEPS = 20_000_000  # MuJoCo steps of one run, each with a Python drive callback (hours)
-
-
-@dataclass(frozen=True)
-class RandomStates:
-    """`[random_states]`: every model under test is also judged against Pinocchio at `count` random
-    states (harness/model/states.py: q within the joint limits, q' and q'' within the largest of each
-    joint over the scenario's motion), drawn with `seed`."""
-
-    count: int = 200
-    seed: int = 0
-
-
-MAX_RANDOM_STATES = 100_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,13 +104,10 @@ class Scenario:
     measurement: Measurement = field(default_factory=Measurement)
     gates: tuple[Gate, ...] = ()
     text: str = ""  # the scenario file as read, for the report
-    torque_validation: Scenario | None = None  # joint-torque identification, validated on this scenario
-    torque_friction: bool = False  # ... with each joint's rotor inertia, viscous, Coulomb friction and offset
-    excitation: dict | None = None  # Fourier-series excitation to optimise (harness/identify/excitation.py)
+    excitation: Excitation | None = None  # a Fourier-series motion to optimise (harness/identify/excitation.py)
     models: tuple[PluginEntry, ...] = ()  # models under test
     methods: tuple[PluginEntry, ...] = ()  # identification methods under test
     studies: tuple[tuple[Study, Any], ...] = ()  # (study, its configuration), in the file's order
-    random_states: RandomStates = field(default_factory=RandomStates)
     configs: dict[str, Any] = field(default_factory=dict)  # a core stage's key -> its configuration, from its table
 
     def related(self, t: Table, key: str) -> Scenario:
@@ -276,39 +263,14 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
 
     robot = load_spec(_relative_file(s, "model", model_rel, path))
     simulation = _read_simulation(root.table("simulation", default={}))
-    rt = root.table("random_states", default={})
-    random_states = RandomStates(rt.integer("count", default=RandomStates.count, minimum=1),
-                                 rt.integer("seed", default=RandomStates.seed, minimum=0))
-    if random_states.count > MAX_RANDOM_STATES:
-        raise rt.error("count", f"{random_states.count} states: at most {MAX_RANDOM_STATES:,}")
-    rt.finish()
     measurement = read_measurement(root.table("measurement", default={}))
     gates = _read_all_gates(root, gate_files)
-    torque_validation, torque_friction = None, False
-    if root.has("torque_identification"):
-        ti = root.table("torque_identification")
-        torque_validation = load_related(ti, "validation", path)
-        if torque_validation.robot.joint_names != robot.joint_names:
-            raise ti.error("validation", f"{ti.data['validation']!r} simulates another robot than {robot.name!r}")
-        # default: identify the joints' friction and rotor inertia where the model declares any
-        torque_friction = ti.boolean("friction", default=not all(f.none for f in robot.frictions))
-        ti.finish()
     excitation = None
     if root.has("excitation"):
-        et = root.table("excitation")
-        from harness.identify.excitation import CRITERIA
+        from harness.identify.excitation import read_excitation  # loads the engines: only when asked
 
-        excitation = {"harmonics": et.integer("harmonics", default=2, minimum=2),
-                      "base_frequency": et.number("base_frequency", positive=True),
-                      "evaluations": et.integer("evaluations", default=400, minimum=10),
-                      "seed": et.integer("seed", default=0, minimum=0),
-                      "criterion": et.string("criterion", default="condition", choices=CRITERIA),
-                      "acceleration_limit": (et.number("acceleration_limit", positive=True)
-                                             if et.has("acceleration_limit") else None),
-                      "limit_fraction": et.number("limit_fraction", default=0.9, positive=True),
-                      "rate": et.number("rate", default=100.0, positive=True)}
-        if excitation["limit_fraction"] > 1.0:
-            raise et.error("limit_fraction", f"{excitation['limit_fraction']:g}: a fraction of each limit, at most 1")
+        et = root.table("excitation")
+        excitation = read_excitation(et)
         et.finish()
         if root.has("motion"):
             raise root.error("motion", "a scenario with [excitation] gets its motion from the optimisation: "
@@ -358,8 +320,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         raise InputError(path, "simulation.timestep",
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
     scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
-                        np.asarray(sample_times), motion, simulation, measurement, gates, text,
-                        torque_validation, torque_friction, excitation)
+                        np.asarray(sample_times), motion, simulation, measurement, gates, text, excitation)
     models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
                    for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
     methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)
@@ -372,12 +333,12 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             unjudged(path, kind, n, gates)
     from harness.stages import core_stages  # each core stage reads its own table, as a study does
 
-    configs = {}
-    for stage in core_stages():
+    for stage in core_stages():  # in order: a stage's configuration may read those before it
         if stage.table is not None and root.has(stage.table):
             table = root.table(stage.table)
-            configs[stage.key] = stage.configure(table, scenario)
+            config = stage.configure(table, scenario)
             table.finish()
+            scenario = dataclasses.replace(scenario, configs={**scenario.configs, stage.key: config})
     studies = []
     if root.has("studies"):
         st = root.table("studies")
@@ -395,8 +356,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             table.finish()
         st.finish()
     root.finish()
-    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies),
-                               random_states=random_states, configs=configs)
+    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
 
 
 def judging_metrics(kind: str, name: str) -> tuple[str, ...]:

@@ -24,7 +24,7 @@ from harness.engines.pinocchio import PinocchioModel, build_model
 from harness.engines.recording import Recording
 from harness.identify.estimators import DESCRIPTIONS, ESTIMATORS, Instruments, iv
 from harness.identify.propagation import propagates, score_covariance
-from harness.identify.torque_id import parameter_names, regressor, structural_base, true_parameters
+from harness.identify.torque_id import parameter_names, regressor, true_parameters
 from harness.identify.trials import over_trials
 from harness.sources.measurement import Measurement, measure, savgol
 from harness.stages.metrics import joint_load_scale
@@ -108,7 +108,9 @@ class EstimatorsConfig:
 def configure(t, scenario) -> EstimatorsConfig:
     """`[estimators] methods = ["ols", "wls", "irls", "iv"], trials = 200`, validated (one-line
     errors naming the key). The estimators are judged on the scenario's validation trajectory."""
-    if scenario.torque_validation is None:
+    from harness.stages.identification import torque_config
+
+    if torque_config(scenario) is None:
         raise t.error("methods", "estimators are judged on a validation trajectory: give "
                                  "[torque_identification] validation = ...")
     config = EstimatorsConfig(tuple(t.strings("methods", choices=tuple(ESTIMATORS), default=list(ESTIMATORS))),
@@ -123,12 +125,13 @@ def run(ctx, config: EstimatorsConfig | None) -> Comparison | None:
     cfg = config
     if cfg is None:
         return None
-    from harness.stages.identification import joint_data, validation_recording
+    from harness.stages.identification import joint_data, structural_base_of, torque_config, validation_recording
 
+    torque = torque_config(sc)
+    friction = torque.friction
     joints = sc.robot.joint_names
     pm = build_model(sc.robot, sc.gravity_W)
-    base = ctx.once(("structural base parameters", sc.torque_friction),
-                    lambda: structural_base(pm, sc.robot.limits, with_friction=sc.torque_friction))
+    base = structural_base_of(ctx)
     cols = base.independent
     rec = ctx.recording
     m = sc.measurement
@@ -146,22 +149,22 @@ def run(ctx, config: EstimatorsConfig | None) -> Comparison | None:
     q_ref, qd_ref, qdd_ref = (rec.meta[k][rows][:, idx] for k in ("q_ref", "qd_ref", "qdd_ref"))
     if m.differentiate:
         qd_ref, qdd_ref = (savgol(q_ref, rec.t[rows], m.filter_window, k) for k in (1, 2))
-    Z1 = regressor(pm, q_ref[keep], qd_ref[keep], qdd_ref[keep], with_friction=sc.torque_friction)[:, cols]
+    Z1 = regressor(pm, q_ref[keep], qd_ref[keep], qdd_ref[keep], with_friction=friction)[:, cols]
     # the Coulomb shapes s(q') are the columns nonlinear in a measured signal (harness/identify/estimators.py)
-    names = parameter_names(joints, sc.torque_friction)
+    names = parameter_names(joints, friction)
     nonlinear = np.array([names[c].endswith(".coulomb") for c in cols])
     from_residuals = Instruments(Z1, nonlinear)
     sensors = propagates(m)  # the IV intervals from the sensors' specification, where it is complete
     instruments = Instruments(Z1, nonlinear, score_covariance(pm, Z1, rec.t[rows], keep, q_ref, qd_ref, qdd_ref,
                                                               rec.tau[rows][:, idx], m)) if sensors else from_residuals
-    val = validation_recording(ctx, sc.torque_validation)
+    val = validation_recording(ctx, torque.validation)
     qv, qdv, qddv, tauv = joint_data(val, joints)
-    Wv = regressor(pm, qv, qdv, qddv, with_friction=sc.torque_friction)[:, cols]
+    Wv = regressor(pm, qv, qdv, qddv, with_friction=friction)[:, cols]
     load = joint_load_scale(sc.robot, val)
     methods = list(cfg.methods)
     T = cfg.trials
     both = "iv" in methods and sensors
-    bench = _Bench(pm, rec, m, tuple(joints), cols, sc.torque_friction, keep=keep, methods=tuple(methods),
+    bench = _Bench(pm, rec, m, tuple(joints), cols, friction, keep=keep, methods=tuple(methods),
                    instruments=instruments, from_residuals=from_residuals if both else None,
                    lags=lags, Wv=Wv, tauv=tauv, load=load)
     ctx.progress("estimators side by side", 0.0)
@@ -169,7 +172,7 @@ def run(ctx, config: EstimatorsConfig | None) -> Comparison | None:
                              lambda done, total: ctx.progress("estimators side by side", done / total))
     beta, std, half, seconds, val_err = (np.stack([t[i] for t in trials], axis=1) for i in range(5))
     half_residuals = np.stack([t[5] for t in trials]) if both else None
-    return Comparison(tuple(methods), base.of(true_parameters(pm, sc.torque_friction)), beta, std, half, seconds,
+    return Comparison(tuple(methods), base.of(true_parameters(pm, friction)), beta, std, half, seconds,
                       val_err, usable, edge, lags, block, "sensors" if sensors else "residuals", half_residuals)
 
 

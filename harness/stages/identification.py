@@ -40,7 +40,7 @@ from harness.identify.torque_id import (
 )
 from harness.identify.trials import over_trials
 from harness.model import friction
-from harness.sources.bench import record
+from harness.sources.bench import Setup, record
 from harness.stages.metrics import joint_load_scale
 
 
@@ -59,18 +59,57 @@ def validation_recording(ctx, scenario):
     return ctx.once(("validation recording", str(scenario.source)), make)
 
 
-def run_builtin(ctx, config) -> BuiltinIdentification | None:
+@dataclass(frozen=True, eq=False)
+class TorqueConfig:
+    """`[torque_identification]`: the trajectory the identified model is validated on (another
+    scenario of the same robot), and whether each joint's rotor inertia, viscous and Coulomb friction
+    and offset are identified with the bodies' parameters."""
+
+    validation: Setup
+    friction: bool
+
+
+def configure_torque(t, scenario) -> TorqueConfig:
+    """`[torque_identification] validation = "other.toml", friction = true`, validated (one-line
+    errors naming the key). `friction` defaults to whether the model declares any friction or rotor
+    inertia."""
+    validation = scenario.related(t, "validation")
+    if validation.robot.joint_names != scenario.robot.joint_names:
+        raise t.error("validation", f"{t.data['validation']!r} simulates another robot than {scenario.robot.name!r}")
+    return TorqueConfig(validation, t.boolean("friction", default=not all(f.none for f in scenario.robot.frictions)))
+
+
+def torque_config(scenario) -> TorqueConfig | None:
+    """The scenario's `[torque_identification]`, None without one."""
+    return getattr(scenario, "configs", {}).get("torque_identification")
+
+
+def with_friction(scenario) -> bool:
+    """Whether the scenario's joint-torque fits identify the joints' friction and rotor inertia."""
+    config = torque_config(scenario)
+    return config is not None and config.friction
+
+
+def structural_base_of(ctx):
+    """The scenario's structural base parameters (harness/identify/torque_id.py), found once per run."""
     sc = ctx.scenario
-    if sc.torque_validation is None:
+    friction = with_friction(sc)
+    return ctx.once(("structural base parameters", friction),
+                    lambda: structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits,
+                                            with_friction=friction))
+
+
+def run_builtin(ctx, config: TorqueConfig | None) -> BuiltinIdentification | None:
+    if config is None:
         return None
+    sc = ctx.scenario
     joints = sc.robot.joint_names
-    val = validation_recording(ctx, sc.torque_validation)
+    val = validation_recording(ctx, config.validation)
     pm = build_model(sc.robot, sc.gravity_W)
-    base = ctx.once(("structural base parameters", sc.torque_friction),
-                    lambda: structural_base(pm, sc.robot.limits, with_friction=sc.torque_friction))
-    ti = identify_from_torques(pm, joints, *joint_data(ctx.measured, joints), joint_data(val, joints), base)
+    ti = identify_from_torques(pm, joints, *joint_data(ctx.measured, joints), joint_data(val, joints),
+                               structural_base_of(ctx))
     ti.validation_scale = joint_load_scale(sc.robot, val)
-    return BuiltinIdentification(ti, sc.torque_validation.name)
+    return BuiltinIdentification(ti, config.validation.name)
 
 
 @dataclass(frozen=True, eq=False)
@@ -280,7 +319,7 @@ def _judge(ctx, entry) -> MethodResult:
     joints = sc.robot.joint_names
     fitted = fit_method(plugin, entry.instance, joints, *joint_data(ctx.measured, joints))
     table = base_table(plugin, fitted, joints, base_map(ctx))
-    validation = entry.validation or sc.torque_validation
+    validation = entry.validation or _validation_of(sc)
     val_err = val_t = None
     if validation is not None:
         val = validation_recording(ctx, validation)
@@ -315,8 +354,14 @@ def run_methods(ctx, config) -> MethodResults | None:
 CI95 = 1.959963984540054  # the normal 97.5 % quantile: a method's covariance states no degrees of freedom
 
 
+def _validation_of(scenario):
+    config = torque_config(scenario)
+    return None if config is None else config.validation
+
+
 TORQUE_STAGE = Stage("torque_identification", "joint-torque identification (base parameters)", run_builtin,
-                     BuiltinIdentification.serialise, "Torque identification")
+                     BuiltinIdentification.serialise, "Torque identification", table="torque_identification",
+                     configure=configure_torque)
 METHODS_STAGE = Stage("identification_methods", "identification methods under test", run_methods,
                       MethodResults.serialise, "Identification methods")
 
@@ -375,7 +420,7 @@ def sweep_methods(ctx, trials: int) -> dict:
     bm = base_map(ctx)
     out = {}
     for entry in sc.methods:
-        validation = entry.validation or sc.torque_validation
+        validation = entry.validation or _validation_of(sc)
         val = None
         if validation is not None:
             vrec = validation_recording(ctx, validation)

@@ -89,8 +89,9 @@ def run(ctx, config: PayloadConfig | None) -> Payload | None:
     sc = ctx.scenario
     if config is None:
         return None
-    from harness.stages.identification import joint_data, validation_recording
+    from harness.stages.identification import joint_data, validation_recording, with_friction
 
+    friction = with_friction(sc)
     without = config.without
     body = config.body
     joints = sc.robot.joint_names
@@ -98,16 +99,16 @@ def run(ctx, config: PayloadConfig | None) -> Payload | None:
     k = joints.index(sc.robot.inner_joint(body).name)
     pm_with = build_model(sc.robot, sc.gravity_W)
     pm_without = build_model(without.robot, sc.gravity_W)
-    base = structural_base(pm_without, without.robot.limits, with_friction=sc.torque_friction)
+    base = structural_base(pm_without, without.robot.limits, with_friction=friction)
     # the run without the payload, measured as this one is (its own noise draws)
     rec0 = validation_recording(ctx, without)
     m = sc.measurement
     meas0 = measure(rec0, m.with_seed(m.seed + 1))
     q0, qd0, qdd0, tau0 = joint_data(meas0, joints)
-    W0 = regressor(pm_without, q0, qd0, qdd0, sc.torque_friction)[:, base.independent]
+    W0 = regressor(pm_without, q0, qd0, qdd0, friction)[:, base.independent]
     beta0 = ols(W0, tau0.reshape(-1), n).beta
     q, qd, qdd, tau = joint_data(ctx.measured, joints)
-    W = regressor(pm_without, q, qd, qdd, sc.torque_friction)
+    W = regressor(pm_without, q, qd, qdd, friction)
     delta = tau.reshape(-1) - W[:, base.independent] @ beta0
     Wb = W[:, 10 * k: 10 * k + 10]
     est = ols(Wb, delta, n)

@@ -133,19 +133,40 @@ def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows) -> Mode
     return ModelTorques(entry.name, plugin, str(entry.robot.source), tau, F, M, mm)
 
 
-def _random_states(sc, pm) -> RandomStates:
+MAX_RANDOM_STATES = 100_000
+
+
+@dataclass(frozen=True)
+class RandomStatesConfig:
+    """`[random_states]`: every model under test is also judged against Pinocchio at `count` random
+    states (harness/model/states.py: q within the joint limits, q' and q'' within the largest of each
+    joint over the scenario's motion), drawn with `seed`."""
+
+    count: int = 200
+    seed: int = 0
+
+
+def configure(t, scenario) -> RandomStatesConfig:
+    """`[random_states] count = 200, seed = 0`, validated (one-line errors naming the key)."""
+    config = RandomStatesConfig(t.integer("count", default=RandomStatesConfig.count, minimum=1),
+                                t.integer("seed", default=RandomStatesConfig.seed, minimum=0))
+    if config.count > MAX_RANDOM_STATES:
+        raise t.error("count", f"{config.count} states: at most {MAX_RANDOM_STATES:,}")
+    return config
+
+
+def _random_states(sc, pm, config: RandomStatesConfig) -> RandomStates:
     """Pinocchio at the scenario's random states: q within the limits, q' and q'' within the largest
     of each joint along the scenario's own motion."""
     _, qd_run, qdd_run = sc.prescribed(sc.t_out)
     lo, hi = position_bounds(sc.robot.joint_names, [j.revolute for j in sc.robot.joints], sc.robot.limits)
-    q, qd, qdd = random_states(lo, hi, motion_scale(qd_run), motion_scale(qdd_run), sc.random_states.count,
-                               sc.random_states.seed)
+    q, qd, qdd = random_states(lo, hi, motion_scale(qd_run), motion_scale(qdd_run), config.count, config.seed)
     pin = rnea(pm, q, qd, qdd)
     wrench = np.stack([(pin.M_W if j.revolute else pin.F_W)[:, k] for k, j in enumerate(sc.robot.joints)], axis=1)
-    return RandomStates(q, qd, qdd, pin.tau, np.max(np.linalg.norm(wrench, axis=-1), axis=0), sc.random_states.seed)
+    return RandomStates(q, qd, qdd, pin.tau, np.max(np.linalg.norm(wrench, axis=-1), axis=0), config.seed)
 
 
-def run(ctx, config) -> TorqueComparison:
+def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
     sc, rec = ctx.scenario, ctx.recording
     joints = sc.robot.joint_names
     cols = [rec.joint_index(j) for j in joints]
@@ -160,7 +181,7 @@ def run(ctx, config) -> TorqueComparison:
     models = tuple(_model_torques(e, q, qd, qdd, joints, M_pin_at, rows) for e in sc.models)
     random = None
     if models:
-        random = _random_states(sc, pm)
+        random = _random_states(sc, pm, config or RandomStatesConfig())
         models = tuple(dataclasses.replace(
             m, random_tau=inverse_dynamics(e.reference, "inverse_dynamics (random states)", e.instance, joints,
                                            random.q, random.qd, random.qdd))
@@ -209,4 +230,4 @@ def _random_metrics(tau: np.ndarray, rs: RandomStates, joints: list[str]) -> dic
 
 
 STAGE = Stage("torques", "joint torques: reference engines and models under test", run,
-              TorqueComparison.serialise, "Torques")
+              TorqueComparison.serialise, "Torques", table="random_states", configure=configure)

@@ -35,6 +35,12 @@ class Identification:
     sample_times: np.ndarray
     resolution: float  # relative resolution of the measurement the floors were taken at
 
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `identification`: section 2.3's estimates against the truth and, where the
+        study names them, against the paper's Tables 3 and 4."""
+        return identification_section(self, config.paper_identified, config.paper_abs_error,
+                                      ctx.scenario.measurement.significant_digits)
+
 
 N_DITHER = 4  # draws for the regressor's measurement-error floor (a size, not a statistic)
 
@@ -95,6 +101,10 @@ class FullIdentification:
     bodies: tuple[str, ...]
     per_body: tuple[LeastSquares, ...]
     true: np.ndarray  # (n, 10) Pinocchio's dynamic parameters of the true robot
+
+    def serialise(self, ctx, config) -> dict:
+        """results.json's `identification_full`: all 10 parameters per body against the truth."""
+        return full_identification_section(self)
 
 
 def identify_full(spec, model: GraphModel, measured: Recording, rows: np.ndarray, measurement: Measurement,

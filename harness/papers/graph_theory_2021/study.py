@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.plugins import Stage, Study
+from harness.base.plugins import Stage, Study, Sweep
 from harness.base.reference import has_reference_table
 from harness.base.tomlio import InputError, Table
 from harness.engines.pinocchio import build_model as build_pinocchio
@@ -32,13 +32,13 @@ from harness.papers.graph_theory_2021.dynamics import (
     build_graph_model,
     unconstrained_residual,
 )
-from harness.papers.graph_theory_2021.lagrange import Settings, lagrange
+from harness.papers.graph_theory_2021.lagrange import LagrangeOutput, Settings, lagrange
 from harness.papers.graph_theory_2021.readings import Readings, exact, read
 from harness.papers.graph_theory_2021.solve import (
     PACKAGE,
-    full_identification_section,
+    FullIdentification,
+    Identification,
     graph_section,
-    identification_section,
     identify,
     identify_full,
     lagrange_section,
@@ -109,9 +109,30 @@ def _models(ctx, config: Config) -> tuple[GraphModel, GraphModel]:
 
 @dataclass(frozen=True, eq=False)
 class GraphChecks:
+    """Section 2.2 on the recording: the graph model's unconstrained residual and its D matrix."""
+
+    model: GraphModel  # of the tested parameters
     residual: Residual  # Eq. 36 on the recording
     D_error: float  # Eq. 33's D against a rotation library at every recorded orientation
     gimbal_rows: dict[str, list[float]]  # per body, the times of the rows near gimbal lock
+
+    def serialise(self, ctx, config: Config) -> dict:
+        """results.json's `graph`: the graph's matrices, the residual of Eq. 36 and the check of Eq. 33."""
+        return {**graph_section(self.model, self.residual, self.D_error), "gimbal_lock_rows": self.gimbal_rows}
+
+
+@dataclass(frozen=True, eq=False)
+class Constraints:
+    """Sections 2.4, 2.5 and 3.2 on the recording: Eq. 111 and the Lagrange multipliers."""
+
+    output: LagrangeOutput
+    model: GraphModel  # of the tested parameters
+    truth: Readings  # the paper's readings of the recording
+
+    def serialise(self, ctx, config: Config) -> dict:
+        """results.json's `lagrange`: the constraint residuals, the multipliers against Table 5's and,
+        when asked, the forward simulation of the constrained model."""
+        return lagrange_section(self.output, config.lagrange.paper_lambda, config.tested, self.model, self.truth)
 
 
 def _graph_checks(ctx, config) -> GraphChecks:
@@ -120,7 +141,7 @@ def _graph_checks(ctx, config) -> GraphChecks:
     s = body_series(truth, model.topology)
     gimbal = {b: [float(x) for x in truth.t[truth.gimbal[:, i]]] for i, b in enumerate(truth.bodies)
               if truth.gimbal[:, i].any()}
-    return GraphChecks(unconstrained_residual(model, s), D_error(s.theta), gimbal)
+    return GraphChecks(model, unconstrained_residual(model, s), D_error(s.theta), gimbal)
 
 
 def _identification(ctx, config):
@@ -141,14 +162,14 @@ def _identification_full(ctx, config):
                          true10)
 
 
-def _lagrange(ctx, config):
+def _lagrange(ctx, config) -> Constraints:
     model, _ = _models(ctx, config)
-    return lagrange(ctx.scenario, config.tested, config.lagrange, model, _readings(ctx)[0], ctx.progress)
+    truth = _readings(ctx)[0]
+    return Constraints(lagrange(ctx.scenario, config.tested, config.lagrange, model, truth, ctx.progress), model, truth)
 
 
-def _sweep(scenario, trials, workers, progress):
-
-    return run_sweep(scenario, trials, workers, progress)
+def _sweep(scenario, trials, workers, progress) -> dict:
+    return run_sweep(scenario, trials, workers, progress.counting(f"sweep ({workers.describe()})"))
 
 
 def _render_sweep(sweep: dict) -> str:
@@ -157,26 +178,25 @@ def _render_sweep(sweep: dict) -> str:
     return render_sweep(sweep)
 
 
+def _sweep_summary(sweep: dict) -> list[str]:
+    low, high = sweep["coverage_min"], sweep["coverage_max"]
+    coverage = ("no parameter was identified in every trial" if low is None else
+                f"coverage of the 95 % intervals {low:.3f} to {high:.3f} over the parameters identified in every trial")
+    return [f"{sweep['scenario']}: {sweep['trials']} trials; {coverage}"]
+
+
 STUDY = Study(
     name="graph_theory_2021",
     configure=configure,
     stages=(
-        Stage("graph", "graph model: unconstrained dynamics", _graph_checks,
-              lambda r, ctx, c: {**graph_section(_models(ctx, c)[0], r.residual, r.D_error),
-                                 "gimbal_lock_rows": r.gimbal_rows},
+        Stage("graph", "graph model: unconstrained dynamics", _graph_checks, GraphChecks.serialise,
               "Cardano angles", report.cardano_angles),
-        Stage("identification", "identifying parameters (section 2.3)", _identification,
-              lambda r, ctx, c: identification_section(r, c.paper_identified, c.paper_abs_error,
-                                                       ctx.scenario.measurement.significant_digits),
+        Stage("identification", "identifying parameters (section 2.3)", _identification, Identification.serialise,
               "Identification", lambda res, rec: report.identification(res)),
         Stage("identification_full", "identifying all 10 inertial parameters per body", _identification_full,
-              lambda r, ctx, c: full_identification_section(r), "10 parameters",
-              lambda res, rec: report.identification_full(res)),
-        Stage("lagrange", "constraints and Lagrange multipliers", _lagrange,
-              lambda r, ctx, c: lagrange_section(r, c.lagrange.paper_lambda, c.tested, _models(ctx, c)[0],
-                                                 _readings(ctx)[0]),
+              FullIdentification.serialise, "10 parameters", lambda res, rec: report.identification_full(res)),
+        Stage("lagrange", "constraints and Lagrange multipliers", _lagrange, Constraints.serialise,
               "Constraints", report.lagrange),
     ),
-    sweep=_sweep,
-    render_sweep=_render_sweep,
+    sweep=Sweep(_sweep, _render_sweep, _sweep_summary),
 )
