@@ -26,6 +26,13 @@ than a log-Cholesky parametrisation: the problem stays convex, so the solution i
 and needs no starting point, and cvxpy with the interior-point solver Clarabel solves the
 Panda's 98 unknowns in well under a second. The torque residual is first reduced to the
 triangular factor of W's QR decomposition (p rows instead of N n).
+
+Where Clarabel fails, SCS (a first-order conic solver) tries the same problem; a solution short of
+the solver's tolerances ("optimal_inaccurate") is kept, and said so. Where both fail, the
+unconstrained minimum of the same objective is taken and each link's pseudo-inertia moved to the
+nearest one with every eigenvalue at least the margin (harness/model/inertia.py, nearest_physical),
+the friction terms clipped at zero. Which of the three gave the fit is `fallback` (0, 1, 2), a
+number a gate can read; a fit never fails.
 """
 
 from __future__ import annotations
@@ -37,12 +44,16 @@ import cvxpy as cp
 import numpy as np
 
 from harness.base.numerics import column_scale
-from harness.model.inertia import about_centre_of_mass, pseudo_inertia
+from harness.model.inertia import about_centre_of_mass, nearest_physical, pseudo_inertia
 
 PULL = 1e-4  # weight of the pull towards the model's values, relative to the least-squares residual
 # the objective is 1 at the least-squares optimum: 1e-7 of it is far below anything the data resolve
 # (Clarabel's default 1e-8 flags the Panda's fit "inaccurate" without changing it in any digit shown)
 SOLVER_TOLERANCES = {"tol_gap_abs": 1e-7, "tol_gap_rel": 1e-7, "tol_feas": 1e-7}
+# SCS is first-order: its tolerances are looser, and it is the second choice
+SOLVERS = ((cp.CLARABEL, SOLVER_TOLERANCES), (cp.SCS, {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 200_000}))
+FALLBACKS = ("solved by Clarabel to its tolerances", "solved by SCS, or short of the solver's tolerances",
+             "no solver succeeded: the unconstrained minimum, each link moved to the nearest physical one")
 MARGIN = 1e-6  # J_i >= MARGIN * (model's largest pseudo-inertia eigenvalue) 1: strictly physical
 
 
@@ -71,6 +82,9 @@ class ConsistentFit:
     friction: np.ndarray  # (n_joints, 4): armature, viscous, coulomb, offset
     status: str  # the solver's
     relative_residual: float  # ||W x - tau|| / ||tau|| on the training data
+    solver: str = "CLARABEL"  # which gave it, or "projection" (no solver succeeded)
+    fallback: int = 0  # 0 Clarabel to its tolerances, 1 SCS or Clarabel inaccurate, 2 projection (FALLBACKS)
+    attempts: tuple[str, ...] = ()  # every solver tried and how it ended, in order
 
 
 def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model: np.ndarray,
@@ -102,14 +116,48 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
     for k in range(n):  # armature, viscous, Coulomb non-negative; the offset is free
         constraints += [fr[4 * k] >= 0, fr[4 * k + 1] >= 0, fr[4 * k + 2] >= 0]
     problem = cp.Problem(cp.Minimize(objective), constraints)
-    # where the solver stops short of its tolerances, cvxpy warns; the status ("optimal_inaccurate")
-    # is returned instead, into results.json and the report. A model whose links sit on the margin
-    # (one exported by this fit, fitted again to the same log) can end there.
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
-        problem.solve(solver=cp.CLARABEL, **SOLVER_TOLERANCES)
-    if z.value is None:
-        raise RuntimeError(f"the consistent fit did not solve ({problem.status})")
-    xv = z.value / col
+    attempts: list[str] = []
+    found = None  # (z, status, solver, fallback)
+    for k, (solver, options) in enumerate(SOLVERS):
+        # where a solver stops short of its tolerances, cvxpy warns; the status ("optimal_inaccurate")
+        # is kept instead, into results.json and the report. A model whose links sit on the margin
+        # (one exported by this fit, fitted again to the same log) can end there.
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
+            try:
+                problem.solve(solver=solver, **options)
+            except (cp.SolverError, ArithmeticError, ValueError) as exc:
+                attempts.append(f"{solver}: failed ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})")
+                continue
+        attempts.append(f"{solver}: {problem.status}")
+        if z.value is None or not np.all(np.isfinite(z.value)) or problem.status not in cp.settings.SOLUTION_PRESENT:
+            continue
+        found = (np.array(z.value), str(problem.status), solver, 0 if problem.status == cp.OPTIMAL and k == 0 else 1)
+        break
+    if found is None:
+        xv = _projected(R, b, col, r0, x0, scale, eps, n)
+        status, solver, fallback = "projected", "projection", 2
+    else:
+        zv, status, solver, fallback = found
+        xv = zv / col
     residual = float(np.linalg.norm(W @ xv - tau) / norm_tau)
-    return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n:].reshape(n, 4), str(problem.status), residual)
+    return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n:].reshape(n, 4), status, residual, solver,
+                         fallback, tuple(attempts))
+
+
+def _projected(R: np.ndarray, b: np.ndarray, col: np.ndarray, r0: float, x0: np.ndarray, scale: np.ndarray,
+               eps: float, n: int) -> np.ndarray:
+    """The fit's objective minimised without its constraints (a linear system: the pull makes it
+    definite), then each link moved to the nearest physical one and the friction terms but the
+    offset clipped at zero."""
+    p = len(col)
+    d = np.sqrt(PULL / p) / (scale * col)  # the pull on each column-scaled unknown, as a row of its own
+    # least squares of the stacked rows rather than the normal equations, whose condition is the
+    # square of this one's (a noise-free log's r0 is round-off small)
+    z = np.linalg.lstsq(np.vstack([R / np.sqrt(r0), np.diag(d)]),
+                        np.concatenate([b / np.sqrt(r0), d * x0 * col]), rcond=None)[0]
+    x = z / col
+    theta = np.stack([nearest_physical(t, eps) for t in x[: 10 * n].reshape(n, 10)])
+    friction = x[10 * n:].reshape(n, 4).copy()
+    friction[:, :3] = np.maximum(friction[:, :3], 0.0)
+    return np.concatenate([theta.ravel(), friction.ravel()])

@@ -61,6 +61,24 @@ def pseudo_inertia(theta: np.ndarray) -> np.ndarray:
     return np.block([[sigma, h[:, None]], [h[None, :], np.array([[theta[0]]])]])
 
 
+def from_pseudo_inertia(J: np.ndarray) -> np.ndarray:
+    """(10,) the ten parameters of a pseudo-inertia J (the inverse of `pseudo_inertia`): m = J_44,
+    h = J_{1:3,4}, and I = tr(Sigma) 1 - Sigma, since tr(Sigma) = tr(I)/2."""
+    sigma = J[:3, :3]
+    inertia = np.trace(sigma) * np.eye(3) - sigma
+    return np.array([J[3, 3], *J[:3, 3], inertia[0, 0], inertia[0, 1], inertia[1, 1], inertia[0, 2],
+                     inertia[1, 2], inertia[2, 2]])
+
+
+def nearest_physical(theta: np.ndarray, margin: float) -> np.ndarray:
+    """(10,) the parameters whose pseudo-inertia is nearest to theta's (Frobenius norm) among those
+    with every eigenvalue at least `margin`: the eigenvalues below it raised to it."""
+    J = pseudo_inertia(theta)
+    J = (J + J.T) / 2
+    w, V = np.linalg.eigh(J)
+    return from_pseudo_inertia((V * np.maximum(w, margin)) @ V.T)
+
+
 def kind_scale(true: np.ndarray) -> np.ndarray:
     """(10,) the largest value of each parameter's kind in one body (m; m c, at least m r_g with
     r_g = sqrt(max I / m) the radius of gyration, since a centre of mass on the joint point has

@@ -215,11 +215,19 @@ def log_identification(r: dict, log) -> str:
         "log_identification", "Identification from the log",
         f"<p>{esc(li['method'])}. Friction: {esc(li['friction_law'])}. Relative error: "
         f"{esc(li['rel_error_definition'])}.</p>" + headline + fig + "<h3>Per joint</h3>" + per_joint
-        + f"<h3>Physically consistent parameters</h3><p>Solver: {esc(con['solver_status'])}; what consistency "
+        + f"<h3>Physically consistent parameters</h3><p>Solver: {_solver(con)}; what consistency "
         f"costs in relative torque error (consistent minus least squares): {esc(costs)}. Exported: "
         f"{esc(', '.join(li['export']))}.</p>" + links + fric
         + f"<h3>Least squares: {ls['base_parameters']} base parameters of {ls['parameters']}</h3>"
         + f"<p>Condition number of the scaled base regressor {num(ls['condition_number'])}.</p>" + base)
+
+
+def _solver(con: dict) -> str:
+    """The consistent fit's solver and status, marked where a fallback gave the fit."""
+    text = f"{con.get('solver', 'CLARABEL')} ({con['solver_status']})"
+    if con.get("fallback", 0) == 0:
+        return esc(text)
+    return mark(False, f"{text}, fallback {con['fallback']}: " + "; ".join(con.get("solver_attempts", [])))
 
 
 def estimator_comparison(r: dict) -> str:

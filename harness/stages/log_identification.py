@@ -76,7 +76,8 @@ class LogIdentification:
                         **{f"{key}": value for key, value in consistency(self.fit.theta[k]).items()}}
         return {
             "method": "least squares of the structural base parameters with friction and rotor inertia, then all "
-                      "parameters under the pseudo-inertia LMI (harness/identify/consistent.py, Clarabel)",
+                      "parameters under the pseudo-inertia LMI (harness/identify/consistent.py: Clarabel, else SCS, "
+                      "else the unconstrained fit moved to the nearest physical one; consistent.fallback says which)",
             "friction_law": ("I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o per joint (harness/model/friction.py), "
                              "v_c from the model"),
             "rel_error_definition": ("||tau_predicted - tau_measured||_F / ||tau_measured||_F over every sample and "
@@ -101,7 +102,11 @@ class LogIdentification:
                           "weakly_identifiable": bool(ls.weak[k])} for k in range(len(ls.beta))],
             },
             "consistent": {
+                "solver": self.fit.solver,
                 "solver_status": self.fit.status,
+                "fallback": self.fit.fallback,
+                "fallback_definition": "; ".join(f"{k} {text}" for k, text in enumerate(consistent.FALLBACKS)),
+                "solver_attempts": list(self.fit.attempts),
                 "training_rel_residual": self.fit.relative_residual,
                 "inconsistent_links": sum(not v["consistent"] for v in links.values()),
                 "links": links,
