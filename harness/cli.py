@@ -200,6 +200,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         if s.name in seen:
             raise InputError(s.source, "", f"scenario {s.name!r} is named twice")
         seen.add(s.name)
+        for note in s.robot.notes:  # what reading the model assumed: said before any work
+            print(f"harness: warning: {s.name}: {note}", file=sys.stderr)
     passed, verdicts = True, []
     for scenario in scenarios:
         if args.out is None:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from harness.cli import main
@@ -95,3 +97,20 @@ def copy_gate_sets(scenarios_folder: Path) -> None:
     import shutil
 
     shutil.copytree(SCENARIOS / "gates", scenarios_folder / "gates", dirs_exist_ok=True)
+
+
+def bench_log(scenario, folder, duration: float, steps: int) -> None:
+    """The scenario's bench recording, shortened, written as a log of t, q, q', tau."""
+    rec = record(dataclasses.replace(scenario, duration=duration, output_steps=steps))
+    cols = {"t": rec.t}
+    for k, j in enumerate(scenario.robot.joint_names):
+        c = rec.joint_index(j)
+        cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
+    pd.DataFrame(cols).to_csv(folder / "log.csv", index=False, float_format="%.17g")
+
+
+def log_scenario(folder, model, gates: str) -> None:
+    """folder/s.toml: a [data] scenario of folder/log.csv on `model`, validated on its last 30 %."""
+    (folder / "s.toml").write_text(
+        f'[scenario]\nmodel = "{model}"\n[data]\nfile = "log.csv"\n'
+        'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\nvalidation = { from = 0.7 }\n' + gates)

@@ -20,7 +20,7 @@ from harness.cli import main
 from harness.engines.pinocchio import build_model, rnea
 from harness.model.load import load_spec
 from harness.sources.bench import record
-from tests.conftest import BUILTIN, SCENARIOS
+from tests.conftest import BUILTIN, SCENARIOS, bench_log, log_scenario
 
 LOG = BUILTIN / "logs" / "panda_gaz2019" / "log.csv"
 PUBLISHED = 0.026  # Gaz et al.'s model on its own training data (harness/data/logs/panda_gaz2019/README.md)
@@ -101,7 +101,7 @@ def test_the_export_reloads_through_the_harness_to_round_off(panda):
 
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
-def test_the_log_pipeline_recovers_a_known_robot_from_its_bench_log(tmp_path):
+def test_the_log_pipeline_recovers_a_known_robot_from_itsbench_log(tmp_path):
     """ur5_friction's bench recording (2 ms steps) written as a log of t, q, q', tau and read back
     through [data] with no filter: accelerations only from differences of the velocities. The
     friction terms that are base parameters on their own come back within 1e-3 (measured 1e-6 to
@@ -239,22 +239,6 @@ def _numbers(tree) -> list[float]:
     return [float(tree)] if isinstance(tree, int | float) and not isinstance(tree, bool) else []
 
 
-def _bench_log(scenario, folder, duration: float, steps: int) -> None:
-    """The scenario's bench recording, shortened, written as a log of t, q, q', tau."""
-    rec = record(dataclasses.replace(scenario, duration=duration, output_steps=steps))
-    cols = {"t": rec.t}
-    for k, j in enumerate(scenario.robot.joint_names):
-        c = rec.joint_index(j)
-        cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
-    pd.DataFrame(cols).to_csv(folder / "log.csv", index=False, float_format="%.17g")
-
-
-def _log_scenario(folder, model, gates: str) -> None:
-    (folder / "s.toml").write_text(
-        f'[scenario]\nmodel = "{model}"\n[data]\nfile = "log.csv"\n'
-        'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\nvalidation = { from = 0.7 }\n' + gates)
-
-
 def test_a_consistent_fit_no_solver_can_do_is_projected_said_so_and_gateable(tmp_path, monkeypatch):
     """Every solver of the consistent fit failing is no internal error: the fit falls back to the
     projected unconstrained one, results.json says so (consistent.fallback = 2, and how each solver
@@ -263,17 +247,17 @@ def test_a_consistent_fit_no_solver_can_do_is_projected_said_so_and_gateable(tmp
     from harness.identify import consistent
 
     sc = load_scenario(SCENARIOS / "ur5_friction.toml")
-    _bench_log(sc, tmp_path, 2.0, 400)
+    bench_log(sc, tmp_path, 2.0, 400)
     model = SCENARIOS.parent / "models" / "ur5_friction.toml"
     error_gate = '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1e-2\n'
     monkeypatch.setattr(consistent, "SOLVERS", (("NOT_A_SOLVER", {}), ("NOR_THIS_ONE", {})))
-    _log_scenario(tmp_path, model, error_gate)
+    log_scenario(tmp_path, model, error_gate)
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "a"), "--quiet"]) == 0
     con = json.loads((tmp_path / "a" / "results.json").read_text())["log_identification"]["consistent"]
     assert (con["solver"], con["fallback"], con["inconsistent_links"]) == ("projection", 2, 0)
     assert [a.split(":")[0] for a in con["solver_attempts"]] == ["NOT_A_SOLVER", "NOR_THIS_ONE"]
     assert (tmp_path / "a" / "identified" / "robot.urdf").is_file()
-    _log_scenario(tmp_path, model, error_gate + '[[gates]]\nmetric = "log_identification.consistent.fallback"\n'
+    log_scenario(tmp_path, model, error_gate + '[[gates]]\nmetric = "log_identification.consistent.fallback"\n'
                                                 'limit = 0\n')
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "b"), "--quiet"]) == 1
 
@@ -318,14 +302,14 @@ def test_a_urdf_with_rotations_by_a_rounded_pi_identifies_as_well_as_one_written
             + '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
         return load_scenario(tmp_path / f"{name}.toml")
 
-    _bench_log(bench("bench", 20.0, 1), tmp_path, 20.0, 5000)
+    bench_log(bench("bench", 20.0, 1), tmp_path, 20.0, 5000)
     fresh_scenario = bench("fresh", 5.0, 2)
     fresh = record(fresh_scenario)
     c = [fresh.joint_index(j) for j in joints]
     load = joint_load_scale(fresh_scenario.robot, fresh)
     figures = {}
     for name in ("shipped", "exact"):
-        _log_scenario(tmp_path, f"{name}.toml",
+        log_scenario(tmp_path, f"{name}.toml",
                       '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1e-6\n')
         assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / name), "--quiet"]) == 0
         con = json.loads((tmp_path / name / "results.json").read_text())["log_identification"]["consistent"]

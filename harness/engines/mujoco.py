@@ -60,24 +60,11 @@ def _massive_parent(spec: RobotSpec, body: Body) -> tuple[str, list[Joint]]:
     return parent, chain
 
 
-def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
-               timestep: float = 5e-4) -> mujoco.MjSpec:
-    """The robot as MuJoCo's own model description (mujoco.MjSpec), which `build_model` compiles.
-    Every number is set as the double it is, never through text (MuJoCo's own XML writer,
-    `MjSpec.to_xml`, keeps six significant digits: a file for a reader, not one to reload)."""
-    ms = mujoco.MjSpec()
-    ms.modelname = spec.name
-    ms.compiler.degree = False
-    ms.compiler.autolimits = True
-    ms.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
-    ms.option.gravity = np.asarray(gravity_W, dtype=float)
-    ms.option.integrator = _MJ_INTEGRATOR[integrator]
-    ms.option.timestep = float(timestep)
-    ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+def _robot(ms: mujoco.MjSpec, spec: RobotSpec) -> dict[str, mujoco.MjsBody]:
+    """The robot's bodies, joints and inertials added to `ms`: its bodies by name."""
     elements = {WORLD: ms.worldbody}
     frames = {WORLD: (np.eye(3), np.zeros(3))}
     floor = MOMENT_FLOOR * max(float(np.max(b.principal_inertia)) for b in spec.massive_bodies)
-
     for body in spec.massive_bodies:
         parent, chain = _massive_parent(spec, body)
         R_WP, p_WP = frames[parent]
@@ -97,8 +84,34 @@ def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
             half = body.cylinder.length / 2
             el.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[body.cylinder.radius, 0, 0],
                         fromto=[-half, 0, 0, half, 0, 0], contype=0, conaffinity=0)
+    return elements
+
+
+def _new_spec(name: str, gravity_W: np.ndarray) -> mujoco.MjSpec:
+    ms = mujoco.MjSpec()
+    ms.modelname = name
+    ms.compiler.degree = False
+    ms.compiler.autolimits = True
+    ms.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    ms.option.gravity = np.asarray(gravity_W, dtype=float)
+    return ms
+
+
+def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
+               timestep: float = 5e-4) -> mujoco.MjSpec:
+    """The robot as MuJoCo's own model description (mujoco.MjSpec), which `build_model` compiles.
+    Every number is set as the double it is, never through text (MuJoCo's own XML writer,
+    `MjSpec.to_xml`, keeps six significant digits: see `mjcf` for a file that reloads)."""
+    ms = _new_spec(spec.name, gravity_W)
+    ms.option.integrator = _MJ_INTEGRATOR[integrator]
+    ms.option.timestep = float(timestep)
+    ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    elements = _robot(ms, spec)
+    for body in spec.massive_bodies:
+        el = elements[body.name]
         el.add_site(name=f"com_{body.name}", pos=np.zeros(3))
         # A carriage's joint shares its point with the child's joint (checked by the spec).
+        chain = _massive_parent(spec, body)[1]
         el.add_site(name=f"joint_{chain[-1].name}", pos=body.arm_B(chain[-1].p_W0))
 
     for joint in spec.joints:
@@ -314,3 +327,67 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
 def _site_body(spec: RobotSpec, joint: Joint) -> str:
     """Name of the massive body carrying the site that measures `joint`."""
     return _measured_at(spec, joint).child
+
+
+# --- the robot as an MJCF file for others to simulate ----------------------------------------------
+
+
+def mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "") -> str:
+    """The robot as an MJCF file: its bodies with their inertials, hinge and slide joints with their
+    ranges, `armature` (rotor inertia), `damping` (viscous friction) and `frictionloss` (Coulomb
+    friction, which MuJoCo applies as dry friction: the mapping of the smooth law is the caller's to
+    state), and a motor per joint (gear 1) with the joint's effort limit as its force range. Built
+    with MjSpec and written by MuJoCo's own writer, then every number it wrote rewritten from the
+    MjSpec's doubles at full precision (the writer keeps six digits), so the file reloads to the bit.
+    `comment` (plain text) heads the file."""
+    import xml.etree.ElementTree as ET
+
+    ms = _new_spec(spec.name, gravity_W)
+    _robot(ms, spec)
+    for joint in spec.joints:
+        j = ms.joint(joint.name)
+        j.frictionloss = joint.friction.coulomb
+        lo, hi = (spec.limits or {}).get(joint.name, (-np.inf, np.inf))
+        if np.isfinite(lo) and np.isfinite(hi):
+            j.range = [lo, hi]
+        effort = (spec.drive_limits or {}).get(joint.name, {}).get("effort")
+        motor = ms.add_actuator(name=joint.name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                                gear=[1.0, 0, 0, 0, 0, 0])
+        if effort is not None:
+            motor.forcerange = [-effort, effort]
+    ms.compile()  # what MuJoCo refuses is refused here, not by the reader of the file
+    root = ET.fromstring(ms.to_xml())
+    for el in root.iter():
+        _exact_numbers(el, ms, root)
+    ET.indent(root)
+    head = "".join(f"<!-- {line} -->\n" for line in comment.replace("--", "- -").splitlines())
+    return head + ET.tostring(root, encoding="unicode") + "\n"
+
+
+# what each MJCF attribute holds in the MjSpec element it belongs to
+_ATTRIBUTES = {"body": {"pos": "pos", "quat": "quat"},
+               "inertial": {"pos": "ipos", "quat": "iquat", "mass": "mass", "diaginertia": "inertia"},
+               "joint": {"pos": "pos", "axis": "axis", "range": "range", "armature": "armature",
+                         "damping": "damping", "frictionloss": "frictionloss"},
+               "general": {"gear": "gear", "forcerange": "forcerange"},
+               "option": {"gravity": "gravity"}}
+
+
+def _exact_numbers(el, ms: mujoco.MjSpec, root) -> None:
+    """Every number MuJoCo's writer put in `el` replaced by the double the MjSpec holds."""
+    names = _ATTRIBUTES.get(el.tag)
+    if names is None:
+        return
+    if el.tag == "inertial":
+        owner = next(b for b in root.iter("body") if el in list(b))
+        source = ms.body(owner.get("name"))
+    elif el.tag == "option":
+        source = ms.option
+    else:
+        source = {"body": ms.body, "joint": ms.joint, "general": ms.actuator}[el.tag](el.get("name"))
+    for attribute, field in names.items():
+        if el.get(attribute) is None:
+            continue
+        values = np.atleast_1d(np.asarray(getattr(source, field), dtype=float))
+        written = len(el.get(attribute).split())
+        el.set(attribute, " ".join(repr(float(v)) for v in values[:written]))

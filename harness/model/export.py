@@ -15,6 +15,7 @@ are in joints.toml and the model file.
 
 from __future__ import annotations
 
+import dataclasses
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -26,7 +27,8 @@ from harness.model.friction import FRICTION_KEYS, JointFriction
 from harness.model.inertia import about_centre_of_mass
 from harness.model.spec import RobotSpec
 
-URDF_FILE, JOINTS_FILE, MODEL_FILE = "robot.urdf", "joints.toml", "robot.toml"
+URDF_FILE, JOINTS_FILE, MODEL_FILE, MJCF_FILE, README_FILE = "robot.urdf", "joints.toml", "robot.toml", "robot.xml", \
+    "README.md"
 
 
 def link_inertial(theta: np.ndarray, R_WL: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -117,7 +119,8 @@ def model_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...], descriptio
 
 def export(spec: RobotSpec, theta: np.ndarray, friction_values: np.ndarray, description: str) -> dict[str, str]:
     """{relative path: text} of the exported model; friction_values (n, 4) armature, viscous,
-    coulomb, offset; the Coulomb smoothing velocity is the model's."""
+    coulomb, offset; the Coulomb smoothing velocity is the model's. The MJCF file and the README
+    are added by the caller (harness/engines/mujoco.py writes MJCF; `readme`)."""
     frictions = tuple(JointFriction(*(float(v) for v in row), coulomb_velocity=f.coulomb_velocity)
                       for row, f in zip(friction_values, spec.frictions, strict=True))
     files = {f"identified/{JOINTS_FILE}": joints_toml(spec, frictions)}
@@ -125,3 +128,67 @@ def export(spec: RobotSpec, theta: np.ndarray, friction_values: np.ndarray, desc
         files[f"identified/{URDF_FILE}"] = write_urdf(spec, theta, frictions)
         files[f"identified/{MODEL_FILE}"] = model_toml(spec, frictions, description)
     return files
+
+
+def identified_spec(spec: RobotSpec, theta: np.ndarray, friction_values: np.ndarray) -> RobotSpec:
+    """The robot with the identified parameters: each joint's child body from its ten parameters
+    theta[k] (in the joint frame: at the joint point, world axes at q = 0), centre of mass
+    p_J + h / m, principal moments and axes of the inertia about it; each joint's friction
+    (armature, viscous, coulomb, offset) from friction_values[k], its Coulomb smoothing velocity the
+    model's. The geometry of the joints is the model's."""
+    bodies = {b.name: b for b in spec.bodies}
+    for k, joint in enumerate(spec.joints):
+        m, c_J, I_c = about_centre_of_mass(theta[k])
+        moments, axes = np.linalg.eigh((I_c + I_c.T) / 2)
+        if np.linalg.det(axes) < 0:
+            axes[:, 2] *= -1
+        bodies[joint.child] = dataclasses.replace(bodies[joint.child], mass=m, I_B=np.diag(moments), R_WB0=axes,
+                                                  p_W_com0=joint.p_W0 + c_J, cylinder=None)
+    joints = tuple(dataclasses.replace(j, friction=JointFriction(*(float(v) for v in row),
+                                                                  coulomb_velocity=j.friction.coulomb_velocity))
+                   for j, row in zip(spec.joints, friction_values, strict=True))
+    return dataclasses.replace(spec, name=f"{spec.name}_identified", bodies=tuple(bodies[b.name] for b in spec.bodies),
+                               joints=joints)
+
+
+def coulomb_mapping(spec: RobotSpec, qd: np.ndarray, tau: np.ndarray) -> dict[str, dict[str, float]]:
+    """Per joint, what MuJoCo's dry friction (`frictionloss` = f_c, a sharp sign) and the missing
+    offset change of the identified law f_c tanh(q'/v_c) + f_o, at the velocities qd (N, n) of
+    torques tau (N, n): the gap |f_c (sign(q') - tanh(q'/v_c)) - f_o|, its largest value over the
+    largest |tau| (at a velocity reversal) and its RMS over the RMS torque."""
+    out = {}
+    for k, j in enumerate(spec.joints):
+        f = j.friction
+        smooth = np.tanh(qd[:, k] / f.coulomb_velocity) if f.coulomb_velocity > 0 else np.sign(qd[:, k])
+        gap = np.abs(f.coulomb * (np.sign(qd[:, k]) - smooth) - f.offset)
+        largest, rms = float(np.max(np.abs(tau[:, k]))), float(np.sqrt(np.mean(tau[:, k] ** 2)))
+        out[j.name] = {"largest": float(np.max(gap)) / largest if largest > 0 else float("nan"),
+                       "rms": float(np.sqrt(np.mean(gap**2))) / rms if rms > 0 else float("nan")}
+    return out
+
+
+def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float]] | None, description: str) -> str:
+    """identified/README.md: what each exported file holds and what a consumer of one alone loses."""
+    lines = [f"# {spec.name}: the identified model", "", description, "",
+             "Parameters in SI units (kg, m, kg m^2, N m s/rad, N m). Files:", ""]
+    if URDF_FILE in files:
+        lines += [f"- `{URDF_FILE}`: the model's URDF with each moving link's identified `<inertial>` (in its link "
+                  "frame) and each joint's `<dynamics damping friction>` (viscous, Coulomb). **Read alone it loses** "
+                  "the rotor inertia (armature), the Coulomb smoothing velocity (URDF's friction is a sharp sign) "
+                  "and the torque offset, which URDF has no tag for: a consumer of this file alone predicts other "
+                  "torques than the identified model."]
+    lines += [f"- `{JOINTS_FILE}`: per joint `armature`, `viscous`, `coulomb`, `offset`, `coulomb_velocity`, the "
+              "friction law I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o (harness/model/friction.py)."]
+    if MODEL_FILE in files:
+        lines += [f"- `{MODEL_FILE}`: a model file that `harness run` loads as any other: `{URDF_FILE}` with "
+                  f"`{JOINTS_FILE}`'s values; together they are the whole identified model."]
+    if MJCF_FILE in files:
+        lines += [f"- `{MJCF_FILE}`: MJCF for MuJoCo, every number at full precision: bodies with the identified "
+                  "inertials, `armature`, `damping` (viscous), `frictionloss` (Coulomb), joint ranges, a motor per "
+                  "joint with the effort limit as its force range. MuJoCo applies Coulomb friction as dry friction "
+                  "(a sharp sign, solved as a constraint), not the smooth tanh law, and has no torque offset. "
+                  "What this changes at the training span's velocities, per joint: the RMS change over the RMS "
+                  "torque, and the largest change (at a velocity reversal) over the largest torque:"]
+        lines += [f"  - `{j}`: RMS {v['rms']:.3g}, largest {v['largest']:.3g}" for j, v in (mapping or {}).items()]
+        lines += ["  The inertial parameters, armature and viscous friction are the identified model's exactly."]
+    return "\n".join(lines) + "\n"

@@ -37,14 +37,16 @@ def load_spec(path: Path | str) -> RobotSpec:
     """Load and validate models/*.toml; raises `InputError` naming the file and key."""
     path = Path(path)
     root = Table(read_toml(path), path)
-    # [model] may be left out of a URDF model file: the robot's name, or the file's, names it
-    default_name = (root.data.get("urdf") or {}).get("robot", path.stem) if root.has("urdf") else None
+    # [model] may be left out of a URDF or MJCF model file: the robot's name, or the file's, names it
+    default_name = ((root.data.get("urdf") or {}).get("robot", path.stem) if root.has("urdf")
+                    else path.stem if root.has("mjcf") else None)
     model = root.table("model", default={}) if default_name else root.table("model")
     name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
     model.finish()
-    dh = limits = urdf_path = drive_limits = None
+    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = None
     fixed: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
     if root.has("dh"):
         bodies, joints, body_tables, joint_tables, dh = _read_dh(root.table("dh"))
     elif root.has("urdf"):
@@ -69,19 +71,21 @@ def load_spec(path: Path | str) -> RobotSpec:
         fixed = ut.strings("fixed", choices=None) if ut.has("fixed") else ()
         ut.finish()
         bodies, joints, limits, drive_limits = read_urdf(urdf_path, ut, fixed)
-        if root.has("joints"):  # [joints.<name>]: friction and rotor inertia beyond the URDF's <dynamics>
-            jt = root.table("joints")
-            by_name = {j.name: j for j in joints}
-            for jname in list(jt.data):
-                if jname not in by_name:
-                    raise jt.error(jname, f"no joint {jname!r} in the URDF (joints: {', '.join(by_name)})")
-                t = jt.table(jname)
-                by_name[jname] = dataclasses.replace(by_name[jname], friction=read_friction(t, by_name[jname].friction))
-                t.finish()
-            jt.finish()
-            joints = [by_name[j.name] for j in joints]
+        joints = _joint_friction(root, joints, "the URDF")
         body_tables = [Table({"name": b.name}, path, f"urdf.{b.name}") for b in bodies]
         joint_tables = [Table({"name": j.name}, path, f"urdf.{j.name}") for j in joints]
+    elif root.has("mjcf"):
+        from harness.model.mjcf import read_mjcf  # loads MuJoCo: only for an MJCF model
+
+        mt = root.table("mjcf")
+        mjcf_path = path.parent / mt.string("file")
+        if not mjcf_path.is_file():
+            raise mt.error("file", f"MJCF file {mjcf_path} not found")
+        mt.finish()
+        bodies, joints, limits, drive_limits, gravity, notes = read_mjcf(mjcf_path, mt)
+        joints = _joint_friction(root, joints, "the MJCF file")
+        body_tables = [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies]
+        joint_tables = [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints]
     else:
         body_tables, joint_tables = root.tables("bodies"), root.tables("joints")
         bodies = [_read_body(t) for t in body_tables]
@@ -98,9 +102,25 @@ def load_spec(path: Path | str) -> RobotSpec:
     ordered_bodies = tuple(bodies_by_name[n] for n in order)
     ordered_joints = tuple(sorted(joints, key=lambda j: order.index(j.child)))
     spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh, limits, urdf_path, fixed,
-                     drive_limits)
+                     drive_limits, gravity, mjcf_path, notes)
     _check_massless(spec, {t.data.get("name"): t for t in body_tables})
     return spec
+
+
+def _joint_friction(root: Table, joints: list[Joint], source: str) -> list[Joint]:
+    """`[joints.<name>]`: friction and rotor inertia beyond what the description file states."""
+    if not root.has("joints"):
+        return joints
+    jt = root.table("joints")
+    by_name = {j.name: j for j in joints}
+    for jname in list(jt.data):
+        if jname not in by_name:
+            raise jt.error(jname, f"no joint {jname!r} in {source} (joints: {', '.join(by_name)})")
+        t = jt.table(jname)
+        by_name[jname] = dataclasses.replace(by_name[jname], friction=read_friction(t, by_name[jname].friction))
+        t.finish()
+    jt.finish()
+    return [by_name[j.name] for j in joints]
 
 
 def _with_payload(bodies: list[Body], t: Table) -> list[Body]:

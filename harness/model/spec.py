@@ -94,6 +94,9 @@ class RobotSpec:
     urdf: Path | None = None  # the URDF it was read from, if any
     urdf_fixed: tuple[str, ...] = ()  # joints of that URDF taken as fixed
     drive_limits: dict[str, dict[str, float]] | None = None  # per joint "velocity" and "effort", when given
+    gravity_W: np.ndarray | None = None  # (3,) m/s^2 where the description states it (an MJCF's <option>)
+    mjcf: Path | None = None  # the MJCF it was read from, if any
+    notes: tuple[str, ...] = ()  # what reading it assumed, one line each (a floating base fixed to the world)
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)

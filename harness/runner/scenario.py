@@ -217,11 +217,12 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     s = root.table("scenario")
     description = s.string("description", default="")
     model_rel = s.string("model")
-    gravity = s.vector("gravity", default=[0.0, 0.0, -9.80665])
+    gravity = s.vector("gravity") if s.has("gravity") else None  # default: the model's, else standard gravity
     gate_files = [_relative_file(s, "gate_sets", rel, path)
                   for rel in (s.strings("gate_sets", choices=None) if s.has("gate_sets") else ())]
     s.finish()
     robot = load_spec(_relative_file(s, "model", model_rel, path))
+    gravity = _gravity(gravity, robot)
     dt = root.table("data")
     source = read_source(dt, path)
     check_columns(source, robot, dt)
@@ -245,7 +246,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     if s.has("model_under_test"):
         raise s.error("model_under_test", "a model under test is a table of its own: [model_under_test] with "
                                           "name, python (or plugin) and model (see README, 'Plugging in')")
-    gravity = s.vector("gravity", default=[0.0, 0.0, -9.80665])
+    gravity = s.vector("gravity") if s.has("gravity") else None  # default: the model's, else standard gravity
     duration = s.number("duration", positive=True)
     output_steps = s.integer("output_steps", minimum=1)
     if output_steps > MAX_OUTPUT_STEPS:
@@ -262,6 +263,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     s.finish()
 
     robot = load_spec(_relative_file(s, "model", model_rel, path))
+    gravity = _gravity(gravity, robot)
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))
     gates = _read_all_gates(root, gate_files)
@@ -406,6 +408,17 @@ def _read_all_gates(root: Table, gate_files: list[Path]) -> tuple[Gate, ...]:
         raise root.error("gates", "the scenario declares no gates: add [[gates]] or [scenario] gate_sets "
                                   "(a run with nothing to check cannot pass)")
     return gates
+
+
+STANDARD_GRAVITY_W = (0.0, 0.0, -9.80665)
+
+
+def _gravity(given: list | None, robot: RobotSpec) -> np.ndarray:
+    """The scenario's `gravity`, else the model's (an MJCF file's <option gravity>), else standard
+    gravity along -z (m/s^2, world components)."""
+    if given is not None:
+        return np.asarray(given, dtype=float)
+    return np.asarray(robot.gravity_W if robot.gravity_W is not None else STANDARD_GRAVITY_W, dtype=float)
 
 
 def _read_plugin(t: Table, path: Path, scenario: Scenario, group: str, protocol: type) -> PluginEntry:

@@ -14,11 +14,13 @@ on data whose truth nobody knows, judged on a part of the log the fit never saw.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from harness.base.numerics import parameter_scale, relative_error
 from harness.base.plugins import Stage
+from harness.engines.mujoco import mjcf
 from harness.engines.pinocchio import build_model
 from harness.identify import consistent
 from harness.identify.torque_id import (
@@ -31,7 +33,7 @@ from harness.identify.torque_id import (
     structural_base,
     true_parameters,
 )
-from harness.model.export import export
+from harness.model.export import MJCF_FILE, README_FILE, coulomb_mapping, export, identified_spec, readme
 from harness.model.friction import IDENTIFIED_KEYS
 from harness.model.friction import values as friction_values
 from harness.model.inertia import PARAMETER_NAMES, kind_scale
@@ -54,6 +56,7 @@ class LogIdentification:
     measured: dict[str, np.ndarray]  # span -> (N, n) torques
     t: dict[str, np.ndarray]  # span -> times
     files: dict[str, str]  # the export
+    mjcf_friction: dict[str, dict[str, float]]  # per joint, what MuJoCo's dry friction changes (export.coulomb_mapping)
 
     def serialise(self, ctx, config) -> dict:
         """results.json's `log_identification`: the fits, their errors per span, the consistent model and the export."""
@@ -115,6 +118,11 @@ class LogIdentification:
                              for k, j in enumerate(self.joints)},
             },
             "export": sorted(self.files),
+            "export_mjcf_friction": {
+                "definition": "what robot.xml's frictionloss (MuJoCo's dry friction, a sharp sign) and its missing "
+                              "offset change of the identified friction law at the training span's velocities: the "
+                              "RMS change over the RMS torque, the largest over the largest torque, per joint",
+                **self.mjcf_friction},
             "joints": n,
             "series": _series(self),
         }
@@ -160,11 +168,22 @@ def run(ctx, config) -> LogIdentification | None:
             "model as given": (Ws @ x_model).reshape(taus.shape),
         }
         measured[span], times[span] = taus, ts
-    files = export(robot, fit.theta, fit.friction,
-                   f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
+    description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
+    files = export(robot, fit.theta, fit.friction, description)
+    identified = identified_spec(robot, fit.theta, fit.friction)
+    mapping = coulomb_mapping(identified, qd, tau)
+    worst = max(mapping, key=lambda j: mapping[j]["rms"])
+    files[f"identified/{MJCF_FILE}"] = mjcf(
+        identified, sc.gravity_W,
+        f"{description}.\nCoulomb friction as MuJoCo's frictionloss (dry friction, a sharp sign) instead of "
+        f"f_c tanh(q'/v_c), and no torque offset: at the training span's velocities, up to {mapping[worst]['rms']:.3g} "
+        f"of the RMS torque (joint {worst}; per joint in README.md). Rotor inertia, viscous friction and "
+        "inertials are the identified model's.")
+    files[f"identified/{README_FILE}"] = readme(identified, [Path(f).name for f in files] + [README_FILE], mapping,
+                                                description)
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
-                             friction_model, predictions, measured, times, files)
+                             friction_model, predictions, measured, times, files, mapping)
 
 
 def _span_errors(li: LogIdentification, span: str) -> dict:

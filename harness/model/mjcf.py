@@ -1,0 +1,148 @@
+"""Robots from MJCF files into a RobotSpec, through MuJoCo's own compiler (mujoco.MjSpec), so that
+defaults, classes, includes, `inertiafromgeom` and every other MJCF rule mean what MuJoCo makes of
+them.
+
+Hinge (revolute) and slide (prismatic) joints, one per body; a body without a joint is welded to its
+parent and merged into it (masses add, centres of mass combine, inertias by the parallel-axis
+theorem), as a URDF's fixed joint is. The geometry is taken at q = 0 (every hinge and slide
+coordinate zero, which is MuJoCo's qpos, not `ref`), in the world frame. Per joint: its range as
+the position limits, `armature` as the rotor inertia, `damping` as viscous friction and
+`frictionloss` as Coulomb friction (MuJoCo's dry friction: a sharp sign, coulomb_velocity 0); an
+actuator that drives one joint alone gives its force range, times its gear, as the joint's effort
+limit. Gravity is the file's (`<option gravity>`, MuJoCo's default 0 0 -9.81 when it states none).
+
+A free joint on a body of the world (a floating base) is fixed to the world at the file's pose, as
+a URDF's root link is, and said so (RobotSpec.notes, printed as a warning and kept in results.json).
+Refused, with a line naming the element: ball joints, free joints below the root, a body with more
+than one joint, tendons, equality constraints (coupled joints, loops), joint stiffness (springs)
+and gravity compensation, which the harness's models do not carry.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from harness.base.tomlio import MAX_XML_BYTES, Table, read_bounded
+from harness.model.friction import JointFriction
+from harness.model.inertia import union
+from harness.model.spec import Body, Joint
+
+
+def read_mjcf(path: Path, table: Table, key: str = "file"
+              ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...]]:
+    """Bodies and joints (world frame at q = 0) of an MJCF file, joint position limits by name,
+    effort limits by name ({"effort": ..}), the file's gravity (3,) and what was assumed (a
+    floating base fixed), one line each. Errors name the file and the element, under `key` of `table`."""
+    import mujoco
+
+    read_bounded(path, MAX_XML_BYTES)  # too large or unreadable: refused before MuJoCo parses it
+    try:
+        ms = mujoco.MjSpec.from_file(str(path))
+        model = ms.compile()
+    except (ValueError, mujoco.FatalError) as exc:
+        said = "; ".join(line.strip() for line in str(exc).strip().splitlines() if line.strip())
+        raise table.error(key, f"{path}: MuJoCo cannot compile it ({said or type(exc).__name__})") from None
+    try:
+        return _read(model, mujoco, path)
+    except _Refused as exc:
+        raise table.error(key, f"{path}: {exc}") from None
+
+
+class _Refused(ValueError):
+    pass
+
+
+def _name(model, kind, i: int) -> str:
+    import mujoco
+
+    return mujoco.mj_id2name(model, kind, i) or f"#{i}"
+
+
+def _read(model, mujoco, path: Path) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...]]:
+    obj, jt = mujoco.mjtObj, mujoco.mjtJoint
+    if model.ntendon:
+        raise _Refused(f"tendon {_name(model, obj.mjOBJ_TENDON, 0)!r}: tendons are not supported")
+    if model.neq:
+        raise _Refused(f"equality constraint {_name(model, obj.mjOBJ_EQUALITY, 0)!r}: equality constraints "
+                       "(coupled joints, loops) are not supported")
+    if np.any(model.body_gravcomp):
+        b = int(np.flatnonzero(model.body_gravcomp)[0])
+        raise _Refused(f"body {_name(model, obj.mjOBJ_BODY, b)!r}: gravcomp is not supported")
+    free_root = None
+    for j in range(model.njnt):
+        name, body = _name(model, obj.mjOBJ_JOINT, j), int(model.jnt_bodyid[j])
+        kind = model.jnt_type[j]
+        if kind == jt.mjJNT_BALL:
+            raise _Refused(f"joint {name!r} is a ball joint (hinge and slide joints are supported)")
+        if kind == jt.mjJNT_FREE:
+            if model.body_parentid[body] != 0:
+                raise _Refused(f"joint {name!r}: a free joint below the root is not supported")
+            if free_root is not None:
+                raise _Refused(f"joint {name!r}: a second floating body (one robot per file)")
+            free_root = j
+            continue
+        if model.body_jntnum[body] > 1:
+            raise _Refused(f"body {_name(model, obj.mjOBJ_BODY, body)!r} has {model.body_jntnum[body]} joints "
+                           "(one hinge or slide joint per body is supported)")
+        if model.jnt_stiffness[j] != 0:
+            raise _Refused(f"joint {name!r}: stiffness {model.jnt_stiffness[j]:g} (a spring) is not supported")
+    data = mujoco.MjData(model)
+    data.qpos[:] = 0.0
+    notes: tuple[str, ...] = ()
+    if free_root is not None:  # fixed at the file's pose
+        adr = model.jnt_qposadr[free_root]
+        data.qpos[adr:adr + 7] = model.qpos0[adr:adr + 7]
+        notes = (f"{path.name}: free joint {_name(model, obj.mjOBJ_JOINT, free_root)!r} of body "
+                 f"{_name(model, obj.mjOBJ_BODY, int(model.jnt_bodyid[free_root]))!r}: the floating base is taken as "
+                 "fixed to the world at the file's pose",)
+    mujoco.mj_kinematics(model, data)
+
+    # every body belongs to the nearest body at or above it with a hinge or slide joint, or to the world
+    moving = {int(model.jnt_bodyid[j]) for j in range(model.njnt) if j != free_root}
+    owner = {0: 0}
+    for b in range(1, model.nbody):  # MuJoCo numbers bodies from the root outwards
+        owner[b] = b if b in moving else owner[int(model.body_parentid[b])]
+    groups: dict[int, list[int]] = {}
+    for b in range(1, model.nbody):
+        if owner[b]:
+            groups.setdefault(owner[b], []).append(b)
+    bodies = []
+    for b, members in groups.items():
+        parts = []
+        for k in members:
+            R = data.ximat[k].reshape(3, 3)
+            parts.append((float(model.body_mass[k]), data.xipos[k].copy(), R @ np.diag(model.body_inertia[k]) @ R.T))
+        mass = sum(p[0] for p in parts)
+        name = _name(model, obj.mjOBJ_BODY, b)
+        if mass <= 0:
+            raise _Refused(f"body {name!r} moves without mass")
+        _, com, moments, axes = union(parts)
+        bodies.append(Body(name, mass, np.diag(moments), axes, com))
+
+    joints, limits, efforts = [], {}, {}
+    for j in range(model.njnt):
+        if j == free_root:
+            continue
+        name, b = _name(model, obj.mjOBJ_JOINT, j), int(model.jnt_bodyid[j])
+        dof = model.jnt_dofadr[j]
+        friction = JointFriction(armature=float(model.dof_armature[dof]), viscous=float(model.dof_damping[dof]),
+                                 coulomb=float(model.dof_frictionloss[dof]))
+        parent = owner[int(model.body_parentid[b])]
+        joints.append(Joint(name, "revolute" if model.jnt_type[j] == jt.mjJNT_HINGE else "prismatic",
+                            _name(model, obj.mjOBJ_BODY, parent) if parent else "world",
+                            _name(model, obj.mjOBJ_BODY, b), data.xanchor[j].copy(), data.xaxis[j].copy(), friction))
+        if model.jnt_limited[j]:
+            limits[name] = (float(model.jnt_range[j, 0]), float(model.jnt_range[j, 1]))
+    for a in range(model.nu):
+        if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT or not model.actuator_forcelimited[a]:
+            continue
+        j = int(model.actuator_trnid[a, 0])
+        if j == free_root or j < 0:
+            continue
+        effort = float(np.max(np.abs(model.actuator_forcerange[a])) * abs(model.actuator_gear[a, 0]))
+        name = _name(model, obj.mjOBJ_JOINT, j)
+        efforts[name] = {"effort": effort + efforts.get(name, {}).get("effort", 0.0)}  # actuators on one joint add
+    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes
+
