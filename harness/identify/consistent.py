@@ -27,8 +27,10 @@ and needs no starting point, and cvxpy with the interior-point solver Clarabel s
 Panda's 98 unknowns in well under a second. The torque residual is first reduced to the
 triangular factor of W's QR decomposition (p rows instead of N n).
 
-Where Clarabel fails, SCS (a first-order conic solver) tries the same problem; a solution short of
-the solver's tolerances ("optimal_inaccurate") is kept, and said so. Where both fail, the
+Where Clarabel fails (an error, or a panic of its own), SCS (a first-order conic solver) tries the
+same problem; a solution short of the solver's tolerances ("optimal_inaccurate"), or SCS's, is kept,
+said so, and moved onto the constraints it may miss by the solver's tolerance (each link to the
+nearest physical one, as below). Where both fail, the
 unconstrained minimum of the same objective is taken and each link's pseudo-inertia moved to the
 nearest one with every eigenvalue at least the margin (harness/model/inertia.py, nearest_physical),
 the friction terms clipped at zero. Which of the three gave the fit is `fallback` (0, 1, 2), a
@@ -54,6 +56,7 @@ SOLVER_TOLERANCES = {"tol_gap_abs": 1e-7, "tol_gap_rel": 1e-7, "tol_feas": 1e-7}
 SOLVERS = ((cp.CLARABEL, SOLVER_TOLERANCES), (cp.SCS, {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 200_000}))
 FALLBACKS = ("solved by Clarabel to its tolerances", "solved by SCS, or short of the solver's tolerances",
              "no solver succeeded: the unconstrained minimum, each link moved to the nearest physical one")
+RESIDUAL_FLOOR = 1e-6  # of ||tau||: the least-squares residual taken as at least this (see `fit`)
 MARGIN = 1e-6  # J_i >= MARGIN * (model's largest pseudo-inertia eigenvalue) 1: strictly physical
 
 
@@ -103,9 +106,11 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
     x = cp.multiply(z, 1.0 / col)
     pull = cp.sum_squares(cp.multiply(x - x0, 1.0 / scale)) / p
     # the fit term relative to the least-squares optimum (1 at best), so that the pull, PULL of it,
-    # stays well above the solver's tolerances
+    # stays well above the solver's tolerances; on data a model fits exactly (a noise-free bench
+    # log) the optimum is taken as RESIDUAL_FLOOR of the torques, or the objective's scale (1/r0)
+    # grows past what an interior-point solver can take (Clarabel then fails on its PSD cones)
     r0 = max(float(np.linalg.norm(R @ np.linalg.lstsq(R, b, rcond=None)[0] - b) ** 2
-                   + norm_tau**2 - float(b @ b)), 1e-300)
+                   + norm_tau**2 - float(b @ b)), (RESIDUAL_FLOOR * norm_tau) ** 2, 1e-300)
     objective = cp.sum_squares(R @ z - b) / r0 + PULL * pull
     eps = MARGIN * max(float(np.max(np.linalg.eigvalsh(pseudo_inertia(t)))) for t in theta_model)
     constraints = []
@@ -126,7 +131,9 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
             warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
             try:
                 problem.solve(solver=solver, **options)
-            except (cp.SolverError, ArithmeticError, ValueError) as exc:
+            except (KeyboardInterrupt, SystemExit):
+                raise
+            except BaseException as exc:  # a solver's own failure, a Rust panic of Clarabel's included
                 attempts.append(f"{solver}: failed ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})")
                 continue
         attempts.append(f"{solver}: {problem.status}")
@@ -140,6 +147,8 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
     else:
         zv, status, solver, fallback = found
         xv = zv / col
+        if fallback:  # a looser solution may sit just outside the constraints: moved onto them
+            xv = _physical(xv, eps, n)
     residual = float(np.linalg.norm(W @ xv - tau) / norm_tau)
     return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n:].reshape(n, 4), status, residual, solver,
                          fallback, tuple(attempts))
@@ -156,7 +165,12 @@ def _projected(R: np.ndarray, b: np.ndarray, col: np.ndarray, r0: float, x0: np.
     # square of this one's (a noise-free log's r0 is round-off small)
     z = np.linalg.lstsq(np.vstack([R / np.sqrt(r0), np.diag(d)]),
                         np.concatenate([b / np.sqrt(r0), d * x0 * col]), rcond=None)[0]
-    x = z / col
+    return _physical(z / col, eps, n)
+
+
+def _physical(x: np.ndarray, eps: float, n: int) -> np.ndarray:
+    """Each link's parameters moved to the nearest with every pseudo-inertia eigenvalue at least eps,
+    and the friction terms but the offset clipped at zero: the constraints of the fit, made to hold."""
     theta = np.stack([nearest_physical(t, eps) for t in x[: 10 * n].reshape(n, 10)])
     friction = x[10 * n:].reshape(n, 4).copy()
     friction[:, :3] = np.maximum(friction[:, :3], 0.0)

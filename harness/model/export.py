@@ -167,8 +167,10 @@ def coulomb_mapping(spec: RobotSpec, qd: np.ndarray, tau: np.ndarray) -> dict[st
     return out
 
 
-def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float]] | None, description: str) -> str:
-    """identified/README.md: what each exported file holds and what a consumer of one alone loses."""
+def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float]] | None, description: str,
+           mjcf_refused: str | None = None) -> str:
+    """identified/README.md: what each exported file holds and what a consumer of one alone loses;
+    `mjcf_refused`, why there is no MJCF file."""
     lines = [f"# {spec.name}: the identified model", "", description, "",
              "Parameters in SI units (kg, m, kg m^2, N m s/rad, N m). Files:", ""]
     if URDF_FILE in files:
@@ -191,4 +193,6 @@ def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float
                   "torque, and the largest change (at a velocity reversal) over the largest torque:"]
         lines += [f"  - `{j}`: RMS {v['rms']:.3g}, largest {v['largest']:.3g}" for j, v in (mapping or {}).items()]
         lines += ["  The inertial parameters, armature and viscous friction are the identified model's exactly."]
+    elif mjcf_refused:
+        lines += [f"- `{MJCF_FILE}` is not written: {mjcf_refused}."]
     return "\n".join(lines) + "\n"

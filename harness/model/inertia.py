@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from harness.base.numerics import PARAMETER_FLOOR
+
 PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 KINDS = ((0,), (1, 2, 3), (4, 5, 6, 7, 8, 9))  # m; m c; the inertia about O
 
@@ -88,3 +90,12 @@ def kind_scale(true: np.ndarray) -> np.ndarray:
         out[list(g)] = np.max(np.abs(true[list(g)]))
     out[1:4] = max(out[1], np.sqrt(true[0] * out[4]))
     return out
+
+
+def model_kind_scales(thetas: np.ndarray) -> np.ndarray:
+    """(n, 10) `kind_scale` of every body of a model, each kind at least PARAMETER_FLOOR of the model's
+    largest of that kind: a point mass on its joint (the iCub's hips) has no inertia and no m c of its
+    own, and a scale of zero would divide by zero where its parameters are weighed."""
+    scales = np.array([kind_scale(t) for t in thetas]).reshape(-1, 10)
+    floor = PARAMETER_FLOOR * scales.max(axis=0, initial=0.0)
+    return np.maximum(scales, floor)

@@ -36,7 +36,13 @@ _ORTHO_TOL = 1e-9
 def load_spec(path: Path | str) -> RobotSpec:
     """Load and validate models/*.toml; raises `InputError` naming the file and key."""
     path = Path(path)
-    root = Table(read_toml(path), path)
+    return spec_from_data(read_toml(path), path)
+
+
+def spec_from_data(data: dict, path: Path) -> RobotSpec:
+    """A model file's content, validated as `load_spec` does; files it names are relative to
+    `path`, and errors name `path` (which need not exist: `{"urdf": {"file": ...}}` reads a URDF)."""
+    root = Table(data, path)
     # [model] may be left out of a URDF or MJCF model file: the robot's name, or the file's, names it
     default_name = ((root.data.get("urdf") or {}).get("robot", path.stem) if root.has("urdf")
                     else path.stem if root.has("mjcf") else None)
@@ -95,16 +101,35 @@ def load_spec(path: Path | str) -> RobotSpec:
         bodies = _with_payload(bodies, payload)
     root.finish()
 
+    return _assemble(RobotSpec(name, description, path, tuple(bodies), tuple(joints), dh, limits, urdf_path, fixed,
+                               drive_limits, gravity, mjcf_path, notes), body_tables, joint_tables)
+
+
+def _assemble(spec: RobotSpec, body_tables: list[Table], joint_tables: list[Table]) -> RobotSpec:
+    """The spec checked (unique names, a tree, massless bodies that only carry a joint) and ordered
+    from the root outwards; errors name the tables the bodies and joints came from."""
+    bodies, joints = list(spec.bodies), list(spec.joints)
     _check_unique([b.name for b in bodies], body_tables, "body")
     _check_unique([j.name for j in joints], joint_tables, "joint")
     order = _check_tree(bodies, joints, body_tables, joint_tables)
     bodies_by_name = {b.name: b for b in bodies}
-    ordered_bodies = tuple(bodies_by_name[n] for n in order)
-    ordered_joints = tuple(sorted(joints, key=lambda j: order.index(j.child)))
-    spec = RobotSpec(name, description, path, ordered_bodies, ordered_joints, dh, limits, urdf_path, fixed,
-                     drive_limits, gravity, mjcf_path, notes)
+    spec = dataclasses.replace(spec, bodies=tuple(bodies_by_name[n] for n in order),
+                               joints=tuple(sorted(joints, key=lambda j: order.index(j.child))))
     _check_massless(spec, {t.data.get("name"): t for t in body_tables})
     return spec
+
+
+def spec_from_mjmodel(model, path: Path, name: str) -> RobotSpec:
+    """A compiled MuJoCo model (MuJoCo's own conversion of a URDF, say) as a RobotSpec, read as an
+    `[mjcf]` file is (harness/model/mjcf.py); errors name `path`."""
+    from harness.model.mjcf import read_model
+
+    table = Table({}, path)
+    bodies, joints, limits, drive_limits, gravity, notes = read_model(model, path, table)
+    return _assemble(RobotSpec(name, "", path, tuple(bodies), tuple(joints), None, limits, None, (), drive_limits,
+                               gravity, path, notes),
+                     [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies],
+                     [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints])
 
 
 def _joint_friction(root: Table, joints: list[Joint], source: str) -> list[Joint]:

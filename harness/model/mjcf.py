@@ -44,6 +44,14 @@ def read_mjcf(path: Path, table: Table, key: str = "file"
     except (ValueError, mujoco.FatalError) as exc:
         said = "; ".join(line.strip() for line in str(exc).strip().splitlines() if line.strip())
         raise table.error(key, f"{path}: MuJoCo cannot compile it ({said or type(exc).__name__})") from None
+    return read_model(model, path, table, key)
+
+
+def read_model(model, path: Path, table: Table, key: str = "file"
+               ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...]]:
+    """`read_mjcf`'s reading of a compiled MuJoCo model (mujoco.MjModel) that came from `path`."""
+    import mujoco
+
     try:
         return _read(model, mujoco, path)
     except _Refused as exc:

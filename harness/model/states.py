@@ -14,11 +14,11 @@ DEFAULT_RANGE = {True: (-np.pi, np.pi), False: (-1.0, 1.0)}  # revolute (rad), p
 def position_bounds(names: Sequence[str], revolute: Sequence[bool],
                     limits: dict[str, tuple[float, float]] | None) -> tuple[np.ndarray, np.ndarray]:
     """(lo, hi) per joint: its position limits, or +-pi rad (revolute) and +-1 m (prismatic) where it
-    has none or they are not finite."""
+    has none, they are not finite, or they leave no range (lower = upper: URDF's way of writing none)."""
     lo, hi = np.empty(len(names)), np.empty(len(names))
     for k, (name, rev) in enumerate(zip(names, revolute, strict=True)):
         lo[k], hi[k] = (limits or {}).get(name, DEFAULT_RANGE[bool(rev)])
-        if not (np.isfinite(lo[k]) and np.isfinite(hi[k])):
+        if not (np.isfinite(lo[k]) and np.isfinite(hi[k]) and lo[k] < hi[k]):
             lo[k], hi[k] = DEFAULT_RANGE[bool(rev)]
     return lo, hi
 

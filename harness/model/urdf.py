@@ -252,7 +252,9 @@ def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[
             bodies.append(Body(body_name, 0.0, np.zeros((3, 3)), np.eye(3), pose[body_name][1]))
             continue
         _, com, moments, axes = union([inertial[n] for n in members])
-        bodies.append(Body(body_name, m, np.diag(moments), axes, com))
+        # every link passed _check_inertia: a moment below zero here is round-off of a link with
+        # no rotational inertia (the iCub's -5e-20 kg m^2), which Pinocchio refuses as written
+        bodies.append(Body(body_name, m, np.diag(np.maximum(moments, 0.0)), axes, com))
 
     spec_joints, limits, drive_limits = [], {}, {}
     for j in kept:

@@ -222,6 +222,8 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
                   for rel in (s.strings("gate_sets", choices=None) if s.has("gate_sets") else ())]
     s.finish()
     robot = load_spec(_relative_file(s, "model", model_rel, path))
+    if not robot.joints:
+        raise s.error("model", f"model {robot.name!r} has no moving joint: nothing to simulate or identify")
     gravity = _gravity(gravity, robot)
     dt = root.table("data")
     source = read_source(dt, path)
@@ -263,6 +265,8 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     s.finish()
 
     robot = load_spec(_relative_file(s, "model", model_rel, path))
+    if not robot.joints:
+        raise s.error("model", f"model {robot.name!r} has no moving joint: nothing to simulate or identify")
     gravity = _gravity(gravity, robot)
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))

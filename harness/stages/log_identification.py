@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.base.numerics import parameter_scale, relative_error
+from harness.base.numerics import PARAMETER_FLOOR, parameter_scale, relative_error
 from harness.base.plugins import Stage
 from harness.engines.mujoco import mjcf
 from harness.engines.pinocchio import build_model
@@ -36,7 +36,7 @@ from harness.identify.torque_id import (
 from harness.model.export import MJCF_FILE, README_FILE, coulomb_mapping, export, identified_spec, readme
 from harness.model.friction import IDENTIFIED_KEYS
 from harness.model.friction import values as friction_values
-from harness.model.inertia import PARAMETER_NAMES, kind_scale
+from harness.model.inertia import PARAMETER_NAMES, model_kind_scales
 from harness.sources.log import JointLog
 from harness.stages.identification import joint_data
 from harness.stages.metrics import torque_errors
@@ -57,6 +57,7 @@ class LogIdentification:
     t: dict[str, np.ndarray]  # span -> times
     files: dict[str, str]  # the export
     mjcf_friction: dict[str, dict[str, float]]  # per joint, what MuJoCo's dry friction changes (export.coulomb_mapping)
+    mjcf_refused: str | None = None  # why robot.xml was not written, if it was not
 
     def serialise(self, ctx, config) -> dict:
         """results.json's `log_identification`: the fits, their errors per span, the consistent model and the export."""
@@ -123,6 +124,7 @@ class LogIdentification:
                               "offset change of the identified friction law at the training span's velocities: the "
                               "RMS change over the RMS torque, the largest over the largest torque, per joint",
                 **self.mjcf_friction},
+            "export_mjcf_not_written": self.mjcf_refused,
             "joints": n,
             "series": _series(self),
         }
@@ -151,8 +153,10 @@ def run(ctx, config) -> LogIdentification | None:
     rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(len(q), n, -1) ** 2, axis=0)).reshape(n, n, 4)
     cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
     carry = np.sqrt(np.mean(tau**2, axis=0))[:, None] / np.where(cols > 0, cols, 1.0)
-    scale = np.concatenate([np.concatenate([kind_scale(t) for t in theta_model]),
-                            np.maximum(np.abs(friction_model), carry).ravel()])
+    friction_scale = np.maximum(np.abs(friction_model), carry)
+    friction_scale = np.maximum(friction_scale, PARAMETER_FLOOR * friction_scale.max(axis=0, initial=0.0))  # a joint
+    # that carries nothing has no size of its own
+    scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel()])
     ctx.progress("physically consistent parameters (semidefinite program)", None)
     fit = consistent.fit(W, L, theta_model, friction_model, scale)
     x_fit = np.concatenate([fit.theta.ravel(), fit.friction.ravel()])
@@ -168,22 +172,27 @@ def run(ctx, config) -> LogIdentification | None:
             "model as given": (Ws @ x_model).reshape(taus.shape),
         }
         measured[span], times[span] = taus, ts
+    refused = None  # why robot.xml was not written
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
     files = export(robot, fit.theta, fit.friction, description)
     identified = identified_spec(robot, fit.theta, fit.friction)
     mapping = coulomb_mapping(identified, qd, tau)
     worst = max(mapping, key=lambda j: mapping[j]["rms"])
-    files[f"identified/{MJCF_FILE}"] = mjcf(
-        identified, sc.gravity_W,
-        f"{description}.\nCoulomb friction as MuJoCo's frictionloss (dry friction, a sharp sign) instead of "
-        f"f_c tanh(q'/v_c), and no torque offset: at the training span's velocities, up to {mapping[worst]['rms']:.3g} "
-        f"of the RMS torque (joint {worst}; per joint in README.md). Rotor inertia, viscous friction and "
-        "inertials are the identified model's.")
+    try:  # MuJoCo's compiler has checks of its own: what it refuses is said, not a crash
+        files[f"identified/{MJCF_FILE}"] = mjcf(
+            identified, sc.gravity_W,
+            f"{description}.\nCoulomb friction as MuJoCo's frictionloss (dry friction, a sharp sign) instead of "
+            f"f_c tanh(q'/v_c), and no torque offset: at the training span's velocities, up to "
+            f"{mapping[worst]['rms']:.3g} of the RMS torque (joint {worst}; per joint in README.md). Rotor inertia, "
+            "viscous friction and inertials are the identified model's.")
+    except ValueError as exc:
+        refused = "MuJoCo's compiler refuses the identified model (" + "; ".join(
+            line.strip() for line in str(exc).splitlines() if line.strip()) + ")"
     files[f"identified/{README_FILE}"] = readme(identified, [Path(f).name for f in files] + [README_FILE], mapping,
-                                                description)
+                                                description, refused)
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
-                             friction_model, predictions, measured, times, files, mapping)
+                             friction_model, predictions, measured, times, files, mapping, refused)
 
 
 def _span_errors(li: LogIdentification, span: str) -> dict:

@@ -1,0 +1,39 @@
+"""audit.html: `harness audit`'s table (harness/runner/audit.py), a row per robot in the order they
+were audited: robot, verdict, then the figures."""
+
+from __future__ import annotations
+
+from harness.report.html import DASH, esc, mark, num, page, table
+
+
+def _identified(ident: dict | None):
+    if ident is None:
+        return DASH
+    if "failed" in ident:
+        return esc(ident["failed"])
+    e = ident["validation_rel_error"]
+    return esc(f"least squares {e['least squares']:.2g}, consistent {e['consistent']:.2g} ({ident['seconds']:.1f} s)")
+
+
+def render_audit(document: dict) -> str:
+    t = document["totals"]
+    rows = []
+    for r in document["robots"]:
+        verdict = mark(r["verdict"] == "agrees", r["verdict"]) if r["verdict"] != "refused" else esc("refused")
+        rank = r["pinocchio_regressor_rank"]
+        base = DASH if r["base_parameters"] is None else f"{r['base_parameters']} / {'-' if rank is None else rank}"
+        rows.append([esc(r["robot"]), verdict, DASH if r["dof"] is None else str(r["dof"]), esc(r["root"] or "-"),
+                     num(r["torques_vs_pinocchio"]), num(r["mass_matrix_vs_pinocchio"]), num(r["torques_vs_mujoco"]),
+                     num(r["torques_urdf_vs_mjcf"]) if r["torques_urdf_vs_mjcf"] is not None else esc(r["mjcf"] or "-"),
+                     esc(base), esc("; ".join(r["invalid_bodies"]) or "-"), _identified(r.get("identified")),
+                     esc(r["reason"] or "")])
+    head = (f"<p>{t['robots']} robots: {t['read']} read, {t['agree']} agree, {t['disagree']} disagree, {t['refused']} "
+            f"refused by the harness's reader; MuJoCo's MJCF conversion read back for {t['mjcf_read']}. A robot agrees "
+            f"when each figure is within {t['tolerance']:g}: the largest error over each joint's largest |torque| "
+            "(the mass matrix: over its largest entry) at 100 random states within the limits, rigid bodies only; "
+            "base parameters: the harness's structural count / the rank of Pinocchio's own regressor. "
+            f"{t['seconds']:.1f} s.</p>")
+    body = head + table(["robot", "verdict", "dof", "root", "torques vs Pinocchio's parser", "mass matrix",
+                         "torques vs MuJoCo", "URDF vs MuJoCo's MJCF", "base parameters", "bodies not physical",
+                         "identified from its bench log (held out)", "why"], rows)
+    return page("harness audit", "Robot descriptions audited", body)

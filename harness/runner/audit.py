@@ -1,0 +1,442 @@
+"""`harness audit`: a collection of robot descriptions read as the harness reads them, and each read
+model checked against readers and engines that share none of its code.
+
+Per robot (a URDF, an MJCF file, or a robot of example-robot-data by name):
+- read or refused: the harness's own reader (harness/model/load.py), and the one line why;
+- degrees of freedom, and whether the root was fixed (a URDF's root link is the ground; an MJCF
+  file's free joint is fixed to the world, said so);
+- joint torques (RNEA) and the mass matrix (CRBA) of the harness's model against Pinocchio's own
+  parser of the same file (`buildModelFromUrdf` / `buildModelFromMJCF`), at STATES random states
+  within the joint limits (q' within +-2 rad/s or m/s, q'' within +-5), rigid bodies only (the
+  drives' friction and rotor inertia are compared by the scenarios, not here); and against MuJoCo's
+  inverse dynamics (mj_inverse) of the model the harness builds for it;
+- URDF-MJCF parity: MuJoCo's compiler converts the URDF (visual and collision geometry and <mimic>
+  left out) and the harness reads MuJoCo's model back as it reads an MJCF file; the torques of the
+  two readings at the same states. MuJoCo's converted model is read from memory: its XML writer keeps
+  six digits, which would bound the parity at 1e-6. A URDF MuJoCo's compiler refuses is said so;
+- physical validity of every moving body: mass > 0, principal moments > 0, triangle inequality;
+- the structural base-parameter count (harness/identify/torque_id.py) beside the rank of Pinocchio's
+  own joint-torque regressor, of the model its parser builds, stacked over RANK_STATES random states.
+
+Errors are relative to each joint's largest |torque| over the states (the mass matrix: to its largest
+entry over the states). A read robot agrees when every figure is within TOLERANCE and the two base
+counts are equal; `harness audit` exits 1 when one that was read disagrees.
+"""
+
+from __future__ import annotations
+
+import time
+import xml.etree.ElementTree as ET
+from dataclasses import asdict, dataclass, field
+from importlib.metadata import PackageNotFoundError, distribution
+from pathlib import Path
+
+import numpy as np
+
+from harness.base.numerics import relative_error
+from harness.base.tomlio import InputError
+from harness.model.spec import RobotSpec
+
+STATES = 100
+RANK_STATES = 300
+TOLERANCE = 1e-9  # engines that agree on a model agree to about 1e-13: beyond 1e-9 something reads it differently
+# the identification column's bar on the held-out span: the log's accelerations are central differences
+# of its velocities at BENCH_RATE, which alone leave the exact model (the model as given) 1e-7 to 1.3e-5 off
+IDENTIFY_TOLERANCE = 1e-4
+GRAVITY_W = np.array([0.0, 0.0, -9.80665])
+
+
+@dataclass
+class AuditRow:
+    """One robot's audit; the figures are None where they could not be computed (`notes` says why)."""
+
+    robot: str
+    file: str
+    verdict: str  # "agrees", "disagrees" or "refused"
+    reason: str = ""  # why refused, or what disagrees
+    dof: int | None = None
+    root: str | None = None  # "fixed" or "floating (fixed to the world)"
+    torques_vs_pinocchio: float | None = None
+    mass_matrix_vs_pinocchio: float | None = None
+    torques_vs_mujoco: float | None = None
+    mjcf: str | None = None  # "read", or why MuJoCo's conversion or its reading failed
+    torques_urdf_vs_mjcf: float | None = None
+    bodies: int | None = None
+    invalid_bodies: list[str] = field(default_factory=list)
+    base_parameters: int | None = None
+    pinocchio_regressor_rank: int | None = None
+    notes: list[str] = field(default_factory=list)
+    identified: dict | None = None  # `identify_from_bench`'s figures, where asked for (--identify)
+    seconds: float = 0.0
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def example_robot_data() -> dict[str, Path]:
+    """Every URDF of the installed example-robot-data, by name: the file's stem, or folder/stem
+    where two robots share a stem. Empty when the package is not installed."""
+    try:
+        dist = distribution("example-robot-data")
+    except PackageNotFoundError:
+        return {}
+    root = Path(dist.locate_file("cmeel.prefix/share/example-robot-data/robots"))
+    files = sorted(root.glob("*/*/*.urdf"))
+    stems = [f.stem for f in files]
+    return {(f.stem if stems.count(f.stem) == 1 else f"{f.parts[-3]}/{f.stem}"): f for f in files}
+
+
+def resolve(arguments: list[str]) -> dict[str, Path]:
+    """Robots by name: each argument a file (URDF, MJCF .xml) or a name of example-robot-data; none:
+    the whole of example-robot-data."""
+    known = example_robot_data()
+    if not arguments:
+        if not known:
+            raise InputError("example-robot-data", "", "not installed: name files to audit, or pip install "
+                                                       "example-robot-data")
+        return known
+    out = {}
+    for a in arguments:
+        path = Path(a)
+        if path.is_file():
+            if path.suffix.lower() not in (".urdf", ".xml"):
+                raise InputError(path, "", "neither a URDF (.urdf) nor an MJCF file (.xml)")
+            out[path.stem] = path
+        elif a in known:
+            out[a] = known[a]
+        else:
+            raise InputError(a, "", "no such file, and no robot of that name in example-robot-data")
+    return out
+
+
+def _rigid(spec: RobotSpec) -> RobotSpec:
+    """The spec without its drives' friction and rotor inertia: the rigid bodies alone."""
+    import dataclasses
+
+    from harness.model.friction import NO_FRICTION
+
+    return dataclasses.replace(spec, joints=tuple(dataclasses.replace(j, friction=NO_FRICTION) for j in spec.joints))
+
+
+def _states(spec: RobotSpec, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    from harness.model.states import position_bounds, random_states
+
+    n = len(spec.joints)
+    lo, hi = position_bounds(spec.joint_names, [j.revolute for j in spec.joints], spec.limits)
+    return random_states(lo, hi, np.full(n, 2.0), np.full(n, 5.0), count, seed)
+
+
+def _largest(a: np.ndarray, ref: np.ndarray) -> float:
+    """Largest |a - ref| over each joint's largest |ref| (0/0 where a joint carries nothing: skipped)."""
+    scale = np.max(np.abs(ref), axis=0)
+    scale = np.where(scale > 1e-12 * max(float(np.max(scale, initial=0.0)), 1e-300), scale, np.inf)
+    return float(np.max(relative_error(a, ref, scale), initial=0.0))
+
+
+class _CapturedStderr:
+    """What C and C++ code writes to the process's standard error (a parser's warnings), captured
+    as lines instead of crossing the progress line."""
+
+    def __enter__(self):
+        import os
+        import sys
+        import tempfile
+
+        sys.stderr.flush()
+        self._file = tempfile.TemporaryFile()
+        self._saved = os.dup(2)
+        os.dup2(self._file.fileno(), 2)
+        self.lines: list[str] = []
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import os
+
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+        self._file.seek(0)
+        self.lines = [line.strip() for line in self._file.read().decode(errors="replace").splitlines() if line.strip()]
+        self._file.close()
+
+
+class _Pinocchio:
+    """Pinocchio's own parse of the file, evaluated at the harness's joint coordinates."""
+
+    def __init__(self, path: Path, spec: RobotSpec):
+        import pinocchio as pin
+
+        self.pin = pin
+        self.model = (pin.buildModelFromMJCF(str(path)) if path.suffix.lower() == ".xml"
+                      else pin.buildModelFromUrdf(str(path)))
+        self.model.gravity.linear = GRAVITY_W
+        self.model.armature[:] = 0.0  # rigid bodies only
+        names = [self.model.names[i] for i in range(1, self.model.njoints)]
+        missing = sorted(set(spec.joint_names) ^ set(names))
+        if missing:
+            raise ValueError(f"Pinocchio's parser has other joints ({', '.join(missing[:4])})")
+        self.joints = [self.model.joints[self.model.getJointId(j)] for j in spec.joint_names]
+        self.data = self.model.createData()
+
+    def configuration(self, q: np.ndarray) -> np.ndarray:
+        """Pinocchio's configuration vector: a continuous joint (nq = 2) as (cos q, sin q)."""
+        full = self.pin.neutral(self.model)
+        for k, jm in enumerate(self.joints):
+            full[jm.idx_q: jm.idx_q + jm.nq] = [np.cos(q[k]), np.sin(q[k])] if jm.nq == 2 else q[k]
+        return full
+
+    def torques_and_mass(self, q, qd, qdd) -> tuple[np.ndarray, np.ndarray]:
+        v_idx = [jm.idx_v for jm in self.joints]
+        tau, M = np.empty_like(q), np.empty((len(q), q.shape[1], q.shape[1]))
+        v, a = np.zeros(self.model.nv), np.zeros(self.model.nv)
+        for k in range(len(q)):
+            cfg = self.configuration(q[k])
+            v[v_idx], a[v_idx] = qd[k], qdd[k]
+            tau[k] = self.pin.rnea(self.model, self.data, cfg, v, a)[v_idx]
+            full = self.pin.crba(self.model, self.data, cfg)
+            full = np.triu(full) + np.triu(full, 1).T
+            M[k] = full[np.ix_(v_idx, v_idx)]
+        return tau, M
+
+    def regressor_rank(self, q, qd, qdd) -> int:
+        from harness.base.numerics import column_scale
+
+        v_idx = [jm.idx_v for jm in self.joints]
+        v, a = np.zeros(self.model.nv), np.zeros(self.model.nv)
+        rows = []
+        for k in range(len(q)):
+            v[v_idx], a[v_idx] = qd[k], qdd[k]
+            rows.append(self.pin.computeJointTorqueRegressor(self.model, self.data, self.configuration(q[k]), v, a)
+                        [v_idx])
+        W = np.vstack(rows)
+        W = W / column_scale(W)
+        sv = np.linalg.svd(W, compute_uv=False)
+        return int(np.sum(sv > sv[0] * max(W.shape) * np.finfo(float).eps * 1e3)) if sv.size else 0
+
+
+def _mujoco_torques(spec: RobotSpec, q, qd, qdd) -> np.ndarray:
+    import mujoco
+
+    from harness.engines.mujoco import build_spec
+
+    model = build_spec(spec, GRAVITY_W).compile()
+    data = mujoco.MjData(model)
+    cols = [model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in spec.joint_names]
+    tau = np.empty_like(q)
+    for k in range(len(q)):
+        data.qpos[cols], data.qvel[cols], data.qacc[cols] = q[k], qd[k], qdd[k]
+        mujoco.mj_inverse(model, data)
+        tau[k] = data.qfrc_inverse[cols]
+    return tau
+
+
+def _mujoco_conversion(path: Path, name: str) -> RobotSpec:
+    """MuJoCo's compiler's model of the URDF, read back as an MJCF file is read."""
+    import mujoco
+
+    from harness.model.load import spec_from_mjmodel
+
+    root = ET.fromstring(path.read_bytes())
+    for link in root.findall("link"):
+        for tag in ("visual", "collision"):
+            for el in link.findall(tag):
+                link.remove(el)
+    for joint in root.findall("joint"):  # MuJoCo makes <mimic> an equality constraint; the harness ignores it
+        for el in joint.findall("mimic"):
+            joint.remove(el)
+    try:
+        model = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode")).compile()
+    except (ValueError, mujoco.FatalError) as exc:
+        raise ValueError("MuJoCo's compiler refuses the URDF (" + "; ".join(
+            line.strip() for line in str(exc).strip().splitlines() if line.strip()) + ")") from None
+    return spec_from_mjmodel(model, path.with_suffix(".mjcf"), name)
+
+
+def _massless_with_inertia(path: Path) -> list[str]:
+    """The URDF's links of zero mass with a rotational inertia (which MuJoCo's URDF import drops)."""
+    out = []
+    for link in ET.fromstring(path.read_bytes()).findall("link"):
+        el = link.find("inertial")
+        mass = el.find("mass") if el is not None else None
+        inertia = el.find("inertia") if el is not None else None
+        if mass is not None and inertia is not None and float(mass.get("value", "0")) == 0.0 and any(
+                float(inertia.get(k, "0")) != 0.0 for k in ("ixx", "iyy", "izz")):
+            out.append(link.get("name"))
+    return out
+
+
+def _invalid_bodies(spec: RobotSpec) -> list[str]:
+    out = []
+    for b in spec.bodies:
+        if b.massless:
+            continue
+        p = np.sort(b.principal_inertia)
+        why = ("mass not positive" if b.mass <= 0 else "a principal moment not positive" if p[0] <= 0
+               else "triangle inequality broken" if p[2] > (p[0] + p[1]) * (1 + 1e-12) else "")
+        if why:
+            out.append(f"{b.name}: {why}")
+    return out
+
+
+def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
+    """One robot's row (never raises for the robot's own faults: they are its verdict). With
+    `identify_in`, a folder, the robot is also identified from its own bench log there."""
+    import warnings
+
+    from harness.engines.pinocchio import build_model, crba, rnea
+    from harness.identify.torque_id import structural_base
+    from harness.model.load import spec_from_data
+
+    t0 = time.perf_counter()
+    row = AuditRow(name, str(path), "refused")
+    is_mjcf = path.suffix.lower() == ".xml"
+    try:
+        spec = spec_from_data({"mjcf" if is_mjcf else "urdf": {"file": str(path.resolve())}}, path)
+    except InputError as exc:
+        row.reason = exc.message.removeprefix(f"{path.resolve()}: ")
+        row.seconds = time.perf_counter() - t0
+        return row
+    row.notes = list(spec.notes)
+    row.dof = len(spec.joints)
+    row.root = "floating (fixed to the world)" if spec.notes else "fixed"
+    row.bodies = len(spec.massive_bodies)
+    row.invalid_bodies = _invalid_bodies(spec)
+    problems = []
+    if not spec.joints:
+        row.verdict, row.reason = "agrees", "no moving joint: nothing to compare"
+        row.seconds = time.perf_counter() - t0
+        return row
+    rigid = _rigid(spec)
+    q, qd, qdd = _states(spec, STATES, seed=1)
+    pm = build_model(rigid, GRAVITY_W)
+    ours, M = rnea(pm, q, qd, qdd).tau, crba(pm, q)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            with _CapturedStderr() as said:
+                pin_model = _Pinocchio(path, spec)
+            row.notes += [f"Pinocchio's parser said: {line}" for line in said.lines]
+            theirs, M_pin = pin_model.torques_and_mass(q, qd, qdd)
+            row.torques_vs_pinocchio = _largest(ours, theirs)
+            row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
+            row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
+        except Exception as exc:  # Pinocchio's parser refusing the file is a finding, not a crash
+            problems.append(f"Pinocchio's parser: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}")
+        row.torques_vs_mujoco = _largest(_mujoco_torques(rigid, q, qd, qdd), ours)
+        if is_mjcf:
+            row.mjcf = "the file itself"
+        else:
+            try:
+                with _CapturedStderr() as said:
+                    converted = _mujoco_conversion(path, name)
+                row.notes += [f"MuJoCo's URDF import said: {line}" for line in said.lines]
+                converted = _rigid(converted)
+                if sorted(converted.joint_names) != sorted(spec.joint_names):
+                    raise ValueError(f"MuJoCo's model has other joints ({', '.join(converted.joint_names[:4])}, ...)")
+                to_theirs = [spec.joint_names.index(j) for j in converted.joint_names]
+                back = [converted.joint_names.index(j) for j in spec.joint_names]
+                theirs = rnea(build_model(converted, GRAVITY_W), q[:, to_theirs], qd[:, to_theirs],
+                              qdd[:, to_theirs]).tau[:, back]
+                row.torques_urdf_vs_mjcf = _largest(ours, theirs)
+                row.mjcf = "read"
+            except (ValueError, InputError) as exc:
+                row.mjcf = exc.message if isinstance(exc, InputError) else str(exc)
+    row.base_parameters = len(structural_base(pm, spec.limits).independent)
+    for label, value in (("torques against Pinocchio", row.torques_vs_pinocchio),
+                         ("mass matrix against Pinocchio", row.mass_matrix_vs_pinocchio),
+                         ("torques against MuJoCo", row.torques_vs_mujoco),
+                         ("torques URDF against MJCF", row.torques_urdf_vs_mjcf)):
+        if value is not None and not value <= TOLERANCE:
+            problems.append(f"{label} {value:.2g}")
+    if row.torques_urdf_vs_mjcf is not None and not row.torques_urdf_vs_mjcf <= TOLERANCE:
+        dropped = _massless_with_inertia(path)
+        if dropped:
+            problems[-1] += (f" (MuJoCo's URDF import drops the rotational inertia of {len(dropped)} link(s) of zero "
+                             f"mass, {', '.join(dropped[:3])}, which the harness and Pinocchio's parser keep)")
+    if row.pinocchio_regressor_rank is not None and row.pinocchio_regressor_rank != row.base_parameters:
+        problems.append(f"{row.base_parameters} structural base parameters, Pinocchio's regressor has rank "
+                        f"{row.pinocchio_regressor_rank}")
+    if identify_in is not None:
+        try:
+            row.identified = identify_from_bench(name, path, identify_in / name.replace("/", "_"))
+            worst = max(row.identified["validation_rel_error"][m] for m in ("least squares", "consistent"))
+            if not worst <= IDENTIFY_TOLERANCE:
+                problems.append(f"identified from its bench log: {worst:.2g} on the held-out span")
+        except InputError as exc:
+            row.identified = {"failed": exc.one_line()}
+            problems.append(f"identification from its bench log refused: {exc.message}")
+    row.verdict = "disagrees" if problems else "agrees"
+    row.reason = "; ".join(problems)
+    row.seconds = time.perf_counter() - t0
+    return row
+
+
+def totals(rows: list[AuditRow]) -> dict:
+    """How many robots were read, agree, disagree and were refused, and how many MuJoCo converted."""
+    return {"robots": len(rows), "read": sum(r.verdict != "refused" for r in rows),
+            "agree": sum(r.verdict == "agrees" for r in rows), "disagree": sum(r.verdict == "disagrees" for r in rows),
+            "refused": sum(r.verdict == "refused" for r in rows),
+            "mjcf_read": sum(r.mjcf == "read" for r in rows),
+            "with_invalid_bodies": sum(bool(r.invalid_bodies) for r in rows),
+            "identified": sum(bool(r.identified) and "validation_rel_error" in r.identified and max(
+                r.identified["validation_rel_error"][m] for m in ("least squares", "consistent")) <= IDENTIFY_TOLERANCE
+                for r in rows)}
+
+
+BENCH_SECONDS, BENCH_RATE = 4.0, 250.0  # the bench log of the identification column: 1000 rows
+
+
+def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
+    """The robot identified from its own bench log, as a lab's log is: every joint on two
+    incommensurate sinusoids about the middle of its range (a third of it, at most 1 rad or 0.1 m),
+    simulated in MuJoCo for BENCH_SECONDS, written as a log of t, q, q', tau at BENCH_RATE, and read
+    back through `[data]` (harness/sources/log.py) with its last 30 % held out. Returns the relative
+    torque errors on that span and the seconds it took; the files stay in `folder`."""
+    from harness.model.states import position_bounds
+    from harness.runner.pipeline import run
+    from harness.runner.scenario import load_scenario
+    from harness.sources.bench import record
+
+    t0 = time.perf_counter()
+    folder.mkdir(parents=True, exist_ok=True)
+    kind = "mjcf" if path.suffix.lower() == ".xml" else "urdf"
+    import tomli_w
+
+    (folder / "model.toml").write_text(tomli_w.dumps({"model": {"name": name.replace("/", "_")},
+                                                      kind: {"file": str(path.resolve())}}))
+    from harness.model.load import load_spec
+
+    spec = load_spec(folder / "model.toml")
+    lo, hi = position_bounds(spec.joint_names, [j.revolute for j in spec.joints], spec.limits)
+    rng = np.random.default_rng(0)
+    motion = {}
+    for k, j in enumerate(spec.joints):
+        amp = float(min((hi[k] - lo[k]) / 6, 1.0 if j.revolute else 0.1))
+        motion[j.name] = {"type": "sinusoids", "offset": float((lo[k] + hi[k]) / 2),
+                          "sin": [[0.7 * amp, float(rng.uniform(0.6, 1.4))]],
+                          "cos": [[0.3 * amp, float(rng.uniform(1.6, 2.8))]]}
+
+    def gate(metric: str) -> list[dict]:
+        return [{"metric": metric, "limit": 1.0}]
+
+    (folder / "bench.toml").write_text(tomli_w.dumps({
+        "scenario": {"model": "model.toml", "duration": BENCH_SECONDS, "output_steps": int(BENCH_SECONDS * BENCH_RATE)},
+        "simulation": {"integrator": "RK4", "timestep": 0.0005}, "motion": motion,
+        "gates": gate("torques.pinocchio_vs_mujoco.max_rel_error")}))
+    rec = record(load_scenario(folder / "bench.toml"))
+    import pandas as pd
+
+    cols = {"t": rec.t}
+    for k, j in enumerate(spec.joint_names):
+        c = rec.joint_index(j)
+        cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
+    pd.DataFrame(cols).to_csv(folder / "log.csv", index=False, float_format="%.17g")
+    (folder / "log.toml").write_text(tomli_w.dumps({
+        "scenario": {"model": "model.toml"},
+        "data": {"file": "log.csv", "columns": {"t": "t", "q": "q{j}", "qd": "qd{j}", "tau": "tau{j}"},
+                 "validation": {"from": 0.7}},
+        "gates": gate("log_identification.validation_rel_error.consistent")}))
+    out = run(load_scenario(folder / "log.toml"))
+    done = out.stages["log_identification"]
+    li = done.stage.serialise(done.result, out.context, done.config)
+    return {"validation_rel_error": li["validation_rel_error"], "solver": li["consistent"]["solver"],
+            "seconds": round(time.perf_counter() - t0, 3)}
