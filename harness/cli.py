@@ -230,6 +230,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             result = run(scenario, progress)
         progress("writing the report", None)
         results = result.results
+        for warning in (results.get("data", {}).get("conditioning", {}).get("warnings", [])
+                        + results.get("log_identification", {}).get("warnings", [])):
+            print(f"harness: warning: {scenario.name}: {warning}", file=sys.stderr)  # once per run, not per row
         results["run"]["timings"] = {"importing the engines and libraries": imported, **results["run"]["timings"]}
         imported = 0.0
         page = render(results, result.recording, [s.stage for s in result.output.stages.values()])

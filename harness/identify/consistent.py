@@ -88,6 +88,7 @@ class ConsistentFit:
     solver: str = "CLARABEL"  # which gave it, or "projection" (no solver succeeded)
     fallback: int = 0  # 0 Clarabel to its tolerances, 1 SCS or Clarabel inaccurate, 2 projection (FALLBACKS)
     attempts: tuple[str, ...] = ()  # every solver tried and how it ended, in order
+    margin: float = 0.0  # the smallest pseudo-inertia eigenvalue every link was held to
 
 
 def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model: np.ndarray,
@@ -151,7 +152,7 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
             xv = _physical(xv, eps, n)
     residual = float(np.linalg.norm(W @ xv - tau) / norm_tau)
     return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n:].reshape(n, 4), status, residual, solver,
-                         fallback, tuple(attempts))
+                         fallback, tuple(attempts), eps)
 
 
 def _projected(R: np.ndarray, b: np.ndarray, col: np.ndarray, r0: float, x0: np.ndarray, scale: np.ndarray,

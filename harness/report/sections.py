@@ -204,6 +204,14 @@ def log_identification(r: dict, log) -> str:
                     num(v.get("triangle_slack")), num(v["min_eig_pseudo_inertia"]),
                     mark(v["consistent"], "yes" if v["consistent"] else "no")]
                    for k, v in con["links"].items()])
+    pl = li.get("plausibility")
+    if pl:
+        links += f"<p>Plausibility: {esc(pl['definition'])}.</p>" + table(
+            ["link (by its joint)", "mass ratio", "inertia ratio", "plausible", "on the margin"],
+            [[esc(j), num(v["mass"]), num(v["inertia_trace"]),
+              mark(j not in pl["implausible"], "no" if j in pl["implausible"] else "yes"),
+              mark(j not in pl["on_margin"], "yes" if j in pl["on_margin"] else "no")]
+             for j, v in pl["ratios"].items()])
     fric = table(["joint", "armature", "viscous", "coulomb", "offset", "coulomb_velocity"],
                  [[esc(j), *(num(v[k]) for k in ("armature", "viscous", "coulomb", "offset", "coulomb_velocity"))]
                   for j, v in con["friction"].items()])

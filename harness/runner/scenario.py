@@ -211,6 +211,7 @@ class DataScenario:
     models: tuple[PluginEntry, ...] = ()  # never filled: a log is judged by identification
     methods: tuple[PluginEntry, ...] = ()
     studies: tuple[tuple[Study, Any], ...] = ()
+    truth: RobotSpec | None = None  # the model that made the log, where it is known (a bench log)
 
 
 def _load_data(root: Table, path: Path, text: str) -> DataScenario:
@@ -226,8 +227,13 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
         raise s.error("model", f"model {robot.name!r} has no moving joint: nothing to simulate or identify")
     gravity = _gravity(gravity, robot)
     dt = root.table("data")
-    source = read_source(dt, path)
+    source = read_source(dt, path, len(robot.joints))
     check_columns(source, robot, dt)
+    truth = None
+    if source.truth is not None:
+        truth = load_spec(source.truth)
+        if truth.joint_names != robot.joint_names:
+            raise dt.error("truth", f"model {truth.name!r} has other joints than {robot.name!r}")
     gates = _read_all_gates(root, gate_files)
     for table in ("motion", "simulation", "measurement", "model_under_test", "identification", "studies",
                   "torque_identification", "excitation"):
@@ -235,7 +241,7 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
             raise root.error(table, "a scenario with [data] is judged on its log: it has no simulated motion, "
                                     "measurement, studies or other identification")
     root.finish()
-    return DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, text)
+    return DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, text, truth=truth)
 
 
 def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:

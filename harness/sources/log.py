@@ -1,31 +1,44 @@
 """A measured joint log as the source of a run, beside the MuJoCo bench.
 
 A scenario's `[data]` table names a CSV file and its columns, `{j}` standing for 1..n in the
-model's joint order:
+model's joint order and `{name}` for a joint's name, or a list of column names in joint order:
 
     [data]
     file = "log.csv"                      # relative to the scenario file
     columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }   # qd may be left out
+    units = { q = "rad", qd = "rad/s", tau = "N m" }   # or "deg", "deg/s", "current" (default SI, said so)
+    torque_constant = [0.11, ...]         # N m/A per joint (motor side), with tau = "current"
+    gear_ratio = [100, ...]               # per joint, with tau = "current"
     cutoff = 10.0                         # Hz, zero-phase low-pass (default: none)
     filter_order = 4                      # Butterworth order (applied forward and backward)
     rate = 1000.0                         # Hz, the uniform grid (default: 1 / the median step)
     decimate = 10                         # keep every 10th sample of the filtered grid (default 1)
-    trim = 0.3                            # s dropped at each end after filtering (default 3 / cutoff)
+    trim = 0.3                            # s dropped at each end of every stretch (default 3 / cutoff)
+    gap = 5.0                             # a step over 5 median steps splits the log (default: `split_step`)
+    limits_check = true                   # refuse positions far beyond the joint limits (a unit mistake?)
+    truth = "bench_robot.toml"            # the model that made the log, where known: errors against it too
     validation = { from = 0.7 }           # the last 30 % by time is kept for validation
 
-Conditioning, in this order, each step stated in results.json (`data.conditioning`):
-1. checks: every cell a finite number (else the file, the column and the row are named); time
-   strictly increasing once repeated rows are dropped; rows that repeat the previous row's
-   positions exactly (a logger's sample and hold) dropped and counted; gaps (steps over twice the
-   median), the clock's jitter, and positions beyond the model's joint limits counted and warned;
-2. resampling of q, q', tau to a uniform grid by linear interpolation of the kept rows;
-3. a zero-phase Butterworth low-pass (scipy.signal.sosfiltfilt) of q, q', tau;
-4. velocities (where the log has none) and accelerations by central differences of the filtered
+Units are converted on reading (`to_si`): degrees of revolute joints to radians; motor currents to
+joint torques, tau = i k_t N. A revolute joint whose positions reach UNIT_FACTOR times its limit is
+refused, with the unit that would fit suggested.
+
+Conditioning, in this order, each step stated in results.json (`data.conditioning`), each warning
+also printed once on the terminal:
+1. checks, on the whole file: every cell a finite number (else the file, the column and the row are
+   named); time strictly increasing once repeated rows are dropped; rows that repeat the previous
+   row's positions exactly (a logger's sample and hold) dropped and counted; steps over twice the
+   median and the clock's jitter counted; positions beyond the model's joint limits counted;
+2. the log cut at every gap (a step over `split_step`) and, when split by time, at the split: each
+   stretch alone goes through steps 3-6, and one too short for them is dropped, said so;
+3. resampling of q, q', tau to a uniform grid (the whole file's rate) by linear interpolation;
+4. a zero-phase Butterworth low-pass (scipy.signal.sosfiltfilt) of q, q', tau;
+5. velocities (where the log has none) and accelerations by central differences of the filtered
    signals (numpy.gradient, second order);
-5. `trim` seconds dropped at both ends (filter and difference transients), then decimation.
-A log split by time (`validation.from`) is split after the checks and before step 2: steps 2-5 run
-on each span alone, so nothing of the validation span reaches the training span. The file's sha256
-is recorded.
+6. `trim` seconds dropped at both ends of the stretch (filter and difference transients: the guard
+   band at every gap and at the split), then decimation.
+Nothing of the validation span reaches the training span; the two are checked disjoint. The file's
+sha256 is recorded.
 """
 
 from __future__ import annotations
@@ -50,10 +63,17 @@ TRIM_PERIODS = 3.0  # default trim: three periods of the cut-off frequency
 MAX_FILTER_ORDER = 20
 
 
+UNITS = {"q": ("rad", "deg"), "qd": ("rad/s", "deg/s"), "tau": ("N m", "current")}
+SI = {"q": "rad", "qd": "rad/s", "tau": "N m"}
+GAP_SPLIT = 5.0  # default: a step over five median steps splits the log into segments
+UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more look like a unit mistake
+
+
 @dataclass(frozen=True)
 class DataSource:
     file: Path
-    columns: dict[str, str]  # "t", "q", "qd" (optional), "tau" -> column name or template with {j}
+    columns: dict[str, str | tuple[str, ...]]  # "t", "q", "qd" (optional), "tau" -> a template with {j} or
+    # {name}, or (q, qd, tau) an explicit list of column names in the model's joint order
     cutoff: float | None
     filter_order: int
     rate: float | None
@@ -61,12 +81,25 @@ class DataSource:
     trim: float | None
     validation_from: float | None  # fraction of the duration where the validation span starts
     validation_file: Path | None
+    units: dict[str, str] = field(default_factory=lambda: dict(SI))  # of revolute joints; prismatic: m, m/s
+    units_given: bool = False  # False: SI taken, and said so
+    torque_constant: tuple[float, ...] | None = None  # N m/A per joint (motor side), with units.tau = "current"
+    gear_ratio: tuple[float, ...] | None = None  # per joint, with units.tau = "current"
+    gap: float | None = None  # a step over this many median steps splits the log (default: `split_step`)
+    limits_check: bool = True  # positions far beyond the joint limits (a unit mistake?) are refused
+    truth: Path | None = None  # the model that made the log, where it is known (a bench log): errors against it
 
     def describe(self) -> dict:
-        return {"file": str(self.file), "columns": dict(self.columns), "cutoff_hz": self.cutoff,
-                "filter_order": self.filter_order, "rate_hz": self.rate, "decimate": self.decimate,
-                "trim_s": self.trim, "validation_from": self.validation_from,
-                "validation_file": str(self.validation_file) if self.validation_file else None}
+        return {"file": str(self.file),
+                "columns": {k: list(v) if isinstance(v, tuple) else v for k, v in self.columns.items()},
+                "units": dict(self.units), "units_given": self.units_given,
+                "torque_constant": list(self.torque_constant) if self.torque_constant else None,
+                "gear_ratio": list(self.gear_ratio) if self.gear_ratio else None,
+                "cutoff_hz": self.cutoff, "filter_order": self.filter_order, "rate_hz": self.rate,
+                "decimate": self.decimate, "trim_s": self.trim, "gap_median_steps": self.gap,
+                "validation_from": self.validation_from,
+                "validation_file": str(self.validation_file) if self.validation_file else None,
+                "truth": str(self.truth) if self.truth else None}
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,21 +152,50 @@ def read_log_csv(path: Path | str) -> JointLog:
     return JointLog(df["t"].to_numpy(), joints, per_joint("q"), per_joint("qd"), per_joint("qdd"), per_joint("tau"))
 
 
-def read_source(t: Table, scenario_file: Path) -> DataSource:
-    """The `[data]` table, validated (the file must exist and be inside reach of the scenario)."""
+def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> DataSource:
+    """The `[data]` table, validated (the file must exist and be inside reach of the scenario);
+    `joints`, the model's number of joints, checks explicit column lists and per-joint constants."""
     file = _file(t, "file", scenario_file)
     ct = t.table("columns")
-    columns = {k: ct.string(k) for k in ("t", "q", "qd", "tau") if k != "qd" or ct.has("qd")}
+    columns: dict[str, str | tuple[str, ...]] = {"t": ct.string("t")}
     for k in ("q", "qd", "tau"):
-        if k in columns and "{j}" not in columns[k] and "{name}" not in columns[k]:
+        if k == "qd" and not ct.has("qd"):
+            continue
+        if isinstance(ct.data.get(k), list):
+            names = ct.strings(k, choices=None)
+            if joints is not None and len(names) != joints:
+                raise ct.error(k, f"{len(names)} columns for a model of {joints} joints (one per joint, in the "
+                                  "model's joint order)")
+            columns[k] = names
+            continue
+        v = ct.string(k)
+        if "{j}" not in v and "{name}" not in v:
             raise ct.error(k, f"a per-joint column needs {{j}} (1..n in the model's joint order) or {{name}} (the "
-                              f"joint's name), got {columns[k]!r}")
-    for k, v in columns.items():
+                              f"joint's name), or a list of the columns in joint order, got {v!r}")
         try:
             v.format(j=1, name="joint")
         except (KeyError, IndexError, ValueError):
             raise ct.error(k, f"{v!r}: only {{j}} and {{name}} may stand in braces") from None
+        columns[k] = v
     ct.finish()
+    units, units_given = dict(SI), t.has("units")
+    if units_given:
+        ut = t.table("units")
+        for k, choices in UNITS.items():
+            if ut.has(k):
+                units[k] = ut.string(k, choices=choices)
+        ut.finish()
+    constant = ratio = None
+    if units["tau"] == "current":
+        constant, ratio = (_per_joint(t, key, joints) for key in ("torque_constant", "gear_ratio"))
+    elif t.has("torque_constant") or t.has("gear_ratio"):
+        raise t.error("torque_constant" if t.has("torque_constant") else "gear_ratio",
+                      'only for a log of motor currents (units = { tau = "current" })')
+    gap = t.number("gap", positive=True) if t.has("gap") else None
+    if gap is not None and gap <= GAP_FACTOR:
+        raise t.error("gap", f"{gap:g} median steps: more than {GAP_FACTOR:g} (a clock's jitter is not a gap)")
+    limits_check = t.boolean("limits_check", default=True)
+    truth = _file(t, "truth", scenario_file) if t.has("truth") else None
     cutoff = t.number("cutoff", positive=True) if t.has("cutoff") else None
     order = t.integer("filter_order", default=4, minimum=1)
     if order > MAX_FILTER_ORDER:
@@ -153,7 +215,19 @@ def read_source(t: Table, scenario_file: Path) -> DataSource:
             v_file = _file(vt, "file", scenario_file)
         vt.finish()
     t.finish()
-    return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file)
+    return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
+                      ratio, gap, limits_check, truth)
+
+
+def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:
+    """A positive number per joint (a list in the model's joint order), or one for every joint."""
+    if isinstance(t.data.get(key), list):
+        values = t.vector(key, length=joints)
+    else:
+        values = np.full(joints or 1, t.number(key, positive=True))
+    if not np.all(np.isfinite(values) & (values > 0)):
+        raise t.error(key, "every value must be a positive number")
+    return tuple(float(v) for v in values)
 
 
 def _file(t: Table, key: str, scenario_file: Path) -> Path:
@@ -182,7 +256,8 @@ class RawLog:
 def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
     """The log's column of each quantity and joint: {j} is 1..n in the model's joint order, {name}
     the joint's name."""
-    return {k: [v] if k == "t" else [v.format(j=j + 1, name=name) for j, name in enumerate(robot.joint_names)]
+    return {k: [v] if k == "t" else list(v) if isinstance(v, tuple) else
+            [v.format(j=j + 1, name=name) for j, name in enumerate(robot.joint_names)]
             for k, v in source.columns.items()}
 
 
@@ -194,7 +269,7 @@ def _check_header(path: Path, header: list[str], source: DataSource, robot: Robo
                                              f"{' ...' if len(header) > 12 else ''})")
     n = len(robot.joints)
     for k in ("q", "qd", "tau"):
-        if k in source.columns and "{j}" in source.columns[k]:
+        if k in source.columns and isinstance(source.columns[k], str) and "{j}" in source.columns[k]:
             extra = source.columns[k].format(j=n + 1, name="")
             if extra in header:
                 raise InputError(path, extra, f"the log has a column for joint {n + 1}; the model {robot.name!r} "
@@ -258,7 +333,22 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     q, tau = (np.column_stack([column(c) for c in names[k]]) for k in ("q", "tau"))
     qd = np.column_stack([column(c) for c in names["qd"]]) if "qd" in names else None
     digest = hashlib.sha256(content).hexdigest()
+    q, qd, tau = to_si(source, robot, q, qd, tau)
     return RawLog(Path(path), digest, t, q, qd, tau, len(t))
+
+
+def to_si(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,
+          tau: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """The log's q, q', tau in SI units: degrees of revolute joints to radians; motor currents to
+    joint torques, tau = i k_t N (torque constant k_t in N m/A on the motor side, gear ratio N)."""
+    revolute = np.array([j.revolute for j in robot.joints])
+    if source.units["q"] == "deg":
+        q = np.where(revolute, np.radians(q), q)
+    if qd is not None and source.units["qd"] == "deg/s":
+        qd = np.where(revolute, np.radians(qd), qd)
+    if source.units["tau"] == "current":
+        tau = tau * np.asarray(source.torque_constant) * np.asarray(source.gear_ratio)
+    return q, qd, tau
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,10 +366,14 @@ class Checked:
         return source.rate or 1.0 / self.median_step
 
 
-def check(raw: RawLog, robot: RobotSpec) -> Checked:
+def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Checked:
     """Step 1 of the module docstring."""
     path, t = raw.file, raw.t
+    if source is None or source.limits_check:
+        _check_units(raw, robot, source)
     steps, warnings = [], []
+    if source is not None and not source.units_given:
+        warnings.append("no units stated ([data] units): taken as rad, rad/s and N m (m, m/s and N for a slide)")
     held = np.r_[False, np.all(raw.q[1:] == raw.q[:-1], axis=1)]
     same_time = np.r_[False, t[1:] == t[:-1]]
     drop = held | same_time
@@ -303,9 +397,11 @@ def check(raw: RawLog, robot: RobotSpec) -> Checked:
     if held.any():
         warnings.append(f"{int(held.sum())} rows repeat the previous row's positions exactly (sample and hold): "
                         "dropped")
-    if gaps.any():
-        warnings.append(f"{int(gaps.sum())} gaps in time (largest {dt.max():.3g} s, median step {median:.3g} s): "
-                        "bridged by interpolation")
+    split_over = split_step(source, median) if source is not None else GAP_SPLIT * median
+    bridged = gaps & (dt <= split_over)
+    if bridged.any():
+        warnings.append(f"{int(bridged.sum())} steps over {GAP_FACTOR:g} median steps but not over {split_over:.3g} s "
+                        f"(largest {dt[bridged].max():.3g} s, median step {median:.3g} s): bridged by interpolation")
     beyond = {}
     for j, name in enumerate(robot.joint_names):
         lo, hi = (robot.limits or {}).get(name, (-np.inf, np.inf))
@@ -319,10 +415,32 @@ def check(raw: RawLog, robot: RobotSpec) -> Checked:
     return Checked(raw.span(keep), steps[0], warnings, median)
 
 
+def _check_units(raw: RawLog, robot: RobotSpec, source: DataSource | None) -> None:
+    """Positions UNIT_FACTOR or more beyond a revolute joint's limits are not the robot's motion: a log
+    in degrees read as radians, most likely. Refused, saying which unit would fit."""
+    unit = source.units["q"] if source is not None else "rad"
+    for j, joint in enumerate(robot.joints):
+        lo, hi = (robot.limits or {}).get(joint.name, (-np.inf, np.inf))
+        reach = max(abs(lo), abs(hi))
+        if not joint.revolute or not np.isfinite(reach) or reach <= 0:
+            continue
+        largest = float(np.max(np.abs(raw.q[:, j])))
+        if largest >= UNIT_FACTOR * reach:
+            hint = ('a log in degrees read as radians? give units = { q = "deg", qd = "deg/s" }' if unit == "rad"
+                    else "check the unit and the column")
+            raise InputError(raw.file, "units.q", f"joint {joint.name!r} reaches {largest:.4g} rad (as {unit} read), "
+                                                  f"{largest / reach:.3g} times its limit {reach:.4g} rad: {hint}, or "
+                                                  "limits_check = false")
+
+
 def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> JointLog:
-    """Steps 1-5 of the module docstring."""
-    checked = check(raw, robot)
-    return smooth(checked.kept, source, robot, checked.rate(source), checked.record, checked.warnings)
+    """Steps 1-5 of the module docstring, for a log taken whole (a validation file), cut at its gaps."""
+    checked = check(raw, robot, source)
+    notes: list[str] = []
+    pieces = segments(checked.kept, split_step(source, checked.median_step))
+    log = _conditioned(checked.kept, pieces, source, robot, checked.rate(source), checked, raw.file.name, notes)
+    log.conditioning["warnings"] = log.conditioning["warnings"] + notes
+    return log
 
 
 def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, checks: dict,
@@ -388,34 +506,113 @@ def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, chec
     return JointLog(grid[rows], tuple(robot.joint_names), q[rows], qd[rows], qdd[rows], tau[rows], conditioning)
 
 
+def split_step(source: DataSource, median: float) -> float:
+    """The longest step (s) the log is bridged across by interpolation; a longer one splits it. The
+    scenario's `gap` median steps; by default GAP_SPLIT median steps, and with a low-pass filter at
+    least a quarter period of its cut-off (interpolation over a shorter step changes nothing in the
+    band the filter keeps: a 1 kHz log filtered at 10 Hz is bridged over 25 ms)."""
+    if source.gap is not None:
+        return source.gap * median
+    return max(GAP_SPLIT * median, 0.25 / source.cutoff if source.cutoff else 0.0)
+
+
+def segments(kept: RawLog, longest_step: float) -> list[np.ndarray]:
+    """The rows of each stretch of the log without a step longer than `longest_step`, in time order."""
+    cuts = np.flatnonzero(np.diff(kept.t) > longest_step) + 1
+    return [np.asarray(r) for r in np.split(np.arange(len(kept.t)), cuts)]
+
+
+def _reach(source: DataSource, rate: float) -> float:
+    """How far a sample's conditioning reaches (s): the trim at each end of a conditioned stretch."""
+    h = 1.0 / rate
+    return source.trim if source.trim is not None else (TRIM_PERIODS / source.cutoff if source.cutoff else 2 * h)
+
+
+def _conditioned(kept: RawLog, pieces: list[np.ndarray], source: DataSource, robot: RobotSpec, rate: float,
+                 checked: Checked, label: str, notes: list[str]) -> JointLog:
+    """Each stretch of rows conditioned on its own (steps 2-5), the stretches too short for the filter
+    and the trim dropped (said in `notes`), the rest joined in time order."""
+    reach = _reach(source, rate)
+    pad = 3 * (2 * int(np.ceil(source.filter_order / 2)) + 1) if source.cutoff is not None else 0
+    logs, dropped = [], []
+    for rows in pieces:
+        t0, t1 = kept.t[rows[0]], kept.t[rows[-1]]
+        samples = int(np.floor((t1 - t0) * rate)) + 1
+        if samples <= pad or samples - 2 * int(np.ceil(reach * rate)) < 10 * source.decimate:
+            dropped.append((float(t0), float(t1)))
+            continue
+        logs.append(smooth(kept.span(np.isin(np.arange(len(kept.t)), rows)), source, robot, rate, checked.record,
+                           checked.warnings))
+    if dropped:
+        notes.append(f"{label}: {len(dropped)} stretch(es) between gaps too short to filter and trim "
+                     f"({', '.join(f'{a:.3g}-{b:.3g} s' for a, b in dropped[:4])}"
+                     f"{' ...' if len(dropped) > 4 else ''}): dropped")
+    if not logs:
+        raise InputError(kept.file, "gap", f"{label}: no stretch between gaps is long enough to filter and trim "
+                                           f"({2 * reach:.3g} s of trim and 10 samples at least)")
+    if len(logs) == 1:
+        return logs[0]
+    joined = (np.concatenate([getattr(g, k) for g in logs]) for k in ("t", "q", "qd", "qdd", "tau"))
+    t, q, qd, qdd, tau = joined
+    conditioning = dict(logs[0].conditioning)
+    conditioning["t_end"] = logs[-1].conditioning["t_end"]
+    return JointLog(t, logs[0].joints, q, qd, qdd, tau, conditioning)
+
+
+def _segment_record(kept: RawLog, pieces: list[np.ndarray], source: DataSource, median: float) -> dict:
+    return {"split_at_steps_over_s": split_step(source, median),
+            "definition": "a step over split_at_steps_over_s splits the log (the scenario's `gap` median steps; "
+                          f"by default {GAP_SPLIT:g} median steps, with a low-pass filter at least a quarter period of "
+                          "its cut-off): each stretch is resampled, filtered, differentiated and trimmed on its own",
+            "stretches": [{"t_start": float(kept.t[r[0]]), "t_end": float(kept.t[r[-1]]), "rows": len(r)}
+                          for r in pieces]}
+
+
 def load(source: DataSource, robot: RobotSpec) -> tuple[JointLog, JointLog, JointLog | None]:
     """The conditioned log, its training span and its validation span (the last part by time, or
-    another log): the identification never sees the validation data. A log split by time is
-    checked whole, then split: each span is resampled, filtered, differentiated and trimmed on its
-    own (on the whole file's grid rate), so that no filter or difference reaches across the split
-    (the trim is the guard band on both sides of it). `full` is then both spans, one after the
-    other (data.csv, the report); its conditioning record is the training span's, with the whole
-    file's checks and the split beside it."""
+    another log): the identification never sees the validation data. The log is checked whole, then
+    cut at every gap (a step over `gap` median steps) and, when split by time, at the split: each
+    stretch is resampled, filtered, differentiated and trimmed on its own (on the whole file's grid
+    rate), so that no filter or difference reaches across a gap or the split (the trim at both ends
+    of each stretch is the guard band). `full` is then the spans one after the other (data.csv, the
+    report); its conditioning record is the training span's, with the whole file's checks, the
+    stretches and the split beside it."""
     raw = read_raw(source, robot)
-    if source.validation_file is not None:
-        full = condition(raw, source, robot)
-        return full, full, condition(read_raw(source, robot, source.validation_file), source, robot)
-    if source.validation_from is None:
-        full = condition(raw, source, robot)
-        return full, full, None
-    checked = check(raw, robot)
+    checked = check(raw, robot, source)
     kept, rate = checked.kept, checked.rate(source)
+    pieces = segments(kept, split_step(source, checked.median_step))
+    notes: list[str] = []
+    if len(pieces) > 1:
+        notes.append(f"{len(pieces) - 1} gap(s) over {split_step(source, checked.median_step):.3g} s (largest "
+                     f"{float(np.max(np.diff(kept.t))):.3g} s): the log is conditioned in {len(pieces)} stretches, "
+                     "nothing filtered across a gap")
+    if source.validation_from is None:
+        train = _conditioned(kept, pieces, source, robot, rate, checked, "log", notes)
+        train.conditioning["segments"] = _segment_record(kept, pieces, source, checked.median_step)
+        train.conditioning["warnings"] = train.conditioning["warnings"] + notes
+        val = None
+        if source.validation_file is not None:
+            val = condition(read_raw(source, robot, source.validation_file), source, robot)
+        return train, train, val
     t_split = kept.t[0] + source.validation_from * (kept.t[-1] - kept.t[0])
     before = kept.t < t_split
     if before.sum() < 10 or (~before).sum() < 10:
         raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few rows "
                                                          f"({int(before.sum())} and {int((~before).sum())})")
-    train, val = (smooth(kept.span(rows), source, robot, rate, checked.record, checked.warnings)
-                  for rows in (before, ~before))
+    spans = {name: [p[side[p]] for p in pieces if side[p].any()] for name, side in (("training", before),
+                                                                                      ("validation", ~before))}
+    train, val = (_conditioned(kept, spans[name], source, robot, rate, checked, f"{name} span", notes)
+                  for name in ("training", "validation"))
+    if not train.t[-1] < val.t[0]:
+        raise InputError(source.file, "validation.from", f"the training span (to {train.t[-1]:g} s) and the "
+                                                         f"validation span (from {val.t[0]:g} s) overlap")
     conditioning = dict(train.conditioning)
+    conditioning["warnings"] = conditioning["warnings"] + notes
+    conditioning["segments"] = _segment_record(kept, pieces, source, checked.median_step)
     conditioning["validation"] = {
         "from_fraction": source.validation_from, "t_split": float(t_split),
         "training_samples": len(train.t), "validation_samples": len(val.t),
+        "guard_band_s": float(val.t[0] - train.t[-1]), "disjoint": True,
         "conditioned": "each span on its own (resampling, filter, derivatives, trim): nothing crosses the split",
         "training": {"t_start": train.conditioning["t_start"], "t_end": train.conditioning["t_end"]},
         "validation": {"t_start": val.conditioning["t_start"], "t_end": val.conditioning["t_end"]}}

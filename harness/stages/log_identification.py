@@ -13,7 +13,7 @@ on data whose truth nobody knows, judged on a part of the log the fit never saw.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +21,7 @@ import numpy as np
 from harness.base.numerics import PARAMETER_FLOOR, parameter_scale, relative_error
 from harness.base.plugins import Stage
 from harness.engines.mujoco import mjcf
-from harness.engines.pinocchio import build_model
+from harness.engines.pinocchio import build_model, rnea
 from harness.identify import consistent
 from harness.identify.torque_id import (
     BaseFit,
@@ -58,6 +58,19 @@ class LogIdentification:
     files: dict[str, str]  # the export
     mjcf_friction: dict[str, dict[str, float]]  # per joint, what MuJoCo's dry friction changes (export.coulomb_mapping)
     mjcf_refused: str | None = None  # why robot.xml was not written, if it was not
+    plausible: dict = field(default_factory=dict)  # `plausibility`
+    warnings: list[str] = field(default_factory=list)  # what the terminal is told
+    truth: dict[str, np.ndarray] = field(default_factory=dict)  # span -> the truth's torques, where it is known
+
+    def _against_truth(self, ctx) -> dict:
+        errors = {span: _truth_errors(self, span) for span in self.truth}
+        headline = errors.get("validation", errors["training"])
+        return {"model": str(ctx.scenario.truth.source),
+                "definition": "||tau - tau_truth||_F / ||tau_truth||_F, tau_truth the torques of the model that made "
+                              "the log at the conditioned states (its inverse dynamics with its friction): each "
+                              "model's error against the robot, and the measured torques' (the sensor's and the "
+                              "conditioning's)",
+                "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()}, "errors": errors}
 
     def serialise(self, ctx, config) -> dict:
         """results.json's `log_identification`: the fits, their errors per span, the consistent model and the export."""
@@ -105,6 +118,9 @@ class LogIdentification:
                           "change_from_model": float(rel[k]), "sensitivity": finite_or_null(ls.sensitivity[k]),
                           "weakly_identifiable": bool(ls.weak[k])} for k in range(len(ls.beta))],
             },
+            **({"truth": self._against_truth(ctx)} if self.truth else {}),
+            "plausibility": self.plausible,
+            "warnings": self.warnings,
             "consistent": {
                 "solver": self.fit.solver,
                 "solver_status": self.fit.status,
@@ -128,6 +144,36 @@ class LogIdentification:
             "joints": n,
             "series": _series(self),
         }
+
+
+PLAUSIBLE = 3.0  # a link's identified mass or inertia more than 3 times, or under a third of, the model's: warned
+ON_MARGIN = 1.01  # a link whose smallest pseudo-inertia eigenvalue is within 1 % of the fit's margin sits on it
+
+
+def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], margin: float) -> dict:
+    """Beside consistency, plausibility: per link (by its joint) the identified mass and the trace of
+    the inertia about the centre of mass as ratios to the model's own; the links outside
+    [1/PLAUSIBLE, PLAUSIBLE] on either; and the links on the fit's positive-definiteness margin
+    (their smallest pseudo-inertia eigenvalue within ON_MARGIN of it), which the data pushed there."""
+    from harness.model.inertia import about_centre_of_mass, pseudo_inertia
+
+    ratios, outside, on_margin = {}, [], []
+    for k, j in enumerate(joints):
+        m, m0 = float(theta[k][0]), float(theta_model[k][0])
+        tr = float(np.trace(about_centre_of_mass(theta[k])[2])) if m > 0 else float("nan")
+        tr0 = float(np.trace(about_centre_of_mass(theta_model[k])[2])) if m0 > 0 else float("nan")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = {"mass": m / m0 if m0 > 0 else float("nan"), "inertia_trace": tr / tr0 if tr0 > 0 else float("nan")}
+        ratios[j] = r
+        if any(np.isfinite(v) and not 1 / PLAUSIBLE <= v <= PLAUSIBLE for v in r.values()):
+            outside.append(j)
+        if np.linalg.eigvalsh(pseudo_inertia(theta[k]))[0] <= ON_MARGIN * margin:
+            on_margin.append(j)
+    return {"definition": f"per link, identified / model: its mass and the trace of its inertia about the centre "
+                          f"of mass; implausible outside [1/{PLAUSIBLE:g}, {PLAUSIBLE:g}]; on_margin: links whose "
+                          f"smallest pseudo-inertia eigenvalue is within {ON_MARGIN:g} x the fit's margin",
+            "band": [1 / PLAUSIBLE, PLAUSIBLE], "ratios": ratios, "implausible": outside,
+            "implausible_links": len(outside), "on_margin": on_margin, "links_on_margin": len(on_margin)}
 
 
 def run(ctx, config) -> LogIdentification | None:
@@ -160,10 +206,23 @@ def run(ctx, config) -> LogIdentification | None:
     ctx.progress("physically consistent parameters (semidefinite program)", None)
     fit = consistent.fit(W, L, theta_model, friction_model, scale)
     x_fit = np.concatenate([fit.theta.ravel(), fit.friction.ravel()])
+    plausible = plausibility(fit.theta, theta_model, joints, fit.margin)
+    warnings = []
+    if plausible["implausible"]:
+        warnings.append(f"identified links far from the model's (mass or inertia beyond {PLAUSIBLE:g} times, or under "
+                        f"1/{PLAUSIBLE:g} of, its own): " + ", ".join(
+                            f"{j} (mass x{plausible['ratios'][j]['mass']:.3g}, inertia "
+                            f"x{plausible['ratios'][j]['inertia_trace']:.3g})" for j in plausible["implausible"]))
+    if plausible["on_margin"]:
+        warnings.append(f"{len(plausible['on_margin'])} link(s) on the fit's positive-definiteness margin (the data "
+                        f"push them past physical): {', '.join(plausible['on_margin'])}")
+    if fit.fallback:
+        warnings.append(f"the consistent fit fell back ({consistent.FALLBACKS[fit.fallback]}): "
+                        + "; ".join(fit.attempts))
     spans = {"training": (q, qd, qdd, tau, train.t)}
     if validation is not None:
         spans["validation"] = (*joint_data(validation, joints), validation.t)
-    predictions, measured, times = {}, {}, {}
+    predictions, measured, times, truth_tau = {}, {}, {}, {}
     for span, (qs, qds, qdds, taus, ts) in spans.items():
         Ws = W if span == "training" else regressor(pm, qs, qds, qdds, with_friction=True)
         predictions[span] = {
@@ -172,6 +231,8 @@ def run(ctx, config) -> LogIdentification | None:
             "model as given": (Ws @ x_model).reshape(taus.shape),
         }
         measured[span], times[span] = taus, ts
+        if sc.truth is not None:  # what the robot that made the log needs at these states
+            truth_tau[span] = rnea(build_model(sc.truth, sc.gravity_W), qs, qds, qdds).tau
     refused = None  # why robot.xml was not written
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
@@ -192,7 +253,15 @@ def run(ctx, config) -> LogIdentification | None:
     files[f"identified/{README_FILE}"] = readme(identified, [Path(f).name for f in files] + [README_FILE], mapping,
                                                 description, refused)
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
-                             friction_model, predictions, measured, times, files, mapping, refused)
+                             friction_model, predictions, measured, times, files, mapping, refused, plausible, warnings,
+                             truth_tau)
+
+
+def _truth_errors(li: LogIdentification, span: str) -> dict:
+    """Each model's torques, and the measured ones, against the truth's at the span's states."""
+    ref = li.truth[span]
+    return {**{model: torque_errors(pred, ref, li.joints) for model, pred in li.predictions[span].items()},
+            "measured": torque_errors(li.measured[span], ref, li.joints)}
 
 
 def _span_errors(li: LogIdentification, span: str) -> dict:
