@@ -19,6 +19,10 @@ model's joint order and `{name}` for a joint's name, or a list of column names i
     truth = "bench_robot.toml"            # the model that made the log, where known: errors against it too
     validation = { from = 0.7 }           # the last 30 % by time is kept for validation
 
+Instead of `file` and `columns`, `bag` (a rosbag2 folder or a ROS 1 .bag file) and `topic` (its
+sensor_msgs/JointState topic) read a ROS bag, matching joints by name (harness/sources/bag.py); a
+validation `file` is then a bag too.
+
 Units are converted on reading (`to_si`): degrees of revolute joints to radians; motor currents to
 joint torques, tau = i k_t N. A revolute joint whose positions reach UNIT_FACTOR times its limit is
 refused, with the unit that would fit suggested.
@@ -88,6 +92,7 @@ class DataSource:
     gap: float | None = None  # a step over this many median steps splits the log (default: `split_step`)
     limits_check: bool = True  # positions far beyond the joint limits (a unit mistake?) are refused
     truth: Path | None = None  # the model that made the log, where it is known (a bench log): errors against it
+    topic: str | None = None  # a ROS bag's JointState topic: `file` is then the bag (harness/sources/bag.py)
 
     def describe(self) -> dict:
         return {"file": str(self.file),
@@ -99,7 +104,7 @@ class DataSource:
                 "decimate": self.decimate, "trim_s": self.trim, "gap_median_steps": self.gap,
                 "validation_from": self.validation_from,
                 "validation_file": str(self.validation_file) if self.validation_file else None,
-                "truth": str(self.truth) if self.truth else None}
+                "truth": str(self.truth) if self.truth else None, "bag_topic": self.topic}
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,11 +160,22 @@ def read_log_csv(path: Path | str) -> JointLog:
 def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> DataSource:
     """The `[data]` table, validated (the file must exist and be inside reach of the scenario);
     `joints`, the model's number of joints, checks explicit column lists and per-joint constants."""
-    file = _file(t, "file", scenario_file)
-    ct = t.table("columns")
-    columns: dict[str, str | tuple[str, ...]] = {"t": ct.string("t")}
+    topic = None
+    if t.either("file", "bag", "file (a CSV log) or bag (a ROS bag: a rosbag2 folder or a ROS 1 .bag file)") == "bag":
+        file = (scenario_file.parent / t.string("bag")).resolve()
+        if not file.exists():
+            raise t.error("bag", f"no bag {t.data['bag']!r} (looked for {file})")
+        topic = t.string("topic")
+        if t.has("columns"):
+            raise t.error("columns", "a bag's JointState messages name their joints: no columns to give")
+        columns: dict[str, str | tuple[str, ...]] = {}
+        ct = None
+    else:
+        file = _file(t, "file", scenario_file)
+        ct = t.table("columns")
+        columns = {"t": ct.string("t")}
     for k in ("q", "qd", "tau"):
-        if k == "qd" and not ct.has("qd"):
+        if ct is None or (k == "qd" and not ct.has("qd")):
             continue
         if isinstance(ct.data.get(k), list):
             names = ct.strings(k, choices=None)
@@ -177,7 +193,8 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
         except (KeyError, IndexError, ValueError):
             raise ct.error(k, f"{v!r}: only {{j}} and {{name}} may stand in braces") from None
         columns[k] = v
-    ct.finish()
+    if ct is not None:
+        ct.finish()
     units, units_given = dict(SI), t.has("units")
     if units_given:
         ut = t.table("units")
@@ -212,11 +229,11 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
             if not 0.0 < v_from < 1.0:
                 raise vt.error("from", f"{v_from:g} is outside the log: a fraction of its duration in (0, 1)")
         else:
-            v_file = _file(vt, "file", scenario_file)
+            v_file = _file(vt, "file", scenario_file, bag=topic is not None)
         vt.finish()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
-                      ratio, gap, limits_check, truth)
+                      ratio, gap, limits_check, truth, topic)
 
 
 def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:
@@ -230,9 +247,10 @@ def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
 
-def _file(t: Table, key: str, scenario_file: Path) -> Path:
+def _file(t: Table, key: str, scenario_file: Path, bag: bool = False) -> Path:
+    """A file named relative to the scenario; a bag may be a folder (rosbag2)."""
     path = (scenario_file.parent / t.string(key)).resolve()
-    if not path.is_file():
+    if not (path.exists() if bag else path.is_file()):
         raise t.error(key, f"file {t.data[key]!r} not found (looked for {path})")
     return path
 
@@ -289,7 +307,15 @@ def _read_frame(path: Path, nrows: int | None = None, content: bytes | None = No
 
 
 def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
-    """At load, before any work: the log (and a validation log) has the columns the scenario names."""
+    """At load, before any work: the log (and a validation log) has the columns the scenario names,
+    or the bag the topic."""
+    if source.topic is not None:
+        from harness.sources.bag import check_bag
+
+        for path in (source.file, source.validation_file):
+            if path is not None:
+                check_bag(path, source.topic)
+        return
     for path in (source.file, source.validation_file):
         if path is not None:
             _check_header(path, list(_read_frame(path, nrows=0, content=_first_line(path)).columns), source, robot)
@@ -314,6 +340,12 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     """The log's columns for the robot's joints; every refusal names the file and the column."""
     import pandas as pd
     path = file or source.file
+    if source.topic is not None:
+        from harness.sources.bag import digest, read_bag
+
+        t, q, qd, tau = read_bag(path, source.topic, robot.joint_names)
+        q, qd, tau = to_si(source, robot, q, qd, tau)
+        return RawLog(Path(path), digest(path), t, q, qd, tau, len(t))
     content = read_bounded(path, MAX_DATA_BYTES)  # read once: parsed and hashed
     df = _read_frame(path, content=content)
     if df.empty:
