@@ -17,6 +17,7 @@ model's joint order and `{name}` for a joint's name, or a list of column names i
     gap = 5.0                             # a step over 5 median steps splits the log (default: `split_step`)
     limits_check = true                   # refuse positions far beyond the joint limits (a unit mistake?)
     truth = "bench_robot.toml"            # the model that made the log, where known: errors against it too
+    delay = "estimate"                    # the torque channels' lag behind the encoders: or "correct", "none"
     validation = { from = 0.7 }           # the last 30 % by time is kept for validation
 
 Instead of `file` and `columns`, `bag` (a rosbag2 folder or a ROS 1 .bag file) and `topic` (its
@@ -70,6 +71,7 @@ MAX_FILTER_ORDER = 20
 UNITS = {"q": ("rad", "deg"), "qd": ("rad/s", "deg/s"), "tau": ("N m", "current")}
 SI = {"q": "rad", "qd": "rad/s", "tau": "N m"}
 GAP_SPLIT = 5.0  # default: a step over five median steps splits the log into segments
+DELAY_CHOICES = ("estimate", "correct", "none")
 UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more look like a unit mistake
 
 
@@ -93,6 +95,7 @@ class DataSource:
     limits_check: bool = True  # positions far beyond the joint limits (a unit mistake?) are refused
     truth: Path | None = None  # the model that made the log, where it is known (a bench log): errors against it
     topic: str | None = None  # a ROS bag's JointState topic: `file` is then the bag (harness/sources/bag.py)
+    delay: str = "estimate"  # the torque channels' delay behind the encoders: "estimate", "correct" or "none"
 
     def describe(self) -> dict:
         return {"file": str(self.file),
@@ -104,7 +107,7 @@ class DataSource:
                 "decimate": self.decimate, "trim_s": self.trim, "gap_median_steps": self.gap,
                 "validation_from": self.validation_from,
                 "validation_file": str(self.validation_file) if self.validation_file else None,
-                "truth": str(self.truth) if self.truth else None, "bag_topic": self.topic}
+                "truth": str(self.truth) if self.truth else None, "bag_topic": self.topic, "delay": self.delay}
 
 
 @dataclass(frozen=True, eq=False)
@@ -213,6 +216,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
         raise t.error("gap", f"{gap:g} median steps: more than {GAP_FACTOR:g} (a clock's jitter is not a gap)")
     limits_check = t.boolean("limits_check", default=True)
     truth = _file(t, "truth", scenario_file) if t.has("truth") else None
+    delay = t.string("delay", default="estimate", choices=DELAY_CHOICES)
     cutoff = t.number("cutoff", positive=True) if t.has("cutoff") else None
     order = t.integer("filter_order", default=4, minimum=1)
     if order > MAX_FILTER_ORDER:
@@ -233,7 +237,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
         vt.finish()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
-                      ratio, gap, limits_check, truth, topic)
+                      ratio, gap, limits_check, truth, topic, delay)
 
 
 def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:

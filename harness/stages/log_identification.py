@@ -22,7 +22,7 @@ from harness.base.numerics import PARAMETER_FLOOR, parameter_scale, relative_err
 from harness.base.plugins import Stage
 from harness.engines.mujoco import mjcf
 from harness.engines.pinocchio import build_model, rnea
-from harness.identify import consistent
+from harness.identify import consistent, delay
 from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
@@ -61,6 +61,7 @@ class LogIdentification:
     plausible: dict = field(default_factory=dict)  # `plausibility`
     warnings: list[str] = field(default_factory=list)  # what the terminal is told
     truth: dict[str, np.ndarray] = field(default_factory=dict)  # span -> the truth's torques, where it is known
+    delays: dict = field(default_factory=dict)  # results.json's `delays` (_delay_section)
 
     def _against_truth(self, ctx) -> dict:
         errors = {span: _truth_errors(self, span) for span in self.truth}
@@ -119,6 +120,7 @@ class LogIdentification:
                           "weakly_identifiable": bool(ls.weak[k])} for k in range(len(ls.beta))],
             },
             **({"truth": self._against_truth(ctx)} if self.truth else {}),
+            "delays": self.delays,
             "plausibility": self.plausible,
             "warnings": self.warnings,
             "consistent": {
@@ -176,6 +178,41 @@ def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], 
             "implausible_links": len(outside), "on_margin": on_margin, "links_on_margin": len(on_margin)}
 
 
+LAG_WARNING = 0.001  # s: an estimated delay beyond 1 ms, left uncorrected, is said on the terminal...
+LAG_GAIN = 0.9  # ... where reading the torque that much later leaves at most 90 % of the residual at zero delay
+
+
+def _found(lags) -> np.ndarray:
+    """Per joint, whether the delay is found: inside the search, and the fit clearly better for it."""
+    return ~lags.at_edge & (lags.residual <= LAG_GAIN * lags.residual_at_zero)
+
+
+def _read_later(log: JointLog, lag: np.ndarray, joints: list[str]) -> JointLog:
+    """The log with each joint's torque read `lag` later (harness/identify/delay.py), the rows where
+    that falls across a gap or beyond an end dropped."""
+    cols = [log.joint_index(j) for j in joints]
+    step = float(np.median(np.diff(log.t)))
+    tau, keep = delay.shifted(log.t, log.tau[:, cols], lag, step)
+    out = log.tau.copy()
+    out[:, cols] = tau
+    return JointLog(log.t[keep], log.joints, log.q[keep], log.qd[keep], log.qdd[keep], out[keep], log.conditioning)
+
+
+def _delay_section(lags, note: str | None, mode: str, joints: list[str]) -> dict:
+    if lags is None:
+        return {"mode": mode, "estimated": False, "note": note}
+    return {"mode": mode, "estimated": True, "corrected": mode == "correct",
+            "definition": "per joint, d such that the torque measured d later fits the joint's regressor rows best "
+                          "(least squares, every parameter); positive: the torque channel lags the encoders "
+                          "(harness/identify/delay.py)",
+            "found_definition": f"inside the search, and the residual at the delay at most {LAG_GAIN:g} x the "
+                                "residual at zero delay; only a found delay is corrected",
+            "search_s": [float(lags.candidates[0]), float(lags.candidates[-1])],
+            "per_joint": {j: {"delay_s": float(lags.delay[k]), "found": bool(_found(lags)[k]),
+                              "residual": float(lags.residual[k]), "residual_at_zero": float(lags.residual_at_zero[k]),
+                              "at_edge_of_search": bool(lags.at_edge[k])} for k, j in enumerate(joints)}}
+
+
 def run(ctx, config) -> LogIdentification | None:
     sc = ctx.scenario
     robot = sc.robot
@@ -187,11 +224,23 @@ def run(ctx, config) -> LogIdentification | None:
     base = structural_base(pm, robot.limits, with_friction=True)
     q, qd, qdd, tau = joint_data(train, joints)
     W = regressor(pm, q, qd, qdd, with_friction=True)
+    n = len(joints)
+    lags, lag_note = None, None
+    if sc.data.delay != "none":
+        ctx.progress("the torque channels' delays behind the encoders", None)
+        try:
+            lags = delay.estimate(train.t, tau, W.reshape(len(q), n, -1))
+        except ValueError as exc:
+            lag_note = f"delays not estimated: {exc}"
+    if lags is not None and sc.data.delay == "correct":  # the joints whose delay is found; the others as they are
+        train, validation = (None if log is None else _read_later(log, np.where(_found(lags), lags.delay, 0.0), joints)
+                             for log in (train, validation))
+        q, qd, qdd, tau = joint_data(train, joints)
+        W = regressor(pm, q, qd, qdd, with_friction=True)
     L = tau.reshape(-1)
     x_model = true_parameters(pm, with_friction=True)
     beta_model = base.of(x_model)
     ls = fit_base(W[:, base.independent], tau, beta_model)
-    n = len(joints)
     theta_model = x_model[: 10 * n].reshape(n, 10)
     friction_model = friction_values(robot.frictions)
     # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
@@ -216,6 +265,12 @@ def run(ctx, config) -> LogIdentification | None:
     if plausible["on_margin"]:
         warnings.append(f"{len(plausible['on_margin'])} link(s) on the fit's positive-definiteness margin (the data "
                         f"push them past physical): {', '.join(plausible['on_margin'])}")
+    lagging = [] if lags is None else [k for k in np.flatnonzero(_found(lags)) if abs(lags.delay[k]) > LAG_WARNING]
+    if lagging and sc.data.delay == "estimate":
+        warnings.append("torque channels behind the encoders (estimated, not corrected; [data] delay = \"correct\" "
+                        "shifts them): " + ", ".join(f"{joints[k]} {lags.delay[k] * 1e3:.2g} ms" for k in lagging))
+    if lag_note:
+        warnings.append(lag_note)
     if fit.fallback:
         warnings.append(f"the consistent fit fell back ({consistent.FALLBACKS[fit.fallback]}): "
                         + "; ".join(fit.attempts))
@@ -254,7 +309,7 @@ def run(ctx, config) -> LogIdentification | None:
                                                 description, refused)
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
                              friction_model, predictions, measured, times, files, mapping, refused, plausible, warnings,
-                             truth_tau)
+                             truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints))
 
 
 def _truth_errors(li: LogIdentification, span: str) -> dict:

@@ -1,0 +1,95 @@
+"""The delay of each torque (or current) channel of a log behind its encoders.
+
+A channel that lags by d measures tau_meas(t) = tau(t - d): the torque the joint state at t needs
+arrives d later. For joint j and a candidate d, the measured torque read d later, tau_meas(t + d),
+is fitted by least squares on the joint's own rows of the regressor, W_j(q, q', q'') theta (the
+same columns as the identification: every link's ten parameters and every joint's friction and
+rotor inertia); the delay is the d whose fit leaves the smallest residual. The residual is taken on
+the same rows for every candidate (those at least the largest candidate from either end), on a grid
+of STEP, then refined by a parabola through the best grid point and its neighbours. Linear
+interpolation reads tau_meas between samples: on a filtered log it is smooth at the grid's scale;
+nothing is read across a gap.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.base.numerics import column_scale
+
+LARGEST = 0.02  # s: the candidates span +-20 ms
+STEP = 0.0005  # s
+
+
+@dataclass(frozen=True)
+class Delays:
+    """Per joint: the estimated delay (s, the torque channel behind the encoder when positive), the
+    relative residual of the fit at it and at zero delay, and the candidates' residual curve."""
+
+    delay: np.ndarray  # (n,)
+    residual: np.ndarray  # (n,) ||W_j theta - tau_j(t + d)|| / ||tau_j|| at the delay
+    residual_at_zero: np.ndarray  # (n,)
+    candidates: np.ndarray  # (K,)
+    curve: np.ndarray  # (n, K)
+    at_edge: np.ndarray  # (n,) bool: the best candidate is the first or last (the delay may lie beyond)
+
+
+def _basis(Wj: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the column space of the column-scaled Wj (its numerical rank's left
+    singular vectors): the least-squares residual of any y is then y less its projection."""
+    U, sv, _ = np.linalg.svd(Wj / column_scale(Wj), full_matrices=False)
+    return U[:, sv > sv[0] * max(Wj.shape) * np.finfo(float).eps] if sv.size and sv[0] > 0 else U[:, :0]
+
+
+def _residual(U: np.ndarray, y: np.ndarray) -> float:
+    return float(np.linalg.norm(y - U @ (U.T @ y)) / np.linalg.norm(y))
+
+
+def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LARGEST, step: float = STEP) -> Delays:
+    """t (N,) s, uniform within each stretch of a log cut at its gaps; tau (N, n); W (N, n, p) the
+    regressor's rows by joint. The rows used are those at least `largest` from a stretch's ends."""
+    candidates = np.arange(-largest, largest + step / 2, step)
+    dt = np.diff(t)
+    cuts = np.flatnonzero(dt > 1.5 * np.median(dt)) + 1
+    starts, ends = t[np.r_[0, cuts]], t[np.r_[cuts - 1, len(t) - 1]]
+    stretch = np.searchsorted(t[np.r_[0, cuts]], t, side="right") - 1
+    rows = (t >= starts[stretch] + largest) & (t <= ends[stretch] - largest)
+    if rows.sum() < 2 * W.shape[2]:
+        raise ValueError(f"{int(rows.sum())} samples away from the ends: too few to estimate a delay of up to "
+                         f"{largest * 1e3:g} ms")
+    n = tau.shape[1]
+    curve = np.empty((n, len(candidates)))
+    bases = [_basis(W[rows, j, :]) for j in range(n)]
+    for j in range(n):
+        for k, d in enumerate(candidates):
+            curve[j, k] = _residual(bases[j], np.interp(t[rows] + d, t, tau[:, j]))
+    best = np.argmin(curve, axis=1)
+    delay = candidates[best].astype(float)
+    at_edge = (best == 0) | (best == len(candidates) - 1)
+    for j in np.flatnonzero(~at_edge):  # the vertex of the parabola through the best point and its neighbours
+        y0, y1, y2 = curve[j, best[j] - 1: best[j] + 2]
+        denominator = y0 - 2 * y1 + y2
+        if denominator > 0:
+            delay[j] += 0.5 * step * (y0 - y2) / denominator
+    residual = np.array([_residual(bases[j], np.interp(t[rows] + delay[j], t, tau[:, j])) for j in range(n)])
+    zero = curve[:, np.argmin(np.abs(candidates))]
+    return Delays(delay, residual, zero, candidates, curve, at_edge)
+
+
+def shifted(t: np.ndarray, tau: np.ndarray, delay: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """tau read `delay` later (tau_j(t + d_j), by linear interpolation) and the rows where that lies
+    between two samples at most 1.5 `step` apart (not across a gap, not beyond an end)."""
+    out = np.empty_like(tau)
+    keep = np.ones(len(t), dtype=bool)
+    for j, d in enumerate(delay):
+        at = t + d
+        right = np.searchsorted(t, at)
+        inside = (right > 0) & (right < len(t))
+        close = np.zeros(len(t), dtype=bool)
+        close[inside] = (t[right[inside]] - t[right[inside] - 1]) <= 1.5 * step
+        exact = np.isin(at, t)
+        keep &= close | exact
+        out[:, j] = np.interp(at, t, tau[:, j])
+    return out, keep
