@@ -229,6 +229,8 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     dt = root.table("data")
     source = read_source(dt, path, len(robot.joints))
     check_columns(source, robot, dt)
+    if source.payload is not None and source.payload.body not in {b.name for b in robot.massive_bodies}:
+        raise dt.error("payload.body", f"no body {source.payload.body!r} with mass in {robot.name!r}")
     truth = None
     if source.truth is not None:
         truth = load_spec(source.truth)

@@ -18,6 +18,8 @@ model's joint order and `{name}` for a joint's name, or a list of column names i
     limits_check = true                   # refuse positions far beyond the joint limits (a unit mistake?)
     truth = "bench_robot.toml"            # the model that made the log, where known: errors against it too
     delay = "estimate"                    # the torque channels' lag behind the encoders: or "correct", "none"
+    identify_torque_constants = true      # currents: each joint's constant identified (default: with a payload log)
+    payload = { file = "loaded.csv", body = "wrist_3_link", mass = 2.0, com = [...], inertia = [...] }
     validation = { from = 0.7 }           # the last 30 % by time is kept for validation
 
 Instead of `file` and `columns`, `bag` (a rosbag2 folder or a ROS 1 .bag file) and `topic` (its
@@ -76,6 +78,20 @@ UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more lo
 
 
 @dataclass(frozen=True)
+class KnownPayload:
+    """`[data.payload]`: a log of the same robot, the same motion or another, carrying a known load on
+    `body`: its mass (kg), centre of mass and inertia about it (world frame at q = 0, as a model file's
+    `[payload]`: Ixx, Iyy, Izz, Ixy, Ixz, Iyz). What it adds to the torques is known, so it fixes the
+    scale the currents' torque constants leave open."""
+
+    file: Path
+    body: str
+    mass: float
+    com_W: np.ndarray
+    inertia: np.ndarray
+
+
+@dataclass(frozen=True)
 class DataSource:
     file: Path
     columns: dict[str, str | tuple[str, ...]]  # "t", "q", "qd" (optional), "tau" -> a template with {j} or
@@ -96,6 +112,8 @@ class DataSource:
     truth: Path | None = None  # the model that made the log, where it is known (a bench log): errors against it
     topic: str | None = None  # a ROS bag's JointState topic: `file` is then the bag (harness/sources/bag.py)
     delay: str = "estimate"  # the torque channels' delay behind the encoders: "estimate", "correct" or "none"
+    payload: KnownPayload | None = None  # a second log with a known load: the torque constants identified
+    identify_constants: bool = False  # currents: each joint's torque constant identified (up to one scale alone)
 
     def describe(self) -> dict:
         return {"file": str(self.file),
@@ -107,7 +125,11 @@ class DataSource:
                 "decimate": self.decimate, "trim_s": self.trim, "gap_median_steps": self.gap,
                 "validation_from": self.validation_from,
                 "validation_file": str(self.validation_file) if self.validation_file else None,
-                "truth": str(self.truth) if self.truth else None, "bag_topic": self.topic, "delay": self.delay}
+                "truth": str(self.truth) if self.truth else None, "bag_topic": self.topic, "delay": self.delay,
+                "identify_torque_constants": self.identify_constants,
+                "payload_log": None if self.payload is None else {
+                    "file": str(self.payload.file), "body": self.payload.body, "mass": self.payload.mass,
+                    "com": [float(x) for x in self.payload.com_W], "inertia": [float(x) for x in self.payload.inertia]}}
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,6 +239,16 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
     limits_check = t.boolean("limits_check", default=True)
     truth = _file(t, "truth", scenario_file) if t.has("truth") else None
     delay = t.string("delay", default="estimate", choices=DELAY_CHOICES)
+    payload = None
+    if t.has("payload"):
+        pt = t.table("payload")
+        payload = KnownPayload(_file(pt, "file", scenario_file, bag=topic is not None), pt.string("body"),
+                               pt.number("mass", positive=True), pt.vector("com"), pt.vector("inertia", length=6))
+        pt.finish()
+    identify_constants = t.boolean("identify_torque_constants", default=payload is not None)
+    if (payload is not None or identify_constants) and units["tau"] != "current":
+        raise t.error("payload" if payload is not None else "identify_torque_constants",
+                      'identifies the torque constants of a log of motor currents: give units = { tau = "current" }')
     cutoff = t.number("cutoff", positive=True) if t.has("cutoff") else None
     order = t.integer("filter_order", default=4, minimum=1)
     if order > MAX_FILTER_ORDER:
@@ -237,7 +269,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
         vt.finish()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
-                      ratio, gap, limits_check, truth, topic, delay)
+                      ratio, gap, limits_check, truth, topic, delay, payload, identify_constants)
 
 
 def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:
@@ -316,11 +348,11 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
     if source.topic is not None:
         from harness.sources.bag import check_bag
 
-        for path in (source.file, source.validation_file):
+        for path in (source.file, source.validation_file, source.payload and source.payload.file):
             if path is not None:
                 check_bag(path, source.topic)
         return
-    for path in (source.file, source.validation_file):
+    for path in (source.file, source.validation_file, source.payload and source.payload.file):
         if path is not None:
             _check_header(path, list(_read_frame(path, nrows=0, content=_first_line(path)).columns), source, robot)
 

@@ -62,6 +62,7 @@ class LogIdentification:
     warnings: list[str] = field(default_factory=list)  # what the terminal is told
     truth: dict[str, np.ndarray] = field(default_factory=dict)  # span -> the truth's torques, where it is known
     delays: dict = field(default_factory=dict)  # results.json's `delays` (_delay_section)
+    torque_constants: dict | None = None  # results.json's `torque_constants` (_constants_section), for currents
 
     def _against_truth(self, ctx) -> dict:
         errors = {span: _truth_errors(self, span) for span in self.truth}
@@ -121,6 +122,7 @@ class LogIdentification:
             },
             **({"truth": self._against_truth(ctx)} if self.truth else {}),
             "delays": self.delays,
+            "torque_constants": self.torque_constants,
             "plausibility": self.plausible,
             "warnings": self.warnings,
             "consistent": {
@@ -213,6 +215,43 @@ def _delay_section(lags, note: str | None, mode: str, joints: list[str]) -> dict
                               "at_edge_of_search": bool(lags.at_edge[k])} for k, j in enumerate(joints)}}
 
 
+def _torque_constants(sc, pm, base, W, tau, beta_model, joints):
+    """Each joint's factor on its nominal torque constant (harness/identify/scale.py), fixed by the
+    payload log where the scenario gives one, else by the model's own parameters."""
+    from harness.identify.scale import payload_parameters, torque_scales
+    from harness.sources.log import condition, read_raw
+
+    if sc.data.payload is None:
+        return torque_scales(W[:, base.independent], tau, beta_model)
+    p = sc.data.payload
+    loaded = condition(read_raw(sc.data, sc.robot, p.file), sc.data, sc.robot)
+    q2, qd2, qdd2, tau2 = joint_data(loaded, joints)
+    W2 = regressor(pm, q2, qd2, qdd2, with_friction=True)
+    k = joints.index(sc.robot.inner_joint(p.body).name)
+    theta_p = payload_parameters(p.mass, p.com_W, p.inertia, sc.robot.joints[k].p_W0)
+    known = (W2[:, 10 * k: 10 * k + 10] @ theta_p).reshape(tau2.shape)
+    return torque_scales(W[:, base.independent], tau, beta_model, W2[:, base.independent], tau2, known)
+
+
+def _scaled(log: JointLog, factor: np.ndarray, joints: list[str]) -> JointLog:
+    cols = [log.joint_index(j) for j in joints]
+    tau = log.tau.copy()
+    tau[:, cols] *= factor
+    return JointLog(log.t, log.joints, log.q, log.qd, log.qdd, tau, log.conditioning)
+
+
+def _constants_section(constants, source, joints: list[str]) -> dict | None:
+    if constants is None:
+        return None
+    return {"definition": "per joint, the torque it carries over the torque its currents give with the nominal "
+                          "constant (harness/identify/scale.py); identified = factor x nominal",
+            "fixed_by": constants.fixed_by, "relative_residual": constants.relative_residual,
+            "per_joint": {j: {"nominal": source.torque_constant[k], "factor": float(constants.factor[k]),
+                              "identified": float(constants.factor[k] * source.torque_constant[k]),
+                              "factor_std": None if constants.std is None else float(constants.std[k])}
+                          for k, j in enumerate(joints)}}
+
+
 def run(ctx, config) -> LogIdentification | None:
     sc = ctx.scenario
     robot = sc.robot
@@ -237,9 +276,16 @@ def run(ctx, config) -> LogIdentification | None:
                              for log in (train, validation))
         q, qd, qdd, tau = joint_data(train, joints)
         W = regressor(pm, q, qd, qdd, with_friction=True)
-    L = tau.reshape(-1)
     x_model = true_parameters(pm, with_friction=True)
     beta_model = base.of(x_model)
+    constants = None
+    if sc.data.units["tau"] == "current" and sc.data.identify_constants:
+        ctx.progress("torque constants (motor currents)", None)
+        constants = _torque_constants(sc, pm, base, W, tau, beta_model, joints)
+        train, validation = (None if log is None else _scaled(log, constants.factor, joints)
+                             for log in (train, validation))
+        q, qd, qdd, tau = joint_data(train, joints)
+    L = tau.reshape(-1)
     ls = fit_base(W[:, base.independent], tau, beta_model)
     theta_model = x_model[: 10 * n].reshape(n, 10)
     friction_model = friction_values(robot.frictions)
@@ -271,6 +317,9 @@ def run(ctx, config) -> LogIdentification | None:
                         "shifts them): " + ", ".join(f"{joints[k]} {lags.delay[k] * 1e3:.2g} ms" for k in lagging))
     if lag_note:
         warnings.append(lag_note)
+    if constants is not None and constants.fixed_by == "model":
+        warnings.append("torque constants identified up to one common scale, fixed by the model's own parameters "
+                        "(a log with a known payload, [data.payload], fixes it)")
     if fit.fallback:
         warnings.append(f"the consistent fit fell back ({consistent.FALLBACKS[fit.fallback]}): "
                         + "; ".join(fit.attempts))
@@ -309,7 +358,8 @@ def run(ctx, config) -> LogIdentification | None:
                                                 description, refused)
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
                              friction_model, predictions, measured, times, files, mapping, refused, plausible, warnings,
-                             truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints))
+                             truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints),
+                             _constants_section(constants, sc.data, joints))
 
 
 def _truth_errors(li: LogIdentification, span: str) -> dict:
