@@ -182,8 +182,32 @@ def log_identification(r: dict, log) -> str:
     li = r["log_identification"]
     models = list(li["validation_rel_error"])
     span = li["series"]["span"]
-    headline = table(["model", f"{span}: ||tau_pred - tau|| / ||tau||"],
-                     [[esc(m), num(li["validation_rel_error"][m])] for m in models])
+    truth = li.get("truth")
+    if truth:
+        headline = table(["model", f"{span}: against the measured torques", "against the truth's torques"],
+                         [[esc(m), num(li["validation_rel_error"][m]), num(truth["validation_rel_error"][m])]
+                          for m in models] + [[esc("the measured torques themselves"), DASH,
+                                               num(truth["validation_rel_error"]["measured"])]])
+        headline += f"<p>The truth: {esc(truth['model'])}; {esc(truth['definition'])}.</p>"
+    else:
+        headline = table(["model", f"{span}: ||tau_pred - tau|| / ||tau||"],
+                         [[esc(m), num(li["validation_rel_error"][m])] for m in models])
+    extra = ""
+    lags = li.get("delays") or {}
+    if lags.get("estimated"):
+        extra += ("<h3>Torque channels' delays behind the encoders</h3>"
+                  f"<p>{esc(lags['definition'])}; {esc(lags['found_definition'])}. "
+                  f"{'Corrected' if lags['corrected'] else 'Not corrected'}.</p>"
+                  + table(["joint", "delay [ms]", "found", "residual at it", "at zero delay"],
+                          [[esc(j), num(v["delay_s"] * 1e3), mark(v["found"], "yes" if v["found"] else "no"),
+                            num(v["residual"]), num(v["residual_at_zero"])] for j, v in lags["per_joint"].items()]))
+    constants = li.get("torque_constants")
+    if constants:
+        extra += ("<h3>Torque constants (motor currents)</h3>"
+                  f"<p>{esc(constants['definition'])}; the scale fixed by the {esc(constants['fixed_by'])}.</p>"
+                  + table(["joint", "nominal [N m/A]", "factor", "identified [N m/A]", "factor's std"],
+                          [[esc(j), num(v["nominal"]), num(v["factor"]), num(v["identified"]), num(v["factor_std"])]
+                           for j, v in constants["per_joint"].items()]))
     joints = list(li["errors"][span][models[0]]["per_joint"])
     per_joint = table(["joint", *(f"{m}: RMS [N m] / relative" for m in models)],
                       [[esc(j), *(f"{num(li['errors'][span][m]['per_joint'][j]['rms_error'])} / "
@@ -222,7 +246,7 @@ def log_identification(r: dict, log) -> str:
     return section(
         "log_identification", "Identification from the log",
         f"<p>{esc(li['method'])}. Friction: {esc(li['friction_law'])}. Relative error: "
-        f"{esc(li['rel_error_definition'])}.</p>" + headline + fig + "<h3>Per joint</h3>" + per_joint
+        f"{esc(li['rel_error_definition'])}.</p>" + headline + fig + "<h3>Per joint</h3>" + per_joint + extra
         + f"<h3>Physically consistent parameters</h3><p>Solver: {_solver(con)}; what consistency "
         f"costs in relative torque error (consistent minus least squares): {esc(costs)}. Exported: "
         f"{esc(', '.join(li['export']))}.</p>" + links + fric
