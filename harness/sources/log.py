@@ -19,6 +19,7 @@ model's joint order and `{name}` for a joint's name, or a list of column names i
     truth = "bench_robot.toml"            # the model that made the log, where known: errors against it too
     delay = "estimate"                    # the torque channels' lag behind the encoders: or "correct", "none"
     identify_torque_constants = true      # currents: each joint's constant identified (default: with a payload log)
+    repeat = 4                            # the fit repeated on 4 disjoint segments of the training span
     payload = { file = "loaded.csv", body = "wrist_3_link", mass = 2.0, com = [...], inertia = [...] }
     validation = { from = 0.7 }           # the last 30 % by time is kept for validation
 
@@ -74,6 +75,7 @@ UNITS = {"q": ("rad", "deg"), "qd": ("rad/s", "deg/s"), "tau": ("N m", "current"
 SI = {"q": "rad", "qd": "rad/s", "tau": "N m"}
 GAP_SPLIT = 5.0  # default: a step over five median steps splits the log into segments
 DELAY_CHOICES = ("estimate", "correct", "none")
+MAX_REPEAT = 100
 UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more look like a unit mistake
 
 
@@ -114,6 +116,7 @@ class DataSource:
     delay: str = "estimate"  # the torque channels' delay behind the encoders: "estimate", "correct" or "none"
     payload: KnownPayload | None = None  # a second log with a known load: the torque constants identified
     identify_constants: bool = False  # currents: each joint's torque constant identified (up to one scale alone)
+    repeat: int | None = None  # the fit repeated on this many disjoint segments of the training span
 
     def describe(self) -> dict:
         return {"file": str(self.file),
@@ -126,7 +129,7 @@ class DataSource:
                 "validation_from": self.validation_from,
                 "validation_file": str(self.validation_file) if self.validation_file else None,
                 "truth": str(self.truth) if self.truth else None, "bag_topic": self.topic, "delay": self.delay,
-                "identify_torque_constants": self.identify_constants,
+                "identify_torque_constants": self.identify_constants, "repeat_segments": self.repeat,
                 "payload_log": None if self.payload is None else {
                     "file": str(self.payload.file), "body": self.payload.body, "mass": self.payload.mass,
                     "com": [float(x) for x in self.payload.com_W], "inertia": [float(x) for x in self.payload.inertia]}}
@@ -246,6 +249,9 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
                                pt.number("mass", positive=True), pt.vector("com"), pt.vector("inertia", length=6))
         pt.finish()
     identify_constants = t.boolean("identify_torque_constants", default=payload is not None)
+    repeat = t.integer("repeat", minimum=2) if t.has("repeat") else None
+    if repeat is not None and repeat > MAX_REPEAT:
+        raise t.error("repeat", f"{repeat} segments: at most {MAX_REPEAT}")
     if (payload is not None or identify_constants) and units["tau"] != "current":
         raise t.error("payload" if payload is not None else "identify_torque_constants",
                       'identifies the torque constants of a log of motor currents: give units = { tau = "current" }')
@@ -269,7 +275,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
         vt.finish()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
-                      ratio, gap, limits_check, truth, topic, delay, payload, identify_constants)
+                      ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat)
 
 
 def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:

@@ -23,6 +23,7 @@ from harness.base.plugins import Stage
 from harness.engines.mujoco import mjcf
 from harness.engines.pinocchio import build_model, rnea
 from harness.identify import consistent, delay
+from harness.identify.repeat import Repeatability, repeat
 from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
@@ -63,6 +64,7 @@ class LogIdentification:
     truth: dict[str, np.ndarray] = field(default_factory=dict)  # span -> the truth's torques, where it is known
     delays: dict = field(default_factory=dict)  # results.json's `delays` (_delay_section)
     torque_constants: dict | None = None  # results.json's `torque_constants` (_constants_section), for currents
+    repeated: Repeatability | None = None  # the fit on disjoint segments of the training span
 
     def _against_truth(self, ctx) -> dict:
         errors = {span: _truth_errors(self, span) for span in self.truth}
@@ -123,6 +125,21 @@ class LogIdentification:
             **({"truth": self._against_truth(ctx)} if self.truth else {}),
             "delays": self.delays,
             "torque_constants": self.torque_constants,
+            "repeatability": None if self.repeated is None else {
+                "definition": "the base parameters fitted on each of `segments` consecutive, disjoint parts of the "
+                              "training span: per parameter the coefficient of variation over the parts, and whether "
+                              "their 95 % intervals share a common point; `moved` lists those whose intervals do not "
+                              "(harness/identify/repeat.py)",
+                "segments": self.repeated.segments,
+                "max_variation": finite_or_null(float(np.max(self.repeated.variation))),
+                "median_variation": finite_or_null(float(np.median(self.repeated.variation))),
+                "moved_count": int(np.sum(~self.repeated.overlap)),
+                "moved": [expression(k) for k in np.flatnonzero(~self.repeated.overlap)],
+                "per_parameter": [{"expression": expression(k), "mean": float(self.repeated.mean[k]),
+                                   "spread": float(self.repeated.spread[k]),
+                                   "variation": finite_or_null(float(self.repeated.variation[k])),
+                                   "intervals_overlap": bool(self.repeated.overlap[k])}
+                                  for k in range(self.repeated.beta.shape[1])]},
             "plausibility": self.plausible,
             "warnings": self.warnings,
             "consistent": {
@@ -287,6 +304,12 @@ def run(ctx, config) -> LogIdentification | None:
         q, qd, qdd, tau = joint_data(train, joints)
     L = tau.reshape(-1)
     ls = fit_base(W[:, base.independent], tau, beta_model)
+    repeated, repeat_note = None, None
+    if sc.data.repeat:
+        try:
+            repeated = repeat(W[:, base.independent], tau, beta_model, sc.data.repeat)
+        except ValueError as exc:
+            repeat_note = f"repeatability not measured: {exc}"
     theta_model = x_model[: 10 * n].reshape(n, 10)
     friction_model = friction_values(robot.frictions)
     # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
@@ -317,6 +340,12 @@ def run(ctx, config) -> LogIdentification | None:
                         "shifts them): " + ", ".join(f"{joints[k]} {lags.delay[k] * 1e3:.2g} ms" for k in lagging))
     if lag_note:
         warnings.append(lag_note)
+    if repeat_note:
+        warnings.append(repeat_note)
+    moved = [] if repeated is None else list(np.flatnonzero(~repeated.overlap))
+    if moved:
+        warnings.append(f"{len(moved)} base parameter(s) moved between the {repeated.segments} segments of the "
+                        "training span more than their 95 % intervals allow (log_identification.repeatability)")
     if constants is not None and constants.fixed_by == "model":
         warnings.append("torque constants identified up to one common scale, fixed by the model's own parameters "
                         "(a log with a known payload, [data.payload], fixes it)")
@@ -359,7 +388,7 @@ def run(ctx, config) -> LogIdentification | None:
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
                              friction_model, predictions, measured, times, files, mapping, refused, plausible, warnings,
                              truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints),
-                             _constants_section(constants, sc.data, joints))
+                             _constants_section(constants, sc.data, joints), repeated)
 
 
 def _truth_errors(li: LogIdentification, span: str) -> dict:
