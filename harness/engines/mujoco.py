@@ -329,6 +329,66 @@ def _site_body(spec: RobotSpec, joint: Joint) -> str:
     return _measured_at(spec, joint).child
 
 
+# --- prediction: a model forward-simulated under measured torques -----------------------------------
+
+
+PREDICTION_TIMESTEP = 0.001  # s: RK4 steps of a prediction (the log's torques read at every stage)
+
+
+def predict(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray,
+            starts: np.ndarray, horizons: tuple[float, ...],
+            timestep: float = PREDICTION_TIMESTEP) -> tuple[np.ndarray, np.ndarray]:
+    """How far a model drifts from a measured motion under its measured torques. From each start row
+    s, MuJoCo starts at the measured (q, q') and integrates (RK4, `timestep`) with the joint torques
+    read from the log (linear interpolation in time, at every stage of every step), less the model's
+    Coulomb friction and offset (its rotor inertia and viscous friction are MuJoCo's armature and
+    damping); at each horizon the error q_sim - q_meas and q'_sim - q'_meas. t (N,), q, qd, tau
+    (N, n) in the spec's joint order; returns two (starts, horizons, n) arrays, NaN where the
+    simulation diverged."""
+    model = build_spec(spec, gravity_W, "RK4", timestep).compile()
+    data = mujoco.MjData(model)
+    joint_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
+    qadr, vadr = model.jnt_qposadr[joint_ids], model.jnt_dofadr[joint_ids]
+    coulomb, offset, velocity = (np.array([getattr(f, k) for f in spec.frictions])
+                                 for k in ("coulomb", "offset", "coulomb_velocity"))
+    steps = [round(h / timestep) for h in horizons]
+    q_err = np.full((len(starts), len(horizons), len(joint_ids)), np.nan)
+    qd_err = np.full_like(q_err, np.nan)
+    t0 = [0.0]
+    qvel, qfrc_applied = data.qvel, data.qfrc_applied
+    columns = np.arange(tau.shape[1])
+
+    def applied(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+        now = t0[0] + d.time
+        k = min(max(int(np.searchsorted(t, now)), 1), len(t) - 1)
+        w = (now - t[k - 1]) / (t[k] - t[k - 1])
+        qfrc_applied[vadr] = ((1 - w) * tau[k - 1, columns] + w * tau[k, columns]
+                              - coulomb * friction.coulomb_shape(qvel[vadr], velocity) - offset)
+
+    mujoco.set_mjcb_control(applied)
+    warned = len(_WARNINGS)
+    _COLLECTING[0] = True
+    try:
+        for i, s in enumerate(starts):
+            mujoco.mj_resetData(model, data)
+            data.qpos[qadr], data.qvel[vadr], t0[0] = q[s], qd[s], t[s]
+            for k in range(1, steps[-1] + 1):
+                mujoco.mj_step(model, data)
+                if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))) or any(
+                        data.warning[w].number for w in _UNSTABLE):
+                    break
+                if k in steps:
+                    h = steps.index(k)
+                    at = t[s] + k * timestep
+                    q_err[i, h] = data.qpos[qadr] - np.array([np.interp(at, t, q[:, j]) for j in columns])
+                    qd_err[i, h] = data.qvel[vadr] - np.array([np.interp(at, t, qd[:, j]) for j in columns])
+    finally:
+        mujoco.set_mjcb_control(None)
+        _COLLECTING[0] = False
+        del _WARNINGS[warned:]  # a diverged start is its NaN, not a warning line
+    return q_err, qd_err
+
+
 # --- the robot as an MJCF file for others to simulate ----------------------------------------------
 
 

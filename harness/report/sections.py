@@ -201,6 +201,13 @@ def log_identification(r: dict, log) -> str:
                   + table(["joint", "delay [ms]", "found", "residual at it", "at zero delay"],
                           [[esc(j), num(v["delay_s"] * 1e3), mark(v["found"], "yes" if v["found"] else "no"),
                             num(v["residual"]), num(v["residual_at_zero"])] for j, v in lags["per_joint"].items()]))
+    pred = li.get("prediction") or {}
+    if pred.get("models"):
+        hs = list(next(iter(pred["models"].values())))
+        extra += ("<h3>Forward simulation under the measured torques</h3>"
+                  f"<p>{esc(pred['definition'])}. RMS position error [rad or m] per horizon:</p>"
+                  + table(["model", *hs], [[esc(m), *(num(v[h]["q_rms"]) for h in hs)]
+                                           for m, v in pred["models"].items()]))
     constants = li.get("torque_constants")
     if constants:
         extra += ("<h3>Torque constants (motor currents)</h3>"

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.base.numerics import PARAMETER_FLOOR, parameter_scale, relative_error
+from harness.base.numerics import PARAMETER_FLOOR, finite_or_null, parameter_scale, relative_error
 from harness.base.plugins import Stage
 from harness.engines.mujoco import mjcf
 from harness.engines.pinocchio import build_model, rnea
@@ -65,6 +65,7 @@ class LogIdentification:
     delays: dict = field(default_factory=dict)  # results.json's `delays` (_delay_section)
     torque_constants: dict | None = None  # results.json's `torque_constants` (_constants_section), for currents
     repeated: Repeatability | None = None  # the fit on disjoint segments of the training span
+    prediction: dict = field(default_factory=dict)  # results.json's `prediction` (_prediction)
 
     def _against_truth(self, ctx) -> dict:
         errors = {span: _truth_errors(self, span) for span in self.truth}
@@ -123,6 +124,7 @@ class LogIdentification:
                           "weakly_identifiable": bool(ls.weak[k])} for k in range(len(ls.beta))],
             },
             **({"truth": self._against_truth(ctx)} if self.truth else {}),
+            "prediction": self.prediction,
             "delays": self.delays,
             "torque_constants": self.torque_constants,
             "repeatability": None if self.repeated is None else {
@@ -269,6 +271,56 @@ def _constants_section(constants, source, joints: list[str]) -> dict | None:
                           for k, j in enumerate(joints)}}
 
 
+HORIZONS = (0.02, 0.05, 0.1, 0.2)  # s: how far ahead a model is judged by forward simulation
+PREDICTION_STARTS = 20  # starts spread evenly over the span
+
+
+def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
+    """Rows from which `reach` seconds lie within the same stretch of the span (no gap crossed)."""
+    dt = np.diff(t)
+    cuts = np.flatnonzero(dt > 1.5 * np.median(dt)) + 1
+    ends = t[np.r_[cuts - 1, len(t) - 1]]
+    stretch = np.searchsorted(t[np.r_[0, cuts]], t, side="right") - 1
+    usable = np.flatnonzero(t + reach <= ends[stretch])
+    if not len(usable):
+        return usable
+    return usable[np.unique(np.linspace(0, len(usable) - 1, count).round().astype(int))]
+
+
+def _prediction(sc, models: dict, log: JointLog, joints: list[str], span: str) -> dict:
+    """Each model forward-simulated in MuJoCo from measured states under the measured torques
+    (harness/engines/mujoco.py, predict): per horizon the RMS and largest position and velocity error."""
+    from harness.engines.mujoco import PREDICTION_TIMESTEP, predict
+
+    q, qd, _, tau = joint_data(log, joints)
+    starts = _starts(log.t, HORIZONS[-1], PREDICTION_STARTS)
+    out = {"definition": f"from {len(starts)} measured states along the {span} span, each model forward-simulated "
+                         "in MuJoCo (RK4, 1 ms) under the measured joint torques less its Coulomb friction and "
+                         "offset; at each horizon q_sim - q_meas [rad or m] and q'_sim - q'_meas: RMS over the "
+                         "starts and joints, the largest joint's RMS, per joint RMS. The least-squares fit is not "
+                         "simulated: its base parameters are not a full set of physical parameters",
+           "span": span, "starts": len(starts), "timestep_s": PREDICTION_TIMESTEP,
+           "horizons_s": list(HORIZONS), "models": {}}
+    if not len(starts):
+        out["note"] = f"no stretch of the {span} span is {HORIZONS[-1]:g} s long"
+        return out
+    for name, spec in models.items():
+        q_err, qd_err = predict(spec, sc.gravity_W, log.t, q, qd, tau, starts, HORIZONS)
+        per = {}
+        for h, horizon in enumerate(HORIZONS):
+            e, ed = q_err[:, h], qd_err[:, h]
+            diverged = int(np.sum(~np.all(np.isfinite(e), axis=1)))
+            per[f"h{round(horizon * 1e3)}ms"] = {
+                "q_rms": finite_or_null(float(np.sqrt(np.mean(e**2)))),
+                "q_rms_largest_joint": finite_or_null(float(np.max(np.sqrt(np.mean(e**2, axis=0))))),
+                "qd_rms": finite_or_null(float(np.sqrt(np.mean(ed**2)))),
+                "q_rms_per_joint": {j: finite_or_null(float(np.sqrt(np.mean(e[:, k] ** 2))))
+                                    for k, j in enumerate(joints)},
+                "diverged": diverged}
+        out["models"][name] = per
+    return out
+
+
 def run(ctx, config) -> LogIdentification | None:
     sc = ctx.scenario
     robot = sc.robot
@@ -371,6 +423,10 @@ def run(ctx, config) -> LogIdentification | None:
                    "physically consistent inertial parameters, friction and rotor inertia")
     files = export(robot, fit.theta, fit.friction, description)
     identified = identified_spec(robot, fit.theta, fit.friction)
+    ctx.progress("the models forward-simulated under the measured torques", None)
+    judged_on = ("validation", validation) if validation is not None else ("training", train)
+    simulated = {"consistent": identified, "model as given": robot, **({"truth": sc.truth} if sc.truth else {})}
+    prediction = _prediction(sc, simulated, judged_on[1], joints, judged_on[0])
     mapping = coulomb_mapping(identified, qd, tau)
     worst = max(mapping, key=lambda j: mapping[j]["rms"])
     try:  # MuJoCo's compiler has checks of its own: what it refuses is said, not a crash
@@ -388,7 +444,7 @@ def run(ctx, config) -> LogIdentification | None:
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
                              friction_model, predictions, measured, times, files, mapping, refused, plausible, warnings,
                              truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints),
-                             _constants_section(constants, sc.data, joints), repeated)
+                             _constants_section(constants, sc.data, joints), repeated, prediction)
 
 
 def _truth_errors(li: LogIdentification, span: str) -> dict:
