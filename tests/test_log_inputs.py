@@ -36,6 +36,29 @@ def _run(folder, data: str, out: str = "out", columns: str | None = None, gate: 
     return status, json.loads(path.read_text()) if path.exists() else None
 
 
+def _noisy(df: pd.DataFrame, level: float, seed: int) -> pd.DataFrame:
+    """The log with white noise of `level` x each joint's RMS torque on its torques."""
+    out, rng = df.copy(), np.random.default_rng(seed)
+    for j in range(6):
+        tau = out[f"tau{j + 1}"]
+        out[f"tau{j + 1}"] = tau + level * np.sqrt(np.mean(tau**2)) * rng.standard_normal(len(tau))
+    return out
+
+
+def _heavy_model(folder) -> str:
+    """folder/heavy.toml: the UR5 with drives as given, but 20 kg too much on its forearm."""
+    import tomli_w
+
+    from harness.base.tomlio import read_toml
+
+    model = read_toml(MODEL)
+    model["urdf"]["robot"] = "ur5"
+    model["payload"] = {"body": "forearm_link", "mass": 20.0, "com": [0.2, 0.1, 0.4],
+                        "inertia": [0.1, 0.1, 0.1, 0, 0, 0]}
+    (folder / "heavy.toml").write_text(tomli_w.dumps(model))
+    return "heavy.toml"
+
+
 def _base(results: dict) -> np.ndarray:
     return np.array([b["identified"] for b in results["log_identification"]["least_squares"]["base"]])
 
@@ -175,11 +198,7 @@ def test_on_a_bench_log_the_models_error_is_told_from_the_sensors(long_log, tmp_
     the measured torques every fit scores about the noise; against the truth (`[data] truth`, the model
     that made the log) the identified model's own error shows, several times smaller, the model as
     given's is round-off, and the measured torques' is the noise."""
-    df = long_log.copy()
-    rng = np.random.default_rng(3)
-    for j in range(6):
-        tau = df[f"tau{j + 1}"]
-        df[f"tau{j + 1}"] = tau + 0.02 * np.sqrt(np.mean(tau**2)) * rng.standard_normal(len(tau))
+    df = _noisy(long_log, 0.02, 3)
     df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
     status, results = _run(tmp_path, f'truth = "{MODEL}"\nunits = {{ q = "rad", qd = "rad/s", tau = "N m" }}\n',
                            gate=GATE.replace("1e-2", "0.05"))
@@ -198,15 +217,7 @@ def test_a_link_far_from_the_models_own_is_warned_and_gateable(si_log, tmp_path,
     the terminal says and a gate on `plausibility.implausible_links` fails on (exit 1). (A link the
     2 s log hardly sees, wrist 2, may be moved out of the band too: the fit's mass has to go
     somewhere the data allow.)"""
-    import tomli_w
-
-    from harness.base.tomlio import read_toml
-
-    model = read_toml(MODEL)
-    model["urdf"]["robot"] = "ur5"
-    model["payload"] = {"body": "forearm_link", "mass": 20.0, "com": [0.2, 0.1, 0.4],
-                        "inertia": [0.1, 0.1, 0.1, 0, 0, 0]}
-    (tmp_path / "heavy.toml").write_text(tomli_w.dumps(model))
+    _heavy_model(tmp_path)
     si_log[1].to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
     gate = (GATE + '[[gates]]\nmetric = "log_identification.plausibility.implausible_links"\nlimit = 0\n')
     (tmp_path / "s.toml").write_text('[scenario]\nmodel = "heavy.toml"\n[data]\nfile = "log.csv"\n'
@@ -393,11 +404,7 @@ def test_the_fit_repeated_on_disjoint_segments_says_which_parameters_moved(long_
     robot's torques 20 % larger in the second half (a load picked up), 26 of 58 move beyond them, are
     listed and said on the terminal."""
     units = 'units = { q = "rad", qd = "rad/s", tau = "N m" }\nrepeat = 2\n'
-    rng = np.random.default_rng(5)
-    noisy = long_log.copy()
-    for j in range(6):
-        tau = noisy[f"tau{j + 1}"]
-        noisy[f"tau{j + 1}"] = tau + 0.01 * np.sqrt(np.mean(tau**2)) * rng.standard_normal(len(tau))
+    noisy = _noisy(long_log, 0.01, 5)
     moved = {}
     for label, scale in (("same", 1.0), ("changed", 1.2)):
         df = noisy.copy()
@@ -420,21 +427,8 @@ def test_the_identified_model_drifts_in_simulation_about_as_little_as_the_truth(
     measured torques, the identified model's position error stays within 3 times the true model's at
     every horizon (20 to 200 ms; measured 1.1 to 1.7 times), while the model as given drifts away
     (105 to 340 times the truth's)."""
-    import tomli_w
-
-    from harness.base.tomlio import read_toml
-
-    model = read_toml(MODEL)
-    model["urdf"]["robot"] = "ur5"
-    model["payload"] = {"body": "forearm_link", "mass": 20.0, "com": [0.2, 0.1, 0.4],
-                        "inertia": [0.1, 0.1, 0.1, 0, 0, 0]}
-    (tmp_path / "heavy.toml").write_text(tomli_w.dumps(model))
-    df = long_log.copy()
-    rng = np.random.default_rng(9)
-    for j in range(6):
-        tau = df[f"tau{j + 1}"]
-        df[f"tau{j + 1}"] = tau + 0.01 * np.sqrt(np.mean(tau**2)) * rng.standard_normal(len(tau))
-    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    _heavy_model(tmp_path)
+    _noisy(long_log, 0.01, 9).to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
     (tmp_path / "s.toml").write_text(f'[scenario]\nmodel = "heavy.toml"\n[data]\nfile = "log.csv"\ntruth = "{MODEL}"\n'
                                      'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\n'
                                      'units = { q = "rad", qd = "rad/s", tau = "N m" }\nvalidation = { from = 0.7 }\n'
