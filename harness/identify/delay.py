@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.base.numerics import column_scale
+from harness.sources.log import room
 
 LARGEST = 0.02  # s: the candidates span +-20 ms
 STEP = 0.0005  # s
@@ -51,11 +52,8 @@ def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LAR
     """t (N,) s, uniform within each stretch of a log cut at its gaps; tau (N, n); W (N, n, p) the
     regressor's rows by joint. The rows used are those at least `largest` from a stretch's ends."""
     candidates = np.arange(-largest, largest + step / 2, step)
-    dt = np.diff(t)
-    cuts = np.flatnonzero(dt > 1.5 * np.median(dt)) + 1
-    starts, ends = t[np.r_[0, cuts]], t[np.r_[cuts - 1, len(t) - 1]]
-    stretch = np.searchsorted(t[np.r_[0, cuts]], t, side="right") - 1
-    rows = (t >= starts[stretch] + largest) & (t <= ends[stretch] - largest)
+    back, ahead = room(t)
+    rows = (back >= largest) & (ahead >= largest)
     if rows.sum() < 2 * W.shape[2]:
         raise ValueError(f"{int(rows.sum())} samples away from the ends: too few to estimate a delay of up to "
                          f"{largest * 1e3:g} ms")

@@ -590,6 +590,17 @@ def split_step(source: DataSource, median: float) -> float:
     return max(GAP_SPLIT * median, 0.25 / source.cutoff if source.cutoff else 0.0)
 
 
+def room(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Seconds from each row of a conditioned log back to the start of its stretch and on to its end
+    (a stretch: the rows between gaps, a gap a step over 1.5 median steps): how far a computation
+    that reads around a row may reach without crossing a gap or an end."""
+    dt = np.diff(t)
+    cuts = np.flatnonzero(dt > 1.5 * np.median(dt)) + 1
+    first = t[np.r_[0, cuts]]
+    stretch = np.searchsorted(first, t, side="right") - 1
+    return t - first[stretch], t[np.r_[cuts - 1, len(t) - 1]][stretch] - t
+
+
 def segments(kept: RawLog, longest_step: float) -> list[np.ndarray]:
     """The rows of each stretch of the log without a step longer than `longest_step`, in time order."""
     cuts = np.flatnonzero(np.diff(kept.t) > longest_step) + 1

@@ -38,7 +38,7 @@ from harness.model.export import MJCF_FILE, README_FILE, coulomb_mapping, export
 from harness.model.friction import IDENTIFIED_KEYS
 from harness.model.friction import values as friction_values
 from harness.model.inertia import PARAMETER_NAMES, model_kind_scales
-from harness.sources.log import JointLog
+from harness.sources.log import JointLog, room
 from harness.stages.identification import joint_data
 from harness.stages.metrics import torque_errors
 
@@ -277,11 +277,7 @@ PREDICTION_STARTS = 20  # starts spread evenly over the span
 
 def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
     """Rows from which `reach` seconds lie within the same stretch of the span (no gap crossed)."""
-    dt = np.diff(t)
-    cuts = np.flatnonzero(dt > 1.5 * np.median(dt)) + 1
-    ends = t[np.r_[cuts - 1, len(t) - 1]]
-    stretch = np.searchsorted(t[np.r_[0, cuts]], t, side="right") - 1
-    usable = np.flatnonzero(t + reach <= ends[stretch])
+    usable = np.flatnonzero(room(t)[1] >= reach)
     if not len(usable):
         return usable
     return usable[np.unique(np.linspace(0, len(usable) - 1, count).round().astype(int))]
