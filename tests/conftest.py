@@ -5,13 +5,12 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-import pandas as pd
 import pytest
 
 from harness.cli import main
 from harness.engines.recording import Recording, read_csv
 from harness.runner.scenario import Scenario, load_scenario
-from harness.sources.bench import record
+from harness.sources.bench import record, write_log
 
 ROOT = Path(__file__).resolve().parents[1]
 BUILTIN = ROOT / "harness" / "data"  # the built-in models, scenarios and gate sets (package data)
@@ -102,11 +101,7 @@ def copy_gate_sets(scenarios_folder: Path) -> None:
 def bench_log(scenario, folder, duration: float, steps: int) -> None:
     """The scenario's bench recording, shortened, written as a log of t, q, q', tau."""
     rec = record(dataclasses.replace(scenario, duration=duration, output_steps=steps))
-    cols = {"t": rec.t}
-    for k, j in enumerate(scenario.robot.joint_names):
-        c = rec.joint_index(j)
-        cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
-    pd.DataFrame(cols).to_csv(folder / "log.csv", index=False, float_format="%.17g")
+    write_log(rec, scenario.robot.joint_names, folder / "log.csv")
 
 
 def log_scenario(folder, model, gates: str) -> None:

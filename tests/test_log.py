@@ -19,7 +19,7 @@ from harness.api import load_scenario
 from harness.cli import main
 from harness.engines.pinocchio import build_model, rnea
 from harness.model.load import load_spec
-from harness.sources.bench import record
+from harness.sources.bench import record, write_log
 from tests.conftest import BUILTIN, SCENARIOS, bench_log, log_scenario
 
 LOG = BUILTIN / "logs" / "panda_gaz2019" / "log.csv"
@@ -108,11 +108,7 @@ def test_the_log_pipeline_recovers_a_known_robot_from_itsbench_log(tmp_path):
     3e-5: central differences at 2 ms), the validation torques within 1e-4 (measured 3e-6)."""
     sc = load_scenario(SCENARIOS / "ur5_friction.toml")
     rec = record(dataclasses.replace(sc, duration=4.0, output_steps=2000))
-    cols = {"t": rec.t}
-    for k, j in enumerate(sc.robot.joint_names):
-        c = rec.joint_index(j)
-        cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
-    pd.DataFrame(cols).to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    write_log(rec, sc.robot.joint_names, tmp_path / "log.csv")
     (tmp_path / "s.toml").write_text(
         f'[scenario]\nmodel = "{SCENARIOS.parent / "models" / "ur5_friction.toml"}"\n[data]\nfile = "log.csv"\n'
         'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\nvalidation = { from = 0.7 }\n'

@@ -42,9 +42,13 @@ def read_mjcf(path: Path, table: Table, key: str = "file"
         ms = mujoco.MjSpec.from_file(str(path))
         model = ms.compile()
     except (ValueError, mujoco.FatalError) as exc:
-        said = "; ".join(line.strip() for line in str(exc).strip().splitlines() if line.strip())
-        raise table.error(key, f"{path}: MuJoCo cannot compile it ({said or type(exc).__name__})") from None
+        raise table.error(key, f"{path}: MuJoCo cannot compile it ({compiler_message(exc)})") from None
     return read_model(model, path, table, key)
+
+
+def compiler_message(exc: BaseException) -> str:
+    """What MuJoCo's compiler said, on one line (its message and the element it names)."""
+    return "; ".join(line.strip() for line in str(exc).strip().splitlines() if line.strip()) or type(exc).__name__
 
 
 def read_model(model, path: Path, table: Table, key: str = "file"

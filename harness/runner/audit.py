@@ -234,6 +234,7 @@ def _mujoco_conversion(path: Path, name: str) -> RobotSpec:
     import mujoco
 
     from harness.model.load import spec_from_mjmodel
+    from harness.model.mjcf import compiler_message
 
     root = ET.fromstring(path.read_bytes())
     for link in root.findall("link"):
@@ -246,8 +247,7 @@ def _mujoco_conversion(path: Path, name: str) -> RobotSpec:
     try:
         model = mujoco.MjSpec.from_string(ET.tostring(root, encoding="unicode")).compile()
     except (ValueError, mujoco.FatalError) as exc:
-        raise ValueError("MuJoCo's compiler refuses the URDF (" + "; ".join(
-            line.strip() for line in str(exc).strip().splitlines() if line.strip()) + ")") from None
+        raise ValueError(f"MuJoCo's compiler refuses the URDF ({compiler_message(exc)})") from None
     return spec_from_mjmodel(model, path.with_suffix(".mjcf"), name)
 
 
@@ -394,7 +394,7 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
     from harness.model.states import position_bounds
     from harness.runner.pipeline import run
     from harness.runner.scenario import load_scenario
-    from harness.sources.bench import record
+    from harness.sources.bench import record, write_log
 
     t0 = time.perf_counter()
     folder.mkdir(parents=True, exist_ok=True)
@@ -422,14 +422,7 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
         "scenario": {"model": "model.toml", "duration": BENCH_SECONDS, "output_steps": int(BENCH_SECONDS * BENCH_RATE)},
         "simulation": {"integrator": "RK4", "timestep": 0.0005}, "motion": motion,
         "gates": gate("torques.pinocchio_vs_mujoco.max_rel_error")}))
-    rec = record(load_scenario(folder / "bench.toml"))
-    import pandas as pd
-
-    cols = {"t": rec.t}
-    for k, j in enumerate(spec.joint_names):
-        c = rec.joint_index(j)
-        cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
-    pd.DataFrame(cols).to_csv(folder / "log.csv", index=False, float_format="%.17g")
+    write_log(record(load_scenario(folder / "bench.toml")), spec.joint_names, folder / "log.csv")
     (folder / "log.toml").write_text(tomli_w.dumps({
         "scenario": {"model": "model.toml"},
         "data": {"file": "log.csv", "columns": {"t": "t", "q": "q{j}", "qd": "qd{j}", "tau": "tau{j}"},

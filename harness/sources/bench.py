@@ -39,3 +39,16 @@ def record(scenario: Setup) -> Recording:
                          f"drives the simulation to non-finite values at t = {exc.t:.6g} s (MuJoCo: "
                          f"{exc.engine_message.split('. ')[0]}); a motion this fast or this far cannot be "
                          "simulated") from None
+
+
+def write_log(rec: Recording, joints: list[str], path: Path) -> None:
+    """A recording written as a lab's joint log would be: a CSV of t, then q{k}, qd{k}, tau{k} for
+    k = 1..n in the order of `joints` (what `[data] columns = { q = "q{j}", ... }` reads), every number
+    to the last bit."""
+    import pandas as pd
+
+    cols = {"t": rec.t}
+    for k, j in enumerate(joints):
+        c = rec.joint_index(j)
+        cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
+    pd.DataFrame(cols).to_csv(path, index=False, float_format="%.17g")

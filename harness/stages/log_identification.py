@@ -13,6 +13,7 @@ on data whose truth nobody knows, judged on a part of the log the fit never saw.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -38,6 +39,7 @@ from harness.model.export import MJCF_FILE, README_FILE, coulomb_mapping, export
 from harness.model.friction import IDENTIFIED_KEYS
 from harness.model.friction import values as friction_values
 from harness.model.inertia import PARAMETER_NAMES, model_kind_scales
+from harness.model.mjcf import compiler_message
 from harness.sources.log import JointLog, room
 from harness.stages.identification import joint_data
 from harness.stages.metrics import torque_errors
@@ -216,7 +218,7 @@ def _read_later(log: JointLog, lag: np.ndarray, joints: list[str]) -> JointLog:
     tau, keep = delay.shifted(log.t, log.tau[:, cols], lag, step)
     out = log.tau.copy()
     out[:, cols] = tau
-    return JointLog(log.t[keep], log.joints, log.q[keep], log.qd[keep], log.qdd[keep], out[keep], log.conditioning)
+    return dataclasses.replace(log, tau=out).span(keep)
 
 
 def _delay_section(lags, note: str | None, mode: str, joints: list[str]) -> dict:
@@ -256,7 +258,7 @@ def _scaled(log: JointLog, factor: np.ndarray, joints: list[str]) -> JointLog:
     cols = [log.joint_index(j) for j in joints]
     tau = log.tau.copy()
     tau[:, cols] *= factor
-    return JointLog(log.t, log.joints, log.q, log.qd, log.qdd, tau, log.conditioning)
+    return dataclasses.replace(log, tau=tau)
 
 
 def _constants_section(constants, source, joints: list[str]) -> dict | None:
@@ -404,6 +406,7 @@ def run(ctx, config) -> LogIdentification | None:
     if validation is not None:
         spans["validation"] = (*joint_data(validation, joints), validation.t)
     predictions, measured, times, truth_tau = {}, {}, {}, {}
+    pm_truth = build_model(sc.truth, sc.gravity_W) if sc.truth is not None else None
     for span, (qs, qds, qdds, taus, ts) in spans.items():
         Ws = W if span == "training" else regressor(pm, qs, qds, qdds, with_friction=True)
         predictions[span] = {
@@ -412,8 +415,8 @@ def run(ctx, config) -> LogIdentification | None:
             "model as given": (Ws @ x_model).reshape(taus.shape),
         }
         measured[span], times[span] = taus, ts
-        if sc.truth is not None:  # what the robot that made the log needs at these states
-            truth_tau[span] = rnea(build_model(sc.truth, sc.gravity_W), qs, qds, qdds).tau
+        if pm_truth is not None:  # what the robot that made the log needs at these states
+            truth_tau[span] = rnea(pm_truth, qs, qds, qdds).tau
     refused = None  # why robot.xml was not written
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
@@ -433,8 +436,7 @@ def run(ctx, config) -> LogIdentification | None:
             f"{mapping[worst]['rms']:.3g} of the RMS torque (joint {worst}; per joint in README.md). Rotor inertia, "
             "viscous friction and inertials are the identified model's.")
     except ValueError as exc:
-        refused = "MuJoCo's compiler refuses the identified model (" + "; ".join(
-            line.strip() for line in str(exc).splitlines() if line.strip()) + ")"
+        refused = f"MuJoCo's compiler refuses the identified model ({compiler_message(exc)})"
     files[f"identified/{README_FILE}"] = readme(identified, [Path(f).name for f in files] + [README_FILE], mapping,
                                                 description, refused)
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
