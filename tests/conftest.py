@@ -109,3 +109,47 @@ def log_scenario(folder, model, gates: str) -> None:
     (folder / "s.toml").write_text(
         f'[scenario]\nmodel = "{model}"\n[data]\nfile = "log.csv"\n'
         'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\nvalidation = { from = 0.7 }\n' + gates)
+
+
+KINOVA_JOINTS = [f"j2s6s200_joint_{k}" for k in range(1, 7)]
+KINOVA_MIDDLE = [0.0, 3.141592653589793, 3.141592653589793, 0.0, 3.141592653589793, 0.0]  # away from its limits
+
+
+def kinova_files(folder: Path) -> tuple[str, str]:
+    """example-robot-data's Kinova Jaco2 as shipped (folder/shipped.urdf: rotations by pi written with
+    12 digits) and with every pi exact (folder/exact.urdf)."""
+    import numpy as np
+
+    from harness.model.urdf import example_robot_data_path
+
+    shipped = example_robot_data_path("kinova").read_text()
+    exact = shipped.replace("3.14159265359", repr(np.pi)).replace("1.57079632679", repr(np.pi / 2))
+    (folder / "shipped.urdf").write_text(shipped)
+    (folder / "exact.urdf").write_text(exact)
+    return shipped, exact
+
+
+def kinova_model(folder: Path, name: str, urdf: str, coulomb_velocity: float | None) -> None:
+    """folder/{name}.toml: the Kinova of `urdf` with drives on every joint (v_c declared or not)."""
+    (folder / f"{name}.toml").write_text(
+        f'[model]\nname = "{name}"\n[urdf]\nfile = "{urdf}"\n'
+        + "".join(f"[joints.{j}]\narmature = 0.1\nviscous = 0.5\ncoulomb = 1.0\noffset = 0.1\n"
+                  + (f"coulomb_velocity = {coulomb_velocity}\n" if coulomb_velocity is not None else "")
+                  for j in KINOVA_JOINTS))
+
+
+def kinova_bench(folder: Path, name: str, truth: str, seconds: float, seed: int) -> Scenario:
+    """folder/{name}.toml: a bench scenario of the Kinova model `truth` (a file in folder), every joint
+    on two random sinusoids about KINOVA_MIDDLE, recorded at 250 Hz (RK4, 0.5 ms)."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    motion = "".join(f'[motion.{j}]\ntype = "sinusoids"\noffset = {m}\n'
+                     f"sin = [[{rng.uniform(0.4, 0.8):.3f}, {rng.uniform(0.5, 1.5):.3f}]]\n"
+                     f"cos = [[{rng.uniform(0.1, 0.3):.3f}, {rng.uniform(1.5, 3.0):.3f}]]\n"
+                     for j, m in zip(KINOVA_JOINTS, KINOVA_MIDDLE, strict=True))
+    (folder / f"{name}.toml").write_text(
+        f'[scenario]\nmodel = "{truth}"\nduration = {seconds}\noutput_steps = {int(seconds * 250)}\n'
+        '[simulation]\nintegrator = "RK4"\ntimestep = 0.0005\n' + motion
+        + '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
+    return load_scenario(folder / f"{name}.toml")

@@ -50,6 +50,7 @@ SCENARIO_EDITS = {name: edit for name, (edit, _) in BAD_SCENARIOS.items()} | {
     "plugin name not an identifier": _sub('name = "graph"', 'name = "my model"'),
     "plugin named after an engine": _sub('name = "graph"', 'name = "mujoco"'),
     "unknown study": _append("\n[studies.no_such_study]\n"),
+    "friction law without a log": _append("\n[friction_law]\nchoose = true\n"),
     "unknown study key": _sub("[studies.graph_theory_2021]\n", "[studies.graph_theory_2021]\ncolour = 1\n"),
     "paper table climbing out": _sub('"kr500_table3_identified_by_paper.csv"', '"../../../../etc/passwd"'),
     "paper table missing": _sub('"kr500_table3_identified_by_paper.csv"', '"table9.csv"'),

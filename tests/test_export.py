@@ -33,7 +33,8 @@ def exported(tmp_path_factory):
     sc = load_scenario(SCENARIOS / "ur5_friction.toml")
     bench_log(sc, folder, 2.0, 400)
     log_scenario(folder, SCENARIOS.parent / "models" / "ur5_friction.toml",
-                 '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1e-2\n')
+                 '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1e-2\n'
+                 "[friction_law]\nchoose = false\n")  # the law's export is checked in test_friction_law.py
     assert main(["run", str(folder / "s.toml"), "--out", str(folder / "out"), "--quiet"]) == 0
     identified = folder / "out" / "identified"
     (identified / "mjcf.toml").write_text('[mjcf]\nfile = "robot.xml"\n')

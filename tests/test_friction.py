@@ -27,7 +27,26 @@ def test_the_law_term_by_term():
     expected = np.column_stack([0.3 * qdd[:, 0] + 2.0 * qd[:, 0] + 4.0 * np.tanh(qd[:, 0] / 0.02) + 0.5,
                                 0.1 * qdd[:, 1] + 1.0 * qd[:, 1] + 3.0 * np.sign(qd[:, 1]) - 0.2])
     np.testing.assert_allclose(friction.torque(fr, qd, qdd), expected, rtol=1e-15, atol=1e-15)
-    np.testing.assert_allclose(friction.passive(fr, qd) + qdd * [0.3, 0.1], expected, rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(friction.dry(fr, qd) + qd * [2.0, 1.0] + qdd * [0.3, 0.1], expected, rtol=1e-14,
+                               atol=1e-14)
+
+
+def test_the_families_term_by_term():
+    """Asymmetric: f_v + f_va and f_c + f_ca moving positively, f_v - f_va and f_c - f_ca negatively;
+    Stribeck: f_s s exp(-(q'/v_s)^2); load: f_l |tau_R| s. Written out here branch by branch."""
+    fr = (JointFriction(0.0, 2.0, 4.0, 0.0, 0.05, viscous_asymmetry=0.5, coulomb_asymmetry=-1.0),
+          JointFriction(0.0, 1.0, 3.0, 0.0, 0.02, stribeck=1.5, stribeck_velocity=0.1),
+          JointFriction(0.0, 1.0, 3.0, 0.0, 0.0, load_coulomb=0.02))
+    qd, qdd, tau_R = rng.normal(size=(80, 3)), np.zeros((80, 3)), rng.normal(scale=30.0, size=(80, 3))
+    s0, s1 = np.tanh(qd[:, 0] / 0.05), np.tanh(qd[:, 1] / 0.02)
+    up = qd[:, 0] > 0
+    expected = np.column_stack([np.where(up, 2.5 * qd[:, 0] + 3.0 * s0, 1.5 * qd[:, 0] + 5.0 * s0),
+                                1.0 * qd[:, 1] + 3.0 * s1 + 1.5 * s1 * np.exp(-(qd[:, 1] / 0.1) ** 2),
+                                1.0 * qd[:, 2] + (3.0 + 0.02 * np.abs(tau_R[:, 2])) * np.sign(qd[:, 2])])
+    np.testing.assert_allclose(friction.torque(fr, qd, qdd, tau_R), expected, rtol=1e-13, atol=1e-13)
+    assert [f.family for f in fr] == ["asymmetric", "stribeck", "load"]
+    with pytest.raises(ValueError, match="rigid-body torque"):
+        friction.torque(fr, qd, qdd)
 
 
 def test_a_urdf_dynamics_tag_is_read_as_viscous_and_coulomb_and_the_model_file_adds_the_rest(tmp_path):
@@ -48,6 +67,8 @@ def test_a_urdf_dynamics_tag_is_read_as_viscous_and_coulomb_and_the_model_file_a
     ('[joints.panda_joint9]\nviscous = 1.0\n', "no joint 'panda_joint9' in the URDF"),
     ('[joints.panda_joint1]\nviscous = -1.0\n', "viscous"),
     ('[joints.panda_joint1]\nstiction = 1.0\n', "stiction"),
+    ('[joints.panda_joint1]\nstribeck = 1.0\n', "stribeck_velocity"),
+    ('[joints.panda_joint1]\nstribeck_velocity = -0.1\n', "stribeck_velocity"),
 ])
 def test_a_bad_friction_declaration_is_refused_in_one_line(tmp_path, capsys, text, message):
     (tmp_path / "p.toml").write_text('[urdf]\nrobot = "panda"\n\n' + text)

@@ -227,9 +227,8 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     half = dt / 2.0
     q_d, qd_d, qdd_d = prescribed(np.arange(2 * n_steps + 2) * half)
     qacc_cmd, tau = np.zeros(model.nv), np.zeros(model.nv)
-    coulomb, offset, coulomb_velocity = (np.array([getattr(f, k) for f in spec.frictions])
-                                         for k in ("coulomb", "offset", "coulomb_velocity"))
-    with_coulomb = bool(np.any(coulomb) or np.any(offset))
+    dry = friction.Dry.of(spec.frictions)
+    armature = friction.values(spec.frictions)[:, 0]
     stages: list[np.ndarray] = []  # the drive torques of every evaluation inside mj_step
     capture = [False]
 
@@ -247,8 +246,9 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
         e, ed = q_d[k] - qpos[qadr], qd_d[k] - qvel[vadr]
         qacc_cmd[vadr] = qdd_d[k] + 2.0 * w * ed + w * w * e
         mujoco.mj_mulM(m, d, tau, qacc_cmd)
-        if with_coulomb:
-            qfrc_applied[vadr] = -(coulomb * friction.coulomb_shape(qvel[vadr], coulomb_velocity) + offset)
+        if dry.any:  # the rigid-body torque: the computed torque less the rotor inertia's part
+            rigid = tau[vadr] + qfrc_bias[vadr] - armature * qacc_cmd[vadr] if dry.needs_load else None
+            qfrc_applied[vadr] = -dry(qvel[vadr], rigid)
         ctrl[act] = tau[vadr] + qfrc_bias[vadr] - qfrc_passive[vadr] - qfrc_applied[vadr]
         if capture[0]:
             stages.append(ctrl[act].copy())
@@ -341,29 +341,32 @@ def predict(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray
     """How far a model drifts from a measured motion under its measured torques. From each start row
     s, MuJoCo starts at the measured (q, q') and integrates (RK4, `timestep`) with the joint torques
     read from the log (linear interpolation in time, at every stage of every step), less the model's
-    Coulomb friction and offset (its rotor inertia and viscous friction are MuJoCo's armature and
-    damping); at each horizon the error q_sim - q_meas and q'_sim - q'_meas. t (N,), q, qd, tau
-    (N, n) in the spec's joint order; returns two (starts, horizons, n) arrays, NaN where the
-    simulation diverged."""
+    dry friction (friction.Dry: Coulomb, offset and the families' terms; its rotor inertia and viscous
+    friction are MuJoCo's armature and damping); at each horizon the error q_sim - q_meas and
+    q'_sim - q'_meas. t (N,), q, qd, tau (N, n) in the spec's joint order; returns two
+    (starts, horizons, n) arrays, NaN where the simulation diverged."""
     model = build_spec(spec, gravity_W, "RK4", timestep).compile()
     data = mujoco.MjData(model)
     joint_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
     qadr, vadr = model.jnt_qposadr[joint_ids], model.jnt_dofadr[joint_ids]
-    coulomb, offset, velocity = (np.array([getattr(f, k) for f in spec.frictions])
-                                 for k in ("coulomb", "offset", "coulomb_velocity"))
+    dry = friction.Dry.of(spec.frictions)
+    viscous = friction.values(spec.frictions)[:, 1]
     steps = [round(h / timestep) for h in horizons]
     q_err = np.full((len(starts), len(horizons), len(joint_ids)), np.nan)
     qd_err = np.full_like(q_err, np.nan)
-    t0 = [0.0]
     qvel, qfrc_applied = data.qvel, data.qfrc_applied
     columns = np.arange(tau.shape[1])
+    half = timestep / 2  # RK4 evaluates at the step's start, middle (twice) and end
+    stages = np.arange(2 * steps[-1] + 1) * half
+    drives = [np.zeros((len(stages), len(columns)))]  # the log's torques at every stage time of one start
 
     def applied(m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        now = t0[0] + d.time
-        k = min(max(int(np.searchsorted(t, now)), 1), len(t) - 1)
-        w = (now - t[k - 1]) / (t[k] - t[k - 1])
-        qfrc_applied[vadr] = ((1 - w) * tau[k - 1, columns] + w * tau[k, columns]
-                              - coulomb * friction.coulomb_shape(qvel[vadr], velocity) - offset)
+        drive = drives[0][round(d.time / half)]
+        v = qvel[vadr]
+        # load-dependent friction: the drive's torque less the rest of its friction stands for the
+        # rigid-body torque (the rotor inertia's part, I_a q'', is not known before the step)
+        rigid = drive - dry(v, load=False) - viscous * v if dry.needs_load else None
+        qfrc_applied[vadr] = drive - dry(v, rigid)
 
     mujoco.set_mjcb_control(applied)
     warned = len(_WARNINGS)
@@ -371,7 +374,8 @@ def predict(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray
     try:
         for i, s in enumerate(starts):
             mujoco.mj_resetData(model, data)
-            data.qpos[qadr], data.qvel[vadr], t0[0] = q[s], qd[s], t[s]
+            data.qpos[qadr], data.qvel[vadr] = q[s], qd[s]
+            drives[0] = np.column_stack([np.interp(t[s] + stages, t, tau[:, j]) for j in columns])
             for k in range(1, steps[-1] + 1):
                 mujoco.mj_step(model, data)
                 if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))) or any(

@@ -98,7 +98,7 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> 
             M[k, j] = R @ data.f[jid].angular
     # the drives' friction and rotor inertia act between the bodies and their motors: in the
     # torques, not in the wrenches the joints transmit
-    return InverseDynamics(tau + friction.torque(pm.frictions, qd, qdd), F, M)
+    return InverseDynamics(tau + friction.torque(pm.frictions, qd, qdd, tau), F, M)
 
 
 def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: Recording) -> InverseDynamics:

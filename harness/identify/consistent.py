@@ -40,7 +40,7 @@ number a gate can read; a fit never fails.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cvxpy as cp
 import numpy as np
@@ -89,16 +89,23 @@ class ConsistentFit:
     fallback: int = 0  # 0 Clarabel to its tolerances, 1 SCS or Clarabel inaccurate, 2 projection (FALLBACKS)
     attempts: tuple[str, ...] = ()  # every solver tried and how it ended, in order
     margin: float = 0.0  # the smallest pseudo-inertia eigenvalue every link was held to
+    extra: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the friction families' coefficients (`fit`)
 
 
 def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model: np.ndarray,
-        scale: np.ndarray) -> ConsistentFit:
-    """W: (rows, 10 n + 4 n) regressor (inertial columns, then friction columns, joint by joint,
-    harness/identify/torque_id.py); tau: (rows,); theta_model (n, 10) and friction_model (n, 4): the
-    model's own values; scale: (14 n,) the magnitude of each parameter's kind in the model."""
+        scale: np.ndarray, extra: tuple[tuple[int, str], ...] = (), extra_model: np.ndarray | None = None
+        ) -> ConsistentFit:
+    """W: (rows, 10 n + 4 n + e) regressor (inertial columns, then friction columns, joint by joint,
+    harness/identify/torque_id.py, then the columns of the friction families' coefficients `extra`,
+    (joint, harness/model/friction.py EXTRA_KEYS name) each); tau: (rows,); theta_model (n, 10),
+    friction_model (n, 4) and extra_model (e,): the model's own values; scale: (14 n + e,) the
+    magnitude of each parameter's kind in the model. The families' terms are held physical: an
+    asymmetry no larger than its coefficient (so that both directions' coefficients stay
+    non-negative), Stribeck and load terms non-negative."""
     n = len(theta_model)
     p = W.shape[1]
-    x0 = np.concatenate([theta_model.ravel(), friction_model.ravel()])
+    extra_model = np.zeros(len(extra)) if extra_model is None else extra_model
+    x0 = np.concatenate([theta_model.ravel(), friction_model.ravel(), extra_model])
     col = column_scale(W)
     Q, R = np.linalg.qr(W / col)
     b = Q.T @ tau
@@ -121,6 +128,12 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
     fr = x[10 * n:]
     for k in range(n):  # armature, viscous, Coulomb non-negative; the offset is free
         constraints += [fr[4 * k] >= 0, fr[4 * k + 1] >= 0, fr[4 * k + 2] >= 0]
+    for c, (k, key) in enumerate(extra):
+        e = x[14 * n + c]
+        if key in ASYMMETRY:
+            constraints += [fr[4 * k + ASYMMETRY[key]] - e >= 0, fr[4 * k + ASYMMETRY[key]] + e >= 0]
+        else:
+            constraints.append(e >= 0)
     problem = cp.Problem(cp.Minimize(objective), constraints)
     attempts: list[str] = []
     found = None  # (z, status, solver, fallback)
@@ -143,20 +156,20 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
         found = (np.array(z.value), str(problem.status), solver, 0 if problem.status == cp.OPTIMAL and k == 0 else 1)
         break
     if found is None:
-        xv = _projected(R, b, col, r0, x0, scale, eps, n)
+        xv = _projected(R, b, col, r0, x0, scale, eps, n, extra)
         status, solver, fallback = "projected", "projection", 2
     else:
         zv, status, solver, fallback = found
         xv = zv / col
         if fallback:  # a looser solution may sit just outside the constraints: moved onto them
-            xv = _physical(xv, eps, n)
+            xv = _physical(xv, eps, n, extra)
     residual = float(np.linalg.norm(W @ xv - tau) / norm_tau)
-    return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n:].reshape(n, 4), status, residual, solver,
-                         fallback, tuple(attempts), eps)
+    return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n: 14 * n].reshape(n, 4), status, residual, solver,
+                         fallback, tuple(attempts), eps, xv[14 * n:])
 
 
 def _projected(R: np.ndarray, b: np.ndarray, col: np.ndarray, r0: float, x0: np.ndarray, scale: np.ndarray,
-               eps: float, n: int) -> np.ndarray:
+               eps: float, n: int, extra: tuple = ()) -> np.ndarray:
     """The fit's objective minimised without its constraints (a linear system: the pull makes it
     definite), then each link moved to the nearest physical one and the friction terms but the
     offset clipped at zero."""
@@ -166,13 +179,21 @@ def _projected(R: np.ndarray, b: np.ndarray, col: np.ndarray, r0: float, x0: np.
     # square of this one's (a noise-free log's r0 is round-off small)
     z = np.linalg.lstsq(np.vstack([R / np.sqrt(r0), np.diag(d)]),
                         np.concatenate([b / np.sqrt(r0), d * x0 * col]), rcond=None)[0]
-    return _physical(z / col, eps, n)
+    return _physical(z / col, eps, n, extra)
 
 
-def _physical(x: np.ndarray, eps: float, n: int) -> np.ndarray:
+def _physical(x: np.ndarray, eps: float, n: int, extra: tuple = ()) -> np.ndarray:
     """Each link's parameters moved to the nearest with every pseudo-inertia eigenvalue at least eps,
-    and the friction terms but the offset clipped at zero: the constraints of the fit, made to hold."""
+    the friction terms but the offset clipped at zero, and the families' terms clipped as `fit`
+    holds them: the constraints of the fit, made to hold."""
     theta = np.stack([nearest_physical(t, eps) for t in x[: 10 * n].reshape(n, 10)])
-    friction = x[10 * n:].reshape(n, 4).copy()
+    friction = x[10 * n: 14 * n].reshape(n, 4).copy()
     friction[:, :3] = np.maximum(friction[:, :3], 0.0)
-    return np.concatenate([theta.ravel(), friction.ravel()])
+    terms = x[14 * n:].copy()
+    for c, (k, key) in enumerate(extra):
+        bound = friction[k, ASYMMETRY[key]] if key in ASYMMETRY else None
+        terms[c] = np.clip(terms[c], -bound, bound) if bound is not None else max(terms[c], 0.0)
+    return np.concatenate([theta.ravel(), friction.ravel(), terms])
+
+
+ASYMMETRY = {"viscous_asymmetry": 1, "coulomb_asymmetry": 2}  # the asymmetry -> its coefficient's place in (n, 4)

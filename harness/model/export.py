@@ -23,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 import tomli_w
 
+from harness.model import friction
 from harness.model.friction import FRICTION_KEYS, JointFriction
 from harness.model.inertia import about_centre_of_mass
 from harness.model.spec import RobotSpec
@@ -117,12 +118,11 @@ def model_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...], descriptio
                                            **_joints_table(frictions, spec.joint_names)})
 
 
-def export(spec: RobotSpec, theta: np.ndarray, friction_values: np.ndarray, description: str) -> dict[str, str]:
-    """{relative path: text} of the exported model; friction_values (n, 4) armature, viscous,
-    coulomb, offset; the Coulomb smoothing velocity is the model's. The MJCF file and the README
-    are added by the caller (harness/engines/mujoco.py writes MJCF; `readme`)."""
-    frictions = tuple(JointFriction(*(float(v) for v in row), coulomb_velocity=f.coulomb_velocity)
-                      for row, f in zip(friction_values, spec.frictions, strict=True))
+def export(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, ...],
+           description: str) -> dict[str, str]:
+    """{relative path: text} of the exported model: theta (n, 10) each joint's body, `frictions` each
+    joint's whole friction law. The MJCF file and the README are added by the caller
+    (harness/engines/mujoco.py writes MJCF; `readme`)."""
     files = {f"identified/{JOINTS_FILE}": joints_toml(spec, frictions)}
     if spec.urdf is not None:
         files[f"identified/{URDF_FILE}"] = write_urdf(spec, theta, frictions)
@@ -130,12 +130,11 @@ def export(spec: RobotSpec, theta: np.ndarray, friction_values: np.ndarray, desc
     return files
 
 
-def identified_spec(spec: RobotSpec, theta: np.ndarray, friction_values: np.ndarray) -> RobotSpec:
+def identified_spec(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, ...]) -> RobotSpec:
     """The robot with the identified parameters: each joint's child body from its ten parameters
     theta[k] (in the joint frame: at the joint point, world axes at q = 0), centre of mass
-    p_J + h / m, principal moments and axes of the inertia about it; each joint's friction
-    (armature, viscous, coulomb, offset) from friction_values[k], its Coulomb smoothing velocity the
-    model's. The geometry of the joints is the model's."""
+    p_J + h / m, principal moments and axes of the inertia about it; each joint's friction law
+    `frictions[k]`. The geometry of the joints is the model's."""
     bodies = {b.name: b for b in spec.bodies}
     for k, joint in enumerate(spec.joints):
         m, c_J, I_c = about_centre_of_mass(theta[k])
@@ -144,26 +143,24 @@ def identified_spec(spec: RobotSpec, theta: np.ndarray, friction_values: np.ndar
             axes[:, 2] *= -1
         bodies[joint.child] = dataclasses.replace(bodies[joint.child], mass=m, I_B=np.diag(moments), R_WB0=axes,
                                                   p_W_com0=joint.p_W0 + c_J, cylinder=None)
-    joints = tuple(dataclasses.replace(j, friction=JointFriction(*(float(v) for v in row),
-                                                                  coulomb_velocity=j.friction.coulomb_velocity))
-                   for j, row in zip(spec.joints, friction_values, strict=True))
-    return dataclasses.replace(spec, name=f"{spec.name}_identified", bodies=tuple(bodies[b.name] for b in spec.bodies),
-                               joints=joints)
+    return dataclasses.replace(spec.with_frictions(frictions), name=f"{spec.name}_identified",
+                               bodies=tuple(bodies[b.name] for b in spec.bodies))
 
 
-def coulomb_mapping(spec: RobotSpec, qd: np.ndarray, tau: np.ndarray) -> dict[str, dict[str, float]]:
-    """Per joint, what MuJoCo's dry friction (`frictionloss` = f_c, a sharp sign) and the missing
-    offset change of the identified law f_c tanh(q'/v_c) + f_o, at the velocities qd (N, n) of
-    torques tau (N, n): the gap |f_c (sign(q') - tanh(q'/v_c)) - f_o|, its largest value over the
-    largest |tau| (at a velocity reversal) and its RMS over the RMS torque."""
+def coulomb_mapping(spec: RobotSpec, qd: np.ndarray, tau: np.ndarray,
+                    tau_rigid: np.ndarray | None = None) -> dict[str, dict[str, float]]:
+    """Per joint, what MuJoCo's dry friction (`frictionloss` = f_c, a sharp sign) changes of the
+    identified law's dry part (friction.Dry: f_c s + f_o and the families' terms, the viscous part
+    being MuJoCo's damping), at the velocities qd (N, n) of torques tau (N, n) (tau_rigid, the
+    rigid-body torques, for a load-dependent law): the gap |f_c sign(q') - dry(q')|, its largest
+    value over the largest |tau| (at a velocity reversal) and its RMS over the RMS torque."""
+    coulomb = np.array([j.friction.coulomb for j in spec.joints])
+    gap = np.abs(coulomb * np.sign(qd) - friction.dry(spec.frictions, qd, tau_rigid))
     out = {}
     for k, j in enumerate(spec.joints):
-        f = j.friction
-        smooth = np.tanh(qd[:, k] / f.coulomb_velocity) if f.coulomb_velocity > 0 else np.sign(qd[:, k])
-        gap = np.abs(f.coulomb * (np.sign(qd[:, k]) - smooth) - f.offset)
         largest, rms = float(np.max(np.abs(tau[:, k]))), float(np.sqrt(np.mean(tau[:, k] ** 2)))
-        out[j.name] = {"largest": float(np.max(gap)) / largest if largest > 0 else float("nan"),
-                       "rms": float(np.sqrt(np.mean(gap**2))) / rms if rms > 0 else float("nan")}
+        out[j.name] = {"largest": float(np.max(gap[:, k])) / largest if largest > 0 else float("nan"),
+                       "rms": float(np.sqrt(np.mean(gap[:, k] ** 2))) / rms if rms > 0 else float("nan")}
     return out
 
 
@@ -176,11 +173,14 @@ def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float
     if URDF_FILE in files:
         lines += [f"- `{URDF_FILE}`: the model's URDF with each moving link's identified `<inertial>` (in its link "
                   "frame) and each joint's `<dynamics damping friction>` (viscous, Coulomb). **Read alone it loses** "
-                  "the rotor inertia (armature), the Coulomb smoothing velocity (URDF's friction is a sharp sign) "
-                  "and the torque offset, which URDF has no tag for: a consumer of this file alone predicts other "
-                  "torques than the identified model."]
+                  "the rotor inertia (armature), the Coulomb smoothing velocity (URDF's friction is a sharp sign), "
+                  "the torque offset and the families' terms, which URDF has no tag for: a consumer of this file "
+                  "alone predicts other torques than the identified model."]
     lines += [f"- `{JOINTS_FILE}`: per joint `armature`, `viscous`, `coulomb`, `offset`, `coulomb_velocity`, the "
-              "friction law I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o (harness/model/friction.py)."]
+              "friction law I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o, and the terms of the family chosen for "
+              "the joint (`viscous_asymmetry`, `coulomb_asymmetry`, `stribeck` with `stribeck_velocity`, "
+              "`load_coulomb`; zero where unused; harness/model/friction.py). Per joint the family: "
+              + ", ".join(f"`{j.name}` {j.friction.family}" for j in spec.joints) + "."]
     if MODEL_FILE in files:
         lines += [f"- `{MODEL_FILE}`: a model file that `harness run` loads as any other: `{URDF_FILE}` with "
                   f"`{JOINTS_FILE}`'s values; together they are the whole identified model."]
@@ -188,7 +188,8 @@ def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float
         lines += [f"- `{MJCF_FILE}`: MJCF for MuJoCo, every number at full precision: bodies with the identified "
                   "inertials, `armature`, `damping` (viscous), `frictionloss` (Coulomb), joint ranges, a motor per "
                   "joint with the effort limit as its force range. MuJoCo applies Coulomb friction as dry friction "
-                  "(a sharp sign, solved as a constraint), not the smooth tanh law, and has no torque offset. "
+                  "(a sharp sign, solved as a constraint), not the smooth tanh law, and has no torque offset and none "
+                  "of the families' terms (asymmetry, Stribeck, load). "
                   "What this changes at the training span's velocities, per joint: the RMS change over the RMS "
                   "torque, and the largest change (at a velocity reversal) over the largest torque:"]
         lines += [f"  - `{j}`: RMS {v['rms']:.3g}, largest {v['largest']:.3g}" for j, v in (mapping or {}).items()]

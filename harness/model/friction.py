@@ -1,14 +1,23 @@
-"""Joint friction and rotor inertia: the torque a joint's drive adds to the rigid-body torque.
+"""Joint friction and rotor inertia: the torque a joint's drive adds to the rigid-body torque tau_R.
 
-    tau_J = tau_rigid + I_a q'' + f_v q' + f_c s(q') + f_o,   s(q') = tanh(q' / v_c)  (v_c > 0)
-                                                               s(q') = sign(q')        (v_c = 0)
+    tau_J = tau_R + I_a q'' + f_v q' + f_c s + f_o                       (viscous + Coulomb + offset)
+                  + f_va |q'| + f_ca |s|                                 (asymmetric by direction)
+                  + f_s s exp(-(q'/v_s)^2)                               (Stribeck)
+                  + f_l |tau_R| s                                        (load-dependent Coulomb)
+
+    s = tanh(q' / v_c) (v_c > 0), sign(q') (v_c = 0)
 
 per joint: `armature` I_a (the rotor's inertia reflected through the gear, kg m^2 or kg), `viscous`
 f_v, `coulomb` f_c, `offset` f_o (a constant torque: a sensor's bias, an unbalanced cable) and
 `coulomb_velocity` v_c, the velocity over which the Coulomb term turns (0: a sharp sign). This is
 the friction model of the literature on arm identification (Gautier and Khalil; Gaz et al. 2019
-with a sigmoid in place of the sign). It is written once, here; every engine and model takes it
-from here.
+with a sigmoid in place of the sign). Three families add to it, each what harmonic-drive joints
+show: `viscous_asymmetry` f_va and `coulomb_asymmetry` f_ca (moving positively the viscous and
+Coulomb coefficients are f_v + f_va and f_c + f_ca, negatively f_v - f_va and f_c - f_ca);
+`stribeck` f_s with `stribeck_velocity` v_s (the extra torque to break away, fading over v_s);
+`load_coulomb` f_l (the Coulomb torque grows by f_l per N m the joint carries, |tau_R|, the
+rigid-body torque without the drive's). Each is linear in its coefficients once v_c and v_s are
+chosen. The law is written once, here; every engine and model takes it from here.
 """
 
 from __future__ import annotations
@@ -17,8 +26,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-FRICTION_KEYS = ("armature", "viscous", "coulomb", "offset", "coulomb_velocity")
 IDENTIFIED_KEYS = ("armature", "viscous", "coulomb", "offset")  # linear in the torque: identifiable
+EXTRA_KEYS = ("viscous_asymmetry", "coulomb_asymmetry", "stribeck", "load_coulomb")  # the families' coefficients
+SHAPE_KEYS = ("coulomb_velocity", "stribeck_velocity")  # the velocities the shapes turn over
+FRICTION_KEYS = (*IDENTIFIED_KEYS, "coulomb_velocity", *EXTRA_KEYS, "stribeck_velocity")
+FAMILIES = {  # name -> the coefficients it adds to viscous + Coulomb + offset, simplest first
+    "viscous_coulomb": (),
+    "stribeck": ("stribeck",),
+    "load": ("load_coulomb",),
+    "asymmetric": ("viscous_asymmetry", "coulomb_asymmetry"),
+}
 
 
 @dataclass(frozen=True)
@@ -28,10 +45,23 @@ class JointFriction:
     coulomb: float = 0.0
     offset: float = 0.0
     coulomb_velocity: float = 0.0
+    viscous_asymmetry: float = 0.0
+    coulomb_asymmetry: float = 0.0
+    stribeck: float = 0.0
+    load_coulomb: float = 0.0
+    stribeck_velocity: float = 0.0
 
     @property
     def none(self) -> bool:
-        return not (self.armature or self.viscous or self.coulomb or self.offset)
+        return not any(getattr(self, k) for k in (*IDENTIFIED_KEYS, *EXTRA_KEYS))
+
+    @property
+    def family(self) -> str:
+        """The simplest family (FAMILIES) that holds every coefficient this joint has."""
+        for name, keys in FAMILIES.items():
+            if all(getattr(self, k) == 0 or k in keys for k in EXTRA_KEYS):
+                return name
+        return "+".join(k for k in EXTRA_KEYS if getattr(self, k))
 
     def as_dict(self) -> dict[str, float]:
         return {k: float(getattr(self, k)) for k in FRICTION_KEYS}
@@ -54,19 +84,92 @@ def columns(frictions: tuple[JointFriction, ...], qd: np.ndarray, qdd: np.ndarra
     return np.stack([qdd, qd, coulomb_shape(qd, v), np.ones_like(qd)], axis=-1)
 
 
+def _extra(qd: np.ndarray, s: np.ndarray, stribeck_velocity: np.ndarray, tau_rigid: np.ndarray | None) -> np.ndarray:
+    """(..., n, 4): the shapes of EXTRA_KEYS at velocities qd with Coulomb shape s."""
+    v_s = stribeck_velocity
+    with np.errstate(divide="ignore", over="ignore", under="ignore", invalid="ignore"):
+        stribeck = np.where(v_s > 0, s * np.exp(-((qd / np.where(v_s > 0, v_s, 1.0)) ** 2)), 0.0)
+    load = np.zeros_like(s) if tau_rigid is None else np.abs(tau_rigid) * s
+    return np.stack([np.abs(qd), np.abs(s), stribeck, load], axis=-1)
+
+
+def extra_columns(frictions: tuple[JointFriction, ...], qd: np.ndarray,
+                  tau_rigid: np.ndarray | None = None) -> np.ndarray:
+    """(N, n, 4): per joint the regressor of EXTRA_KEYS: |q'|, |s|, s exp(-(q'/v_s)^2) (zero where
+    v_s = 0) and |tau_R| s (zero where tau_rigid, (N, n), is not given)."""
+    v = np.array([f.coulomb_velocity for f in frictions])
+    return _extra(qd, coulomb_shape(qd, v), np.array([f.stribeck_velocity for f in frictions]), tau_rigid)
+
+
+def extra_values(frictions: tuple[JointFriction, ...]) -> np.ndarray:
+    """(n, 4): the EXTRA_KEYS coefficients per joint."""
+    return np.array([[getattr(f, k) for k in EXTRA_KEYS] for f in frictions]).reshape(-1, 4)
+
+
+def _needs_load(frictions: tuple[JointFriction, ...], tau_rigid: np.ndarray | None) -> None:
+    if tau_rigid is None and any(f.load_coulomb for f in frictions):
+        raise ValueError("load-dependent friction (load_coulomb) needs the rigid-body torque the joint carries")
+
+
 def values(frictions: tuple[JointFriction, ...]) -> np.ndarray:
     """(n, 4): [armature, viscous, coulomb, offset] per joint."""
     return np.array([[getattr(f, k) for k in IDENTIFIED_KEYS] for f in frictions]).reshape(-1, 4)
 
 
-def torque(frictions: tuple[JointFriction, ...], qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-    """(N, n): I_a q'' + f_v q' + f_c s(q') + f_o of every joint."""
-    return np.einsum("nja,ja->nj", columns(frictions, qd, qdd), values(frictions))
+def torque(frictions: tuple[JointFriction, ...], qd: np.ndarray, qdd: np.ndarray,
+           tau_rigid: np.ndarray | None = None) -> np.ndarray:
+    """(N, n): the whole law of every joint (the module's docstring); tau_rigid (N, n), the
+    rigid-body torque, is needed where a joint has load-dependent friction."""
+    out = np.einsum("nja,ja->nj", columns(frictions, qd, qdd), values(frictions))
+    if np.any(extra_values(frictions)):
+        _needs_load(frictions, tau_rigid)
+        out = out + np.einsum("nja,ja->nj", extra_columns(frictions, qd, tau_rigid), extra_values(frictions))
+    return out
 
 
-def passive(frictions: tuple[JointFriction, ...], qd: np.ndarray) -> np.ndarray:
-    """(..., n): the part that depends on the velocity alone, f_v q' + f_c s(q') + f_o (what an
-    engine applies as a force; the armature enters its mass matrix)."""
-    v = np.array([f.coulomb_velocity for f in frictions])
-    k = values(frictions)
-    return k[:, 1] * qd + k[:, 2] * coulomb_shape(qd, v) + k[:, 3]
+@dataclass(frozen=True, eq=False)
+class Dry:
+    """What an engine applies as a force beside its own damping (f_v q') and armature (I_a, in its mass
+    matrix): f_c s + f_o and every family's terms, at velocities qd (..., n), with the rigid-body torque
+    tau_rigid where a joint's friction depends on the load. Built once per model, called at every
+    step of a simulation."""
+
+    coulomb: np.ndarray
+    offset: np.ndarray
+    coulomb_velocity: np.ndarray  # v_c, 1 where a sharp sign (see `sharp`)
+    extra: np.ndarray  # (n, 4) EXTRA_KEYS
+    stribeck_velocity: np.ndarray
+    frictions: tuple[JointFriction, ...]
+    any: bool  # whether it is anything but zero (decided once: it is asked at every step)
+    has_extra: bool  # whether a joint has a family's term
+    needs_load: bool  # whether a joint's friction depends on its load
+    sharp: np.ndarray | None  # (n,) bool: the joints whose Coulomb term is a sharp sign, None if none
+
+    @classmethod
+    def of(cls, frictions: tuple[JointFriction, ...]) -> Dry:
+        k, extra = values(frictions), extra_values(frictions)
+        v_c = np.array([f.coulomb_velocity for f in frictions])
+        return cls(k[:, 2], k[:, 3], np.where(v_c > 0, v_c, 1.0), extra,
+                   np.array([f.stribeck_velocity for f in frictions]), frictions,
+                   bool(np.any(k[:, 2:]) or np.any(extra)), bool(np.any(extra)), bool(np.any(extra[:, 3])),
+                   (v_c == 0) if np.any(v_c == 0) else None)
+
+    def __call__(self, qd: np.ndarray, tau_rigid: np.ndarray | None = None, load: bool = True) -> np.ndarray:
+        """`load` False: without the load-dependent term (no rigid-body torque needed). coulomb_shape's
+        s, with the division guarded once at construction (it is called at every stage of a step)."""
+        s = np.tanh(qd / self.coulomb_velocity)
+        if self.sharp is not None:
+            s = np.where(self.sharp, np.sign(qd), s)
+        out = self.coulomb * s + self.offset
+        if self.has_extra:
+            if load:
+                _needs_load(self.frictions, tau_rigid)
+            else:
+                tau_rigid = None
+            out = out + np.einsum("...ja,ja->...j", _extra(qd, s, self.stribeck_velocity, tau_rigid), self.extra)
+        return out
+
+
+def dry(frictions: tuple[JointFriction, ...], qd: np.ndarray, tau_rigid: np.ndarray | None = None) -> np.ndarray:
+    """Dry.of(frictions)(qd, tau_rigid)."""
+    return Dry.of(frictions)(qd, tau_rigid)

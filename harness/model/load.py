@@ -280,11 +280,17 @@ def _read_joint(t: Table) -> Joint:
 
 
 def read_friction(t: Table, base: JointFriction = NO_FRICTION) -> JointFriction:
-    """The optional keys armature, viscous, coulomb, offset (any sign: a bias), coulomb_velocity of
-    a joint's table; keys not given keep `base` (a URDF's <dynamics>)."""
-    values = {k: t.number(k, default=getattr(base, k), nonnegative=k != "offset") for k in FRICTION_KEYS
+    """The optional keys of a joint's table (harness/model/friction.py): armature, viscous, coulomb,
+    coulomb_velocity and stribeck_velocity non-negative; offset, viscous_asymmetry, coulomb_asymmetry,
+    stribeck and load_coulomb of any sign. Keys not given keep `base` (a URDF's <dynamics>)."""
+    values = {k: t.number(k, default=getattr(base, k), nonnegative=k in NONNEGATIVE) for k in FRICTION_KEYS
               if t.has(k) or getattr(base, k)}
+    if values.get("stribeck") and not values.get("stribeck_velocity"):
+        raise t.error("stribeck_velocity", "a Stribeck term needs its velocity (> 0)")
     return JointFriction(**values)
+
+
+NONNEGATIVE = ("armature", "viscous", "coulomb", "coulomb_velocity", "stribeck_velocity")
 
 
 def _check_unique(names: list[str], tables: list[Table], kind: str) -> None:

@@ -5,6 +5,7 @@ moments `I_B`; each joint's point `p_W0` and axis `axis_W0`."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -117,6 +118,11 @@ class RobotSpec:
     def frictions(self) -> tuple[JointFriction, ...]:
         """Each joint's friction and rotor inertia, in the spec's joint order."""
         return tuple(j.friction for j in self.joints)
+
+    def with_frictions(self, frictions: tuple[JointFriction, ...]) -> RobotSpec:
+        """The same robot with each joint's friction law replaced, in joint order."""
+        return dataclasses.replace(self, joints=tuple(dataclasses.replace(j, friction=f)
+                                                      for j, f in zip(self.joints, frictions, strict=True)))
 
     def inner_joint(self, body: str) -> Joint:
         return next(j for j in self.joints if j.child == body)

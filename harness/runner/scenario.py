@@ -212,6 +212,7 @@ class DataScenario:
     methods: tuple[PluginEntry, ...] = ()
     studies: tuple[tuple[Study, Any], ...] = ()
     truth: RobotSpec | None = None  # the model that made the log, where it is known (a bench log)
+    configs: dict[str, Any] = field(default_factory=dict)  # a log stage's key -> its configuration, from its table
 
 
 def _load_data(root: Table, path: Path, text: str) -> DataScenario:
@@ -242,8 +243,18 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
         if root.has(table):
             raise root.error(table, "a scenario with [data] is judged on its log: it has no simulated motion, "
                                     "measurement, studies or other identification")
+    scenario = DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, text,
+                            truth=truth)
+    from harness.stages import log_stages  # each stage reads its own table
+
+    for stage in log_stages():
+        if stage.table is not None and root.has(stage.table):
+            table = root.table(stage.table)
+            config = stage.configure(table, scenario)
+            table.finish()
+            scenario = dataclasses.replace(scenario, configs={**scenario.configs, stage.key: config})
     root.finish()
-    return DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, text, truth=truth)
+    return scenario
 
 
 def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:

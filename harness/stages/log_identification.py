@@ -23,7 +23,8 @@ from harness.base.numerics import PARAMETER_FLOOR, finite_or_null, parameter_sca
 from harness.base.plugins import Stage
 from harness.engines.mujoco import mjcf
 from harness.engines.pinocchio import build_model, rnea
-from harness.identify import consistent, delay
+from harness.identify import consistent, delay, friction_law
+from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
 from harness.identify.repeat import Repeatability, repeat
 from harness.identify.torque_id import (
     BaseFit,
@@ -36,7 +37,7 @@ from harness.identify.torque_id import (
     true_parameters,
 )
 from harness.model.export import MJCF_FILE, README_FILE, coulomb_mapping, export, identified_spec, readme
-from harness.model.friction import IDENTIFIED_KEYS
+from harness.model.friction import FAMILIES, JointFriction
 from harness.model.friction import values as friction_values
 from harness.model.inertia import PARAMETER_NAMES, model_kind_scales
 from harness.model.mjcf import compiler_message
@@ -68,6 +69,10 @@ class LogIdentification:
     torque_constants: dict | None = None  # results.json's `torque_constants` (_constants_section), for currents
     repeated: Repeatability | None = None  # the fit on disjoint segments of the training span
     prediction: dict = field(default_factory=dict)  # results.json's `prediction` (_prediction)
+    frictions: tuple = ()  # each joint's identified friction law (harness/model/friction.py JointFriction)
+    choice: friction_law.FrictionChoice | None = None  # how each joint's law was chosen, if it was
+    extra_names: list[str] = field(default_factory=list)  # the families' coefficients after the base parameters
+    laws: tuple = ()  # each joint's law (harness/identify/friction_law.py Law): family and velocities
 
     def _against_truth(self, ctx) -> dict:
         errors = {span: _truth_errors(self, span) for span in self.truth}
@@ -89,7 +94,8 @@ class LogIdentification:
         rel = relative_error(ls.beta, self.beta_model, parameter_scale(self.beta_model))
 
         def expression(k: int) -> str:
-            return describe_base(self.names, self.base, k)
+            r = len(self.base.independent)
+            return describe_base(self.names, self.base, k) if k < r else self.extra_names[k - r]
 
         errors = {span: _span_errors(self, span) for span in self.predictions}
         headline = errors.get("validation", errors["training"])
@@ -102,8 +108,7 @@ class LogIdentification:
             "method": "least squares of the structural base parameters with friction and rotor inertia, then all "
                       "parameters under the pseudo-inertia LMI (harness/identify/consistent.py: Clarabel, else SCS, "
                       "else the unconstrained fit moved to the nearest physical one; consistent.fallback says which)",
-            "friction_law": ("I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o per joint (harness/model/friction.py), "
-                             "v_c from the model"),
+            "friction_law": _law_section(self),
             "rel_error_definition": ("||tau_predicted - tau_measured||_F / ||tau_measured||_F over every sample and "
                                      "joint of the span; per joint the same over its samples, and the RMS error in "
                                      "N m"),
@@ -155,9 +160,8 @@ class LogIdentification:
                 "training_rel_residual": self.fit.relative_residual,
                 "inconsistent_links": sum(not v["consistent"] for v in links.values()),
                 "links": links,
-                "friction": {j: dict(zip(IDENTIFIED_KEYS, map(float, self.fit.friction[k]), strict=True))
-                             | {"coulomb_velocity": ctx.scenario.robot.frictions[k].coulomb_velocity}
-                             for k, j in enumerate(self.joints)},
+                "friction": {j: {"family": f.family, **f.as_dict()}
+                             for j, f in zip(self.joints, self.frictions, strict=True)},
             },
             "export": sorted(self.files),
             "export_mjcf_friction": {
@@ -169,6 +173,34 @@ class LogIdentification:
             "joints": n,
             "series": _series(self),
         }
+
+
+def _law_section(li: LogIdentification) -> dict:
+    """results.json's `friction_law`: the law, and per joint the family and velocities chosen with
+    every family's held-out figure (harness/identify/friction_law.py)."""
+    out = {"law": "I_a q'' + f_v q' + f_c s + f_o, s = tanh(q'/v_c) (sign where v_c = 0), and per joint its "
+                  "family's terms: asymmetric f_va |q'| + f_ca |s|, Stribeck f_s s exp(-(q'/v_s)^2), load f_l "
+                  "|tau_R| s (harness/model/friction.py)",
+           "chosen": li.choice is not None,
+           "families": {j: law.family for j, law in zip(li.joints, li.laws, strict=True)},
+           "coulomb_velocity": {j: f.coulomb_velocity for j, f in zip(li.joints, li.frictions, strict=True)}}
+    c = li.choice
+    if c is None:
+        out["definition"] = "the model's own law per joint ([friction_law] choose = false, or see warnings)"
+        return out
+    out |= {
+        "definition": (f"the training span cut into {c.folds} consecutive parts, each predicted by the base "
+                       "parameters fitted on the others (the validation span is never seen); the held-out error "
+                       "||tau_pred - tau||_F / ||tau||_F over the training span. Joint by joint (two passes), v_c "
+                       f"searched for every family ({', '.join(FAMILIES)}) over a logarithmic grid "
+                       f"{friction_law.VELOCITY_GRID[0]:g} to {friction_law.VELOCITY_GRID[-1]:g} and a sharp "
+                       "sign, then refined; the simplest family within one standard error (over the parts) of the best "
+                       "chosen (harness/identify/friction_law.py)"),
+        "folds": c.folds,
+        "held_out_rel_error": {"model's law": c.model_error, "chosen": c.chosen_error},
+        "per_joint": {j: c.scores[k] for k, j in enumerate(li.joints)},
+    }
+    return out
 
 
 PLAUSIBLE = 3.0  # a link's identified mass or inertia more than 3 times, or under a third of, the model's: warned
@@ -352,28 +384,57 @@ def run(ctx, config) -> LogIdentification | None:
         train, validation = (None if log is None else _scaled(log, constants.factor, joints)
                              for log in (train, validation))
         q, qd, qdd, tau = joint_data(train, joints)
+    law_config = config or FrictionLawConfig()
+    theta_model = x_model[: 10 * n].reshape(n, 10)
+    choice, law_note = None, None
+    if law_config.choose:
+        ctx.progress("the friction law of every joint (on the training span's end)", None)
+        try:
+            choice = friction_law.choose(W, base.independent, tau, qd, train.t, robot.frictions, law_config)
+        except ValueError as exc:
+            law_note = f"friction law not chosen, the model's kept: {exc}"
+    laws = choice.laws if choice is not None else tuple(Law.of(f) for f in robot.frictions)
+    terms = extra_terms(laws)
+    if choice is not None:  # the regressor with the chosen smoothing velocities
+        W = regressor(build_model(robot.with_frictions(choice.frictions(robot.frictions)), sc.gravity_W),
+                      q, qd, qdd, with_friction=True)
+        rigid_train = choice.tau_rigid
+    else:
+        rigid_train = (W[:, : 10 * n] @ theta_model.ravel()).reshape(tau.shape)
+    extra_model = np.array([getattr(robot.frictions[k], key) for k, key in terms])
+    W_ls = np.hstack([W[:, base.independent], extra_regressor(laws, qd, rigid_train)])
+    beta_model = np.concatenate([beta_model, extra_model])
     L = tau.reshape(-1)
-    ls = fit_base(W[:, base.independent], tau, beta_model)
+    ls = fit_base(W_ls, tau, beta_model)
     repeated, repeat_note = None, None
     if sc.data.repeat:
         try:
-            repeated = repeat(W[:, base.independent], tau, beta_model, sc.data.repeat)
+            repeated = repeat(W_ls, tau, beta_model, sc.data.repeat)
         except ValueError as exc:
             repeat_note = f"repeatability not measured: {exc}"
-    theta_model = x_model[: 10 * n].reshape(n, 10)
     friction_model = friction_values(robot.frictions)
+    W_all = np.hstack([W, W_ls[:, len(base.independent):]])
     # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
     # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
     rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(len(q), n, -1) ** 2, axis=0)).reshape(n, n, 4)
     cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
-    carry = np.sqrt(np.mean(tau**2, axis=0))[:, None] / np.where(cols > 0, cols, 1.0)
+    rms_tau = np.sqrt(np.mean(tau**2, axis=0))
+    carry = rms_tau[:, None] / np.where(cols > 0, cols, 1.0)
     friction_scale = np.maximum(np.abs(friction_model), carry)
     friction_scale = np.maximum(friction_scale, PARAMETER_FLOOR * friction_scale.max(axis=0, initial=0.0))  # a joint
     # that carries nothing has no size of its own
-    scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel()])
+    E3 = W_all[:, 14 * n:].reshape(len(q), n, -1)
+    extra_rms = np.sqrt(np.mean(E3**2, axis=0))  # (n, e): each column's RMS on each joint's rows
+    extra_scale = np.array([max(abs(extra_model[c]), rms_tau[k] / max(float(extra_rms[k, c]), 1e-300))
+                            for c, (k, _) in enumerate(terms)])
+    scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel(), extra_scale])
     ctx.progress("physically consistent parameters (semidefinite program)", None)
-    fit = consistent.fit(W, L, theta_model, friction_model, scale)
-    x_fit = np.concatenate([fit.theta.ravel(), fit.friction.ravel()])
+    fit = consistent.fit(W_all, L, theta_model, friction_model, scale, tuple(terms), extra_model)
+    identified_frictions = tuple(
+        JointFriction(*map(float, fit.friction[k]), coulomb_velocity=law.coulomb_velocity,
+                      stribeck_velocity=law.stribeck_velocity,
+                      **{key: float(fit.extra[c]) for c, (kk, key) in enumerate(terms) if kk == k})
+        for k, law in enumerate(laws))
     plausible = plausibility(fit.theta, theta_model, joints, fit.margin)
     warnings = []
     if plausible["implausible"]:
@@ -390,6 +451,8 @@ def run(ctx, config) -> LogIdentification | None:
                         "shifts them): " + ", ".join(f"{joints[k]} {lags.delay[k] * 1e3:.2g} ms" for k in lagging))
     if lag_note:
         warnings.append(lag_note)
+    if law_note:
+        warnings.append(law_note)
     if repeat_note:
         warnings.append(repeat_note)
     moved = [] if repeated is None else list(np.flatnonzero(~repeated.overlap))
@@ -407,12 +470,18 @@ def run(ctx, config) -> LogIdentification | None:
         spans["validation"] = (*joint_data(validation, joints), validation.t)
     predictions, measured, times, truth_tau = {}, {}, {}, {}
     pm_truth = build_model(sc.truth, sc.gravity_W) if sc.truth is not None else None
+    identified = identified_spec(robot, fit.theta, identified_frictions)
+    pm_identified = build_model(identified, sc.gravity_W)
+    r = len(base.independent)
+    rigid_base = base.independent < 10 * n  # the least-squares fit's rigid-body part: its inertial base parameters
     for span, (qs, qds, qdds, taus, ts) in spans.items():
-        Ws = W if span == "training" else regressor(pm, qs, qds, qdds, with_friction=True)
+        Ws = W if span == "training" else regressor(pm_identified, qs, qds, qdds, with_friction=True)
+        rigid_ls = (Ws[:, base.independent[rigid_base]] @ ls.beta[:r][rigid_base]).reshape(taus.shape)
+        W_span = np.hstack([Ws[:, base.independent], extra_regressor(laws, qds, rigid_ls)])
         predictions[span] = {
-            "least squares": (Ws[:, base.independent] @ ls.beta).reshape(taus.shape),
-            "consistent": (Ws @ x_fit).reshape(taus.shape),
-            "model as given": (Ws @ x_model).reshape(taus.shape),
+            "least squares": (W_span @ ls.beta).reshape(taus.shape),
+            "consistent": rnea(pm_identified, qs, qds, qdds).tau,
+            "model as given": rnea(pm, qs, qds, qdds).tau,
         }
         measured[span], times[span] = taus, ts
         if pm_truth is not None:  # what the robot that made the log needs at these states
@@ -420,13 +489,12 @@ def run(ctx, config) -> LogIdentification | None:
     refused = None  # why robot.xml was not written
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
-    files = export(robot, fit.theta, fit.friction, description)
-    identified = identified_spec(robot, fit.theta, fit.friction)
+    files = export(robot, fit.theta, identified_frictions, description)
     ctx.progress("the models forward-simulated under the measured torques", None)
     judged_on = ("validation", validation) if validation is not None else ("training", train)
     simulated = {"consistent": identified, "model as given": robot, **({"truth": sc.truth} if sc.truth else {})}
     prediction = _prediction(sc, simulated, judged_on[1], joints, judged_on[0])
-    mapping = coulomb_mapping(identified, qd, tau)
+    mapping = coulomb_mapping(identified, qd, tau, (W[:, : 10 * n] @ fit.theta.ravel()).reshape(tau.shape))
     worst = max(mapping, key=lambda j: mapping[j]["rms"])
     try:  # MuJoCo's compiler has checks of its own: what it refuses is said, not a crash
         files[f"identified/{MJCF_FILE}"] = mjcf(
@@ -442,7 +510,8 @@ def run(ctx, config) -> LogIdentification | None:
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
                              friction_model, predictions, measured, times, files, mapping, refused, plausible, warnings,
                              truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints),
-                             _constants_section(constants, sc.data, joints), repeated, prediction)
+                             _constants_section(constants, sc.data, joints), repeated, prediction,
+                             identified_frictions, choice, [f"{joints[k]}.{key}" for k, key in terms], laws)
 
 
 def _truth_errors(li: LogIdentification, span: str) -> dict:
@@ -469,5 +538,17 @@ def _series(li: LogIdentification) -> dict:
                for model, pred in li.predictions[span].items()}}
 
 
+def configure(t, scenario) -> FrictionLawConfig:
+    """`[friction_law] choose = true, folds = 5, families = [...]`, validated (one-line errors
+    naming the key)."""
+    config = FrictionLawConfig(
+        t.boolean("choose", default=FrictionLawConfig.choose),
+        t.integer("folds", default=FrictionLawConfig.folds, minimum=2),
+        tuple(t.strings("families", choices=tuple(FAMILIES), default=list(FrictionLawConfig.families))))
+    if getattr(scenario, "data", None) is None:
+        raise t.error("choose", "the friction law is chosen from a measured log: give [data]")
+    return config
+
+
 STAGE = Stage("log_identification", "identification from the measured log", run, LogIdentification.serialise,
-              "Identification from the log", files=lambda li: li.files)
+              "Identification from the log", files=lambda li: li.files, table="friction_law", configure=configure)

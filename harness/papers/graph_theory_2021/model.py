@@ -29,7 +29,8 @@ class GraphTheoryModel:
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """The drive torques: the joint wrenches' components along the axes, plus the drives' own
         rotor inertia and friction (harness/model/friction.py)."""
-        return self.solve(q, qd, qdd).tau + friction.torque(self.spec.frictions, qd, qdd)
+        tau = self.solve(q, qd, qdd).tau
+        return tau + friction.torque(self.spec.frictions, qd, qdd, tau)
 
     def joint_wrenches(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         out = self.solve(q, qd, qdd)

@@ -1,0 +1,339 @@
+"""Friction chosen by the data: per joint the Coulomb smoothing velocity v_c and a friction family
+(harness/model/friction.py, FAMILIES), each judged by how well the fit predicts held-out parts of
+the training span.
+
+The training span is cut in time into `folds` consecutive parts (blocked cross-validation: a log's
+neighbouring samples are not independent, so each part is predicted by the fit on the others, never
+by a fit that saw its neighbours); the validation span is never seen. The least-squares fit of the
+structural base parameters is nested in every trial: the columns the friction law does not touch
+(the links' inertial parameters, each joint's rotor inertia and offset) are folded into per-part
+normal equations once; a trial for joint j rewrites only joint j's friction columns, which act on
+joint j's rows alone (_Normal), so that one trial costs O(N r) and K small solves rather than new
+factorisations of the whole regressor. The figure judged is the held-out error of every joint,
+||tau_pred - tau||_F / ||tau||_F over the training span: the joints share the base parameters, so a
+law that helps one joint's rows by spoiling the shared parameters is caught on the others' rows.
+
+Joint by joint (two passes, so that each choice sees the others'), every family is tried:
+  - v_c searched over a logarithmic grid (and a sharp sign, v_c = 0), then refined between the best
+    point's neighbours by a bounded scalar search in log v_c (_search);
+  - Stribeck: v_s over its own grid at that v_c, then v_c searched again at the chosen v_s;
+  - load-dependent: |tau_R| s with tau_R the rigid-body torque of the fit so far (the fit is
+    bilinear in it; its rigid torque is held while the joint's columns are tried).
+The family chosen is the simplest whose held-out error is within one standard error of the best
+family's (the one-standard-error rule of cross-validation, Hastie, Tibshirani and Friedman, The
+Elements of Statistical Learning, 2nd ed., section 7.10): a richer law must earn its terms by more than
+the scatter of the parts' errors.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import minimize, minimize_scalar
+
+from harness.model import friction
+from harness.model.friction import EXTRA_KEYS, FAMILIES, JointFriction
+
+VELOCITY_GRID = np.geomspace(1e-4, 1.0, 17)  # rad/s or m/s: v_c tried, and 0 (a sharp sign)
+STRIBECK_GRID = np.geomspace(1e-3, 2.0, 12)  # v_s tried
+PASSES = 2
+REFINE_TOL = 1e-3  # in log v: a velocity to 0.1 %
+REFINE_EVALUATIONS = 60  # trials of the joint (v_c, v_s) refinement
+LOAD_ITERATIONS = 3  # fixed-point steps of a load-dependent law's rigid-body torque
+MIN_FOLD = 50  # samples each part of the training span needs
+
+
+@dataclass(frozen=True)
+class FrictionLawConfig:
+    """`[friction_law]`: `choose` (default true) the law per joint from the data, else the model's;
+    `folds` the consecutive parts of the training span, each judged by the fit on the others;
+    `families` those tried (viscous_coulomb always)."""
+
+    choose: bool = True
+    folds: int = 5
+    families: tuple[str, ...] = tuple(FAMILIES)
+
+
+@dataclass(frozen=True)
+class Law:
+    """One joint's law: its family and the velocities its shapes turn over."""
+
+    family: str = "viscous_coulomb"
+    coulomb_velocity: float = 0.0
+    stribeck_velocity: float = 0.0
+
+    @property
+    def terms(self) -> tuple[str, ...]:
+        """The EXTRA_KEYS coefficients it adds (a model's own law may join families: "a+b")."""
+        return FAMILIES[self.family] if self.family in FAMILIES else tuple(self.family.split("+"))
+
+    @classmethod
+    def of(cls, f: JointFriction) -> Law:
+        """A model's own law for one joint."""
+        return cls(f.family, f.coulomb_velocity, f.stribeck_velocity)
+
+
+@dataclass(frozen=True, eq=False)
+class FrictionChoice:
+    laws: tuple[Law, ...]  # per joint
+    scores: tuple[dict[str, dict], ...]  # per joint, per family: the held-out error at its best velocities
+    model_error: float  # the held-out error with the model's own law at every joint
+    chosen_error: float  # the held-out error with the chosen laws
+    folds: int
+    tau_rigid: np.ndarray  # (N, n) the rigid-body torque of the chosen law's fit on the whole training span
+
+    def frictions(self, model: tuple[JointFriction, ...]) -> tuple[JointFriction, ...]:
+        """The model's friction values with the chosen velocities (the coefficients are the fit's to find)."""
+        return tuple(JointFriction(f.armature, f.viscous, f.coulomb, f.offset, law.coulomb_velocity,
+                                   stribeck_velocity=law.stribeck_velocity)
+                     for f, law in zip(model, self.laws, strict=True))
+
+    @property
+    def extra(self) -> list[tuple[int, str]]:
+        """The families' coefficients the fit adds, as (joint index, EXTRA_KEYS name), joint by joint."""
+        return extra_terms(self.laws)
+
+
+def extra_terms(laws: tuple[Law, ...]) -> list[tuple[int, str]]:
+    return [(j, key) for j, law in enumerate(laws) for key in law.terms]
+
+
+def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray | None) -> np.ndarray:
+    """(N n, e): the columns of the families' coefficients (extra_terms), each on its joint's rows."""
+    terms = extra_terms(laws)
+    N, n = qd.shape
+    out = np.zeros((N, n, len(terms)))
+    if not terms:
+        return out.reshape(N * n, 0)
+    frictions = tuple(JointFriction(coulomb_velocity=law.coulomb_velocity, stribeck_velocity=law.stribeck_velocity)
+                      for law in laws)
+    shapes = friction.extra_columns(frictions, qd, tau_rigid)  # (N, n, 4)
+    for c, (j, key) in enumerate(terms):
+        out[:, j, c] = shapes[:, j, EXTRA_KEYS.index(key)]
+    return out.reshape(N * n, len(terms))
+
+
+def _columns(law: Law, qd: np.ndarray, tau_rigid: np.ndarray) -> np.ndarray:
+    """(N, m): one joint's friction columns under `law`: q', s, then its family's terms."""
+    fr = (JointFriction(coulomb_velocity=law.coulomb_velocity, stribeck_velocity=law.stribeck_velocity),)
+    s = friction.coulomb_shape(qd[:, None], np.array([law.coulomb_velocity]))
+    extra = friction.extra_columns(fr, qd[:, None], tau_rigid[:, None])[:, 0]
+    return np.column_stack([qd, s[:, 0], *(extra[:, EXTRA_KEYS.index(k)] for k in law.terms)])
+
+
+SLOT = 4  # friction columns a joint may have: q', s and up to two of its family's
+
+
+class _Normal:
+    """The least-squares problem with every joint's friction columns replaceable, cross-validated over
+    `folds` (consecutive slices of the training span): per fold k the normal equations of its rows,
+    M_k x = r_k, with the fixed columns G (the base parameters but each joint's viscous and Coulomb
+    ones) folded once and each joint's friction columns in a slot of their own. The fit leaving
+    fold k out solves (sum M - M_k) x = sum r - r_k and predicts fold k's rows. Replacing joint j's
+    columns rewrites its slot only: O(N r) per trial."""
+
+    def __init__(self, G: np.ndarray, rigid: np.ndarray, tau: np.ndarray, folds: list[slice]):
+        N, n = tau.shape
+        r = G.shape[1]
+        self.n, self.r = n, r
+        self.G3 = G.reshape(N, n, r)
+        self.rigid = rigid  # (r,) bool: the fixed columns that are rigid-body (inertial) parameters
+        self.tau = tau
+        self.folds = folds
+        p = r + SLOT * n
+        self.M = np.zeros((len(folds), p, p))
+        self.rhs = np.zeros((len(folds), p))
+        for k, f in enumerate(folds):
+            g = self.G3[f].reshape(-1, r)
+            self.M[k, :r, :r], self.rhs[k, :r] = g.T @ g, g.T @ tau[f].ravel()
+        self.yy = np.array([float(np.sum(tau[f] ** 2)) for f in folds])
+        self.by_joint = [np.ascontiguousarray(self.G3[:, j]) for j in range(n)]  # (N, r): joint j's rows
+        self.S = np.zeros((N, n, SLOT))  # each joint's friction columns, on its own rows
+
+    def set(self, j: int, C: np.ndarray) -> None:
+        """Joint j's friction columns C (N, m <= SLOT); the slot's unused columns stay zero, with a unit
+        diagonal in the fitted folds' sum so that their unknowns are zero."""
+        r, m = self.r, C.shape[1]
+        at = slice(r + SLOT * j, r + SLOT * (j + 1))
+        G_j = self.by_joint[j]
+        self.M[:, :, at] = 0.0
+        self.M[:, at, :] = 0.0
+        self.rhs[:, at] = 0.0
+        for k, f in enumerate(self.folds):
+            B, D = G_j[f].T @ C[f], C[f].T @ C[f]
+            lo = r + SLOT * j
+            self.M[k, :r, lo: lo + m], self.M[k, lo: lo + m, :r] = B, B.T
+            self.M[k, lo: lo + m, lo: lo + m] = D
+            self.rhs[k, lo: lo + m] = C[f].T @ self.tau[f, j]
+            idle = np.arange(lo + m, lo + SLOT)
+            self.M[k, idle, idle] = 1.0 / len(self.folds)
+        self.S[:, j, :m], self.S[:, j, m:] = C, 0.0
+
+    def _solve(self, M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """x of M x = rhs, batched over the leading axis, equilibrated; where the columns are not
+        independent (a joint that never reverses: |s| is its offset), the minimum-norm solution."""
+        diag = np.diagonal(M, axis1=-2, axis2=-1)
+        d = np.sqrt(np.where(diag > 0, diag, 1.0))
+        Ms, b = M / d[..., :, None] / d[..., None, :], rhs / d
+        try:
+            L = np.linalg.cholesky(Ms)
+            x = np.linalg.solve(np.swapaxes(L, -1, -2), np.linalg.solve(L, b[..., None]))[..., 0]
+        except np.linalg.LinAlgError:
+            x = np.stack([np.linalg.lstsq(a, c, rcond=1e-13)[0] for a, c in zip(Ms.reshape(-1, *Ms.shape[-2:]),
+                                                                                b.reshape(-1, b.shape[-1]),
+                                                                                strict=True)]).reshape(b.shape)
+        return x / d
+
+    def held_out_sse(self) -> np.ndarray:
+        """(K,) the squared error of every fold, each predicted by the fit on the others (from the
+        fold's rows: its normal equations would give it as |tau_k|^2 - 2 x.r_k + x.M_k x, which loses
+        every digit on a log the law fits to round-off)."""
+        x = self._solve(self.M.sum(0) - self.M, self.rhs.sum(0) - self.rhs)  # (K, p)
+        r, n = self.r, self.n
+        sse = np.zeros(len(self.folds))
+        for k, f in enumerate(self.folds):
+            G = self.G3[f]
+            pred = ((G.reshape(-1, r) @ x[k, :r]).reshape(G.shape[:2])
+                    + np.einsum("njs,js->nj", self.S[f], x[k, r:].reshape(n, SLOT)))
+            sse[k] = float(np.sum((pred - self.tau[f]) ** 2))
+        return sse
+
+    def rigid_torque(self) -> np.ndarray:
+        """(N, n) the rigid-body torque of the fit on every fold."""
+        g = self._solve(self.M.sum(0), self.rhs.sum(0))[: self.r]
+        return self.G3[..., self.rigid] @ g[self.rigid]
+
+
+def choose(W: np.ndarray, independent: np.ndarray, tau: np.ndarray, qd: np.ndarray, t: np.ndarray,
+           model: tuple[JointFriction, ...], config: FrictionLawConfig) -> FrictionChoice:
+    """Each joint's friction law, chosen within the training span. W: (N n, 10 n + 4 n) the
+    regressor with friction (harness/identify/torque_id.py), `independent` the base parameters'
+    columns; tau, qd: (N, n); t: (N,). Raises ValueError when the span is too short to cut."""
+    N, n = tau.shape
+    order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
+    tau, qd = tau[order], qd[order]
+    edges = np.linspace(0, N, config.folds + 1).round().astype(int)
+    folds = [slice(a, b) for a, b in itertools.pairwise(edges)]
+    if min(np.diff(edges)) < MIN_FOLD:
+        raise ValueError(f"{N} training samples: too few for {config.folds} parts of at least {MIN_FOLD}")
+    shaped = {10 * n + 4 * j + k for j in range(n) for k in (1, 2)}  # each joint's viscous and Coulomb columns
+    fixed = np.array([c for c in independent if c not in shaped])
+    G = W.reshape(N, n, -1)[order][:, :, fixed]
+    normal = _Normal(G.reshape(N * n, -1), fixed < 10 * n, tau, folds)
+    laws = [Law("viscous_coulomb", f.coulomb_velocity) for f in model]
+    rigid = np.zeros((N, n))
+    total = float(np.sum(tau**2))
+
+    def place(j: int, law: Law) -> None:
+        """Joint j's columns under `law`; a load-dependent law's |tau_R| s column from the rigid-body
+        torque of the fit with it, iterated LOAD_ITERATIONS times towards a fixed point (the fit is
+        bilinear in f_l and tau_R; the map contracts by about f_l, a few hundredths). A fixed point
+        is not the least-squares minimum of the bilinear fit: where a joint's |tau_R| s keeps one sign
+        for long stretches, f_l trades against the scale of the inertial parameters, and f_l comes
+        out biased (README.md, "Friction chosen by the data")."""
+        normal.set(j, _columns(law, qd[:, j], rigid[:, j]))
+        if "load_coulomb" in law.terms:
+            for _ in range(LOAD_ITERATIONS):
+                normal.set(j, _columns(law, qd[:, j], normal.rigid_torque()[:, j]))
+
+    for j in range(n):
+        place(j, laws[j])
+    model_error = float(np.sqrt(normal.held_out_sse().sum() / total))
+    scores: list[dict] = [{} for _ in range(n)]
+    for sweep in range(PASSES):
+        first = sweep == 0  # the first pass searches v_c over the whole grid; the next, around its choice
+        for j in range(n):
+            rigid = normal.rigid_torque()
+
+            def score(law: Law, j=j) -> float:
+                place(j, law)
+                return float(np.sqrt(normal.held_out_sse().sum() / total))
+
+            found = {"viscous_coulomb": _search(score, Law("viscous_coulomb"), "coulomb_velocity",
+                                                _grid(None if first else laws[j].coulomb_velocity))}
+            v_c = found["viscous_coulomb"][0].coulomb_velocity  # the richer families searched around it
+            for family in (f for f in FAMILIES if f in config.families and f != "viscous_coulomb"):
+                law = Law(family, v_c)
+                if family == "stribeck":  # v_s at this v_c (over its grid, or around its last choice), then v_c
+                    again = not first and laws[j].family == "stribeck"
+                    start = replace(laws[j], coulomb_velocity=v_c) if again else law
+                    law, _ = _search(score, start, "stribeck_velocity",
+                                     _around(laws[j].stribeck_velocity, STRIBECK_GRID, 1) if again else STRIBECK_GRID)
+                found[family] = _search(score, law, "coulomb_velocity", _grid(v_c))
+                if family == "stribeck" and found[family][1] < found["viscous_coulomb"][1]:
+                    found[family] = _refine_both(score, *found[family])  # v_c and v_s trade: refined together
+            chosen = _simplest(found, normal, place, j, total)
+            laws[j] = found[chosen][0]
+            place(j, laws[j])
+            scores[j] = {f: {"held_out_rel_error": e, "coulomb_velocity": law.coulomb_velocity,
+                             **({"stribeck_velocity": law.stribeck_velocity} if f == "stribeck" else {})}
+                         for f, (law, e) in found.items()}
+    chosen_error = float(np.sqrt(normal.held_out_sse().sum() / total))
+    tau_rigid = np.empty_like(tau)
+    tau_rigid[order] = normal.rigid_torque()
+    return FrictionChoice(tuple(laws), tuple(scores), model_error, chosen_error, config.folds, tau_rigid)
+
+
+def _simplest(found: dict, normal: _Normal, place, j: int, total: float) -> str:
+    """The simplest family (FAMILIES' order) whose held-out error is within one standard error of the
+    best's. The best's error r = sqrt(S / T), S = sum_k S_k over the K parts: S's standard error is
+    sqrt(K) std(S_k), and r's, to first order, that over 2 sqrt(S T)."""
+    best = min(found, key=lambda f: found[f][1])
+    place(j, found[best][0])
+    parts = normal.held_out_sse()
+    S = float(parts.sum())
+    se = np.sqrt(len(parts)) * float(np.std(parts, ddof=1)) / (2 * np.sqrt(S * total)) if S > 0 else 0.0
+    return next(f for f in found if found[f][1] <= found[best][1] + se)
+
+
+def _refine_both(score, law: Law, error: float) -> tuple[Law, float]:
+    """A Stribeck law's v_c and v_s refined together (Nelder-Mead in log v, from the coordinate
+    searches' point; its simplex a quarter of a grid step wide): the two shapes overlap, and one
+    velocity at a time stalls in the valley between them."""
+    if law.coulomb_velocity <= 0:
+        return law, error
+
+    def at(x: np.ndarray) -> Law:
+        return replace(law, coulomb_velocity=float(np.exp(x[0])), stribeck_velocity=float(np.exp(x[1])))
+
+    x0 = np.log([law.coulomb_velocity, law.stribeck_velocity])
+    step = np.log(VELOCITY_GRID[1] / VELOCITY_GRID[0]) / 4
+    found = minimize(lambda x: score(at(x)), x0, method="Nelder-Mead",
+                     options={"initial_simplex": np.array([x0, x0 + [step, 0.0], x0 + [0.0, step]]),
+                              "xatol": REFINE_TOL, "fatol": 0.0, "maxfev": REFINE_EVALUATIONS})
+    return (at(found.x), float(found.fun)) if found.fun < error else (law, error)
+
+
+def _grid(v: float | None) -> np.ndarray:
+    """The smoothing velocities tried: the whole grid and a sharp sign (v None), or five around v
+    (v > 0, one grid step apart), or a sharp sign and the grid's two smallest (v = 0)."""
+    if v is None:
+        return np.concatenate([[0.0], VELOCITY_GRID])
+    if v == 0:
+        return np.concatenate([[0.0], VELOCITY_GRID[:2]])
+    return _around(v, VELOCITY_GRID, 2)
+
+
+def _around(v: float, grid: np.ndarray, steps: int) -> np.ndarray:
+    """2 steps + 1 velocities about v, `grid`'s step apart."""
+    return v * (grid[1] / grid[0]) ** np.arange(-steps, steps + 1.0)
+
+
+def _search(score, law: Law, key: str, grid: np.ndarray) -> tuple[Law, float]:
+    """The best velocity `key` (coulomb_velocity or stribeck_velocity) for `law` over `grid`, then,
+    where the best is not a sharp sign, refined between its neighbours in log v by a bounded scalar
+    search (Brent's, to REFINE_TOL): on a log that the law fits closely the held-out error is sharp
+    at its minimum, and a parabola through three grid points misses it."""
+    values = [score(replace(law, **{key: float(v)})) for v in grid]
+    i = int(np.argmin(values))
+    best_v, best = float(grid[i]), values[i]
+    if best_v > 0:
+        lo = grid[i - 1] if i > 0 and grid[i - 1] > 0 else best_v / 2
+        hi = grid[i + 1] if i < len(grid) - 1 else best_v * 2
+        found = minimize_scalar(lambda x: score(replace(law, **{key: float(np.exp(x))})),
+                                bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": REFINE_TOL})
+        if found.fun < best:
+            best_v, best = float(np.exp(found.x)), float(found.fun)
+    return replace(law, **{key: best_v}), best
