@@ -55,6 +55,28 @@ def test_the_log_is_read_as_its_readme_describes_it(panda):
     assert c["validation"]["from_fraction"] == 0.7
 
 
+def test_each_joints_friction_law_is_chosen_within_the_training_span_and_reported(panda):
+    """results.json and the report give, per joint, the chosen family and v_c and every family's held-out
+    figure; on this log the chosen laws predict the held-out parts better than the model's own law
+    (measured 1.413 % against 1.435 %), and the exported joints.toml carries the chosen v_c."""
+    out, r = panda
+    law = r["log_identification"]["friction_law"]
+    names = [f"panda_joint{k}" for k in range(1, 8)]
+    assert law["chosen"] and list(law["per_joint"]) == names
+    assert law["held_out_rel_error"]["chosen"] <= law["held_out_rel_error"]["model's law"]
+    for j in names:
+        scores = law["per_joint"][j]
+        assert set(scores) == {"viscous_coulomb", "stribeck", "load", "asymmetric"}
+        best = min(v["held_out_rel_error"] for v in scores.values())
+        assert scores[law["families"][j]]["held_out_rel_error"] >= best  # the simplest within the rule, not
+        # always the best
+    joints = tomllib.loads((out / "identified" / "joints.toml").read_text())["joints"]
+    assert [joints[j]["coulomb_velocity"] for j in names] == [law["coulomb_velocity"][j] for j in names]
+    html = (out / "report.html").read_text()
+    assert "<h3>Friction law</h3>" in html and html.count("viscous_coulomb: held-out") == 1
+    assert all(f"<td>{j}</td>" in html for j in names)
+
+
 def _law(f: dict, qd: np.ndarray, qdd: np.ndarray, tau_rigid: np.ndarray) -> np.ndarray:
     """The friction law, written out: I_a q'' + f_v q' + f_c s + f_o, s = tanh(q'/v_c), and the
     families' terms f_va |q'| + f_ca |s| + f_s s exp(-(q'/v_s)^2) + f_l |tau_R| s."""

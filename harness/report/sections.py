@@ -243,22 +243,47 @@ def log_identification(r: dict, log) -> str:
               mark(j not in pl["implausible"], "no" if j in pl["implausible"] else "yes"),
               mark(j not in pl["on_margin"], "yes" if j in pl["on_margin"] else "no")]
              for j, v in pl["ratios"].items()])
-    fric = table(["joint", "armature", "viscous", "coulomb", "offset", "coulomb_velocity"],
-                 [[esc(j), *(num(v[k]) for k in ("armature", "viscous", "coulomb", "offset", "coulomb_velocity"))]
-                  for j, v in con["friction"].items()])
+    keys = [k for k in next(iter(con["friction"].values())) if k != "family"]
+    used = [k for k in keys if any(v[k] for v in con["friction"].values())]  # the families' zero terms left out
+    fric = table(["joint", "family", *used], [[esc(j), esc(v["family"]), *(num(v[k]) for k in used)]
+                                              for j, v in con["friction"].items()])
     base = table(["base parameter", "model", "identified", "std", "std [%]", "identifiable"],
                  [[esc(b["expression"]), num(b["model"]), num(b["identified"]), num(b["std"]),
                    num(b["rel_std_percent"]), identifiability(b)] for b in ls["base"]], "wrap")
     costs = ", ".join(f"{k} {num(v)}" for k, v in li["consistent_costs"].items())
     return section(
         "log_identification", "Identification from the log",
-        f"<p>{esc(li['method'])}. Friction: {esc(li['friction_law'])}. Relative error: "
-        f"{esc(li['rel_error_definition'])}.</p>" + headline + fig + "<h3>Per joint</h3>" + per_joint + extra
+        f"<p>{esc(li['method'])}. Relative error: {esc(li['rel_error_definition'])}.</p>" + headline + fig
+        + "<h3>Per joint</h3>" + per_joint + _friction_law(li["friction_law"]) + extra
         + f"<h3>Physically consistent parameters</h3><p>Solver: {_solver(con)}; what consistency "
         f"costs in relative torque error (consistent minus least squares): {esc(costs)}. Exported: "
         f"{esc(', '.join(li['export']))}.</p>" + links + fric
         + f"<h3>Least squares: {ls['base_parameters']} base parameters of {ls['parameters']}</h3>"
         + f"<p>Condition number of the scaled base regressor {num(ls['condition_number'])}.</p>" + base)
+
+
+MODELS_LAW = "model's law"  # the key of the model's own law in friction_law.held_out_rel_error
+
+
+def _friction_law(law: dict) -> str:
+    """Each joint's friction law: chosen by the data (every family's held-out figure beside the
+    choice) or the model's own."""
+    head = f"<h3>Friction law</h3><p>{esc(law['law'])}. {esc(law['definition'])}.</p>"
+    if not law["chosen"]:
+        return head + table(["joint", "family", "coulomb_velocity"],
+                            [[esc(j), esc(f), num(law["coulomb_velocity"][j])] for j, f in law["families"].items()])
+    held = law["held_out_rel_error"]
+    head += (f"<p>Held-out error: the model's own law {num(held[MODELS_LAW])}, the chosen laws "
+             f"{num(held['chosen'])}. Per joint, each family's at its best v_c (the chosen in bold):</p>")
+    families = list(next(iter(law["per_joint"].values())))
+
+    def cell(j: str, f: str, score: dict) -> Markup:
+        text = Markup("{} ({})").format(num(score["held_out_rel_error"]), num(score["coulomb_velocity"]))
+        return Markup("<b>{}</b>").format(text) if f == law["families"][j] else text
+
+    return head + table(["joint", "chosen", "v_c", *(f"{f}: held-out (v_c)" for f in families)],
+                        [[esc(j), esc(law["families"][j]), num(law["coulomb_velocity"][j]),
+                          *(cell(j, f, s[f]) for f in families)] for j, s in law["per_joint"].items()])
 
 
 def _solver(con: dict) -> str:

@@ -186,10 +186,10 @@ def _law_section(li: LogIdentification) -> dict:
            "coulomb_velocity": {j: f.coulomb_velocity for j, f in zip(li.joints, li.frictions, strict=True)}}
     c = li.choice
     if c is None:
-        out["definition"] = "the model's own law per joint ([friction_law] choose = false, or see warnings)"
+        out["definition"] = "The model's own law per joint ([friction_law] choose = false, or see warnings)"
         return out
     out |= {
-        "definition": (f"the training span cut into {c.folds} consecutive parts, each predicted by the base "
+        "definition": (f"The training span cut into {c.folds} consecutive parts, each predicted by the base "
                        "parameters fitted on the others (the validation span is never seen); the held-out error "
                        "||tau_pred - tau||_F / ||tau||_F over the training span. Joint by joint (two passes), v_c "
                        f"searched for every family ({', '.join(FAMILIES)}) over a logarithmic grid "
@@ -325,9 +325,10 @@ def _prediction(sc, models: dict, log: JointLog, joints: list[str], span: str) -
     q, qd, _, tau = joint_data(log, joints)
     starts = _starts(log.t, HORIZONS[-1], PREDICTION_STARTS)
     out = {"definition": f"from {len(starts)} measured states along the {span} span, each model forward-simulated "
-                         "in MuJoCo (RK4, 1 ms) under the measured joint torques less its Coulomb friction and "
-                         "offset; at each horizon q_sim - q_meas [rad or m] and q'_sim - q'_meas: RMS over the "
-                         "starts and joints, the largest joint's RMS, per joint RMS. The least-squares fit is not "
+                         "in MuJoCo (RK4, 1 ms) under the measured joint torques less its dry friction (Coulomb, "
+                         "offset and its family's terms); at each horizon q_sim - q_meas [rad or m] and "
+                         "q'_sim - q'_meas: RMS over the starts and joints, the largest joint's RMS, per joint RMS. "
+                         "The least-squares fit is not "
                          "simulated: its base parameters are not a full set of physical parameters",
            "span": span, "starts": len(starts), "timestep_s": PREDICTION_TIMESTEP,
            "horizons_s": list(HORIZONS), "models": {}}
