@@ -43,6 +43,7 @@ REFINE_TOL = 1e-3  # in log v: a velocity to 0.1 %
 REFINE_EVALUATIONS = 60  # trials of the joint (v_c, v_s) refinement
 LOAD_ITERATIONS = 3  # fixed-point steps of a load-dependent law's rigid-body torque
 MIN_FOLD = 50  # samples each part of the training span needs
+MAX_UNKNOWNS = 250  # base parameters and friction slots beyond which the choice is not tried (the Panda: 83)
 
 
 @dataclass(frozen=True)
@@ -79,6 +80,7 @@ class Law:
 class FrictionChoice:
     laws: tuple[Law, ...]  # per joint
     scores: tuple[dict[str, dict], ...]  # per joint, per family: the held-out error at its best velocities
+    # (empty for a joint that never moved: it keeps the model's law)
     model_error: float  # the held-out error with the model's own law at every joint
     chosen_error: float  # the held-out error with the chosen laws
     folds: int
@@ -218,11 +220,18 @@ def choose(W: np.ndarray, independent: np.ndarray, tau: np.ndarray, qd: np.ndarr
     folds = [slice(a, b) for a, b in itertools.pairwise(edges)]
     if min(np.diff(edges)) < MIN_FOLD:
         raise ValueError(f"{N} training samples: too few for {config.folds} parts of at least {MIN_FOLD}")
+    unknowns = len(independent) + (SLOT - 2) * n
+    if unknowns > MAX_UNKNOWNS:
+        raise ValueError(f"{unknowns} unknowns with every joint's friction slot: over {MAX_UNKNOWNS}, the search "
+                         f"(about {300 * n} trials of {config.folds} factorisations each) would take too long")
     shaped = {10 * n + 4 * j + k for j in range(n) for k in (1, 2)}  # each joint's viscous and Coulomb columns
     fixed = np.array([c for c in independent if c not in shaped])
     G = W.reshape(N, n, -1)[order][:, :, fixed]
     normal = _Normal(G.reshape(N * n, -1), fixed < 10 * n, tau, folds)
-    laws = [Law("viscous_coulomb", f.coulomb_velocity) for f in model]
+    laws = [Law.of(f) for f in model]  # the model's own, where the search starts
+    # a joint that never moves faster than the smallest v_c tried shows nothing of its friction's shape:
+    # it keeps the model's law
+    moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]
     rigid = np.zeros((N, n))
     total = float(np.sum(tau**2))
 
@@ -244,7 +253,7 @@ def choose(W: np.ndarray, independent: np.ndarray, tau: np.ndarray, qd: np.ndarr
     scores: list[dict] = [{} for _ in range(n)]
     for sweep in range(PASSES):
         first = sweep == 0  # the first pass searches v_c over the whole grid; the next, around its choice
-        for j in range(n):
+        for j in np.flatnonzero(moving):
             rigid = normal.rigid_torque()
 
             def score(law: Law, j=j) -> float:

@@ -275,7 +275,7 @@ def _friction_law(law: dict) -> str:
     held = law["held_out_rel_error"]
     head += (f"<p>Held-out error: the model's own law {num(held[MODELS_LAW])}, the chosen laws "
              f"{num(held['chosen'])}. Per joint, each family's at its best v_c (the chosen in bold):</p>")
-    families = list(next(iter(law["per_joint"].values())))
+    families = list(dict.fromkeys(f for s in law["per_joint"].values() for f in s))
 
     def cell(j: str, f: str, score: dict) -> Markup:
         text = Markup("{} ({})").format(num(score["held_out_rel_error"]), num(score["coulomb_velocity"]))
@@ -283,7 +283,8 @@ def _friction_law(law: dict) -> str:
 
     return head + table(["joint", "chosen", "v_c", *(f"{f}: held-out (v_c)" for f in families)],
                         [[esc(j), esc(law["families"][j]), num(law["coulomb_velocity"][j]),
-                          *(cell(j, f, s[f]) for f in families)] for j, s in law["per_joint"].items()])
+                          *(cell(j, f, s[f]) if f in s else DASH for f in families)]
+                         for j, s in law["per_joint"].items()])
 
 
 def _solver(con: dict) -> str:

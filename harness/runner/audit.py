@@ -389,7 +389,8 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
     """The robot identified from its own bench log, as a lab's log is: every joint on two
     incommensurate sinusoids about the middle of its range (a third of it, at most 1 rad or 0.1 m),
     simulated in MuJoCo for BENCH_SECONDS, written as a log of t, q, q', tau at BENCH_RATE, and read
-    back through `[data]` (harness/sources/log.py) with its last 30 % held out. Returns the relative
+    back through `[data]` (harness/sources/log.py) with its last 30 % held out, with the model's own
+    friction law (what is audited is the reading; `[friction_law]` is not chosen). Returns the relative
     torque errors on that span and the seconds it took; the files stay in `folder`."""
     from harness.model.states import position_bounds
     from harness.runner.pipeline import run
@@ -427,6 +428,7 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
         "scenario": {"model": "model.toml"},
         "data": {"file": "log.csv", "columns": {"t": "t", "q": "q{j}", "qd": "qd{j}", "tau": "tau{j}"},
                  "validation": {"from": 0.7}},
+        "friction_law": {"choose": False},
         "gates": gate("log_identification.validation_rel_error.consistent")}))
     out = run(load_scenario(folder / "log.toml"))
     done = out.stages["log_identification"]
