@@ -70,6 +70,11 @@ class Law:
         """The EXTRA_KEYS coefficients it adds (a model's own law may join families: "a+b")."""
         return FAMILIES[self.family] if self.family in FAMILIES else tuple(self.family.split("+"))
 
+    @property
+    def shapes(self) -> JointFriction:
+        """A friction with this law's velocities and no coefficient: what its columns are built from."""
+        return JointFriction(coulomb_velocity=self.coulomb_velocity, stribeck_velocity=self.stribeck_velocity)
+
     @classmethod
     def of(cls, f: JointFriction) -> Law:
         """A model's own law for one joint."""
@@ -92,11 +97,6 @@ class FrictionChoice:
                                    stribeck_velocity=law.stribeck_velocity)
                      for f, law in zip(model, self.laws, strict=True))
 
-    @property
-    def extra(self) -> list[tuple[int, str]]:
-        """The families' coefficients the fit adds, as (joint index, EXTRA_KEYS name), joint by joint."""
-        return extra_terms(self.laws)
-
 
 def extra_terms(laws: tuple[Law, ...]) -> list[tuple[int, str]]:
     return [(j, key) for j, law in enumerate(laws) for key in law.terms]
@@ -109,9 +109,7 @@ def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray
     out = np.zeros((N, n, len(terms)))
     if not terms:
         return out.reshape(N * n, 0)
-    frictions = tuple(JointFriction(coulomb_velocity=law.coulomb_velocity, stribeck_velocity=law.stribeck_velocity)
-                      for law in laws)
-    shapes = friction.extra_columns(frictions, qd, tau_rigid)  # (N, n, 4)
+    shapes = friction.extra_columns(tuple(law.shapes for law in laws), qd, tau_rigid)  # (N, n, 4)
     for c, (j, key) in enumerate(terms):
         out[:, j, c] = shapes[:, j, EXTRA_KEYS.index(key)]
     return out.reshape(N * n, len(terms))
@@ -119,9 +117,8 @@ def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray
 
 def _columns(law: Law, qd: np.ndarray, tau_rigid: np.ndarray) -> np.ndarray:
     """(N, m): one joint's friction columns under `law`: q', s, then its family's terms."""
-    fr = (JointFriction(coulomb_velocity=law.coulomb_velocity, stribeck_velocity=law.stribeck_velocity),)
     s = friction.coulomb_shape(qd[:, None], np.array([law.coulomb_velocity]))
-    extra = friction.extra_columns(fr, qd[:, None], tau_rigid[:, None])[:, 0]
+    extra = friction.extra_columns((law.shapes,), qd[:, None], tau_rigid[:, None])[:, 0]
     return np.column_stack([qd, s[:, 0], *(extra[:, EXTRA_KEYS.index(k)] for k in law.terms)])
 
 
@@ -241,7 +238,7 @@ def choose(W: np.ndarray, independent: np.ndarray, tau: np.ndarray, qd: np.ndarr
         bilinear in f_l and tau_R; the map contracts by about f_l, a few hundredths). A fixed point
         is not the least-squares minimum of the bilinear fit: where a joint's |tau_R| s keeps one sign
         for long stretches, f_l trades against the scale of the inertial parameters, and f_l comes
-        out biased (README.md, "Friction chosen by the data")."""
+        out biased (docs/identification.md, "Friction chosen by the data")."""
         normal.set(j, _columns(law, qd[:, j], rigid[:, j]))
         if "load_coulomb" in law.terms:
             for _ in range(LOAD_ITERATIONS):

@@ -28,7 +28,6 @@ import numpy as np
 
 IDENTIFIED_KEYS = ("armature", "viscous", "coulomb", "offset")  # linear in the torque: identifiable
 EXTRA_KEYS = ("viscous_asymmetry", "coulomb_asymmetry", "stribeck", "load_coulomb")  # the families' coefficients
-SHAPE_KEYS = ("coulomb_velocity", "stribeck_velocity")  # the velocities the shapes turn over
 FRICTION_KEYS = (*IDENTIFIED_KEYS, "coulomb_velocity", *EXTRA_KEYS, "stribeck_velocity")
 FAMILIES = {  # name -> the coefficients it adds to viscous + Coulomb + offset, simplest first
     "viscous_coulomb": (),

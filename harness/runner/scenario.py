@@ -215,6 +215,18 @@ class DataScenario:
     configs: dict[str, Any] = field(default_factory=dict)  # a log stage's key -> its configuration, from its table
 
 
+def _configured(root: Table, scenario, stages):
+    """The scenario with each stage's own table read by that stage (`Stage.table`, `configure`), as a
+    study reads its own; in order, so that a stage's configuration may read those before it."""
+    for stage in stages:
+        if stage.table is not None and root.has(stage.table):
+            table = root.table(stage.table)
+            config = stage.configure(table, scenario)
+            table.finish()
+            scenario = dataclasses.replace(scenario, configs={**scenario.configs, stage.key: config})
+    return scenario
+
+
 def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     s = root.table("scenario")
     description = s.string("description", default="")
@@ -245,14 +257,9 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
                                     "measurement, studies or other identification")
     scenario = DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, text,
                             truth=truth)
-    from harness.stages import log_stages  # each stage reads its own table
+    from harness.stages import log_stages
 
-    for stage in log_stages():
-        if stage.table is not None and root.has(stage.table):
-            table = root.table(stage.table)
-            config = stage.configure(table, scenario)
-            table.finish()
-            scenario = dataclasses.replace(scenario, configs={**scenario.configs, stage.key: config})
+    scenario = _configured(root, scenario, log_stages())
     root.finish()
     return scenario
 
@@ -356,14 +363,9 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             if n in names[:i] or n in ("mujoco", "pinocchio"):
                 raise InputError(path, f"{kind}.name", f"{n!r} is used twice, or names a reference engine")
             unjudged(path, kind, n, gates)
-    from harness.stages import core_stages  # each core stage reads its own table, as a study does
+    from harness.stages import core_stages
 
-    for stage in core_stages():  # in order: a stage's configuration may read those before it
-        if stage.table is not None and root.has(stage.table):
-            table = root.table(stage.table)
-            config = stage.configure(table, scenario)
-            table.finish()
-            scenario = dataclasses.replace(scenario, configs={**scenario.configs, stage.key: config})
+    scenario = _configured(root, scenario, core_stages())
     studies = []
     if root.has("studies"):
         st = root.table("studies")

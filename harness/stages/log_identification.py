@@ -389,7 +389,7 @@ def run(ctx, config) -> LogIdentification | None:
     theta_model = x_model[: 10 * n].reshape(n, 10)
     choice, law_note = None, None
     if law_config.choose:
-        ctx.progress("the friction law of every joint (on the training span's end)", None)
+        ctx.progress("the friction law of every joint (cross-validated within the training span)", None)
         try:
             choice = friction_law.choose(W, base.independent, tau, qd, train.t, robot.frictions, law_config)
         except ValueError as exc:
