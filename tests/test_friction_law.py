@@ -221,3 +221,20 @@ def test_a_search_that_cannot_be_made_keeps_the_models_law_and_says_so(short_log
     law = json.loads((short_log / "short" / "results.json").read_text())["log_identification"]["friction_law"]
     assert law["chosen"] is False
     assert set(law["coulomb_velocity"].values()) == {0.02}
+
+
+def test_a_model_whose_joint_joins_two_families_has_its_law_searched_from_there(short_log, capsys):
+    """A model declaring Stribeck and asymmetric terms on one joint (three terms, more than any single
+    family's two): the search starts from that law, so every joint's slot holds its five columns; the
+    law is chosen, with no warning about it."""
+    pan = "offset = 0.4\ncoulomb_velocity = 0.02\n"
+    text = MODEL.read_text().replace(pan, pan + "stribeck = 1.0\nstribeck_velocity = 0.1\nviscous_asymmetry = 0.1\n"
+                                     "coulomb_asymmetry = 0.1\n", 1)
+    (short_log / "joined.toml").write_text(text)
+    assert load_spec(short_log / "joined.toml").joint("shoulder_pan_joint").friction.family == (
+        "viscous_asymmetry+coulomb_asymmetry+stribeck")
+    log_scenario(short_log, "joined.toml", GATE)
+    assert main(["run", str(short_log / "s.toml"), "--out", str(short_log / "joined"), "--quiet"]) == 0
+    assert "friction law" not in capsys.readouterr().err
+    law = json.loads((short_log / "joined" / "results.json").read_text())["log_identification"]["friction_law"]
+    assert law["chosen"] is True

@@ -122,7 +122,6 @@ def _columns(law: Law, qd: np.ndarray, tau_rigid: np.ndarray) -> np.ndarray:
     return np.column_stack([qd, s[:, 0], *(extra[:, EXTRA_KEYS.index(k)] for k in law.terms)])
 
 
-SLOT = 4  # friction columns a joint may have: q', s and up to two of its family's
 
 
 class _Normal:
@@ -133,15 +132,16 @@ class _Normal:
     fold k out solves (sum M - M_k) x = sum r - r_k and predicts fold k's rows. Replacing joint j's
     columns rewrites its slot only: O(N r) per trial."""
 
-    def __init__(self, G: np.ndarray, rigid: np.ndarray, tau: np.ndarray, folds: list[slice]):
+    def __init__(self, G: np.ndarray, rigid: np.ndarray, tau: np.ndarray, folds: list[slice], slot: int):
         N, n = tau.shape
+        self.slot = slot  # friction columns a joint may have: q', s and the most terms of a law tried
         r = G.shape[1]
         self.n, self.r = n, r
         self.G3 = G.reshape(N, n, r)
         self.rigid = rigid  # (r,) bool: the fixed columns that are rigid-body (inertial) parameters
         self.tau = tau
         self.folds = folds
-        p = r + SLOT * n
+        p = r + slot * n
         self.M = np.zeros((len(folds), p, p))
         self.rhs = np.zeros((len(folds), p))
         for k, f in enumerate(folds):
@@ -149,24 +149,24 @@ class _Normal:
             self.M[k, :r, :r], self.rhs[k, :r] = g.T @ g, g.T @ tau[f].ravel()
         self.yy = np.array([float(np.sum(tau[f] ** 2)) for f in folds])
         self.by_joint = [np.ascontiguousarray(self.G3[:, j]) for j in range(n)]  # (N, r): joint j's rows
-        self.S = np.zeros((N, n, SLOT))  # each joint's friction columns, on its own rows
+        self.S = np.zeros((N, n, slot))  # each joint's friction columns, on its own rows
 
     def set(self, j: int, C: np.ndarray) -> None:
-        """Joint j's friction columns C (N, m <= SLOT); the slot's unused columns stay zero, with a unit
+        """Joint j's friction columns C (N, m <= slot); the slot's unused columns stay zero, with a unit
         diagonal in the fitted folds' sum so that their unknowns are zero."""
-        r, m = self.r, C.shape[1]
-        at = slice(r + SLOT * j, r + SLOT * (j + 1))
+        r, m, slot = self.r, C.shape[1], self.slot
+        at = slice(r + slot * j, r + slot * (j + 1))
         G_j = self.by_joint[j]
         self.M[:, :, at] = 0.0
         self.M[:, at, :] = 0.0
         self.rhs[:, at] = 0.0
         for k, f in enumerate(self.folds):
             B, D = G_j[f].T @ C[f], C[f].T @ C[f]
-            lo = r + SLOT * j
+            lo = r + slot * j
             self.M[k, :r, lo: lo + m], self.M[k, lo: lo + m, :r] = B, B.T
             self.M[k, lo: lo + m, lo: lo + m] = D
             self.rhs[k, lo: lo + m] = C[f].T @ self.tau[f, j]
-            idle = np.arange(lo + m, lo + SLOT)
+            idle = np.arange(lo + m, lo + slot)
             self.M[k, idle, idle] = 1.0 / len(self.folds)
         self.S[:, j, :m], self.S[:, j, m:] = C, 0.0
 
@@ -195,7 +195,7 @@ class _Normal:
         for k, f in enumerate(self.folds):
             G = self.G3[f]
             pred = ((G.reshape(-1, r) @ x[k, :r]).reshape(G.shape[:2])
-                    + np.einsum("njs,js->nj", self.S[f], x[k, r:].reshape(n, SLOT)))
+                    + np.einsum("njs,js->nj", self.S[f], x[k, r:].reshape(n, self.slot)))
             sse[k] = float(np.sum((pred - self.tau[f]) ** 2))
         return sse
 
@@ -217,15 +217,17 @@ def choose(W: np.ndarray, independent: np.ndarray, tau: np.ndarray, qd: np.ndarr
     folds = [slice(a, b) for a, b in itertools.pairwise(edges)]
     if min(np.diff(edges)) < MIN_FOLD:
         raise ValueError(f"{N} training samples: too few for {config.folds} parts of at least {MIN_FOLD}")
-    unknowns = len(independent) + (SLOT - 2) * n
+    laws = [Law.of(f) for f in model]  # the model's own, where the search starts
+    # a joint's slot: q', s and the most terms of a law it may be given (a model's own may join families)
+    slot = 2 + max(len(t) for t in [*(FAMILIES[f] for f in config.families), *(law.terms for law in laws)])
+    unknowns = len(independent) + (slot - 2) * n
     if unknowns > MAX_UNKNOWNS:
         raise ValueError(f"{unknowns} unknowns with every joint's friction slot: over {MAX_UNKNOWNS}, the search "
                          f"(about {300 * n} trials of {config.folds} factorisations each) would take too long")
     shaped = {10 * n + 4 * j + k for j in range(n) for k in (1, 2)}  # each joint's viscous and Coulomb columns
     fixed = np.array([c for c in independent if c not in shaped])
     G = W.reshape(N, n, -1)[order][:, :, fixed]
-    normal = _Normal(G.reshape(N * n, -1), fixed < 10 * n, tau, folds)
-    laws = [Law.of(f) for f in model]  # the model's own, where the search starts
+    normal = _Normal(G.reshape(N * n, -1), fixed < 10 * n, tau, folds, slot)
     # a joint that never moves faster than the smallest v_c tried shows nothing of its friction's shape:
     # it keeps the model's law
     moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]
