@@ -52,6 +52,7 @@ class GateRow:
     passed: bool
     reason: str = ""
     where: str = ""  # where the worst case lies (a joint and time, a parameter), when the result says
+    skipped: bool = False  # what it judges did not run (a method whose tool is not installed): `reason` says why
 
 
 @dataclass(frozen=True, eq=False)

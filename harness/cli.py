@@ -16,7 +16,7 @@ from contextlib import closing
 from pathlib import Path
 
 from harness.base.tomlio import InputError, read_toml
-from harness.runner.ci import error_summary, error_xml, gate_line
+from harness.runner.ci import error_summary, error_xml, gate_line, result_word
 from harness.runner.gates import summary_line
 
 EXIT_OK, EXIT_GATE_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
@@ -219,6 +219,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         seen.add(s.name)
         for note in s.robot.notes:  # what reading the model assumed: said before any work
             print(f"harness: warning: {s.name}: {note}", file=sys.stderr)
+        for entry in s.methods:
+            if entry.skipped is not None:
+                print(f"harness: warning: {s.name}: identification method {entry.name} skipped: {entry.skipped}",
+                      file=sys.stderr)
     passed, verdicts = True, []
     for scenario in scenarios:
         if args.out is None:
@@ -261,7 +265,7 @@ def _print_summary(results: dict, out: Path) -> None:
 
 def _print_gates(rows: list[dict]) -> None:
     for g in rows:
-        print(f"  {'pass' if g['passed'] else 'FAIL'}  {gate_line(g)}")
+        print(f"  {result_word(g)}  {gate_line(g)}")
 
 
 def _read_results(path: Path) -> dict:

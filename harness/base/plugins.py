@@ -31,6 +31,11 @@ per joint in the fitted model's `joint_names` order, the child body's
 the initial pose (all q = 0) (Pinocchio's dynamic parameters of a frame at the joint point with
 those axes). They are judged where the data determine them: reduced to the robot's structural base
 parameters (harness/identify/torque_id.py, structural_base) and compared with the robot's own.
+On a measured log (a scenario with `[data]`) the fitted model may also report `friction`: (n, 4), per
+joint in its `joint_names` order [armature, viscous, coulomb, offset] (N m s^2/rad, N m s/rad, N m,
+N m), and `notes`: a sequence of one-line statements of what the method could not do or assumed
+(both shown in the log's method table). A factory that wraps a tool which is not installed raises
+ToolUnavailable: the method is skipped, and said to be.
 """
 
 from __future__ import annotations
@@ -78,6 +83,13 @@ class PluginError(Exception):
 
     def __reduce__(self):  # from a worker process, with both fields
         return type(self), (self.plugin, self.message)
+
+
+class ToolUnavailable(PluginError):
+    """Raised by a method's factory when the tool it wraps is not installed (an optional extra, e.g.
+    `pip install 'harness[figaroh]'`). The method is skipped, with this message on the terminal, in
+    results.json (`identification_methods.<name>.skipped`) and on each of its gates; the rest of the
+    scenario runs and is judged as usual."""
 
 
 def _exception(exc: BaseException) -> str:

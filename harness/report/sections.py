@@ -33,7 +33,8 @@ def verdict(r: dict) -> str:
             code(g["metric"]),
             num(g["value"]),
             ("\u2264 " if g["direction"] == "at_most" else "\u2265 ") + num(g["limit"]),
-            mark(g["passed"], "pass" if g["passed"] else "FAIL") + (f" ({g['reason']})" if g["reason"] else ""),
+            (esc("skip") if g.get("skipped") else mark(g["passed"], "pass" if g["passed"] else "FAIL"))
+            + (f" ({g['reason']})" if g["reason"] else ""),
             esc(g.get("where") or ""),
         ]
         for g in r["gates"]
@@ -50,6 +51,13 @@ def verdict(r: dict) -> str:
         answers.append(f"<li><b>Do the reference engines agree?</b> Pinocchio vs MuJoCo "
                        f"{num(tq['pinocchio_vs_mujoco']['max_rel_error'])}.</li>")
     for name, m in r.get("identification_methods", {}).items():
+        if m.get("skipped") or "validation_rel_error" in m or "training_rel_error" in m:  # a log's table
+            answers.append(f"<li><b>How well does identification method {esc(name)} work?</b> "
+                           + (f"Skipped: {esc(m['skipped'])}" if m.get("skipped") else
+                              f"Held-out torque error {num(m.get('validation_rel_error', m.get('training_rel_error')))}"
+                              + (f", against the truth's torques {num(m['truth']['validation_rel_error'])}"
+                                 if m.get("truth") else "") + ".") + "</li>")
+            continue
         v, b = m.get("validation"), m.get("base_parameters")
         answers.append(
             f"<li><b>How well does identification method {esc(name)} work?</b> "
@@ -430,7 +438,59 @@ def _interval(ci: list | None) -> Markup:
     return Markup("[{}, {}]").format(num(ci[0]), num(ci[1])) if ci else DASH
 
 
+def _physical_cell(ph: dict) -> Markup:
+    links, negative = ph["inconsistent_links"], ph["negative_count"]
+    if links is None and negative is None:
+        return DASH
+    parts = []
+    if links is not None:
+        parts.append(f"{links} link(s) not physical" if links else "links physical")
+    if negative:
+        parts.append(f"negative: {', '.join(ph['negative'])}")
+    elif negative is not None:
+        parts.append("no negative drive terms")
+    return mark(not links and not negative, "; ".join(parts))
+
+
+def log_methods(r: dict) -> str:
+    """The log's method table (harness/stages/log_methods.py): the harness's fits and every method side by side."""
+    rows_in = r["identification_methods"]
+    bench = any(m.get("truth") for m in rows_in.values())
+    header = ["method", "plugin", "held-out error", "training error",
+              *(["vs truth's torques", "base parameters vs truth: median (max) rel error"] if bench else []),
+              "physical validity", "friction and rotor inertia", "seconds", "notes"]
+    rows = []
+    for name, m in rows_in.items():
+        if m.get("skipped"):
+            rows.append([esc(name), code(m["plugin"]), Markup("<i>skipped</i>"), *([DASH] * (len(header) - 4)),
+                         esc(m["skipped"])])
+            continue
+        b = m.get("base_parameters")
+        friction = m.get("friction")
+        rows.append([esc(name), code(m["plugin"]), num(m.get("validation_rel_error")), num(m.get("training_rel_error")),
+                     *([num(m["truth"]["validation_rel_error"]) if m.get("truth") else DASH,
+                        Markup("{} ({}){}").format(num(b["median_rel_error"]), num(b["max_rel_error"]),
+                                                   ", with friction" if b["with_friction"] else "") if b else DASH]
+                       if bench else []),
+                     _physical_cell(m["physical"]),
+                     esc("identified (armature, viscous, Coulomb, offset)") if friction else
+                     esc("in the base parameters" if name == "harness_least_squares" else "not reported"),
+                     num(m["seconds"]) if m.get("seconds") is not None else DASH,
+                     esc("; ".join(m.get("notes") or ()))])
+    return section(
+        "identification_methods", "Identification methods on the log",
+        "<p>Every method is fitted on the training span exactly as the harness's own fit read it (the same "
+        "conditioning and delay correction) and predicts the validation span, which no fit sees: held-out error "
+        "||tau_pred - tau||_F / ||tau||_F. On a bench log the predicted torques are also compared with those of the "
+        "robot that made the log, and reported parameters with its base parameters. Physical validity: links whose "
+        "pseudo-inertia is not positive semidefinite, and negative rotor inertia, viscous or Coulomb coefficients. "
+        "Seconds: each method's fit; the harness's steps are timed in 'How the run was made'.</p>"
+        + table(header, rows, "wrap"))
+
+
 def identification_methods(r: dict) -> str:
+    if any("training_rel_error" in m or m.get("skipped") for m in r["identification_methods"].values()):
+        return log_methods(r)
     rows, tables = [], []
     for name, m in r["identification_methods"].items():
         b, v = m.get("base_parameters"), m.get("validation")
@@ -470,6 +530,9 @@ def method_sweep(r: dict) -> str:
     """`harness sweep` of the identification methods (harness/stages/identification.py, sweep_methods)."""
     parts = []
     for name, m in r["identification_methods"].items():
+        if m.get("skipped"):
+            parts.append(f"<h3>{esc(name)} (<code>{esc(m['plugin'])}</code>)</h3><p>Skipped: {esc(m['skipped'])}</p>")
+            continue
         b = m["base_parameters"]
         head = (f"<h3>{esc(name)} (<code>{esc(m['plugin'])}</code>), {m['trials']} trials</h3>"
                 + (f"<p>Validation: largest relative torque error {num(m['validation_rel_error_mean'])} on average, "

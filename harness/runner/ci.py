@@ -24,15 +24,23 @@ def junit_xml(verdicts: list[tuple[str, list[dict]]]) -> str:
                       failures=str(sum(not g["passed"] for _, r in verdicts for g in r)))
     for name, rows in verdicts:
         suite = ET.SubElement(root, "testsuite", name=name, tests=str(len(rows)),
-                              failures=str(sum(not g["passed"] for g in rows)), errors="0", skipped="0")
+                              failures=str(sum(not g["passed"] for g in rows)), errors="0",
+                              skipped=str(sum(bool(g.get("skipped")) for g in rows)))
         for g in rows:
             case = ET.SubElement(suite, "testcase", classname=name, name=g["name"])
             ET.SubElement(case, "system-out").text = f"{g['metric']} = {_value(g)} (limit {_sign(g)} {g['limit']:.3g})"
-            if not g["passed"]:
+            if g.get("skipped"):
+                ET.SubElement(case, "skipped", message=g["reason"])
+            elif not g["passed"]:
                 why = gate_line(g)
                 failure = ET.SubElement(case, "failure", message=why, type="GateFailed")
                 failure.text = why
     return _xml(root)
+
+
+def result_word(g: dict, fail: str = "FAIL") -> str:
+    """A gate's outcome in one word: pass, skip (what it judges did not run) or FAIL."""
+    return "skip" if g.get("skipped") else "pass" if g["passed"] else fail
 
 
 def _xml(root: ET.Element) -> str:
@@ -45,6 +53,9 @@ def gate_line(g: dict) -> str:
     case lies (the joint and time, or the parameter), when the result says so."""
     sign = _sign(g) if g["passed"] or g["value"] is None else (">" if g["direction"] == "at_most" else "<")
     line = f"{g['metric']} = {_value(g)} {sign} {g['limit']:.3g}"
+    if g.get("skipped"):
+        return f"{g['name']}: {g['metric']} ({g['reason']})" if g["name"] != g["metric"] else \
+            f"{g['metric']} ({g['reason']})"
     if g["name"] != g["metric"]:
         line = f"{g['name']}: {line}"
     notes = [n for n in (g.get("reason"), g.get("where") and f"worst: {g['where']}") if n]
@@ -76,6 +87,6 @@ def markdown_summary(verdicts: list[tuple[str, list[dict]]]) -> str:
         out.append("| gate | metric | value | limit | result | worst case |\n|---|---|---:|---:|---|---|")
         for g in rows:
             out.append(f"| {_cell(g['name'])} | `{_cell(g['metric'])}` | {_value(g)} | {_sign(g)} {g['limit']:.3g} | "
-                       f"{'pass' if g['passed'] else '**FAIL**'} | {_cell(g.get('where') or g.get('reason') or '')} |")
+                       f"{result_word(g, '**FAIL**')} | {_cell(g.get('where') or g.get('reason') or '')} |")
         out.append("")
     return "\n".join(out) + "\n"

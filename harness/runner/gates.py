@@ -14,7 +14,10 @@ A gate set is a file of gates that many scenarios share, included with `[scenari
     ...
 
 Gates fail closed: a metric that is null, not a number, or not finite fails its gate. A metric
-that names no result at all is bad input (a misspelt path must not pass or fail quietly).
+that names no result at all is bad input (a misspelt path must not pass or fail quietly). The one
+exception is a metric under a result that says it was skipped (`{"skipped": "why"}`: an
+identification method whose tool is not installed): its gate is reported as skipped, with the
+reason, and counted apart; it neither passes nor fails the run.
 """
 
 from __future__ import annotations
@@ -67,9 +70,23 @@ def lookup(results: dict, metric: str, missing=None):
     return node
 
 
+def skipped_by(results: dict, metric: str) -> str | None:
+    """Why the result a metric lies under was skipped (`{"skipped": "why"}` on its path), or None."""
+    node = results
+    for part in metric.split("."):
+        if isinstance(node, dict) and isinstance(node.get("skipped"), str):
+            return node["skipped"]
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        else:
+            return None
+    return None
+
+
 def unknown_metrics(gates, results: dict) -> list[int]:
-    """Indices of the gates whose metric names no result."""
-    return [i for i, g in enumerate(gates) if lookup(results, g.metric, MISSING) is MISSING]
+    """Indices of the gates whose metric names no result (one under a skipped result is known)."""
+    return [i for i, g in enumerate(gates)
+            if lookup(results, g.metric, MISSING) is MISSING and skipped_by(results, g.metric) is None]
 
 
 def verdict(gates, results: dict, source) -> dict:
@@ -88,6 +105,11 @@ def check(gates: tuple[Gate, ...] | list[Gate], results: dict) -> tuple[list[dic
     """One row per gate with the value found, and whether every gate passed."""
     rows = []
     for g in gates:
+        skipped = skipped_by(results, g.metric)
+        if skipped is not None:
+            rows.append({**g.as_dict(), "value": None, "passed": True, "skipped": True, "reason": f"skipped: {skipped}",
+                         "where": ""})
+            continue
         value = lookup(results, g.metric)
         number = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
         if not number:
@@ -132,7 +154,8 @@ def summary_line(name: str, rows: list[dict]) -> str:
     """The verdict in one line, the same words wherever it is shown (terminal, Markdown summary,
     report): `NAME: PASSED (n gates)` or `NAME: FAILED (k of n gates fail)`."""
     failing = sum(not r["passed"] for r in rows)
-    count = f"{len(rows)} gate{'s' if len(rows) != 1 else ''}"
+    skipped = sum(bool(r.get("skipped")) for r in rows)
+    count = f"{len(rows)} gate{'s' if len(rows) != 1 else ''}" + (f", {skipped} skipped" if skipped else "")
     return f"{name}: PASSED ({count})" if not failing else f"{name}: FAILED ({failing} of {count} fail)"
 
 

@@ -32,6 +32,7 @@ from harness.base.plugins import (
     ModelUnderTest,
     PluginError,
     Study,
+    ToolUnavailable,
     call_factory,
     check_protocol,
     guard,
@@ -83,6 +84,7 @@ class PluginEntry:
     instance: Any  # what the factory returned (checked against the protocol)
     validation: Scenario | None = None  # identification methods: the trajectory they are judged on
     recipe: Recipe | None = None  # how to build it again elsewhere; None for an object handed to the API
+    skipped: str | None = None  # why it is not run: the tool it wraps is not installed (instance None)
 
     def rebuilt(self) -> Any:
         """The plugin built again from what the scenario names (in another process), else the instance."""
@@ -250,16 +252,25 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
         if truth.joint_names != robot.joint_names:
             raise dt.error("truth", f"model {truth.name!r} has other joints than {robot.name!r}")
     gates = _read_all_gates(root, gate_files)
-    for table in ("motion", "simulation", "measurement", "model_under_test", "identification", "studies",
-                  "torque_identification", "excitation"):
+    for table in ("motion", "simulation", "measurement", "model_under_test", "studies", "torque_identification",
+                  "excitation"):
         if root.has(table):
             raise root.error(table, "a scenario with [data] is judged on its log: it has no simulated motion, "
-                                    "measurement, studies or other identification")
+                                    "measurement, studies or models under test")
     scenario = DataScenario(path.stem, description, path, robot, np.asarray(gravity), source, gates, text,
                             truth=truth)
+    methods = []
+    for t in (root.one_or_many("identification") if root.has("identification") else ()):
+        if t.has("validation"):
+            raise t.error("validation", "a method on a log is judged on the log's validation span ([data] validation)")
+        methods.append(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod))
+    _check_names(path, "identification", methods, gates)
+    if methods and source.units["tau"] == "current" and source.identify_constants:
+        raise root.error("identification", "the methods are given joint torques, and this log's currents become "
+                                           "torques only in the harness's own fit (identify_torque_constants)")
     from harness.stages import log_stages
 
-    scenario = _configured(root, scenario, log_stages())
+    scenario = _configured(root, dataclasses.replace(scenario, methods=tuple(methods)), log_stages())
     root.finish()
     return scenario
 
@@ -358,11 +369,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)
                     for t in (root.one_or_many("identification") if root.has("identification") else ()))
     for kind, entries in (("model_under_test", models), ("identification", methods)):
-        names = [e.name for e in entries]
-        for i, n in enumerate(names):
-            if n in names[:i] or n in ("mujoco", "pinocchio"):
-                raise InputError(path, f"{kind}.name", f"{n!r} is used twice, or names a reference engine")
-            unjudged(path, kind, n, gates)
+        _check_names(path, kind, entries, gates)
     from harness.stages import core_stages
 
     scenario = _configured(root, scenario, core_stages())
@@ -384,6 +391,19 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         st.finish()
     root.finish()
     return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
+
+
+RESERVED_NAMES = ("mujoco", "pinocchio", "harness_least_squares", "harness_consistent")
+
+
+def _check_names(path: Path, kind: str, entries, gates: tuple[Gate, ...]) -> None:
+    """Each plugin's name used once, naming no reference engine, and judged by a gate."""
+    names = [e.name for e in entries]
+    for i, n in enumerate(names):
+        if n in names[:i] or n in RESERVED_NAMES:
+            raise InputError(path, f"{kind}.name", f"{n!r} is used twice, or names a reference engine or the "
+                                                   "harness's own fit")
+        unjudged(path, kind, n, gates)
 
 
 def judging_metrics(kind: str, name: str) -> tuple[str, ...]:
@@ -467,6 +487,11 @@ def _read_plugin(t: Table, path: Path, scenario: Scenario, group: str, protocol:
     try:
         instance = recipe.build(robot)
         check_protocol(ref, instance, protocol, robot.joint_names)
+    except ToolUnavailable as exc:
+        if group != METHOD_GROUP:  # a model under test is the thing judged: it cannot be left out
+            raise t.error(key, f"plugin {exc}") from None
+        t.finish()
+        return PluginEntry(name, ref, robot, None, validation, recipe, skipped=exc.message)
     except PluginError as exc:
         raise t.error(key, f"plugin {exc}") from None
     t.finish()

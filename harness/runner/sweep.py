@@ -57,6 +57,9 @@ def identification_summary(results: dict) -> list[str]:
                      f"{e['coverage_band'][0]:.3f} to {e['coverage_band'][1]:.3f}; largest |bias| "
                      f"{m['max_bias_in_sd']:.2f} sd")
     for name, m in results.get("identification_methods", {}).items():
+        if m.get("skipped"):
+            lines.append(f"{name_of}: {name}: skipped: {m['skipped']}")
+            continue
         b = m["base_parameters"]
         if b is None:
             lines.append(f"{name_of}: {name}: no parameters; validation error {m['validation_rel_error_mean']:.3g} "

@@ -266,20 +266,24 @@ class BaseMap:
     true: np.ndarray  # (r,) the robot's own
 
 
-def base_map(ctx) -> BaseMap:
+def base_map(ctx, truth: bool = False) -> BaseMap:
+    """The structural base parameters of the scenario's robot, or (`truth`) of the model that made a
+    bench log (a log scenario's `[data] truth`), with that model's own values."""
     sc = ctx.scenario
+    robot = sc.truth if truth else sc.robot
 
     def make() -> BaseMap:
-        pm = build_model(sc.robot, sc.gravity_W)
-        base = ctx.once(("structural base parameters", False), lambda: structural_base(pm, sc.robot.limits))
-        r, n = len(base.independent), len(sc.robot.joint_names)
+        pm = build_model(robot, sc.gravity_W)
+        base = ctx.once(("structural base parameters", False) if not truth else ("truth's structural base",),
+                        lambda: structural_base(pm, robot.limits))
+        r, n = len(base.independent), len(robot.joint_names)
         T = np.zeros((r, 10 * n))
         T[np.arange(r), base.independent] = 1.0
         T[:, base.dependent] = base.combination
-        names = parameter_names(sc.robot.joint_names)
+        names = parameter_names(robot.joint_names)
         return BaseMap([describe_base(names, base, k) for k in range(r)], T, base.of(true_parameters(pm)))
 
-    return ctx.once("base parameters of the methods", make)
+    return ctx.once(("base parameters of the methods", truth), make)
 
 
 def base_table(plugin: str, fitted, joints: list[str], bm: BaseMap) -> BaseTable | None:
@@ -337,7 +341,7 @@ def _judge(ctx, entry) -> MethodResult:
 class MethodResults:
     """Every identification method the scenario plugs in, judged."""
 
-    methods: tuple[MethodResult, ...]
+    methods: tuple[MethodResult | SkippedMethod, ...]
 
     def serialise(self, ctx, config) -> dict:
         """results.json's `identification_methods`: per method, its base parameters against the robot's
@@ -345,10 +349,23 @@ class MethodResults:
         return {r.name: r.serialise() for r in self.methods}
 
 
+@dataclass(frozen=True, eq=False)
+class SkippedMethod:
+    """A method whose tool is not installed (harness/base/plugins.py, ToolUnavailable)."""
+
+    name: str
+    reference: str
+    reason: str
+
+    def serialise(self) -> dict:
+        return {"plugin": self.reference, "skipped": self.reason}
+
+
 def run_methods(ctx, config) -> MethodResults | None:
     if not ctx.scenario.methods:
         return None
-    return MethodResults(tuple(_judge(ctx, e) for e in ctx.scenario.methods))
+    return MethodResults(tuple(SkippedMethod(e.name, e.reference, e.skipped) if e.skipped is not None else
+                               _judge(ctx, e) for e in ctx.scenario.methods))
 
 
 CI95 = 1.959963984540054  # the normal 97.5 % quantile: a method's covariance states no degrees of freedom
@@ -420,6 +437,9 @@ def sweep_methods(ctx, trials: int) -> dict:
     bm = base_map(ctx)
     out = {}
     for entry in sc.methods:
+        if entry.skipped is not None:
+            out[entry.name] = {"plugin": entry.reference, "skipped": entry.skipped}
+            continue
         validation = entry.validation or _validation_of(sc)
         val = None
         if validation is not None:

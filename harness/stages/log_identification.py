@@ -73,6 +73,7 @@ class LogIdentification:
     choice: friction_law.FrictionChoice | None = None  # how each joint's law was chosen, if it was
     extra_names: list[str] = field(default_factory=list)  # the families' coefficients after the base parameters
     laws: tuple = ()  # each joint's law (harness/identify/friction_law.py Law): family and velocities
+    states: dict[str, tuple] = field(default_factory=dict)  # span -> (q, q', q''), as the fit read them
 
     def _against_truth(self, ctx) -> dict:
         errors = {span: _truth_errors(self, span) for span in self.truth}
@@ -512,7 +513,8 @@ def run(ctx, config) -> LogIdentification | None:
                              friction_model, predictions, measured, times, files, mapping, refused, plausible, warnings,
                              truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints),
                              _constants_section(constants, sc.data, joints), repeated, prediction,
-                             identified_frictions, choice, [f"{joints[k]}.{key}" for k, key in terms], laws)
+                             identified_frictions, choice, [f"{joints[k]}.{key}" for k, key in terms], laws,
+                             {span: v[:3] for span, v in spans.items()})
 
 
 def _truth_errors(li: LogIdentification, span: str) -> dict:

@@ -1,0 +1,247 @@
+"""Identification methods on a measured log (harness/stages/log_methods.py): a method plugged in through
+the door is given the training span as the harness's fit read it, judged on the validation span and,
+on a bench log, against the robot that made the log; a method whose tool is absent is skipped and
+said to be; the field's tools (harness/adapters/) compute what their own documentation says.
+
+The bench log is the repository's (harness/data/logs/ur5_bench: the UR5 with drives, 1 % torque
+noise), its scenario scenarios/ur5_bench_log.toml. The methods these tests plug in are written by the
+tests into temporary folders."""
+
+from __future__ import annotations
+
+import json
+import sys
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+from harness.base.tomlio import InputError
+from harness.cli import main
+from harness.runner.gates import Gate, check, unknown_metrics
+from harness.runner.scenario import load_scenario
+from tests.conftest import ROOT
+
+SCENARIO = ROOT / "harness" / "data" / "scenarios" / "ur5_bench_log.toml"
+TRUTH = ROOT / "harness" / "data" / "models" / "ur5_friction.toml"
+
+# The robot that made the log, as a method: what any method's figures are measured against, so its
+# own must be exact.
+ORACLE = f'''
+import numpy as np
+from harness.engines.pinocchio import build_model, rnea
+from harness.identify.torque_id import true_parameters
+from harness.model import friction
+from harness.model.load import load_spec
+
+SEEN = []
+
+
+class Fitted:
+    def __init__(self, spec, pm):
+        self.spec, self.pm, self.joint_names = spec, pm, list(spec.joint_names)
+        self.parameters = true_parameters(pm).reshape(-1, 10)
+        self.friction = friction.values(spec.frictions)
+        self.notes = ["the robot that made the log"]
+
+    def inverse_dynamics(self, q, qd, qdd):
+        return rnea(self.pm, q, qd, qdd).tau
+
+
+class Oracle:
+    def __init__(self, gravity_W):
+        self.spec = load_spec({str(TRUTH)!r})
+        self.pm = build_model(self.spec, gravity_W)
+        self.joint_names = list(self.spec.joint_names)
+
+    def fit(self, q, qd, qdd, tau):
+        SEEN.append(len(q))
+        return Fitted(self.spec, self.pm)
+
+
+def make(robot, gravity_W):
+    return Oracle(gravity_W)
+'''
+
+ABSENT = '''
+from harness.base.plugins import ToolUnavailable
+
+
+def make(robot):
+    raise ToolUnavailable("absent", "the tool it wraps is not installed; pip install absent-tool")
+'''
+
+
+@pytest.fixture(scope="module")
+def bench_run(tmp_path_factory):
+    """The repository's bench-log scenario with two more methods: the oracle, and one whose tool is absent."""
+    folder = tmp_path_factory.mktemp("bench_methods")
+    (folder / "oracle.py").write_text(ORACLE)
+    (folder / "absent.py").write_text(ABSENT)
+    text = SCENARIO.read_text().replace('"../', f'"{SCENARIO.parent.parent}/')
+    text += ('\n[[identification]]\nname = "oracle"\npython = "oracle:make"\n'
+             '[[identification]]\nname = "absent"\npython = "absent:make"\n'
+             '[[gates]]\nmetric = "identification_methods.oracle.truth.validation_rel_error"\nlimit = 1e-12\n'
+             '[[gates]]\nmetric = "identification_methods.absent.validation_rel_error"\nlimit = 0.01\n')
+    (folder / "s.toml").write_text(text)
+    status = main(["run", str(folder / "s.toml"), "--out", str(folder / "out"), "--quiet",
+                   "--junit-xml", str(folder / "junit.xml")])
+    oracle = sys.modules["oracle"]
+    return status, json.loads((folder / "out" / "results.json").read_text()), oracle.SEEN, folder
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_the_robot_that_made_the_log_is_judged_exact_against_itself(bench_run):
+    """The truth's own model as a method: its torques are the truth's at every conditioned state (0, to
+    round-off), its parameters reduce to the truth's base parameters with friction (0), every link is
+    physical and no drive term negative; its held-out error against the measured torques is then the
+    noise of the log alone, close to the 1 % the bench added."""
+    status, results, _, _ = bench_run
+    oracle = results["identification_methods"]["oracle"]
+    assert status == 0
+    assert oracle["truth"]["validation_rel_error"] <= 1e-12
+    assert oracle["base_parameters"]["with_friction"] and oracle["base_parameters"]["max_rel_error"] <= 1e-9
+    assert oracle["physical"] == {"inconsistent_links": 0, "links": [], "negative_count": 0, "negative": []}
+    # the torques were read with 1 % noise relative to each joint's scale: their error is of that size
+    assert 0.005 <= oracle["validation_rel_error"] <= 0.02
+    assert oracle["notes"] == ["the robot that made the log"] and oracle["seconds"] >= 0.0
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_a_method_is_fitted_on_the_training_span_only_and_sits_in_one_table_with_the_harness(bench_run):
+    """The fit receives exactly the training span's samples (the validation span starts after it ends);
+    the harness's own rows are the log stage's figures, the same numbers in both places."""
+    _, results, seen, _ = bench_run
+    spans = results["log_identification"]["spans"]
+    assert seen == [spans["training"]["samples"]]
+    assert spans["training"]["t_end"] < spans["validation"]["t_start"]
+    table, li = results["identification_methods"], results["log_identification"]
+    for row, model in (("harness_least_squares", "least squares"), ("harness_consistent", "consistent")):
+        assert table[row]["validation_rel_error"] == li["validation_rel_error"][model]
+        assert table[row]["truth"]["validation_rel_error"] == li["truth"]["validation_rel_error"][model]
+    assert table["harness_consistent"]["physical"]["inconsistent_links"] == li["consistent"]["inconsistent_links"]
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_a_method_whose_tool_is_absent_is_skipped_and_its_gates_say_so(bench_run):
+    """Skipped, with the factory's reason, in results.json, on its gate (neither passed nor failed:
+    counted apart) and in the JUnit XML; the rest of the run is judged as usual."""
+    status, results, _, folder = bench_run
+    assert results["identification_methods"]["absent"] == {
+        "plugin": "absent:make", "skipped": "the tool it wraps is not installed; pip install absent-tool"}
+    row = next(g for g in results["gates"] if g["metric"].startswith("identification_methods.absent."))
+    assert row["skipped"] and row["passed"] and row["value"] is None and "pip install absent-tool" in row["reason"]
+    suite = ET.parse(folder / "junit.xml").getroot().find("testsuite")
+    assert suite.get("skipped") == "1" and suite.get("failures") == "0"
+    assert status == 0 and results["passed"]
+
+
+def test_a_gate_under_a_skipped_result_is_skipped_and_any_other_missing_metric_is_still_bad_input():
+    results = {"identification_methods": {"m": {"plugin": "p", "skipped": "not installed"}, "n": {"x": 1.0}}}
+    gates = (Gate("a", "identification_methods.m.truth.validation_rel_error", 0.1),
+             Gate("b", "identification_methods.n.x", 0.5), Gate("c", "identification_methods.n.y", 0.5))
+    assert unknown_metrics(gates, results) == [2]
+    rows, passed = check(gates[:2], results)
+    assert rows[0]["skipped"] and rows[0]["passed"] and rows[0]["reason"] == "skipped: not installed"
+    assert not rows[1]["passed"] and not passed  # a gate that is not skipped still judges
+
+
+def _scenario_with(tmp_path, extra: str):
+    text = SCENARIO.read_text().replace('"../', f'"{SCENARIO.parent.parent}/')
+    text = text[: text.index("[[identification]]")] + extra
+    (tmp_path / "s.toml").write_text(text)
+    return tmp_path / "s.toml"
+
+
+@pytest.mark.parametrize(("extra", "key", "words"), [
+    ('[[identification]]\nname = "m"\nplugin = "figaroh"\nvalidation = "other.toml"\n'
+     '[[gates]]\nmetric = "identification_methods.m.validation_rel_error"\nlimit = 1\n',
+     "identification[0].validation", "validation span"),
+    ('[[identification]]\nname = "harness_consistent"\nplugin = "figaroh"\n'
+     '[[gates]]\nmetric = "identification_methods.harness_consistent.validation_rel_error"\nlimit = 1\n',
+     "identification.name", "harness's own fit"),
+    ('[[identification]]\nname = "m"\nplugin = "figaroh"\n'
+     '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1\n',
+     "identification.name", "judged by no gate"),
+])
+def test_a_method_on_a_log_is_refused_in_one_line_naming_the_key(tmp_path, extra, key, words):
+    with pytest.raises(InputError) as err:
+        load_scenario(_scenario_with(tmp_path, extra))
+    assert key in str(err.value) and words in str(err.value) and "\n" not in str(err.value)
+
+
+# --- FIGAROH (harness/adapters/figaroh.py) --------------------------------------------------------------
+
+
+def test_figaroh_absent_is_a_tool_unavailable_naming_the_extra(monkeypatch):
+    from harness.adapters import figaroh
+    from harness.base.plugins import ToolUnavailable
+
+    for name in [m for m in sys.modules if m == "figaroh" or m.startswith("figaroh.")] + ["figaroh"]:
+        monkeypatch.setitem(sys.modules, name, None)  # an import of it raises ImportError
+    with pytest.raises(ToolUnavailable, match=r"pip install 'harness\[figaroh\]'"):
+        figaroh._figaroh()
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_figaroh_least_squares_is_the_least_squares_of_its_own_model(bench_run):
+    """FIGAROH's model of the torques is the rigid-body regressor with, per joint, rotor inertia q'',
+    viscous q', a sharp Coulomb sign(q') and an offset. Fitted by numpy's least squares on the harness's
+    regressor and those columns (an independent computation of the same model), the held-out and
+    training errors are FIGAROH's to 1e-6 (its elimination of columns whose squared norm is under
+    1e-3 may leave out a direction that numpy fits, of that order)."""
+    pytest.importorskip("figaroh", reason="FIGAROH is not installed (pip install 'harness[figaroh]')")
+    from harness.engines.pinocchio import build_model
+    from harness.identify.torque_id import regressor
+    from harness.sources.log import load
+    from harness.stages.identification import joint_data
+
+    _, results, _, _ = bench_run
+    sc = load_scenario(SCENARIO)
+    _, train, validation = load(sc.data, sc.robot)
+    pm = build_model(sc.robot, sc.gravity_W)
+    joints = sc.robot.joint_names
+    n = len(joints)
+
+    def columns(q, qd, qdd):
+        W = regressor(pm, q, qd, qdd).reshape(len(q), n, -1)
+        drive = np.zeros((len(q), n, 4 * n))
+        for j in range(n):
+            drive[:, j, 4 * j: 4 * j + 4] = np.stack([qdd[:, j], qd[:, j], np.sign(qd[:, j]), np.ones(len(q))], -1)
+        return np.concatenate([W, drive], axis=2).reshape(len(q) * n, -1)
+
+    q, qd, qdd, tau = joint_data(train, joints)
+    x = np.linalg.lstsq(columns(q, qd, qdd), tau.ravel(), rcond=None)[0]
+    row = results["identification_methods"]["figaroh"]
+    for span, log in (("training", train), ("validation", validation)):
+        qs, qds, qdds, taus = joint_data(log, joints)
+        pred = (columns(qs, qds, qdds) @ x).reshape(taus.shape)
+        assert row[f"{span}_rel_error"] == pytest.approx(np.linalg.norm(pred - taus) / np.linalg.norm(taus), rel=1e-6)
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_figaroh_rows_state_what_figaroh_cannot_do(bench_run):
+    """The table does not hide a tool's limits: the sharp Coulomb law and, for the least squares, that
+    its parameters are a minimum-norm split (not a physical claim, and judged all the same)."""
+    pytest.importorskip("figaroh", reason="FIGAROH is not installed (pip install 'harness[figaroh]')")
+    _, results, _, _ = bench_run
+    ls, phys = results["identification_methods"]["figaroh"], results["identification_methods"]["figaroh_physical"]
+    assert any("sign(q')" in note for note in ls["notes"]) and any("minimum-norm" in note for note in ls["notes"])
+    assert phys["physical"]["inconsistent_links"] == 0 and set(ls["friction"]) == set(phys["friction"])
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_the_bench_log_is_what_its_recipe_makes(tmp_path):
+    """harness/data/logs/ur5_bench/log.csv is the bench of its bench.toml, measured: remade here, the
+    same numbers (to 1e-9: another CPU may round MuJoCo's last bits otherwise; the noise is seeded)."""
+    import pandas as pd
+
+    from harness.sources.bench import record, write_log
+    from harness.sources.measurement import measure
+
+    folder = ROOT / "harness" / "data" / "logs" / "ur5_bench"
+    sc = load_scenario(folder / "bench.toml")
+    write_log(measure(record(sc), sc.measurement), sc.robot.joint_names, tmp_path / "log.csv")
+    made, shipped = pd.read_csv(tmp_path / "log.csv"), pd.read_csv(folder / "log.csv")
+    assert list(made.columns) == list(shipped.columns) and made.shape == shipped.shape == (2401, 19)
+    np.testing.assert_allclose(made.to_numpy(), shipped.to_numpy(), rtol=1e-9, atol=1e-12)
