@@ -12,6 +12,7 @@ identification never saw.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -102,6 +103,7 @@ class BaseParameters:
     dependent: np.ndarray  # (p - r,) column indices of theta_2
     combination: np.ndarray  # (r, p - r): beta = theta_1 + combination theta_2
     with_friction: bool = False  # theta holds each joint's [armature, viscous, coulomb, offset] too
+    weak: np.ndarray | None = None  # (r,) bool: exists only through a feature of the robot far below its size
 
     def of(self, theta: np.ndarray) -> np.ndarray:
         return theta[self.independent] + self.combination @ theta[self.dependent]
@@ -122,7 +124,35 @@ def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameter
     comb = comb * scale[P[r:]][None, :] / scale[P[:r]][:, None]
     # parameters whose column is zero enter no base parameter
     comb = np.concatenate([comb, np.zeros((r, len(dead)))], axis=1)
-    return BaseParameters(live[P[:r]], np.concatenate([live[P[r:]], dead]), comb, with_friction)
+    independent = live[P[:r]]
+    return BaseParameters(independent, np.concatenate([live[P[r:]], dead]), comb, with_friction,
+                          structurally_weak(W, independent, norms, with_friction))
+
+
+WEAK_STRUCTURE = 1e-4  # a base parameter's column, or its part apart from the others, below this of its kind's
+
+
+def structurally_weak(W: np.ndarray, independent: np.ndarray, norms: np.ndarray, with_friction: bool) -> np.ndarray:
+    """(r,) bool: the base parameters that exist only through a feature of the robot far smaller than
+    the robot (an axis tilted by a rounded angle): identifiable in exact arithmetic, but carried by a
+    column that is WEAK_STRUCTURE or less of what parameters of its kind have (its column against the
+    median column of the same kind: mass, first moment, inertia, or one drive term), or by the
+    difference between columns (a right singular vector with sigma / sigma_max below WEAK_STRUCTURE
+    of the column-scaled base regressor, weight above 0.1). A property of the model's structure,
+    not of a base chosen among equivalent ones: whichever column stands for such a direction is
+    tiny, or nearly collinear with the others. so100's pan axis, 3e-6 rad off the vertical: its
+    columns at 4e-6 of their kind's; every other column of so100, the Panda, the UR5, the KR500 and
+    the planar arm at 6e-4 or more, and their scaled singular values at 0.1 or more of the largest."""
+    n10 = W.shape[1] // 14 * 10 if with_friction else W.shape[1]  # columns of the links; the drives after them
+    c = np.arange(W.shape[1])
+    kind = np.where(c < n10, np.array([0, 1, 1, 1, 2, 2, 2, 2, 2, 2])[c % 10], 3 + (c - n10) % 4)
+    live = norms > ZERO_COLUMN * norms.max()
+    median = {k: float(np.median(norms[live & (kind == k)])) for k in np.unique(kind[live])}
+    small = np.array([norms[j] < WEAK_STRUCTURE * median[kind[j]] for j in independent], bool)
+    _, S, Vt = np.linalg.svd(W[:, independent] / norms[independent], full_matrices=False)
+    near = S < WEAK_STRUCTURE * S[0]
+    collinear = np.any(np.abs(Vt[near]) > 0.1, axis=0) if near.any() else np.zeros(len(independent), bool)
+    return small | collinear
 
 
 STRUCTURAL_STATES = 200  # random states for the structural base: 2 x 10 n rows and more for n <= 9 joints
@@ -168,7 +198,7 @@ def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau
     W1 = regressor(pm, q, qd, qdd, base.with_friction)[:, base.independent]
     # the model's own values: the magnitudes of the parameters
     beta_model = base.of(true_parameters(pm, base.with_friction))
-    fit = fit_base(W1, tau, beta_model)
+    fit = with_structure(fit_base(W1, tau, beta_model), base)
     err = None
     if validation is not None:
         qv, qdv, qddv, tauv = validation
@@ -201,6 +231,17 @@ def fit_base(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit
     sv = equilibrated_singular_values(W1)
     kappa = sensitivity(W1 / s, L) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
     return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), float(sv[0] / sv[-1]))
+
+
+def with_structure(fit: BaseFit, base: BaseParameters) -> BaseFit:
+    """The fit with the structurally weak base parameters (`structurally_weak`) also weak: the data's
+    verdict (sensitivity) or the robot's, whichever says so. Columns after the base parameters (a
+    friction family's) keep the data's verdict."""
+    if base.weak is None:
+        return fit
+    weak = fit.weak.copy()
+    weak[: len(base.weak)] |= base.weak
+    return dataclasses.replace(fit, weak=weak)
 
 
 COEFFICIENT_FLOOR = 1e-12  # coefficients of the base combinations below this are QR round-off

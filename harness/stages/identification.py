@@ -31,6 +31,7 @@ from harness.identify.lstsq import WEAK_RATIO
 from harness.identify.torque_id import (
     COEFFICIENT_FLOOR,
     STRUCTURAL_STATES,
+    WEAK_STRUCTURE,
     TorqueIdentification,
     describe_base,
     identify_from_torques,
@@ -137,8 +138,10 @@ class BuiltinIdentification:
                            "t quantile with N - 1 degrees of freedom; infinite where the data leave a direction "
                            "undetermined (harness/identify/lstsq.py)",
             "weak_definition": f"identifiable, but its sensitivity to the data is more than {WEAK_RATIO:g} times the "
-                               "median base parameter's; its error is reported apart from max_rel_error "
-                               "(harness/identify/lstsq.py)",
+                               "median base parameter's (harness/identify/lstsq.py), or it exists only through a "
+                               f"feature of the robot: its column under {WEAK_STRUCTURE:g} of its kind's, or nearly "
+                               "collinear with the others (harness/identify/torque_id.py, structurally_weak); its "
+                               "error is reported apart from max_rel_error",
             "max_rel_error": float(rel[~weak].max(initial=0.0)),
             "max_rel_parameter": (describe_base(ti.names, ti.base, int(np.flatnonzero(~weak)[np.argmax(rel[~weak])]))
                                   if (~weak).any() else None),

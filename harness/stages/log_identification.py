@@ -35,6 +35,7 @@ from harness.identify.torque_id import (
     regressor,
     structural_base,
     true_parameters,
+    with_structure,
 )
 from harness.model.export import MJCF_FILE, README_FILE, coulomb_mapping, export, identified_spec, readme
 from harness.model.friction import FAMILIES, JointFriction
@@ -407,7 +408,7 @@ def run(ctx, config) -> LogIdentification | None:
     W_ls = np.hstack([W[:, base.independent], extra_regressor(laws, qd, rigid_train)])
     beta_model = np.concatenate([beta_model, extra_model])
     L = tau.reshape(-1)
-    ls = fit_base(W_ls, tau, beta_model)
+    ls = with_structure(fit_base(W_ls, tau, beta_model), base)
     repeated, repeat_note = None, None
     if sc.data.repeat:
         try:
