@@ -54,8 +54,8 @@ class Oracle:
         self.pm = build_model(self.spec, gravity_W)
         self.joint_names = list(self.spec.joint_names)
 
-    def fit(self, q, qd, qdd, tau):
-        SEEN.append(len(q))
+    def fit(self, q, qd, qdd, tau, t):
+        SEEN.append((len(q), len(t), float(t[0]), float(t[-1])))
         return Fitted(self.spec, self.pm)
 
 
@@ -109,12 +109,14 @@ def test_the_robot_that_made_the_log_is_judged_exact_against_itself(bench_run):
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_a_method_is_fitted_on_the_training_span_only_and_sits_in_one_table_with_the_harness(bench_run):
-    """The fit receives exactly the training span's samples (the validation span starts after it ends);
-    the harness's own rows are the log stage's figures, the same numbers in both places."""
+    """The fit receives exactly the training span's samples and, since it names a parameter `t`, their
+    times (the validation span starts after they end); the harness's own rows are the log stage's
+    figures, the same numbers in both places."""
     _, results, seen, _ = bench_run
     spans = results["log_identification"]["spans"]
-    assert seen == [spans["training"]["samples"]]
-    assert spans["training"]["t_end"] < spans["validation"]["t_start"]
+    training = spans["training"]
+    assert seen == [(training["samples"], training["samples"], training["t_start"], training["t_end"])]
+    assert training["t_end"] < spans["validation"]["t_start"]
     table, li = results["identification_methods"], results["log_identification"]
     for row, model in (("harness_least_squares", "least squares"), ("harness_consistent", "consistent")):
         assert table[row]["validation_rel_error"] == li["validation_rel_error"][model]
@@ -245,3 +247,31 @@ def test_the_bench_log_is_what_its_recipe_makes(tmp_path):
     made, shipped = pd.read_csv(tmp_path / "log.csv"), pd.read_csv(folder / "log.csv")
     assert list(made.columns) == list(shipped.columns) and made.shape == shipped.shape == (2401, 19)
     np.testing.assert_allclose(made.to_numpy(), shipped.to_numpy(), rtol=1e-9, atol=1e-12)
+
+
+# --- MuJoCo's sysid (harness/adapters/mujoco_sysid.py) -------------------------------------------------
+
+
+def test_mujoco_sysid_absent_is_a_tool_unavailable_naming_the_extra(monkeypatch):
+    from harness.adapters import mujoco_sysid
+    from harness.base.plugins import ToolUnavailable
+
+    for name in [m for m in sys.modules if m.startswith("mujoco.sysid")] + ["mujoco.sysid"]:
+        monkeypatch.setitem(sys.modules, name, None)
+    with pytest.raises(ToolUnavailable, match=r"pip install 'harness\[sysid\]'"):
+        mujoco_sysid._sysid()
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_mujoco_sysid_improves_on_the_model_as_given_and_states_its_limits(bench_run):
+    """From the model as given (the URDF without drives: 22 % off the truth's torques) sysid's rollouts
+    must bring the model closer to the robot that made the log; its links are physical by construction
+    (the pseudo-inertia's Cholesky factor), and its row says what it cannot do and what it cost."""
+    pytest.importorskip("mujoco.sysid", reason="MuJoCo's sysid is not installed (pip install 'harness[sysid]')")
+    _, results, _, _ = bench_run
+    row = results["identification_methods"]["sysid"]
+    given = results["log_identification"]["truth"]["validation_rel_error"]["model as given"]
+    assert row["truth"]["validation_rel_error"] < given / 2
+    assert row["physical"]["inconsistent_links"] == 0
+    assert any("sharp sign" in note for note in row["notes"])
+    assert any("rolled out in" in note for note in row["notes"]) and row["seconds"] > 0

@@ -24,7 +24,8 @@ and optionally
     mass_matrix(q) -> M                          (N, n, n)
 
 Identification method: the attribute is called in the same way and returns an object with
-`joint_names` and `fit(q, qd, qdd, tau)` (arrays (N, n), measured) returning the identified model: an
+`joint_names` and `fit(q, qd, qdd, tau)` (arrays (N, n), measured; and `t`, the (N,) sample times in
+s, passed by keyword where the signature names it) returning the identified model: an
 object with `joint_names`, `inverse_dynamics` as above and, optionally, `parameters`: (n, 10), one row
 per joint in the fitted model's `joint_names` order, the child body's
 [m, m c_x, m c_y, m c_z, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] about the joint point, in world axes at

@@ -140,6 +140,27 @@ def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
     return ms
 
 
+def dynamics_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
+                  timestep: float = 5e-4) -> mujoco.MjSpec:
+    """The robot for rollouts under joint torques: its bodies and joints (rotor inertia as armature,
+    viscous friction as damping), one motor per joint (`drive_<joint>`, control = torque, N m) and
+    only the sensors of q and q' (`q_<joint>`, `qd_<joint>`, joint by joint)."""
+    ms = _new_spec(spec.name, gravity_W)
+    ms.option.integrator = _MJ_INTEGRATOR[integrator]
+    ms.option.timestep = float(timestep)
+    ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    _robot(ms, spec)
+    for joint in spec.joints:
+        ms.add_actuator(name=f"drive_{joint.name}", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                        gear=[1.0, 0, 0, 0, 0, 0])
+    for joint in spec.joints:
+        ms.add_sensor(name=f"q_{joint.name}", type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                      objname=joint.name)
+        ms.add_sensor(name=f"qd_{joint.name}", type=mujoco.mjtSensor.mjSENS_JOINTVEL,
+                      objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=joint.name)
+    return ms
+
+
 def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
     """The joint whose site measures `joint`: itself, or for a carriage's inner joint the
     carriage's outer joint (same point, same wrench: the carriage has no mass)."""

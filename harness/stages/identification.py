@@ -9,6 +9,7 @@ validation trajectory it never saw, against the recorded ones, relative to each 
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 from typing import Any
 
@@ -311,12 +312,15 @@ def base_table(plugin: str, fitted, joints: list[str], bm: BaseMap) -> BaseTable
     return BaseTable(bm.expressions, bm.true, bm.T @ theta, std)
 
 
-def fit_method(plugin: str, method, joints: list[str], q, qd, qdd, tau):
-    """A method's fit on measured (q, q', q'', tau) in the robot's joint order; the fitted model,
-    checked against the model-under-test protocol."""
+def fit_method(plugin: str, method, joints: list[str], q, qd, qdd, tau, t=None):
+    """A method's fit on measured (q, q', q'', tau) in the robot's joint order, and the sample times
+    `t` (s) where its fit takes a parameter `t`; the fitted model, checked against the
+    model-under-test protocol."""
     to_method, _ = column_maps(method.joint_names, joints)
-    fitted = invoke(plugin, "fit", method.fit, q[:, to_method], qd[:, to_method], qdd[:, to_method],
-                    tau[:, to_method])
+    args = (q[:, to_method], qd[:, to_method], qdd[:, to_method], tau[:, to_method])
+    with guard(plugin, "reading its fit's signature"):
+        takes_t = "t" in inspect.signature(method.fit).parameters
+    fitted = invoke(plugin, "fit", (lambda *a: method.fit(*a, t=t)) if takes_t else method.fit, *args)
     check_protocol(f"{plugin} (its fitted model)", fitted, ModelUnderTest, joints)
     return fitted
 
@@ -324,7 +328,7 @@ def fit_method(plugin: str, method, joints: list[str], q, qd, qdd, tau):
 def _judge(ctx, entry) -> MethodResult:
     sc, plugin = ctx.scenario, entry.reference
     joints = sc.robot.joint_names
-    fitted = fit_method(plugin, entry.instance, joints, *joint_data(ctx.measured, joints))
+    fitted = fit_method(plugin, entry.instance, joints, *joint_data(ctx.measured, joints), ctx.measured.t)
     table = base_table(plugin, fitted, joints, base_map(ctx))
     validation = entry.validation or _validation_of(sc)
     val_err = val_t = None
@@ -417,7 +421,7 @@ def _method_trial(state: tuple, k: int) -> tuple:
     b, method = state
     plugin = b.entry.reference
     meas = measure(b.rec, b.m.with_seed(b.m.seed + k))
-    fitted = fit_method(plugin, method, b.joints, *joint_data(meas, b.joints))
+    fitted = fit_method(plugin, method, b.joints, *joint_data(meas, b.joints), meas.t)
     table = base_table(plugin, fitted, b.joints, b.bm)
     val = None
     if b.validation is not None:

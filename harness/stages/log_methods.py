@@ -143,7 +143,8 @@ def _judge(ctx, entry, li) -> LogMethod:
         return LogMethod(entry.name, plugin, skipped=entry.skipped)
     ctx.progress(f"identification method {entry.name}", None)
     start = time.perf_counter()
-    fitted = fit_method(plugin, entry.instance, joints, *li.states["training"], li.measured["training"])
+    fitted = fit_method(plugin, entry.instance, joints, *li.states["training"], li.measured["training"],
+                        li.t["training"])
     seconds = time.perf_counter() - start
     predictions = {span: inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, joints, *states)
                    for span, states in li.states.items()}
