@@ -29,7 +29,7 @@ from harness.base.numerics import parameter_scale, relative_error
 from harness.base.plugins import PluginError, Stage, check_array, column_maps, guard, inverse_dynamics
 from harness.engines.pinocchio import build_model
 from harness.identify.consistent import consistency
-from harness.identify.torque_id import structural_base, true_parameters
+from harness.identify.torque_id import describe_base, parameter_names, structural_base, true_parameters
 from harness.model.friction import IDENTIFIED_KEYS
 from harness.stages.identification import base_map, fit_method
 from harness.stages.metrics import torque_errors
@@ -99,14 +99,15 @@ def _against_truth(ctx, joints: list[str], theta: np.ndarray, friction: np.ndarr
 
     if friction is None:
         bm = base_map(ctx, truth=True)
-        beta, true = bm.T @ theta.ravel(), bm.true
+        beta, true, expressions = bm.T @ theta.ravel(), bm.true, bm.expressions
     else:
         base, true = ctx.once(("truth's structural base with friction",), make)
         beta = base.of(np.concatenate([theta.ravel(), friction.ravel()]))
+        expressions = [describe_base(parameter_names(joints, True), base, k) for k in range(len(true))]
     rel = relative_error(beta, true, parameter_scale(true))
     k = int(np.argmax(rel))
     return {"count": len(true), "with_friction": friction is not None, "max_rel_error": float(rel[k]),
-            "median_rel_error": float(np.median(rel))}
+            "max_rel_parameter": expressions[k], "median_rel_error": float(np.median(rel))}
 
 
 def _physical(joints: list[str], theta, friction) -> dict:
