@@ -80,6 +80,7 @@ def test_clarabel_solves_it_and_says_so(problem, monkeypatch):
     assert _prediction_error(problem, fit) <= 1.05 * _least_squares_error(problem)
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_where_clarabel_fails_scs_solves_the_same_problem(problem, monkeypatch):
     reference = _fit(problem, monkeypatch, None)
     fit = _fit(problem, monkeypatch, (MISSING, consistent.SOLVERS[1]))

@@ -223,6 +223,7 @@ def test_a_search_that_cannot_be_made_keeps_the_models_law_and_says_so(short_log
     assert set(law["coulomb_velocity"].values()) == {0.02}
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_a_model_whose_joint_joins_two_families_has_its_law_searched_from_there(short_log, capsys):
     """A model declaring Stribeck and asymmetric terms on one joint (three terms, more than any single
     family's two): the search starts from that law, so every joint's slot holds its five columns; the

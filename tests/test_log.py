@@ -42,6 +42,7 @@ def panda(tmp_path_factory):
     return out, json.loads((out / "results.json").read_text())
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_log_is_read_as_its_readme_describes_it(panda):
     """The file's sha256, and the sample-and-hold rows counted independently with pandas."""
     _, r = panda
@@ -55,6 +56,7 @@ def test_the_log_is_read_as_its_readme_describes_it(panda):
     assert c["validation"]["from_fraction"] == 0.7
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_each_joints_friction_law_is_chosen_within_the_training_span_and_reported(panda):
     """results.json and the report give, per joint, the chosen family and v_c and every family's held-out
     figure; on this log the chosen laws predict the held-out parts better than the model's own law
@@ -87,6 +89,7 @@ def _law(f: dict, qd: np.ndarray, qdd: np.ndarray, tau_rigid: np.ndarray) -> np.
             + f["load_coulomb"] * np.abs(tau_rigid) * s)
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_exported_model_beats_the_published_one_on_data_it_never_saw(panda):
     """The exported URDF read by Pinocchio's own parser, its joints.toml by tomllib: on the last
     30 % of the log, which the fit never saw, the torque error is below the published model's
@@ -117,6 +120,7 @@ def test_the_exported_model_beats_the_published_one_on_data_it_never_saw(panda):
     assert li["consistent"]["inconsistent_links"] == 0
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_export_reloads_through_the_harness_to_round_off(panda):
     """identified/robot.toml, loaded as any model file, gives Pinocchio's own parser's torques to
     round-off (the harness's URDF reader and friction against the independent route)."""
@@ -233,6 +237,7 @@ def test_a_log_without_velocities_validated_on_another_file(tmp_path):
     assert r["log_identification"]["spans"]["validation"]["t_start"] > 12.0
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_fit_reads_nothing_of_the_validation_span(panda, tmp_path):
     """Every torque of the log from the split on tripled: the fit's base parameters, the consistent
     model, the training errors and every exported file are the same bit for bit, and only the
@@ -277,6 +282,7 @@ def _numbers(tree) -> list[float]:
     return [float(tree)] if isinstance(tree, int | float) and not isinstance(tree, bool) else []
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_a_consistent_fit_no_solver_can_do_is_projected_said_so_and_gateable(tmp_path, monkeypatch):
     """Every solver of the consistent fit failing is no internal error: the fit falls back to the
     projected unconstrained one, results.json says so (consistent.fallback = 2, and how each solver

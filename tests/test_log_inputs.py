@@ -198,6 +198,7 @@ def test_a_log_with_a_gap_predicts_a_fresh_trajectory_as_well_as_the_log_without
     assert errors["bridged"] > errors["whole"] + 0.003, errors  # the test can tell a bridged gap
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_on_a_bench_log_the_models_error_is_told_from_the_sensors(long_log, tmp_path):
     """An 8 s bench log at 250 Hz, its torques measured with 2 % noise (of each joint's RMS): against
     the measured torques every fit scores about the noise; against the truth (`[data] truth`, the model
@@ -216,6 +217,7 @@ def test_on_a_bench_log_the_models_error_is_told_from_the_sensors(long_log, tmp_
     assert 0.01 < truth["measured"] < 0.03  # the sensor's
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_a_link_far_from_the_models_own_is_warned_and_gateable(si_log, tmp_path, capsys):
     """The model as given carries 20 kg more on the forearm than the robot that made the log: the
     identified forearm comes out at about a seventh of the model's, outside [1/3, 3], which a line on
@@ -271,6 +273,7 @@ def late_csv(si_log, tmp_path_factory) -> dict:
     return _run(folder, "")[1]
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 @pytest.mark.parametrize("kind", ["sqlite3", "mcap", "ros1"])
 def test_a_ros_bag_gives_the_fit_of_the_same_log_as_csv(si_log, late_csv, tmp_path, kind):
     """The log as JointState messages, its joints in another order and a gripper joint beside them,
@@ -328,6 +331,7 @@ def late_log(tmp_path_factory):
 LAGS = np.array([1.0, 2.5, 4.0, 6.0, 8.0, 10.0]) * 1e-3
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_each_torque_channels_delay_is_estimated_within_half_a_millisecond(late_log, tmp_path, capsys):
     late_log.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
     status, results = _run(tmp_path, 'units = { q = "rad", qd = "rad/s", tau = "N m" }\n',
@@ -340,6 +344,7 @@ def test_each_torque_channels_delay_is_estimated_within_half_a_millisecond(late_
     assert capsys.readouterr().err.count("torque channels behind the encoders") == 1
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_a_corrected_delay_gives_back_the_fit_of_the_log_without_it(late_log, si_log, tmp_path):
     """Read later by the delays it estimates, the late log fits as well as one without delays: the
     validation error falls from the lag's (about 1 %) to the differentiation floor of this log."""
@@ -410,6 +415,7 @@ def long_log(tmp_path_factory):
     return pd.read_csv(folder / "log.csv")
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_fit_repeated_on_disjoint_segments_says_which_parameters_moved(long_log, tmp_path, capsys):
     """The training span cut in two, the torques with 1 % white noise: the two fits' 95 % intervals
     overlap for most base parameters (measured: all but 6 of 58, where calibrated intervals would miss
@@ -434,6 +440,7 @@ def test_the_fit_repeated_on_disjoint_segments_says_which_parameters_moved(long_
     assert capsys.readouterr().err.count("moved between the 2 segments") == 2  # once per run
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_identified_model_drifts_in_simulation_about_as_little_as_the_truth(long_log, tmp_path):
     """The 8 s bench log with 1 % noise on the torques, identified on a model as given that carries
     20 kg too much on its forearm: forward-simulated in MuJoCo from 20 measured states under the

@@ -66,6 +66,7 @@ def test_torques_agree_three_ways_and_joints_3_to_6_share_one_angle(run_scenario
         np.testing.assert_allclose(q[:, k], q[:, 2], atol=1e-9)
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 @pytest.mark.parametrize("case", (1, 2))
 def test_the_papers_claims_are_checked_with_their_numbers(run_scenario, case):
     """Claim 1 follows from physics (link 6 is the same in both designs and moves the same way);

@@ -167,6 +167,7 @@ def _chromium() -> str | None:
     return shutil.which("chromium") or shutil.which("chromium-browser")
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_report_renders_in_a_headless_browser(fast_run, tmp_path):
     """Debian's Chromium opens the report offline and shows the verdict and the figures."""
     browser = _chromium()

@@ -60,6 +60,7 @@ def test_ten_parameters_per_body_are_recovered(run_scenario, robot):
     assert full["not_identifiable"] == [f"{first}.{p}" for p in ("mcz", "Ixx", "Ixy", "Iyy")]
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 @pytest.mark.parametrize("robot", ARMS)
 def test_joint_torque_identification_recovers_base_parameters_and_predicts_validation(run_scenario, robot):
     out = run_scenario(SCENARIOS / f"{robot}_sines.toml")

@@ -213,6 +213,7 @@ def test_inputs_that_were_internal_errors_are_refused_in_one_line(example, tmp_p
     assert "odd" in capsys.readouterr().out
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_built_in_scenarios_run_from_any_folder(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(["list"]) == 0
@@ -224,6 +225,7 @@ def test_built_in_scenarios_run_from_any_folder(tmp_path, monkeypatch, capsys):
     assert main(["run", "planar6_case1_proposed", "--out", "o2", "--quiet"]) == 2
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_init_writes_a_project_that_passes_out_of_the_box(tmp_path, capsys):
     assert main(["init", str(tmp_path / "p")]) == 0
     assert main(["init", str(tmp_path / "p")]) == 2  # never over an existing project
