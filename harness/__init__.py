@@ -5,12 +5,16 @@ Public API (harness/api.py): `run(scenario_path)` -> Result with `.passed`, `.ga
 this package loads neither an engine nor a paper's package: they load when a run needs them.
 """
 
-from harness.base.version import DISTRIBUTION, __version__
+from harness.base.version import DISTRIBUTION
 
 __all__ = ["DISTRIBUTION", "InputError", "PluginError", "Result", "__version__", "load_model", "load_scenario", "run"]
 
 
 def __getattr__(name: str):
+    if name == "__version__":  # read from the installed metadata when asked for (harness/base/version.py)
+        from harness.base.version import installed_version
+
+        return installed_version()
     if name in ("run", "load_model", "load_scenario", "Result", "GateRow"):
         from harness import api
 

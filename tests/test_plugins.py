@@ -355,6 +355,18 @@ def test_importing_harness_loads_no_engine_and_no_paper():
     assert out.stdout.strip() == "[]", out.stdout
 
 
+def test_the_version_is_read_from_the_installed_metadata_only_when_asked_for():
+    """`import harness` leaves importlib.metadata (about 40 ms) unloaded unless something before it
+    loaded it; `harness.__version__` then reads the installed distribution's version."""
+    from importlib.metadata import version
+
+    code = ("import sys; before = 'importlib.metadata' in sys.modules; import harness; "
+            "print(before or 'importlib.metadata' not in sys.modules); print(harness.__version__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    lazy, reported = out.stdout.split()
+    assert lazy == "True" and reported == version(harness.DISTRIBUTION)
+
+
 def test_no_core_module_imports_a_paper_package():
     core = [p for p in (ROOT / "harness").rglob("*.py") if "papers" not in p.parts]
     offenders = [str(p.relative_to(ROOT)) for p in core if "harness.papers" in p.read_text()]
