@@ -275,3 +275,23 @@ def test_mujoco_sysid_improves_on_the_model_as_given_and_states_its_limits(bench
     assert row["physical"]["inconsistent_links"] == 0
     assert any("sharp sign" in note for note in row["notes"])
     assert any("rolled out in" in note for note in row["notes"]) and row["seconds"] > 0
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_a_simulated_scenario_with_a_skipped_method_beside_a_real_one_reports_both(tmp_path):
+    """On the bench too: the project `harness init` writes, its least-squares method kept and one whose
+    tool is absent added. The run passes with the skipped gate counted apart, and the report's
+    method table has both rows (a skipped row once sent the whole table to the log's layout)."""
+    assert main(["init", str(tmp_path / "p")]) == 0
+    folder = tmp_path / "p"
+    (folder / "absent.py").write_text(ABSENT)
+    text = (folder / "scenario.toml").read_text().replace("[identification]\n", "[[identification]]\n", 1)
+    (folder / "scenario.toml").write_text(
+        text + '\n[[identification]]\nname = "absent"\npython = "absent:make"\n'
+        '[[gates]]\nmetric = "identification_methods.absent.validation.max_rel_error"\nlimit = 0.01\n')
+    assert main(["run", str(folder / "scenario.toml"), "--out", str(folder / "o"), "--quiet"]) == 0
+    results = json.loads((folder / "o" / "results.json").read_text())
+    assert results["identification_methods"]["absent"]["skipped"]
+    assert results["identification_methods"]["ls"]["base_parameters"]["max_rel_error"] < 1e-6
+    page = (folder / "o" / "report.html").read_text()
+    assert "Identification methods under test" in page and "absent:make" in page and "my_robot:make_method" in page

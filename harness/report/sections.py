@@ -51,7 +51,7 @@ def verdict(r: dict) -> str:
         answers.append(f"<li><b>Do the reference engines agree?</b> Pinocchio vs MuJoCo "
                        f"{num(tq['pinocchio_vs_mujoco']['max_rel_error'])}.</li>")
     for name, m in r.get("identification_methods", {}).items():
-        if m.get("skipped") or "validation_rel_error" in m or "training_rel_error" in m:  # a log's table
+        if m.get("skipped") or "data" in r:  # skipped, or a row of a log's table
             answers.append(f"<li><b>How well does identification method {esc(name)} work?</b> "
                            + (f"Skipped: {esc(m['skipped'])}" if m.get("skipped") else
                               f"Held-out torque error {num(m.get('validation_rel_error', m.get('training_rel_error')))}"
@@ -489,10 +489,13 @@ def log_methods(r: dict) -> str:
 
 
 def identification_methods(r: dict) -> str:
-    if any("training_rel_error" in m or m.get("skipped") for m in r["identification_methods"].values()):
+    if "data" in r:  # a measured log's run: the table of harness/stages/log_methods.py
         return log_methods(r)
     rows, tables = [], []
     for name, m in r["identification_methods"].items():
+        if m.get("skipped"):
+            rows.append([esc(name), code(m["plugin"]), Markup("<i>skipped</i>"), *([DASH] * 4), esc(m["skipped"])])
+            continue
         b, v = m.get("base_parameters"), m.get("validation")
         rows.append([esc(name), code(m["plugin"]), num(b["count"]) if b else DASH,
                      num(b["max_rel_error"]) if b else DASH, esc(v["scenario"]) if v else DASH,
