@@ -97,26 +97,33 @@ def _new_spec(name: str, gravity_W: np.ndarray) -> mujoco.MjSpec:
     return ms
 
 
-def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
-               timestep: float = 5e-4) -> mujoco.MjSpec:
-    """The robot as MuJoCo's own model description (mujoco.MjSpec), which `build_model` compiles.
-    Every number is set as the double it is, never through text (MuJoCo's own XML writer,
-    `MjSpec.to_xml`, keeps six significant digits: see `mjcf` for a file that reloads)."""
+def _driven(spec: RobotSpec, gravity_W: np.ndarray, integrator: str,
+            timestep: float) -> tuple[mujoco.MjSpec, dict[str, mujoco.MjsBody]]:
+    """The robot with its integrator and timestep, contacts off, and one motor per joint
+    (`drive_<joint>`, control = torque): what `build_spec` and `dynamics_spec` share."""
     ms = _new_spec(spec.name, gravity_W)
     ms.option.integrator = _MJ_INTEGRATOR[integrator]
     ms.option.timestep = float(timestep)
     ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     elements = _robot(ms, spec)
+    for joint in spec.joints:
+        ms.add_actuator(name=f"drive_{joint.name}", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                        gear=[1.0, 0, 0, 0, 0, 0])
+    return ms, elements
+
+
+def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
+               timestep: float = 5e-4) -> mujoco.MjSpec:
+    """The robot as MuJoCo's own model description (mujoco.MjSpec), which `build_model` compiles.
+    Every number is set as the double it is, never through text (MuJoCo's own XML writer,
+    `MjSpec.to_xml`, keeps six significant digits: see `mjcf` for a file that reloads)."""
+    ms, elements = _driven(spec, gravity_W, integrator, timestep)
     for body in spec.massive_bodies:
         el = elements[body.name]
         el.add_site(name=f"com_{body.name}", pos=np.zeros(3))
         # A carriage's joint shares its point with the child's joint (checked by the spec).
         chain = _massive_parent(spec, body)[1]
         el.add_site(name=f"joint_{chain[-1].name}", pos=body.arm_B(chain[-1].p_W0))
-
-    for joint in spec.joints:
-        ms.add_actuator(name=f"drive_{joint.name}", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
-                        gear=[1.0, 0, 0, 0, 0, 0])
     S, site, jnt = mujoco.mjtSensor, mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_JOINT
 
     def sensor(kind, name: str, objtype, objname: str) -> None:
@@ -145,14 +152,7 @@ def dynamics_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4
     """The robot for rollouts under joint torques: its bodies and joints (rotor inertia as armature,
     viscous friction as damping), one motor per joint (`drive_<joint>`, control = torque, N m) and
     only the sensors of q and q' (`q_<joint>`, `qd_<joint>`, joint by joint)."""
-    ms = _new_spec(spec.name, gravity_W)
-    ms.option.integrator = _MJ_INTEGRATOR[integrator]
-    ms.option.timestep = float(timestep)
-    ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-    _robot(ms, spec)
-    for joint in spec.joints:
-        ms.add_actuator(name=f"drive_{joint.name}", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
-                        gear=[1.0, 0, 0, 0, 0, 0])
+    ms, _ = _driven(spec, gravity_W, integrator, timestep)
     for joint in spec.joints:
         ms.add_sensor(name=f"q_{joint.name}", type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT,
                       objname=joint.name)

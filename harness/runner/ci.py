@@ -52,10 +52,7 @@ def gate_line(g: dict) -> str:
     """One gate as a line: `metric = value <= limit`, then why it has no value or where its worst
     case lies (the joint and time, or the parameter), when the result says so."""
     sign = _sign(g) if g["passed"] or g["value"] is None else (">" if g["direction"] == "at_most" else "<")
-    line = f"{g['metric']} = {_value(g)} {sign} {g['limit']:.3g}"
-    if g.get("skipped"):
-        return f"{g['name']}: {g['metric']} ({g['reason']})" if g["name"] != g["metric"] else \
-            f"{g['metric']} ({g['reason']})"
+    line = g["metric"] if g.get("skipped") else f"{g['metric']} = {_value(g)} {sign} {g['limit']:.3g}"
     if g["name"] != g["metric"]:
         line = f"{g['name']}: {line}"
     notes = [n for n in (g.get("reason"), g.get("where") and f"worst: {g['where']}") if n]

@@ -270,46 +270,59 @@ class BaseMap:
     true: np.ndarray  # (r,) the robot's own
 
 
-def base_map(ctx, truth: bool = False) -> BaseMap:
+def base_map(ctx, truth: bool = False, with_friction: bool = False) -> BaseMap:
     """The structural base parameters of the scenario's robot, or (`truth`) of the model that made a
-    bench log (a log scenario's `[data] truth`), with that model's own values."""
+    bench log (a log scenario's `[data] truth`), with that model's own values; `with_friction`: of the
+    links' parameters and each joint's [armature, viscous, coulomb, offset] after them (T: (r, 14 n))."""
     sc = ctx.scenario
     robot = sc.truth if truth else sc.robot
 
     def make() -> BaseMap:
         pm = build_model(robot, sc.gravity_W)
-        base = ctx.once(("structural base parameters", False) if not truth else ("truth's structural base",),
-                        lambda: structural_base(pm, robot.limits))
-        r, n = len(base.independent), len(robot.joint_names)
-        T = np.zeros((r, 10 * n))
+        base = ctx.once(("truth's structural base" if truth else "structural base parameters", with_friction),
+                        lambda: structural_base(pm, robot.limits, with_friction=with_friction))
+        r = len(base.independent)
+        T = np.zeros((r, len(base.independent) + len(base.dependent)))
         T[np.arange(r), base.independent] = 1.0
         T[:, base.dependent] = base.combination
-        names = parameter_names(robot.joint_names)
-        return BaseMap([describe_base(names, base, k) for k in range(r)], T, base.of(true_parameters(pm)))
+        names = parameter_names(robot.joint_names, with_friction)
+        return BaseMap([describe_base(names, base, k) for k in range(r)], T,
+                       base.of(true_parameters(pm, with_friction)))
 
-    return ctx.once(("base parameters of the methods", truth), make)
+    return ctx.once(("base parameters of the methods", truth, with_friction), make)
+
+
+def reported(plugin: str, fitted, what: str, joints: list[str], width: int) -> np.ndarray | None:
+    """A fitted model's (n, width) `what` ("parameters", "friction"), checked and brought from its
+    `joint_names` order to the robot's; None where it reports none."""
+    with guard(plugin, f"reading the fitted model's {what}"):
+        value = getattr(fitted, what, None)
+    if value is None:
+        return None
+    _, back = column_maps(fitted.joint_names, joints)
+    return check_array(plugin, what, value, (len(joints), width))[back]
 
 
 def base_table(plugin: str, fitted, joints: list[str], bm: BaseMap) -> BaseTable | None:
     """The fitted model's `parameters` ((n, 10), its joint order) and, when given, `covariance`
     ((10 n, 10 n), of those parameters flattened row by row) as the robot's structural base
     parameters beta = T theta, with covariance T Sigma T^T. None: it reports no parameters."""
-    with guard(plugin, "reading the fitted model's parameters"):
-        theta, cov = getattr(fitted, "parameters", None), getattr(fitted, "covariance", None)
+    theta = reported(plugin, fitted, "parameters", joints, 10)
     if theta is None:
         return None
-    n = len(joints)
-    _, fit_to_robot = column_maps(fitted.joint_names, joints)
-    order = (np.asarray(fit_to_robot)[:, None] * 10 + np.arange(10)).reshape(-1)  # theta's entries, robot order
-    theta = check_array(plugin, "parameters", theta, (n, 10)).reshape(-1)[order]
+    with guard(plugin, "reading the fitted model's covariance"):
+        cov = getattr(fitted, "covariance", None)
     std = None
     if cov is not None:
+        n = len(joints)
+        _, fit_to_robot = column_maps(fitted.joint_names, joints)
+        order = (np.asarray(fit_to_robot)[:, None] * 10 + np.arange(10)).reshape(-1)  # its entries, robot order
         cov = check_array(plugin, "covariance", cov, (10 * n, 10 * n))[np.ix_(order, order)]
         var = np.einsum("ij,jk,ik->i", bm.T, cov, bm.T)
         if np.any(var < -1e-12 * np.max(np.abs(var), initial=0.0)):
             raise PluginError(plugin, "covariance is not positive semidefinite on the base parameters")
         std = np.sqrt(np.maximum(var, 0.0))
-    return BaseTable(bm.expressions, bm.true, bm.T @ theta, std)
+    return BaseTable(bm.expressions, bm.true, bm.T @ theta.reshape(-1), std)
 
 
 def fit_method(plugin: str, method, joints: list[str], q, qd, qdd, tau, t=None):
@@ -364,6 +377,10 @@ class SkippedMethod:
     reference: str
     reason: str
 
+    @classmethod
+    def of(cls, entry) -> SkippedMethod:
+        return cls(entry.name, entry.reference, entry.skipped)
+
     def serialise(self) -> dict:
         return {"plugin": self.reference, "skipped": self.reason}
 
@@ -371,8 +388,8 @@ class SkippedMethod:
 def run_methods(ctx, config) -> MethodResults | None:
     if not ctx.scenario.methods:
         return None
-    return MethodResults(tuple(SkippedMethod(e.name, e.reference, e.skipped) if e.skipped is not None else
-                               _judge(ctx, e) for e in ctx.scenario.methods))
+    return MethodResults(tuple(SkippedMethod.of(e) if e.skipped is not None else _judge(ctx, e)
+                               for e in ctx.scenario.methods))
 
 
 CI95 = 1.959963984540054  # the normal 97.5 % quantile: a method's covariance states no degrees of freedom
@@ -445,7 +462,7 @@ def sweep_methods(ctx, trials: int) -> dict:
     out = {}
     for entry in sc.methods:
         if entry.skipped is not None:
-            out[entry.name] = {"plugin": entry.reference, "skipped": entry.skipped}
+            out[entry.name] = SkippedMethod.of(entry).serialise()
             continue
         validation = entry.validation or _validation_of(sc)
         val = None

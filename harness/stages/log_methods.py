@@ -21,93 +21,79 @@ A method whose tool is not installed is listed as skipped, with the reason.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from harness.base.numerics import parameter_scale, relative_error
-from harness.base.plugins import PluginError, Stage, check_array, column_maps, guard, inverse_dynamics
-from harness.engines.pinocchio import build_model
+from harness.base.plugins import PluginError, Stage, guard, inverse_dynamics
 from harness.identify.consistent import consistency
-from harness.identify.torque_id import describe_base, parameter_names, structural_base, true_parameters
 from harness.model.friction import IDENTIFIED_KEYS
-from harness.stages.identification import base_map, fit_method
+from harness.stages.identification import SkippedMethod, base_map, fit_method, reported
 from harness.stages.metrics import torque_errors
 
 NONNEGATIVE = ("armature", "viscous", "coulomb")  # a drive's rotor inertia and dissipation; the offset has any sign
 MAX_NOTE = 300  # characters of one of a method's notes kept
+BUILT_IN = "harness (built in)"  # the plugin column of the harness's own two fits
 
 
 @dataclass(frozen=True, eq=False)
 class LogMethod:
     name: str
     plugin: str
-    skipped: str | None = None  # why it did not run (its tool is not installed)
-    seconds: float | None = None  # its fit's wall time
-    predictions: dict[str, np.ndarray] = field(default_factory=dict)  # span -> (N, n) torques
+    predictions: dict[str, np.ndarray]  # span -> (N, n) torques
     theta: np.ndarray | None = None  # (n, 10) its parameters, robot joint order, where it reports them
     friction: np.ndarray | None = None  # (n, 4) [armature, viscous, coulomb, offset], where it reports them
+    seconds: float | None = None  # its fit's wall time (None: the harness's own fits)
     notes: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
 class LogMethods:
     joints: list[str]
-    methods: tuple[LogMethod, ...]
+    methods: tuple[LogMethod | SkippedMethod, ...]  # the harness's own two first
     measured: dict[str, np.ndarray]  # span -> (N, n) the torques the fits read
     truth: dict[str, np.ndarray]  # span -> the truth's torques at the same states (a bench log)
-    harness: dict[str, dict]  # the harness's own rows: "least squares", "consistent" -> what the table shows
 
     def serialise(self, ctx, config) -> dict:
         """results.json's `identification_methods`: one row of the table per method, the harness's own two
         first (`harness_least_squares`, `harness_consistent`, names no plugin may take)."""
-        out = {f"harness_{name.replace(' ', '_')}": {"plugin": "harness (built in)", **row}
-               for name, row in self.harness.items()}
+        out = {}
         for m in self.methods:
-            out[m.name] = {"plugin": m.plugin, "skipped": m.skipped} if m.skipped is not None else {
-                "plugin": m.plugin, "seconds": m.seconds, **_row(ctx, self, m.predictions, m.theta, m.friction),
-                "notes": list(m.notes)}
+            if isinstance(m, SkippedMethod):
+                out[m.name] = m.serialise()
+            elif m.plugin == BUILT_IN:
+                out[m.name] = {"plugin": m.plugin, **self._row(ctx, m)}
+            else:
+                out[m.name] = {"plugin": m.plugin, "seconds": m.seconds, **self._row(ctx, m), "notes": list(m.notes)}
         return out
 
+    def _row(self, ctx, m: LogMethod) -> dict:
+        errors = {span: torque_errors(pred, self.measured[span], self.joints) for span, pred in m.predictions.items()}
+        row = {f"{span}_rel_error": e["rel_error"] for span, e in errors.items()}
+        row["errors"] = errors
+        if self.truth:
+            span = "validation" if "validation" in self.truth else "training"
+            row["truth"] = {"span": span, "validation_rel_error": torque_errors(
+                m.predictions[span], self.truth[span], self.joints)["rel_error"]}
+            if m.theta is not None:
+                row["base_parameters"] = _against_truth(ctx, m.theta, m.friction)
+        row["physical"] = _physical(self.joints, m.theta, m.friction)
+        row["friction"] = None if m.friction is None else {
+            j: dict(zip(IDENTIFIED_KEYS, map(float, m.friction[k]), strict=True)) for k, j in enumerate(self.joints)}
+        return row
 
-def _row(ctx, lm: LogMethods, predictions: dict, theta, friction) -> dict:
-    errors = {span: torque_errors(pred, lm.measured[span], lm.joints) for span, pred in predictions.items()}
-    row = {f"{span}_rel_error": e["rel_error"] for span, e in errors.items()}
-    row["errors"] = errors
-    if lm.truth:
-        span = "validation" if "validation" in lm.truth else "training"
-        row["truth"] = {"span": span, "validation_rel_error": torque_errors(predictions[span], lm.truth[span],
-                                                                             lm.joints)["rel_error"]}
-        if theta is not None:
-            row["base_parameters"] = _against_truth(ctx, lm.joints, theta, friction)
-    row["physical"] = _physical(lm.joints, theta, friction)
-    row["friction"] = None if friction is None else {
-        j: dict(zip(IDENTIFIED_KEYS, map(float, friction[k]), strict=True)) for k, j in enumerate(lm.joints)}
-    return row
 
-
-def _against_truth(ctx, joints: list[str], theta: np.ndarray, friction: np.ndarray | None) -> dict:
+def _against_truth(ctx, theta: np.ndarray, friction: np.ndarray | None) -> dict:
     """The parameters reduced to the truth's structural base parameters: with friction and rotor
     inertia when the method reports them (the rotor inertia is grouped with the link inertias it
     cannot be told from), else the inertial ones alone."""
-    sc = ctx.scenario
-
-    def make():
-        pm = build_model(sc.truth, sc.gravity_W)
-        base = structural_base(pm, sc.truth.limits, with_friction=True)
-        return base, base.of(true_parameters(pm, with_friction=True))
-
-    if friction is None:
-        bm = base_map(ctx, truth=True)
-        beta, true, expressions = bm.T @ theta.ravel(), bm.true, bm.expressions
-    else:
-        base, true = ctx.once(("truth's structural base with friction",), make)
-        beta = base.of(np.concatenate([theta.ravel(), friction.ravel()]))
-        expressions = [describe_base(parameter_names(joints, True), base, k) for k in range(len(true))]
-    rel = relative_error(beta, true, parameter_scale(true))
+    bm = base_map(ctx, truth=True, with_friction=friction is not None)
+    x = theta.ravel() if friction is None else np.concatenate([theta.ravel(), friction.ravel()])
+    rel = relative_error(bm.T @ x, bm.true, parameter_scale(bm.true))
     k = int(np.argmax(rel))
-    return {"count": len(true), "with_friction": friction is not None, "max_rel_error": float(rel[k]),
-            "max_rel_parameter": expressions[k], "median_rel_error": float(np.median(rel))}
+    return {"count": len(bm.true), "with_friction": friction is not None, "max_rel_error": float(rel[k]),
+            "max_rel_parameter": bm.expressions[k], "median_rel_error": float(np.median(rel))}
 
 
 def _physical(joints: list[str], theta, friction) -> dict:
@@ -119,16 +105,6 @@ def _physical(joints: list[str], theta, friction) -> dict:
             "negative_count": None if negative is None else len(negative), "negative": negative}
 
 
-def _reported(plugin: str, fitted, what: str, joints: list[str], width: int) -> np.ndarray | None:
-    """The fitted model's (n, width) `what` ("parameters" or "friction"), brought to the robot's joint order."""
-    with guard(plugin, f"reading the fitted model's {what}"):
-        value = getattr(fitted, what, None)
-    if value is None:
-        return None
-    _, back = column_maps(fitted.joint_names, joints)
-    return check_array(plugin, what, value, (len(joints), width))[back]
-
-
 def _notes(plugin: str, fitted) -> tuple[str, ...]:
     with guard(plugin, "reading the fitted model's notes"):
         notes = getattr(fitted, "notes", ()) or ()
@@ -137,11 +113,11 @@ def _notes(plugin: str, fitted) -> tuple[str, ...]:
         return tuple(" ".join(x.split())[:MAX_NOTE] for x in notes)
 
 
-def _judge(ctx, entry, li) -> LogMethod:
+def _judge(ctx, entry, li) -> LogMethod | SkippedMethod:
+    if entry.skipped is not None:
+        return SkippedMethod.of(entry)
     joints = ctx.scenario.robot.joint_names
     plugin = entry.reference
-    if entry.skipped is not None:
-        return LogMethod(entry.name, plugin, skipped=entry.skipped)
     ctx.progress(f"identification method {entry.name}", None)
     start = time.perf_counter()
     fitted = fit_method(plugin, entry.instance, joints, *li.states["training"], li.measured["training"],
@@ -149,9 +125,8 @@ def _judge(ctx, entry, li) -> LogMethod:
     seconds = time.perf_counter() - start
     predictions = {span: inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, joints, *states)
                    for span, states in li.states.items()}
-    theta = _reported(plugin, fitted, "parameters", joints, 10)
-    friction = _reported(plugin, fitted, "friction", joints, 4)
-    return LogMethod(entry.name, plugin, None, seconds, predictions, theta, friction, _notes(plugin, fitted))
+    return LogMethod(entry.name, plugin, predictions, reported(plugin, fitted, "parameters", joints, 10),
+                     reported(plugin, fitted, "friction", joints, 4), seconds, _notes(plugin, fitted))
 
 
 def run(ctx, config) -> LogMethods | None:
@@ -159,12 +134,11 @@ def run(ctx, config) -> LogMethods | None:
     li = ctx.done.get("log_identification")
     if not sc.methods or li is None:
         return None
-    lm = LogMethods(li.joints, (), li.measured, li.truth, {})
-    harness = {name: _row(ctx, lm, {span: pred[name] for span, pred in li.predictions.items()}, theta, friction)
-               for name, theta, friction in (("least squares", None, None),
-                                             ("consistent", li.fit.theta, li.fit.friction))}
-    methods = tuple(_judge(ctx, e, li) for e in sc.methods)
-    return LogMethods(li.joints, methods, li.measured, li.truth, harness)
+    own = tuple(LogMethod(f"harness_{name.replace(' ', '_')}", BUILT_IN,
+                          {span: pred[name] for span, pred in li.predictions.items()}, theta, friction)
+                for name, theta, friction in (("least squares", None, None),
+                                              ("consistent", li.fit.theta, li.fit.friction)))
+    return LogMethods(li.joints, own + tuple(_judge(ctx, e, li) for e in sc.methods), li.measured, li.truth)
 
 
 STAGE = Stage("identification_methods", "identification methods on the log", run, LogMethods.serialise,
