@@ -295,3 +295,20 @@ def test_a_simulated_scenario_with_a_skipped_method_beside_a_real_one_reports_bo
     assert results["identification_methods"]["ls"]["base_parameters"]["max_rel_error"] < 1e-6
     page = (folder / "o" / "report.html").read_text()
     assert "Identification methods under test" in page and "absent:make" in page and "my_robot:make_method" in page
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
+def test_the_refinement_reports_its_rollouts_and_seconds_beside_sysids(bench_run):
+    """The scenario's refinement by simulation stands beside MuJoCo's sysid on the same log: its rollouts
+    and seconds, and those sysid reports, in one place; it never worsens the held-out torque error
+    (on this log, whose law the search already finds, it changes it by a few parts in 1e5)."""
+    _, results, _, folder = bench_run
+    rf = results["refinement"]
+    assert rf["rollouts"] > 0 and rf["steps"] == rf["rollouts"] * round(rf["horizon_s"] / 1e-3) and rf["seconds"] > 0
+    assert rf["validation"]["torque_rel_error_change"] <= 0
+    assert set(rf["candidates"]) >= {"consistent", "pass 1: links held", "pass 1: refitted"}
+    report = (folder / "out" / "report.html").read_text()
+    assert 'id="refinement"' in report and "What it cost" in report
+    if not results["identification_methods"]["sysid"].get("skipped"):
+        beside = rf["beside"]["sysid"]
+        assert beside["plugin"] == "mujoco_sysid" and beside["rollouts"] > 0 and beside["seconds"] > 0

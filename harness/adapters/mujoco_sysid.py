@@ -177,14 +177,15 @@ class Sysid:
                  f"measured states, {o['iterations']} Gauss-Newton iterations from the model as given; "
                  f"{evaluations[0]} parameter vectors rolled out in {seconds:.1f} s",
                  "dry friction as MuJoCo's frictionloss (a sharp sign), not a smooth Coulomb law")
-        return Fitted(spec, self.gravity_W, notes)
+        return Fitted(spec, self.gravity_W, notes, evaluations[0] * len(starts))
 
 
 class Fitted:
-    """The identified robot: inverse dynamics by Pinocchio's RNEA with its drives' friction."""
+    """The identified robot: inverse dynamics by Pinocchio's RNEA with its drives' friction; `rollouts`,
+    the chunks it simulated in all."""
 
-    def __init__(self, spec, gravity_W, notes):
-        self.spec, self.notes = spec, notes
+    def __init__(self, spec, gravity_W, notes, rollouts: int):
+        self.spec, self.notes, self.rollouts = spec, notes, rollouts
         self.joint_names = list(spec.joint_names)
         self.pm = build_model(spec, gravity_W)
         self.parameters = true_parameters(self.pm).reshape(-1, 10)

@@ -26,11 +26,13 @@ are kept in `meta["drive_stages"]`, so that another model can be driven by exact
 
 from __future__ import annotations
 
+import copy
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
+from mujoco import rollout as mujoco_rollout
 
 from harness.engines.recording import Recording
 from harness.engines.simulation import Simulation
@@ -350,68 +352,114 @@ def _site_body(spec: RobotSpec, joint: Joint) -> str:
     return _measured_at(spec, joint).child
 
 
-# --- prediction: a model forward-simulated under measured torques -----------------------------------
+# --- rollouts: a model forward-simulated under given joint torques, many starts in one batch -------
 
 
 PREDICTION_TIMESTEP = 0.001  # s: RK4 steps of a prediction (the log's torques read at every stage)
+_BLOCK = 1024.0  # s: rollout b runs on the clock from b * _BLOCK, which tells the callback whose drive it is
 
 
-def predict(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray,
-            starts: np.ndarray, horizons: tuple[float, ...],
-            timestep: float = PREDICTION_TIMESTEP) -> tuple[np.ndarray, np.ndarray]:
-    """How far a model drifts from a measured motion under its measured torques. From each start row
-    s, MuJoCo starts at the measured (q, q') and integrates (RK4, `timestep`) with the joint torques
-    read from the log (linear interpolation in time, at every stage of every step), less the model's
-    dry friction (friction.Dry: Coulomb, offset and the families' terms; its rotor inertia and viscous
-    friction are MuJoCo's armature and damping); at each horizon the error q_sim - q_meas and
-    q'_sim - q'_meas. t (N,), q, qd, tau (N, n) in the spec's joint order; returns two
-    (starts, horizons, n) arrays, NaN where the simulation diverged."""
+def stage_times(steps: int, timestep: float) -> np.ndarray:
+    """(2 steps + 1,): the times, from a rollout's start, at which RK4 evaluates the dynamics (each
+    step's start, middle (twice) and end): where `rollouts` reads a drive."""
+    return np.arange(2 * steps + 1) * (timestep / 2)
+
+
+def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[friction.JointFriction, ...]],
+             q0: np.ndarray, qd0: np.ndarray, drives: np.ndarray,
+             timestep: float = PREDICTION_TIMESTEP) -> tuple[np.ndarray, np.ndarray]:
+    """B forward simulations of the robot in one batch of `mujoco.rollout` (RK4, `timestep`): rollout
+    b starts at (q0[b], qd0[b]) (B, n) and is driven by the joint torques drives[b] (B, 2 steps + 1, n),
+    given at `stage_times(steps, timestep)`, less the dry friction of its own law frictions[b]
+    (friction.Dry: Coulomb, offset and the families' terms); its rotor inertia and viscous friction are
+    MuJoCo's armature and damping, so laws that differ only in friction share the robot's inertials.
+    Returns q and q' after each step, (B, steps, n) in the spec's joint order, NaN from the step at
+    which a rollout diverged (a non-finite state, or MuJoCo's reset on one)."""
     model = build_spec(spec, gravity_W, "RK4", timestep).compile()
     data = mujoco.MjData(model)
     joint_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
     qadr, vadr = model.jnt_qposadr[joint_ids], model.jnt_dofadr[joint_ids]
-    dry = friction.Dry.of(spec.frictions)
-    viscous = friction.values(spec.frictions)[:, 1]
-    steps = [round(h / timestep) for h in horizons]
-    q_err = np.full((len(starts), len(horizons), len(joint_ids)), np.nan)
-    qd_err = np.full_like(q_err, np.nan)
-    qvel, qfrc_applied = data.qvel, data.qfrc_applied
-    columns = np.arange(tau.shape[1])
-    half = timestep / 2  # RK4 evaluates at the step's start, middle (twice) and end
-    stages = np.arange(2 * steps[-1] + 1) * half
-    drives = [np.zeros((len(stages), len(columns)))]  # the log's torques at every stage time of one start
+    B = len(q0)
+    steps = (drives.shape[1] - 1) // 2
+    laws, models, forcing = {}, {}, []  # each distinct law once: its model (armature, damping) and dry friction
+    for fr in frictions:
+        if id(fr) not in laws:
+            k = friction.values(fr)
+            m = model
+            if fr != tuple(spec.frictions):
+                m = copy.copy(model)
+                m.dof_armature[vadr], m.dof_damping[vadr] = k[:, 0], k[:, 1]
+            laws[id(fr)], models[id(fr)] = (friction.Dry.of(fr), k[:, 1]), m
+        forcing.append(laws[id(fr)])
+    half, last = timestep / 2, 2 * steps
+    v_at = _as_slice(vadr)
+    qvel, qfrc_applied = data.qvel, data.qfrc_applied  # views of the one MjData the rollouts run in
 
     def applied(m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        drive = drives[0][round(d.time / half)]
-        v = qvel[vadr]
+        now = d.time
+        b = min(int(now // _BLOCK), B - 1)  # (a rollout MuJoCo reset restarts at time 0: its NaN is set below)
+        drive = drives[b, min(round((now - b * _BLOCK) / half), last)]
+        dry, viscous = forcing[b]
+        v = qvel[v_at]
         # load-dependent friction: the drive's torque less the rest of its friction stands for the
         # rigid-body torque (the rotor inertia's part, I_a q'', is not known before the step)
-        rigid = drive - dry(v, load=False) - viscous * v if dry.needs_load else None
-        qfrc_applied[vadr] = drive - dry(v, rigid)
+        qfrc_applied[v_at] = drive - (dry(v, drive - dry(v, load=False) - viscous * v) if dry.needs_load else dry(v))
 
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state0 = np.empty(mujoco.mj_stateSize(model, full))
+    mujoco.mj_getState(model, data, state0, full)  # the layout: time, qpos, qvel, ...
+    state0 = np.tile(state0, (B, 1))
+    clock = np.arange(B) * _BLOCK
+    state0[:, 0] = clock
+    state0[:, 1 + qadr], state0[:, 1 + model.nq + vadr] = q0, qd0
     mujoco.set_mjcb_control(applied)
     warned = len(_WARNINGS)
     _COLLECTING[0] = True
     try:
-        for i, s in enumerate(starts):
-            mujoco.mj_resetData(model, data)
-            data.qpos[qadr], data.qvel[vadr] = q[s], qd[s]
-            drives[0] = np.column_stack([np.interp(t[s] + stages, t, tau[:, j]) for j in columns])
-            for k in range(1, steps[-1] + 1):
-                mujoco.mj_step(model, data)
-                if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))) or any(
-                        data.warning[w].number for w in _UNSTABLE):
-                    break
-                if k in steps:
-                    h = steps.index(k)
-                    at = t[s] + k * timestep
-                    q_err[i, h] = data.qpos[qadr] - np.array([np.interp(at, t, q[:, j]) for j in columns])
-                    qd_err[i, h] = data.qvel[vadr] - np.array([np.interp(at, t, qd[:, j]) for j in columns])
+        state, _ = mujoco_rollout.rollout([models[id(fr)] for fr in frictions], data, state0,
+                                          np.zeros((1, 1, model.nu)), nstep=steps)
     finally:
         mujoco.set_mjcb_control(None)
         _COLLECTING[0] = False
-        del _WARNINGS[warned:]  # a diverged start is its NaN, not a warning line
-    return q_err, qd_err
+        del _WARNINGS[warned:]  # a diverged rollout is its NaN, not a warning line
+    q, qd = state[:, :, 1 + qadr], state[:, :, 1 + model.nq + vadr]
+    expected = clock[:, None] + np.arange(1, steps + 1) * timestep
+    bad = ~(np.isfinite(q).all(axis=2) & np.isfinite(qd).all(axis=2)) | (np.abs(state[:, :, 0] - expected) > half)
+    bad = np.logical_or.accumulate(bad, axis=1)
+    return np.where(bad[..., None], np.nan, q), np.where(bad[..., None], np.nan, qd)
+
+
+def log_drives(t: np.ndarray, tau: np.ndarray, start_times: np.ndarray, steps: int, timestep: float,
+               delay: np.ndarray | None = None) -> np.ndarray:
+    """(B, 2 steps + 1, n): a log's torques tau (N, n) at times t (N,) read at the stage times of rollouts
+    starting at `start_times` (B,), by linear interpolation; with `delay` (n,) or (B, n), each joint's
+    channel read that much later (a channel behind its encoder)."""
+    at = start_times[:, None] + stage_times(steps, timestep)  # (B, S)
+    shift = np.zeros((len(start_times), tau.shape[1])) if delay is None else np.broadcast_to(
+        delay, (len(start_times), tau.shape[1]))
+    return np.stack([np.interp(at + shift[:, j:j + 1], t, tau[:, j]) for j in range(tau.shape[1])], axis=-1)
+
+
+def predict(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray,
+            starts: np.ndarray, horizons: tuple[float, ...], timestep: float = PREDICTION_TIMESTEP,
+            delay: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """How far a model drifts from a measured motion under its measured torques. From each start row
+    s, MuJoCo starts at the measured (q, q') and integrates (`rollouts`: RK4, `timestep`) with the
+    joint torques read from the log (linear interpolation in time, at every stage of every step; each
+    channel `delay` (n,) s later where given), less the model's dry friction; at each horizon the error
+    q_sim - q_meas and q'_sim - q'_meas. t (N,),
+    q, qd, tau (N, n) in the spec's joint order; returns two (starts, horizons, n) arrays, NaN where
+    the simulation diverged."""
+    steps = [round(h / timestep) for h in horizons]
+    drives = log_drives(t, tau, t[starts], steps[-1], timestep, delay)
+    q_sim, qd_sim = rollouts(spec, gravity_W, [tuple(spec.frictions)] * len(starts), q[starts], qd[starts], drives,
+                             timestep)
+    at = t[starts][:, None] + np.array(steps) * timestep  # (starts, horizons)
+    columns = range(q.shape[1])
+    q_meas = np.stack([np.interp(at, t, q[:, j]) for j in columns], axis=-1)
+    qd_meas = np.stack([np.interp(at, t, qd[:, j]) for j in columns], axis=-1)
+    rows = np.array(steps) - 1
+    return q_sim[:, rows] - q_meas, qd_sim[:, rows] - qd_meas
 
 
 # --- the robot as an MJCF file for others to simulate ----------------------------------------------

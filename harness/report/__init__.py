@@ -20,6 +20,7 @@ RENDERERS = {
     "estimators": lambda r, rec: sections.estimator_comparison(r),
     "payload": lambda r, rec: sections.payload(r),
     "log_identification": sections.log_identification,
+    "refinement": lambda r, rec: sections.refinement(r),
 }
 
 

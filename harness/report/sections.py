@@ -270,6 +270,38 @@ def log_identification(r: dict, log) -> str:
         + f"<p>Condition number of the scaled base regressor {num(ls['condition_number'])}.</p>" + base)
 
 
+def refinement(r: dict) -> str:
+    """The refinement by simulation (harness/stages/refinement.py): what it adjusted, the candidates it
+    made, the model kept, how that does on the validation span, and what it cost beside the methods
+    that report their own rollouts."""
+    rf = r["refinement"]
+    head = f"<p>{esc(rf['definition'])}.</p>"
+    if "note" in rf:
+        return section("refinement", "Refinement by simulation", head + f"<p>{esc(rf['note'])}.</p>")
+    kept = rf["kept"]
+    head += f"<p><b>Kept: {esc(kept)}.</b> Why: {esc(rf['reason'])}.</p>"
+    params = table(["quantity", "consistent fit", "kept"],
+                   [[esc(k), num(v["consistent"]), num(v["refined"])] for k, v in rf["parameters"].items()])
+    cands = table(["candidate", "training: prediction residual (RMS)", "training: torque error", "kept"],
+                  [[esc(k), num(v["prediction_cost"]), num(v["torque_rel_error"]), mark(k == kept, "kept") if k == kept
+                    else ""] for k, v in rf["candidates"].items()])
+    v = rf["validation"]
+    pm = v["prediction"].get("models", {})
+    hs = list(next(iter(pm.values()))) if pm else []
+    judged = (f"<h3>On the {esc(v['span'])} span, which the refinement never reads</h3>"
+              + table(["model", "torque error", *(f"q RMS at {h[1:]}" for h in hs)],
+                      [[esc(m), num(v["torque_rel_error"][m]), *(num(pm[m][h]["q_rms"]) for h in hs)]
+                       for m in ("consistent", "refined") if m in pm]))
+    cost_rows = [[f"pass {k + 1}", num(p["rollouts"]), num(p["steps"]), num(p["evaluations"]), num(p["seconds"]),
+                  esc(p["optimiser"])] for k, p in enumerate(rf["passes"])]
+    cost_rows += [[esc(f"{name} ({m['plugin']})"), num(m["rollouts"]), DASH, DASH, num(m["seconds"]), ""]
+                  for name, m in rf.get("beside", {}).items()]
+    cost = ("<h3>What it cost</h3><p>Rollouts of the refinement (RK4, 1 ms) beside those of the identification "
+            "methods that report theirs (each from its own start).</p>"
+            + table(["run", "rollouts", "steps", "batches", "seconds", "optimiser"], cost_rows))
+    return section("refinement", "Refinement by simulation", head + params + cands + judged + cost)
+
+
 MODELS_LAW = "model's law"  # the key of the model's own law in friction_law.held_out_rel_error
 
 

@@ -41,9 +41,9 @@ class Context:
 
 def log_stages() -> tuple[Stage, ...]:
     """The stages of a measured log's run (harness/sources/log.py)."""
-    from harness.stages import log_identification, log_methods
+    from harness.stages import log_identification, log_methods, refinement
 
-    return (log_identification.STAGE, log_methods.STAGE)
+    return (log_identification.STAGE, log_methods.STAGE, refinement.STAGE)
 
 
 def core_stages() -> tuple[Stage, ...]:

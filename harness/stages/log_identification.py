@@ -69,7 +69,7 @@ class LogIdentification:
     delays: dict = field(default_factory=dict)  # results.json's `delays` (_delay_section)
     torque_constants: dict | None = None  # results.json's `torque_constants` (_constants_section), for currents
     repeated: Repeatability | None = None  # the fit on disjoint segments of the training span
-    prediction: dict = field(default_factory=dict)  # results.json's `prediction` (_prediction)
+    prediction: dict = field(default_factory=dict)  # results.json's `prediction` (`prediction`)
     frictions: tuple = ()  # each joint's identified friction law (harness/model/friction.py JointFriction)
     choice: friction_law.FrictionChoice | None = None  # how each joint's law was chosen, if it was
     extra_names: list[str] = field(default_factory=list)  # the families' coefficients after the base parameters
@@ -319,13 +319,14 @@ def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
     return usable[np.unique(np.linspace(0, len(usable) - 1, count).round().astype(int))]
 
 
-def _prediction(sc, models: dict, log: JointLog, joints: list[str], span: str) -> dict:
-    """Each model forward-simulated in MuJoCo from measured states under the measured torques
-    (harness/engines/mujoco.py, predict): per horizon the RMS and largest position and velocity error."""
+def prediction(sc, models: dict, t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, span: str,
+               joints: list[str], delays: dict | None = None) -> dict:
+    """Each model forward-simulated in MuJoCo from measured states of a span (t (N,), q, q', tau (N, n))
+    under the measured torques (harness/engines/mujoco.py, predict), each channel read delays[model]
+    (n,) s later where given: per horizon the RMS and largest position and velocity error."""
     from harness.engines.mujoco import PREDICTION_TIMESTEP, predict
 
-    q, qd, _, tau = joint_data(log, joints)
-    starts = _starts(log.t, HORIZONS[-1], PREDICTION_STARTS)
+    starts = _starts(t, HORIZONS[-1], PREDICTION_STARTS)
     out = {"definition": f"from {len(starts)} measured states along the {span} span, each model forward-simulated "
                          "in MuJoCo (RK4, 1 ms) under the measured joint torques less its dry friction (Coulomb, "
                          "offset and its family's terms); at each horizon q_sim - q_meas [rad or m] and "
@@ -338,7 +339,8 @@ def _prediction(sc, models: dict, log: JointLog, joints: list[str], span: str) -
         out["note"] = f"no stretch of the {span} span is {HORIZONS[-1]:g} s long"
         return out
     for name, spec in models.items():
-        q_err, qd_err = predict(spec, sc.gravity_W, log.t, q, qd, tau, starts, HORIZONS)
+        q_err, qd_err = predict(spec, sc.gravity_W, t, q, qd, tau, starts, HORIZONS,
+                                delay=(delays or {}).get(name))
         per = {}
         for h, horizon in enumerate(HORIZONS):
             e, ed = q_err[:, h], qd_err[:, h]
@@ -352,6 +354,39 @@ def _prediction(sc, models: dict, log: JointLog, joints: list[str], span: str) -
                 "diverged": diverged}
         out["models"][name] = per
     return out
+
+
+def consistent_fit(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law, ...], theta_model: np.ndarray,
+                   friction_model: np.ndarray, extra_model: np.ndarray) -> tuple[consistent.ConsistentFit,
+                                                                                 tuple[JointFriction, ...]]:
+    """The physically consistent fit (harness/identify/consistent.py) of the torques tau (N, n) on the
+    regressor W (N n, 14 n: every link's ten parameters, every joint's four drive terms at its law's
+    velocities) and the families' columns E (N n, e, extra_terms(laws)), pulled towards the model's
+    own values (theta_model (n, 10), friction_model (n, 4), extra_model (e,)) where the data cannot
+    tell; and each joint's identified friction law."""
+    N, n = tau.shape
+    terms = extra_terms(laws)
+    W_all = np.hstack([W, E])
+    # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
+    # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
+    rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(N, n, -1) ** 2, axis=0)).reshape(n, n, 4)
+    cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
+    rms_tau = np.sqrt(np.mean(tau**2, axis=0))
+    carry = rms_tau[:, None] / np.where(cols > 0, cols, 1.0)
+    friction_scale = np.maximum(np.abs(friction_model), carry)
+    friction_scale = np.maximum(friction_scale, PARAMETER_FLOOR * friction_scale.max(axis=0, initial=0.0))  # a joint
+    # that carries nothing has no size of its own
+    extra_rms = np.sqrt(np.mean(E.reshape(N, n, -1) ** 2, axis=0))  # (n, e): each column's RMS on each joint's rows
+    extra_scale = np.array([max(abs(extra_model[c]), rms_tau[k] / max(float(extra_rms[k, c]), 1e-300))
+                            for c, (k, _) in enumerate(terms)])
+    scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel(), extra_scale])
+    fit = consistent.fit(W_all, tau.reshape(-1), theta_model, friction_model, scale, tuple(terms), extra_model)
+    frictions = tuple(
+        JointFriction(*map(float, fit.friction[k]), coulomb_velocity=law.coulomb_velocity,
+                      stribeck_velocity=law.stribeck_velocity,
+                      **{key: float(fit.extra[c]) for c, (kk, key) in enumerate(terms) if kk == k})
+        for k, law in enumerate(laws))
+    return fit, frictions
 
 
 def run(ctx, config) -> LogIdentification | None:
@@ -407,7 +442,6 @@ def run(ctx, config) -> LogIdentification | None:
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in terms])
     W_ls = np.hstack([W[:, base.independent], extra_regressor(laws, qd, rigid_train)])
     beta_model = np.concatenate([beta_model, extra_model])
-    L = tau.reshape(-1)
     ls = with_structure(fit_base(W_ls, tau, beta_model), base)
     repeated, repeat_note = None, None
     if sc.data.repeat:
@@ -416,28 +450,9 @@ def run(ctx, config) -> LogIdentification | None:
         except ValueError as exc:
             repeat_note = f"repeatability not measured: {exc}"
     friction_model = friction_values(robot.frictions)
-    W_all = np.hstack([W, W_ls[:, len(base.independent):]])
-    # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
-    # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
-    rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(len(q), n, -1) ** 2, axis=0)).reshape(n, n, 4)
-    cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
-    rms_tau = np.sqrt(np.mean(tau**2, axis=0))
-    carry = rms_tau[:, None] / np.where(cols > 0, cols, 1.0)
-    friction_scale = np.maximum(np.abs(friction_model), carry)
-    friction_scale = np.maximum(friction_scale, PARAMETER_FLOOR * friction_scale.max(axis=0, initial=0.0))  # a joint
-    # that carries nothing has no size of its own
-    E3 = W_all[:, 14 * n:].reshape(len(q), n, -1)
-    extra_rms = np.sqrt(np.mean(E3**2, axis=0))  # (n, e): each column's RMS on each joint's rows
-    extra_scale = np.array([max(abs(extra_model[c]), rms_tau[k] / max(float(extra_rms[k, c]), 1e-300))
-                            for c, (k, _) in enumerate(terms)])
-    scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel(), extra_scale])
     ctx.progress("physically consistent parameters (semidefinite program)", None)
-    fit = consistent.fit(W_all, L, theta_model, friction_model, scale, tuple(terms), extra_model)
-    identified_frictions = tuple(
-        JointFriction(*map(float, fit.friction[k]), coulomb_velocity=law.coulomb_velocity,
-                      stribeck_velocity=law.stribeck_velocity,
-                      **{key: float(fit.extra[c]) for c, (kk, key) in enumerate(terms) if kk == k})
-        for k, law in enumerate(laws))
+    fit, identified_frictions = consistent_fit(W, W_ls[:, len(base.independent):], tau, laws, theta_model,
+                                               friction_model, extra_model)
     plausible = plausibility(fit.theta, theta_model, joints, fit.margin)
     warnings = []
     if plausible["implausible"]:
@@ -494,9 +509,9 @@ def run(ctx, config) -> LogIdentification | None:
                    "physically consistent inertial parameters, friction and rotor inertia")
     files = export(robot, fit.theta, identified_frictions, description)
     ctx.progress("the models forward-simulated under the measured torques", None)
-    judged_on = ("validation", validation) if validation is not None else ("training", train)
     simulated = {"consistent": identified, "model as given": robot, **({"truth": sc.truth} if sc.truth else {})}
-    prediction = _prediction(sc, simulated, judged_on[1], joints, judged_on[0])
+    span = "validation" if validation is not None else "training"
+    predicted = prediction(sc, simulated, spans[span][4], *spans[span][:2], spans[span][3], span, joints)
     mapping = coulomb_mapping(identified, qd, tau, (W[:, : 10 * n] @ fit.theta.ravel()).reshape(tau.shape))
     worst = max(mapping, key=lambda j: mapping[j]["rms"])
     try:  # MuJoCo's compiler has checks of its own: what it refuses is said, not a crash
@@ -513,7 +528,7 @@ def run(ctx, config) -> LogIdentification | None:
     return LogIdentification(joints, parameter_names(joints, True), base, beta_model, ls, fit, theta_model,
                              friction_model, predictions, measured, times, files, mapping, refused, plausible, warnings,
                              truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints),
-                             _constants_section(constants, sc.data, joints), repeated, prediction,
+                             _constants_section(constants, sc.data, joints), repeated, predicted,
                              identified_frictions, choice, [f"{joints[k]}.{key}" for k, key in terms], laws,
                              {span: v[:3] for span, v in spans.items()})
 

@@ -46,6 +46,7 @@ class LogMethod:
     friction: np.ndarray | None = None  # (n, 4) [armature, viscous, coulomb, offset], where it reports them
     seconds: float | None = None  # its fit's wall time (None: the harness's own fits)
     notes: tuple[str, ...] = ()
+    rollouts: int | None = None  # the simulations it ran, where it reports them (`rollouts` of its fitted model)
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,7 +66,8 @@ class LogMethods:
             elif m.plugin == BUILT_IN:
                 out[m.name] = {"plugin": m.plugin, **self._row(ctx, m)}
             else:
-                out[m.name] = {"plugin": m.plugin, "seconds": m.seconds, **self._row(ctx, m), "notes": list(m.notes)}
+                out[m.name] = {"plugin": m.plugin, "seconds": m.seconds, **self._row(ctx, m), "notes": list(m.notes),
+                               **({"rollouts": m.rollouts} if m.rollouts is not None else {})}
         return out
 
     def _row(self, ctx, m: LogMethod) -> dict:
@@ -113,6 +115,14 @@ def _notes(plugin: str, fitted) -> tuple[str, ...]:
         return tuple(" ".join(x.split())[:MAX_NOTE] for x in notes)
 
 
+def _rollouts(plugin: str, fitted) -> int | None:
+    with guard(plugin, "reading the fitted model's rollouts"):
+        count = getattr(fitted, "rollouts", None)
+        if count is not None and (isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 0):
+            raise PluginError(plugin, f"rollouts must be a count (a non-negative integer), not {count!r}")
+        return None if count is None else int(count)
+
+
 def _judge(ctx, entry, li) -> LogMethod | SkippedMethod:
     if entry.skipped is not None:
         return SkippedMethod.of(entry)
@@ -126,7 +136,8 @@ def _judge(ctx, entry, li) -> LogMethod | SkippedMethod:
     predictions = {span: inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, joints, *states)
                    for span, states in li.states.items()}
     return LogMethod(entry.name, plugin, predictions, reported(plugin, fitted, "parameters", joints, 10),
-                     reported(plugin, fitted, "friction", joints, 4), seconds, _notes(plugin, fitted))
+                     reported(plugin, fitted, "friction", joints, 4), seconds, _notes(plugin, fitted),
+                     _rollouts(plugin, fitted))
 
 
 def run(ctx, config) -> LogMethods | None:
