@@ -121,6 +121,76 @@ def torques(figures: dict) -> None:
         lambda: identify(model, rec, rows, Measurement(), with_system=False), rounds=2)[0]
 
 
+ROBOTS = (("panda", "panda_sines"), ("ur5", "ur5_sines"), ("kr500", "kr500_all_joints"))
+SCALING = (1_000, 10_000, 100_000, 1_000_000)
+
+
+def _like_for_like(scenario: str) -> dict:
+    import pinocchio as pin
+
+    from harness.engines.pinocchio import build_model
+    from harness.papers.graph_theory_2021.model import make
+    from harness.runner.scenario import load_scenario
+
+    sc = load_scenario(ROOT / "harness" / "data" / "scenarios" / f"{scenario}.toml")
+    n = len(sc.robot.joints)
+    graph, pm = make(sc.robot, sc.gravity_W), build_model(sc.robot, sc.gravity_W)
+    q, qd, qdd = joint_motion(n, N)
+    qq, vv, aa = (np.zeros((N, pm.model.nq)) for _ in range(3))
+    qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    data = pm.model.createData()
+    pool = pin.ModelPool(pm.model, 1)
+    Q, V, A = (np.asfortranarray(x.T) for x in (qq, vv, aa))
+    tau = np.empty((pm.model.nv, N), order="F")
+
+    def loop():
+        for k in range(N):
+            pin.rnea(pm.model, data, qq[k], vv[k], aa[k])
+
+    t_graph, t_loop, t_batch = alternately(lambda: graph.solve(q, qd, qdd), loop,
+                                           lambda: pin.rneaInParallel(1, pool, Q, V, A, tau))
+    check = graph.solve(q[:50], qd[:50], qdd[:50]).tau
+    ref = np.array([pin.rnea(pm.model, data, qq[k], vv[k], aa[k]) for k in range(50)])[:, pm.q_index]
+    return {"joints": n, "states": N, "graph_us": 1e6 * t_graph / N, "pinocchio_loop_us": 1e6 * t_loop / N,
+            "pinocchio_batch_1_thread_us": 1e6 * t_batch / N, "over_loop": t_graph / t_loop,
+            "over_batch": t_graph / t_batch,
+            "max_rel_difference": float(np.max(np.abs(check - ref)) / np.max(np.abs(ref)))}
+
+
+def _graph_at(graph, n: int, states: int) -> dict:
+    q, qd, qdd = joint_motion(n, states)
+    seconds = alternately(lambda: graph.solve(q, qd, qdd), rounds=2 if states > N else 3)[0]
+    tracemalloc.start()
+    out = graph.solve(q, qd, qdd)
+    peak = tracemalloc.get_traced_memory()[1] - (out.tau.nbytes + out.F_W.nbytes + out.M_W.nbytes)
+    tracemalloc.stop()
+    return {"us_per_state": 1e6 * seconds / states, "scratch_mib": peak / 2**20}
+
+
+def graph_from_joint_coordinates(figures: dict) -> None:
+    """Joint torques from (q, q', q'') alone, like for like: the graph model (its own forward kinematics
+    and Newton-Euler, harness/papers/graph_theory_2021/inverse.py) against Pinocchio's rnea called per
+    state from Python and against Pinocchio's C++ batch rneaInParallel on 1 thread, both on the same
+    states, no friction on either side; then the graph model's time per state over 1e3 to 1e6 states
+    of the Panda (the log-log slope of time against states) and its peak scratch memory (numpy's
+    allocations, its outputs left out)."""
+    from harness.papers.graph_theory_2021.model import make
+    from harness.runner.scenario import load_scenario
+
+    per_robot = {name: _like_for_like(scenario) for name, scenario in ROBOTS}
+    figures["torques_graph_from_q"] = per_robot
+    figures["torques_graph_from_q_over_pinocchio_loop"] = max(v["over_loop"] for v in per_robot.values())
+    figures["torques_graph_from_q_over_pinocchio_batch"] = max(v["over_batch"] for v in per_robot.values())
+    sc = load_scenario(ROOT / "harness" / "data" / "scenarios" / "panda_sines.toml")
+    graph = make(sc.robot, sc.gravity_W)
+    scaling = {str(states): _graph_at(graph, len(sc.robot.joints), states) for states in SCALING}
+    x = np.log([float(k) for k in scaling])
+    y = np.log([v["us_per_state"] * float(k) for k, v in scaling.items()])
+    figures["torques_graph_from_q_scaling_panda"] = scaling
+    figures["torques_graph_from_q_slope"] = float(np.polyfit(x, y, 1)[0])
+    figures["torques_graph_from_q_scratch_mib_max"] = max(v["scratch_mib"] for v in scaling.values())
+
+
 def _panda():
     from harness.engines.pinocchio import build_model
     from harness.identify.torque_id import structural_base
@@ -162,6 +232,11 @@ def identification_scaling(figures: dict) -> None:
     figures["identification_900k_s"] = long["identification_s"]
     figures["identification_900k_regressor_only_s"] = long["regressor_s"]
     figures["identification_900k_over_regressor"] = long["identification_s"] / long["regressor_s"]
+    solving = json.loads(subprocess.run([sys.executable, __file__, "--long-baseline"], check=True,
+                                        capture_output=True, text=True).stdout)
+    figures["identification_900k_regressor_and_lstsq_s"] = solving["seconds"]
+    figures["identification_900k_regressor_and_lstsq_peak_rss_mib"] = solving["peak_rss_mib"]
+    figures["identification_900k_over_regressor_and_lstsq"] = long["identification_s"] / solving["seconds"]
     figures["identification_900k_peak_rss_mib"] = long["peak_rss_mib"]
     figures["identification_900k_allocated_mib"] = long["identification_allocated_mib"]
     figures["identification_900k_log_arrays_mib"] = long["log_arrays_mib"]
@@ -197,6 +272,42 @@ def long_identification() -> None:
     print(json.dumps({"identification_s": t_fit, "regressor_s": t_reg, "max_rel_error": float(err),
                       "peak_rss_mib": rss, "identification_allocated_mib": own,
                       "log_arrays_mib": 4 * q.nbytes / 2**20}))
+
+
+def long_baseline() -> None:
+    """--long-baseline: what a Pinocchio user writes to identify the same 900,000 samples: the joint-torque
+    regressor state by state into one matrix with the drives' columns (q'', q', sign q', 1 per joint),
+    then numpy's least squares on the same base columns the harness solves for. Its time (the
+    regressor and the solve) and peak memory, in a process of its own."""
+    import pinocchio as pin
+
+    pm, base = _panda()
+    q, qd, qdd = joint_motion(7, LONG)
+    tau = _torques(pm, q, qd, qdd)
+    data = pm.model.createData()
+    n, p = 7, 10 * 7
+    t0 = time.perf_counter()
+    W = np.zeros((LONG * n, p + 4 * n))
+    for k in range(LONG):
+        W[k * n:(k + 1) * n, :p] = pin.computeJointTorqueRegressor(pm.model, data, q[k], qd[k], qdd[k])
+    rows = np.arange(LONG) * n
+    for j in range(n):
+        W[rows + j, p + 4 * j: p + 4 * j + 4] = np.column_stack([qdd[:, j], qd[:, j], np.sign(qd[:, j]),
+                                                                  np.ones(LONG)])
+    beta = np.linalg.lstsq(W[:, base.independent], tau.reshape(-1), rcond=None)[0]
+    seconds = time.perf_counter() - t0
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(json.dumps({"seconds": seconds, "peak_rss_mib": rss, "unknowns": len(beta)}))
+
+
+def import_time(figures: dict) -> None:
+    """`import harness` in a fresh interpreter over a bare one (`python -c pass`), best of 15 each, taken in turns."""
+    def start(code: str):
+        return lambda: subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+
+    t_import, t_bare = alternately(start("import harness"), start("pass"), rounds=15)
+    figures["import_ms"] = 1e3 * t_import
+    figures["import_ms_over_bare"] = 1e3 * (t_import - t_bare)
 
 
 CHAIN = 20
@@ -254,6 +365,7 @@ def runs(figures: dict) -> None:
             if seconds < best:
                 best, stages = seconds, timings
         figures["harness_run_kr500_rail_s"] = best
+        figures["harness_run_kr500_s"] = best
         figures["harness_run_kr500_rail_stages_s"] = stages
         by_joints = {}
         for name, scenario, joints in (("kr500_rail", "kr500_rail", 7), ("ur5_sines", "ur5_sines", 6),
@@ -286,12 +398,16 @@ def sweeps(figures: dict) -> None:
     t0 = time.perf_counter()
     Workers(dask=LOCAL).map(dict, (), _nothing, range(2))
     figures["dask_local_cluster_start_and_stop_s"] = time.perf_counter() - t0
+    figures["sweep_dask_over_jobs2"] = (figures["sweep_trials_per_s_dask_local"]
+                                        / figures["sweep_trials_per_s_2_process"])
 
 
 def main() -> None:
     figures: dict = {"machine": _machine()}
     torques(figures)
+    graph_from_joint_coordinates(figures)
     identification_scaling(figures)
+    import_time(figures)
     runs(figures)
     sweeps(figures)
     out = ROOT / "reports" / "benchmark.json"
@@ -303,6 +419,17 @@ def main() -> None:
           f"(as a plugin, with its forward kinematics: {t['graph_plugin_with_kinematics']:.2f}), "
           f"Pinocchio rnea {t['pinocchio_rnea']:.2f}, MuJoCo mj_inverse {t['mujoco_mj_inverse']:.2f}; "
           f"graph / Pinocchio {figures['torques_ratio_graph_over_pinocchio']:.2f}")
+    print(f"joint torques from (q, q', q'') alone, {N} states, like for like (us per state; ratios: the graph "
+          "model over Pinocchio's rnea per state from Python, over Pinocchio's C++ rneaInParallel on 1 thread):")
+    for name, v in figures["torques_graph_from_q"].items():
+        print(f"    {name:<6} ({v['joints']} joints): graph {v['graph_us']:.2f}, Pinocchio loop "
+              f"{v['pinocchio_loop_us']:.2f}, Pinocchio batch {v['pinocchio_batch_1_thread_us']:.2f}; "
+              f"{v['over_loop']:.2f} x loop, "
+              f"{v['over_batch']:.2f} x batch (agree to {v['max_rel_difference']:.1e})")
+    sc = figures["torques_graph_from_q_scaling_panda"]
+    print("    graph model, Panda, us per state by states: " + ", ".join(
+        f"{k}: {v['us_per_state']:.2f} ({v['scratch_mib']:.0f} MiB scratch)" for k, v in sc.items())
+        + f"; log-log slope {figures['torques_graph_from_q_slope']:.3f}")
     print(f"force-path identification of {N} samples: {figures['identification_10000_samples_s']:.3f} s")
     print("joint-torque identification with friction, Panda (s): "
           + ", ".join(f"{k} samples {v:.2f}" for k, v in figures["identification_torque_path_s"].items())
@@ -310,7 +437,12 @@ def main() -> None:
             f"({figures['identification_900k_regressor_only_s']:.2f} s), peak memory "
             f"{figures['identification_900k_peak_rss_mib']:.0f} MiB (the log's arrays "
             f"{figures['identification_900k_log_arrays_mib']:.0f} MiB, the identification's own "
-            f"{figures['identification_900k_allocated_mib']:.0f} MiB)")
+            f"{figures['identification_900k_allocated_mib']:.0f} MiB); "
+            f"{figures['identification_900k_over_regressor_and_lstsq']:.3f} x a Pinocchio user's regressor loop and "
+            f"least squares ({figures['identification_900k_regressor_and_lstsq_s']:.1f} s, peak "
+            f"{figures['identification_900k_regressor_and_lstsq_peak_rss_mib']:.0f} MiB)")
+    print(f"import harness: {figures['import_ms_over_bare']:.0f} ms over a bare interpreter "
+          f"({figures['import_ms']:.0f} ms in all)")
     print(f"harness run kr500_rail, fresh process: {figures['harness_run_kr500_rail_s']:.2f} s")
     for k, v in figures["harness_run_kr500_rail_stages_s"].items():
         print(f"    {k:<55} {v:6.2f} s")
@@ -318,7 +450,8 @@ def main() -> None:
         print(f"harness run {k} ({v['joints']} joints): {v['seconds']:.2f} s")
     print(f"sweep kr500_noise: {figures['sweep_trials_per_s_1_process']:.1f} trials/s with 1 process, "
           f"{figures['sweep_trials_per_s_2_process']:.1f} with 2, {figures['sweep_trials_per_s_dask_local']:.1f} on a "
-          f"local Dask cluster (which takes {figures['dask_local_cluster_start_and_stop_s']:.1f} s to start and stop)")
+          f"local Dask cluster (which takes {figures['dask_local_cluster_start_and_stop_s']:.1f} s to start and stop); "
+          f"Dask over 2 processes {figures['sweep_dask_over_jobs2']:.2f}")
     print(f"wrote {out}")
 
 
@@ -334,5 +467,7 @@ def _machine() -> str:
 if __name__ == "__main__":
     if "--long" in sys.argv:
         long_identification()
+    elif "--long-baseline" in sys.argv:
+        long_baseline()
     else:
         main()

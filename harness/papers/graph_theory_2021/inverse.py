@@ -42,16 +42,34 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
     return newton_euler(spec, model, q, A_0i_components(np.moveaxis(_bodies(rec.theta, b), -1, 0)), a_c, w_c, wd_c)
 
 
+BLOCK = 2048  # states evaluated together from joint coordinates: a few MiB of scratch, whatever N
+
+
 def inverse_dynamics_of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray,
                                qdd: np.ndarray) -> GraphInverse:
     """From joint coordinates alone (spec joint order, (N, n)): the body motion by forward
-    kinematics of the tree (harness/model/kinematics.py), then Newton-Euler as on a recording."""
-    kin = forward_kinematics(spec, q, qd, qdd)
+    kinematics of the tree (harness/model/kinematics.py), then Newton-Euler as on a recording; in
+    blocks of BLOCK states, so that the scratch memory is bounded and the time linear in N."""
+    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+    N = len(q)
+    if N <= BLOCK:
+        return _of_motion(spec, model, q, qd, qdd)
+    n = len(spec.joints)
+    tau, F_W, M_W = np.empty((N, n)), np.empty((N, n, 3)), np.empty((N, n, 3))
+    for start in range(0, N, BLOCK):
+        rows = slice(start, start + BLOCK)
+        out = _of_motion(spec, model, q[rows], qd[rows], qdd[rows])
+        tau[rows], F_W[rows], M_W[rows] = out.tau, out.F_W, out.M_W
+    return GraphInverse(tau, F_W, M_W)
+
+
+def _of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> GraphInverse:
+    kin = forward_kinematics(spec, q, qd, qdd, velocities=False)
     top = model.topology
     b = [kin.body_index(x) for x in top.bodies]
     cols = [spec.joint_names.index(j) for j in top.joints]
-    A_c = np.ascontiguousarray(np.moveaxis(kin.R_WB[:, b], (-2, -1), (0, 1)))
-    return newton_euler(spec, model, np.atleast_2d(q)[:, cols], A_c,
+    A_c = np.ascontiguousarray(np.moveaxis(_bodies(kin.R_WB, b), (-2, -1), (0, 1)))
+    return newton_euler(spec, model, q[:, cols], A_c,
                         *(_components(x, b) for x in (kin.a_W_com, kin.omega_W, kin.omegadot_W)))
 
 
