@@ -594,6 +594,9 @@ def main(argv: list[str] | None = None) -> int:
     included, is bad input), 3 an internal error, 130 the user's Ctrl-C."""
     from harness.base.plugins import PluginError, interrupted_by_user, user_interrupts
 
+    # the command draws nothing on screen: MuJoCo's OpenGL contexts (glfw, about 0.13 s of its import)
+    # are not loaded unless the environment asks for them (MUJOCO_GL set beforehand is kept)
+    os.environ.setdefault("MUJOCO_GL", "disable")
     args = _parser().parse_args(argv)
     for attr in ("out", "junit_xml", "summary"):  # where to write, fixed now: plugin code may change directory
         if getattr(args, attr, None) is not None:

@@ -355,6 +355,18 @@ def test_importing_harness_loads_no_engine_and_no_paper():
     assert out.stdout.strip() == "[]", out.stdout
 
 
+def test_a_simulated_scenario_loads_no_convex_solver_and_no_optimiser():
+    """Reading a simulated scenario knows the log stages' tables (stages.LOG_TABLES) without importing
+    their modules, which import cvxpy and scipy.optimize (about 2 s together on a 2-core machine)."""
+    from harness.stages import LOG_TABLES, log_stages
+
+    assert set(LOG_TABLES) == {s.table for s in log_stages() if s.table is not None}
+    code = ("import sys, harness; harness.load_scenario('kr500_rail'); "
+            "print(sorted(m for m in ('cvxpy', 'scipy.optimize') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
+
+
 def test_the_version_is_read_from_the_installed_metadata_only_when_asked_for():
     """`import harness` leaves importlib.metadata (about 40 ms) unloaded unless something before it
     loaded it; `harness.__version__` then reads the installed distribution's version."""

@@ -45,20 +45,66 @@ scenarios is 370.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+T_LARGE_DOF = 1000  # beyond it the quantile is the Cornish-Fisher series (its next term under 1e-11 relative)
+
 
 @functools.lru_cache(maxsize=256)
 def t_quantile(dof: int, p: float = 0.975) -> float:
-    """Student's t quantile, t with P(T <= t) = p for dof degrees of freedom (scipy.special.stdtrit)."""
-    from scipy.special import stdtrit  # about 35 ms, paid by a run that states an interval
+    """Student's t quantile, t with P(T <= t) = p for dof degrees of freedom.
 
+    Written here, not taken from scipy.special.stdtrit: importing scipy.special costs 0.35 to 0.4 s,
+    a fifth of the default run, which needs only this number. Abramowitz and Stegun: for dof above
+    T_LARGE_DOF the Cornish-Fisher expansion 26.7.5 about the normal quantile x (four terms, the
+    fifth of order x^11 / dof^5); below it, Newton's method on the exact distribution function of
+    26.7.3 (a finite sum of powers of cos(atan(t / sqrt(dof)))), from that expansion. Agrees with
+    scipy.special.stdtrit to 1e-12 relative for p up to 0.9995 and 1e-10 at 0.999999, dof 1 to 1e7
+    (measured: 2.2e-13 and 3.3e-11; tests/test_identification.py)."""
     if not 0.5 <= p < 1.0 or dof < 1:
         raise ValueError(f"t_quantile: needs 0.5 <= p < 1 and dof >= 1, got p = {p}, dof = {dof}")
-    return float(stdtrit(dof, p))
+    from statistics import NormalDist
+
+    x = NormalDist().inv_cdf(p)
+    nu = float(dof)
+    t = x + ((x**3 + x) / 4 + ((5 * x**5 + 16 * x**3 + 3 * x) / 96
+             + ((3 * x**7 + 19 * x**5 + 17 * x**3 - 15 * x) / 384
+                + (79 * x**9 + 776 * x**7 + 1482 * x**5 - 1920 * x**3 - 945 * x) / 92160 / nu) / nu) / nu) / nu
+    if dof > T_LARGE_DOF:
+        return t
+    if dof == 1:
+        return math.tan(math.pi * (p - 0.5))  # the Cauchy distribution
+    if dof == 2:
+        return (2 * p - 1) * math.sqrt(2 / (4 * p * (1 - p)))
+    log_norm = math.lgamma((nu + 1) / 2) - math.lgamma(nu / 2) - 0.5 * math.log(nu * math.pi)
+    for _ in range(50):
+        step = (_t_cdf(t, dof) - p) / math.exp(log_norm - (nu + 1) / 2 * math.log1p(t * t / nu))
+        t -= step
+        if abs(step) <= 1e-15 * abs(t):
+            break
+    return t
+
+
+def _t_cdf(t: float, dof: int) -> float:
+    """P(T <= t), t >= 0, for integer dof >= 3 (Abramowitz and Stegun 26.7.3): with theta = atan(t / sqrt(dof)),
+    A = (2 / pi) (theta + sin(theta) sum_k c_k cos(theta)^(2k + 1)) for odd dof and
+    A = sin(theta) sum_k c_k cos(theta)^(2k) for even dof, each c_k the previous times (2k) / (2k + 1)
+    (odd) or (2k - 1) / (2k) (even); P = (1 + A) / 2."""
+    theta = math.atan(t / math.sqrt(dof))
+    c2 = math.cos(theta) ** 2
+    if dof % 2:
+        k = np.arange(1, (dof - 1) // 2)
+        terms = np.cumprod(np.r_[math.cos(theta), c2 * (2 * k) / (2 * k + 1)])
+        a = 2 / math.pi * (theta + math.sin(theta) * float(terms.sum()))
+    else:
+        k = np.arange(1, dof // 2)
+        terms = np.cumprod(np.r_[1.0, c2 * (2 * k - 1) / (2 * k)])
+        a = math.sin(theta) * float(terms.sum())
+    return (1 + a) / 2
 
 
 SNR_MIN = 10.0  # a column must be 10 times what measurement error alone produces

@@ -370,12 +370,12 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
                     for t in (root.one_or_many("identification") if root.has("identification") else ()))
     for kind, entries in (("model_under_test", models), ("identification", methods)):
         _check_names(path, kind, entries, gates)
-    from harness.stages import core_stages, log_stages
+    from harness.stages import LOG_TABLES, core_stages
 
     scenario = _configured(root, scenario, core_stages())
-    for stage in log_stages():  # a log's stage's table in a simulated scenario: said, not "unknown key"
-        if stage.table is not None and root.has(stage.table):
-            raise root.error(stage.table, "a table of a run on a measured log: the scenario needs [data]")
+    for table in LOG_TABLES:  # a log's stage's table in a simulated scenario: said, not "unknown key"
+        if root.has(table):
+            raise root.error(table, "a table of a run on a measured log: the scenario needs [data]")
     studies = []
     if root.has("studies"):
         st = root.table("studies")

@@ -39,6 +39,10 @@ class Context:
         return self.cache[key]
 
 
+LOG_TABLES = ("friction_law", "refinement")  # the scenario tables of log_stages(), known without importing them
+# (their modules import the convex solver and the optimiser: a simulated scenario does not pay for that)
+
+
 def log_stages() -> tuple[Stage, ...]:
     """The stages of a measured log's run (harness/sources/log.py)."""
     from harness.stages import log_identification, log_methods, refinement
