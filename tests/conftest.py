@@ -98,6 +98,21 @@ def copy_gate_sets(scenarios_folder: Path) -> None:
     shutil.copytree(SCENARIOS / "gates", scenarios_folder / "gates", dirs_exist_ok=True)
 
 
+def late_log(scenario, lags, duration: float = 8.0, steps: int = 4000):
+    """A bench log (DataFrame of t, q{k}, qd{k}, tau{k}) whose torque channels lag the encoders by
+    lags[k] s: each read from the recording's torques that much earlier, by interpolation."""
+    import numpy as np
+    import pandas as pd
+
+    rec = record(dataclasses.replace(scenario, duration=duration, output_steps=steps))
+    cols = {"t": rec.t}
+    for k, j in enumerate(scenario.robot.joint_names):
+        c = rec.joint_index(j)
+        cols[f"q{k + 1}"], cols[f"qd{k + 1}"] = rec.q[:, c], rec.qd[:, c]
+        cols[f"tau{k + 1}"] = np.interp(rec.t - lags[k], rec.t, rec.tau[:, c])
+    return pd.DataFrame(cols)
+
+
 def bench_log(scenario, folder, duration: float, steps: int) -> None:
     """The scenario's bench recording, shortened, written as a log of t, q, q', tau."""
     rec = record(dataclasses.replace(scenario, duration=duration, output_steps=steps))

@@ -18,6 +18,7 @@ import pytest
 from harness.api import load_scenario
 from harness.cli import main
 from tests.conftest import SCENARIOS, bench_log
+from tests.conftest import late_log as lagging_log
 
 MODEL = SCENARIOS.parent / "models" / "ur5_friction.toml"
 GATE = '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1e-2\n'
@@ -312,20 +313,8 @@ def test_a_bag_without_the_topic_or_a_joint_is_refused_in_one_line(si_log, tmp_p
 
 @pytest.fixture(scope="module")
 def late_log(tmp_path_factory):
-    """An 8 s bench log at 500 Hz whose torque channels lag the encoders by 1 to 10 ms (each read from
-    the recording's torques that much earlier, by interpolation)."""
-    import dataclasses
-
-    from harness.sources.bench import record
-
-    sc = load_scenario(SCENARIOS / "ur5_friction.toml")
-    rec = record(dataclasses.replace(sc, duration=8.0, output_steps=4000))
-    cols = {"t": rec.t}
-    for k, j in enumerate(sc.robot.joint_names):
-        c = rec.joint_index(j)
-        cols[f"q{k + 1}"], cols[f"qd{k + 1}"] = rec.q[:, c], rec.qd[:, c]
-        cols[f"tau{k + 1}"] = np.interp(rec.t - LAGS[k], rec.t, rec.tau[:, c])
-    return pd.DataFrame(cols)
+    """An 8 s bench log at 500 Hz whose torque channels lag the encoders by 1 to 10 ms."""
+    return lagging_log(load_scenario(SCENARIOS / "ur5_friction.toml"), LAGS)
 
 
 LAGS = np.array([1.0, 2.5, 4.0, 6.0, 8.0, 10.0]) * 1e-3

@@ -22,7 +22,7 @@ from harness.cli import main
 from harness.engines.mujoco import build_spec, log_drives, rollouts, stage_times
 from harness.model import friction
 from harness.stages.refinement import Candidate, choose
-from tests.conftest import SCENARIOS
+from tests.conftest import SCENARIOS, late_log
 
 STEPS = 60
 TIMESTEP = 1e-3
@@ -142,16 +142,9 @@ def late_log_wrong_law(tmp_path_factory, ur5):
     import tomli_w
 
     from harness.base.tomlio import read_toml
-    from harness.sources.bench import record
 
     folder = tmp_path_factory.mktemp("late_wrong")
-    rec = record(dataclasses.replace(ur5, duration=8.0, output_steps=4000))
-    cols = {"t": rec.t}
-    for k, j in enumerate(ur5.robot.joint_names):
-        c = rec.joint_index(j)
-        cols[f"q{k + 1}"], cols[f"qd{k + 1}"] = rec.q[:, c], rec.qd[:, c]
-        cols[f"tau{k + 1}"] = np.interp(rec.t - LAGS[k], rec.t, rec.tau[:, c])
-    pd.DataFrame(cols).to_csv(folder / "log.csv", index=False, float_format="%.17g")
+    late_log(ur5, LAGS).to_csv(folder / "log.csv", index=False, float_format="%.17g")
     model = read_toml(SCENARIOS.parent / "models" / "ur5_friction.toml")
     for joint in model["joints"].values():
         joint["coulomb_velocity"] = 0.1
