@@ -21,7 +21,7 @@ from harness.api import load_scenario
 from harness.cli import main
 from harness.engines.mujoco import build_spec, log_drives, rollouts, stage_times
 from harness.model import friction
-from harness.stages.refinement import Candidate, choose
+from harness.stages.refinement import Candidate, choose, values
 from tests.conftest import SCENARIOS, late_log
 
 STEPS = 60
@@ -129,6 +129,17 @@ def test_the_model_kept_predicts_best_among_those_that_fit_the_torques_as_well()
     assert chosen == 2 and "'b'" in reason
     chosen, reason = choose([consistent, better_motion_worse_torques])
     assert chosen == 0 and "no candidate" in reason
+
+
+def test_each_adjusted_value_is_read_from_its_own_joint():
+    """A joint with nothing to adjust (a sharp sign, v_c = 0, and no delay asked for) has no slot: the
+    slots after it still read their own joint's law, not the next one's."""
+    from harness.model.friction import JointFriction
+
+    frictions = (JointFriction(coulomb_velocity=0.01), JointFriction(coulomb_velocity=0.0),
+                 JointFriction(coulomb_velocity=0.03))
+    c = Candidate("c", np.zeros((3, 10)), frictions, (), np.array([1e-3, 2e-3, 3e-3]), 1.0, 0.01)
+    assert values(((0, "coulomb_velocity"), (2, "coulomb_velocity"), (2, "delay")), c) == [0.01, 0.03, 3e-3]
 
 
 LAGS = np.array([1.0, 2.5, 4.0, 6.0, 8.0, 10.0]) * 1e-3

@@ -71,7 +71,8 @@ class RefineConfig:
 
 @dataclass(frozen=True, eq=False)
 class Refinement:
-    names: tuple[str, ...]  # "<joint>.coulomb_velocity", "<joint>.stribeck_velocity", "<joint>.delay"
+    slots: tuple[tuple[int, str], ...]  # what was adjusted: (joint index, "coulomb_velocity" | ... | "delay")
+    names: tuple[str, ...]  # the same as "<joint>.<key>"
     initial: np.ndarray  # the values it started from (rad/s or m/s; s)
     refined: np.ndarray
     frictions: tuple[JointFriction, ...]  # the refined law: velocities and re-solved coefficients
@@ -289,7 +290,7 @@ def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray,
         return np.array([v if key == "delay" else np.exp(v) for (_, key), v in zip(slots, z, strict=True)])
 
     joints = spec.joint_names
-    return Refinement(tuple(f"{joints[k]}.{key}" for k, key in slots), natural(x0_a), natural(result.x), frictions,
-                      lag, cost, torque, len(starts), counts["rollouts"],
+    return Refinement(tuple(slots), tuple(f"{joints[k]}.{key}" for k, key in slots), natural(x0_a),
+                      natural(result.x), frictions, lag, cost, torque, len(starts), counts["rollouts"],
                       counts["rollouts"] * steps, counts["evaluations"], time.perf_counter() - started,
                       str(result.message))

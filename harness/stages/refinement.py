@@ -82,11 +82,10 @@ class RefinementResult:
                "starts": config.starts, "iterations": config.iterations, "passes_asked": config.passes}
         if not self.passes:
             return {**out, "note": self.note}
-        chosen = self.candidates[self.chosen]
-        names = self.passes[0].names
+        chosen, first = self.candidates[self.chosen], self.passes[0]
         return {**out, "accepted": self.chosen > 0, "kept": chosen.label, "reason": self.reason,
-                "parameters": {name: {"consistent": float(a), "refined": float(b)} for name, a, b in
-                               zip(names, self.passes[0].initial, _values(names, chosen), strict=True)},
+                "parameters": {name: {"consistent": float(a), "refined": b} for name, a, b in
+                               zip(first.names, first.initial, values(first.slots, chosen), strict=True)},
                 "candidates": {c.label: {"prediction_cost": c.cost, "torque_rel_error": c.torque_rel_error}
                                for c in self.candidates},
                 "training": {"prediction_cost": {"consistent": self.candidates[0].cost, "refined": chosen.cost},
@@ -112,19 +111,9 @@ def choose(candidates: list[Candidate]) -> tuple[int, str]:
                     f"torques within {TORQUE_SLACK:.0%} of the consistent fit")
 
 
-def _values(names: tuple[str, ...], c: Candidate) -> list[float]:
-    """The adjusted quantities' values in a candidate, in the order of `names`."""
-    joints = {f"{j}": k for k, j in enumerate(_joint_names(names))}
-    out = []
-    for name in names:
-        joint, key = name.rsplit(".", 1)
-        k = joints[joint]
-        out.append(float(c.delay[k]) if key == "delay" else float(getattr(c.frictions[k], key)))
-    return out
-
-
-def _joint_names(names: tuple[str, ...]) -> list[str]:
-    return list(dict.fromkeys(name.rsplit(".", 1)[0] for name in names))
+def values(slots: tuple[tuple[int, str], ...], c: Candidate) -> list[float]:
+    """The adjusted quantities' values in a candidate, slot by slot (joint index, key)."""
+    return [float(c.delay[k]) if key == "delay" else float(getattr(c.frictions[k], key)) for k, key in slots]
 
 
 def _beside(ctx) -> dict:
