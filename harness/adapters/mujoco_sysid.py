@@ -37,6 +37,7 @@ from types import SimpleNamespace
 import mujoco
 import numpy as np
 
+from harness.base.numerics import sampled
 from harness.base.plugins import PluginError, ToolUnavailable
 from harness.engines.mujoco import dynamics_spec
 from harness.engines.pinocchio import build_model, rnea
@@ -140,7 +141,7 @@ class Sysid:
         starts = t[np.unique(np.linspace(0, last, o["chunks"]).astype(int))]
 
         def at(x: np.ndarray, when: np.ndarray) -> np.ndarray:  # the log between its samples: linear
-            return np.column_stack([np.interp(when, t, x[:, j]) for j in range(x.shape[1])])
+            return sampled(t, x, when)
 
         inits, controls, sensors = [], [], []
         for s in starts:

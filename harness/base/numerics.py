@@ -57,6 +57,12 @@ def equilibrated_condition_number(W: np.ndarray) -> float:
         return float(sv[0] / sv[-1])
 
 
+def sampled(t: np.ndarray, x: np.ndarray, when: np.ndarray) -> np.ndarray:
+    """A signal x (N, n) sampled at times t (N,), read at times `when` (any shape) by linear
+    interpolation, column by column: (*when.shape, n)."""
+    return np.stack([np.interp(when, t, x[:, j]) for j in range(x.shape[1])], axis=-1)
+
+
 def floats(v) -> list[float]:
     """An array as a flat list of Python floats, for JSON."""
     return [float(x) for x in np.ravel(v)]

@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mujoco_rollout
 
+from harness.base.numerics import sampled
 from harness.engines.recording import Recording
 from harness.engines.simulation import Simulation
 from harness.model import friction
@@ -455,11 +456,8 @@ def predict(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray
     q_sim, qd_sim = rollouts(spec, gravity_W, [tuple(spec.frictions)] * len(starts), q[starts], qd[starts], drives,
                              timestep)
     at = t[starts][:, None] + np.array(steps) * timestep  # (starts, horizons)
-    columns = range(q.shape[1])
-    q_meas = np.stack([np.interp(at, t, q[:, j]) for j in columns], axis=-1)
-    qd_meas = np.stack([np.interp(at, t, qd[:, j]) for j in columns], axis=-1)
     rows = np.array(steps) - 1
-    return q_sim[:, rows] - q_meas, qd_sim[:, rows] - qd_meas
+    return q_sim[:, rows] - sampled(t, q, at), qd_sim[:, rows] - sampled(t, qd, at)
 
 
 # --- the robot as an MJCF file for others to simulate ----------------------------------------------

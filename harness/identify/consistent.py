@@ -46,6 +46,7 @@ import cvxpy as cp
 import numpy as np
 
 from harness.base.numerics import column_scale
+from harness.model.friction import BOUNDED_BY, IDENTIFIED_KEYS
 from harness.model.inertia import about_centre_of_mass, nearest_physical, pseudo_inertia
 
 PULL = 1e-4  # weight of the pull towards the model's values, relative to the least-squares residual
@@ -196,4 +197,5 @@ def _physical(x: np.ndarray, eps: float, n: int, extra: tuple = ()) -> np.ndarra
     return np.concatenate([theta.ravel(), friction.ravel(), terms])
 
 
-ASYMMETRY = {"viscous_asymmetry": 1, "coulomb_asymmetry": 2}  # the asymmetry -> its coefficient's place in (n, 4)
+# the asymmetry -> its symmetric coefficient's place in (n, 4) (friction.BOUNDED_BY)
+ASYMMETRY = {key: IDENTIFIED_KEYS.index(bound) for key, bound in BOUNDED_BY.items()}

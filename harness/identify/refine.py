@@ -20,12 +20,13 @@ For a candidate z:
    (q_sim - q_meas) / (s_j H) and (q'_sim - q'_meas) / s_j, with s_j the joint's RMS velocity over the
    training span and H the horizon (a diverged rollout's residual is DIVERGED).
 z minimises the sum of squares (scipy.optimize.least_squares, trust region reflective within
-bounds: a velocity within VELOCITY_RANGE of its start, a delay within +-delay.LARGEST), starting
-from the consistent fit (its velocities, no delay). Nothing of the validation span is read.
+bounds: a velocity within VELOCITY_RANGE of where the pass starts, a delay within +-delay.LARGEST),
+from the model it is given (the consistent fit, its velocities and no delay, in the first pass).
+Nothing of the validation span is read.
 
-The refined model is kept only if it predicts the training starts better than the consistent fit
-(a lower cost) and fits the training torques no worse than TORQUE_SLACK relative; otherwise the
-consistent fit stands, and the reason is given.
+`refine` is one pass; harness/stages/refinement.py alternates passes with the consistent fit
+re-solved at their result, and keeps the candidate that predicts the training span best among those
+fitting its torques within TORQUE_SLACK of the consistent fit.
 """
 
 from __future__ import annotations
@@ -36,10 +37,19 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
+from harness.base.numerics import sampled
 from harness.engines.mujoco import PREDICTION_TIMESTEP, log_drives, rollouts
 from harness.identify import delay as channel_delay
 from harness.identify.friction_law import Law
-from harness.model.friction import EXTRA_KEYS, IDENTIFIED_KEYS, JointFriction, coulomb_shape, extra_columns
+from harness.model.friction import (
+    BOUNDED_BY,
+    EXTRA_KEYS,
+    IDENTIFIED_KEYS,
+    NONNEGATIVE_KEYS,
+    JointFriction,
+    coulomb_shape,
+    extra_columns,
+)
 from harness.model.spec import RobotSpec
 from harness.sources.log import room
 
@@ -50,8 +60,6 @@ DELAY_STEP = 2e-4  # s: finite-difference step of a delay
 DELAY_SCALE = 5e-3  # s: a delay's typical size, for the trust region's scaling
 DIVERGED = 10.0  # the residual of a diverged rollout's samples (10 times the motion's own scale)
 TORQUE_SLACK = 0.01  # the refined model may fit the training torques at most 1 % (relative) worse
-NONNEGATIVE = ("armature", "viscous", "coulomb", "stribeck", "load_coulomb")
-ASYMMETRY = {"viscous_asymmetry": "viscous", "coulomb_asymmetry": "coulomb"}
 
 
 @dataclass(frozen=True)
@@ -67,6 +75,11 @@ class RefineConfig:
     sample: float = 0.005
     iterations: int = 10
     passes: int = 2
+
+    @property
+    def reach(self) -> float:
+        """s: how far from a sample its torque may be read (the delays' bound, when they are adjusted)."""
+        return channel_delay.LARGEST if "delay" in self.adjust else 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,14 +159,21 @@ def _drive_fit(p: _Problem, k: int, velocity: dict, lag: float) -> JointFriction
     y = _read(p.t, p.tau[:, k], rows, lag) - p.rigid[rows, k]
     size = np.sqrt(np.mean(A**2, axis=0))
     size = np.where(size > 0, size, 1.0)
-    lower = np.array([0.0 if key in NONNEGATIVE else -np.inf for key in keys])
+    lower = np.array([0.0 if key in NONNEGATIVE_KEYS else -np.inf for key in keys])
     x = lsq_linear(A / size, y, bounds=(lower, np.inf), method="bvls").x / size
     values = dict(zip(keys, map(float, x), strict=True))
-    for key, bound in ASYMMETRY.items():
+    for key, bound in BOUNDED_BY.items():
         if key in values:
             values[key] = float(np.clip(values[key], -values[bound], values[bound]))
     return JointFriction(coulomb_velocity=velocity["coulomb_velocity"], stribeck_velocity=velocity["stribeck_velocity"],
                          **values)
+
+
+def _inner(t: np.ndarray, largest: float) -> np.ndarray:
+    """The rows at least `largest` s from their stretch's ends: where a torque may be read that much
+    earlier or later."""
+    back, ahead = room(t)
+    return np.flatnonzero((back >= largest) & (ahead >= largest))
 
 
 def torque_rel_error(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray, rigid: np.ndarray,
@@ -162,8 +182,7 @@ def torque_rel_error(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.nda
     """||tau_pred - tau||_F / ||tau||_F with each joint's torque read lag[j] later and predicted as the
     rigid-body torque `rigid` plus its drive's law; over the rows at least `largest` s from a
     stretch's ends (the same rows whatever the lags)."""
-    back, ahead = room(t)
-    rows = np.flatnonzero((back >= largest) & (ahead >= largest))
+    rows = _inner(t, largest)
     num = den = 0.0
     for k, (f, law) in enumerate(zip(frictions, laws, strict=True)):
         A, keys = _columns(qd[rows, k], qdd[rows, k], rigid[rows, k], f.coulomb_velocity, f.stribeck_velocity,
@@ -185,11 +204,8 @@ def _residuals(p: _Problem, candidates: list[tuple[tuple[JointFriction, ...], np
                              np.tile(p.qd[p.starts], (len(candidates), 1)), drives, p.timestep)
     compared = np.arange(p.every, p.steps + 1, p.every)
     at = t0[:, None] + compared * p.timestep
-    n = p.q.shape[1]
-    q_meas = np.stack([np.interp(at, p.t, p.q[:, j]) for j in range(n)], axis=-1)
-    qd_meas = np.stack([np.interp(at, p.t, p.qd[:, j]) for j in range(n)], axis=-1)
-    r = np.concatenate([(q_sim[:, compared - 1] - q_meas) / (p.scale * p.horizon),
-                        (qd_sim[:, compared - 1] - qd_meas) / p.scale], axis=-1)
+    r = np.concatenate([(q_sim[:, compared - 1] - sampled(p.t, p.q, at)) / (p.scale * p.horizon),
+                        (qd_sim[:, compared - 1] - sampled(p.t, p.qd, at)) / p.scale], axis=-1)
     r = np.where(np.isfinite(r), r, DIVERGED)
     return r.reshape(len(candidates), -1)
 
@@ -197,9 +213,9 @@ def _residuals(p: _Problem, candidates: list[tuple[tuple[JointFriction, ...], np
 def _problem(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
              qdd: np.ndarray, tau: np.ndarray, rigid: np.ndarray, laws: tuple[Law, ...], config: RefineConfig,
              timestep: float, slots: tuple = ()) -> _Problem:
-    largest = channel_delay.LARGEST if "delay" in config.adjust else 0.0
+    largest = config.reach
+    rows = _inner(t, largest)
     back, ahead = room(t)
-    rows = np.flatnonzero((back >= largest) & (ahead >= largest))
     usable = np.flatnonzero((back >= largest) & (ahead >= config.horizon + largest))
     if not len(usable) or len(rows) < 10:
         raise ValueError(f"no stretch of the training span is {config.horizon + 2 * largest:g} s long")
@@ -217,9 +233,8 @@ def judge(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, 
     the refinement's residual over the span's starts, and its torque error (torque_rel_error)."""
     p = _problem(spec, gravity_W, t, q, qd, qdd, tau, rigid, laws, config, timestep)
     r = _residuals(p, [(tuple(spec.frictions), lag)])[0]
-    largest = channel_delay.LARGEST if "delay" in config.adjust else 0.0
     return (float(np.sqrt(np.mean(r**2))),
-            torque_rel_error(t, qd, qdd, tau, rigid, tuple(spec.frictions), laws, lag, largest))
+            torque_rel_error(t, qd, qdd, tau, rigid, tuple(spec.frictions), laws, lag, config.reach))
 
 
 def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -231,7 +246,7 @@ def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray,
     model's rigid-body torque there. Raises ValueError when the span has no room for a rollout or
     nothing is left to adjust."""
     started = time.perf_counter()
-    largest = channel_delay.LARGEST if "delay" in config.adjust else 0.0
+    largest = config.reach
     lag0 = np.zeros(q.shape[1]) if delay is None else np.asarray(delay, dtype=float)
     slots, x0, lower, upper, x_scale, steps_fd = [], [], [], [], [], []
     for k, f in enumerate(spec.frictions):
@@ -254,10 +269,14 @@ def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray,
     counts = {"rollouts": 0, "evaluations": 0}
     cache: dict[bytes, np.ndarray] = {}
 
-    def batch(zs: list[np.ndarray]) -> np.ndarray:
-        counts["rollouts"] += len(zs) * len(starts)
+    def rolled(candidates: list) -> np.ndarray:
+        """_residuals, counted."""
+        counts["rollouts"] += len(candidates) * len(starts)
         counts["evaluations"] += 1
-        return _residuals(p, [_law(p, z) for z in zs])
+        return _residuals(p, candidates)
+
+    def batch(zs: list[np.ndarray]) -> np.ndarray:
+        return rolled([_law(p, z) for z in zs])
 
     def fun(z: np.ndarray) -> np.ndarray:
         key = z.tobytes()
@@ -276,9 +295,7 @@ def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray,
 
     x0_a = np.array(x0)
     consistent_law = tuple(spec.frictions)
-    r0 = _residuals(p, [(consistent_law, lag0)])[0]
-    counts["rollouts"] += len(starts)
-    counts["evaluations"] += 1
+    r0 = rolled([(consistent_law, lag0)])[0]  # the model as it stands: its own coefficients, not re-solved
     result = least_squares(fun, x0_a, jac=jac, bounds=(lower_a, upper_a), method="trf", x_scale=np.array(x_scale),
                            max_nfev=config.iterations)
     frictions, lag = _law(p, result.x)

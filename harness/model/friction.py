@@ -29,6 +29,9 @@ import numpy as np
 IDENTIFIED_KEYS = ("armature", "viscous", "coulomb", "offset")  # linear in the torque: identifiable
 EXTRA_KEYS = ("viscous_asymmetry", "coulomb_asymmetry", "stribeck", "load_coulomb")  # the families' coefficients
 FRICTION_KEYS = (*IDENTIFIED_KEYS, "coulomb_velocity", *EXTRA_KEYS, "stribeck_velocity")
+NONNEGATIVE_KEYS = ("armature", "viscous", "coulomb", "stribeck", "load_coulomb")  # a physical drive's: the offset
+# and the asymmetries have either sign
+BOUNDED_BY = {"viscous_asymmetry": "viscous", "coulomb_asymmetry": "coulomb"}  # |asymmetry| <= its symmetric term
 FAMILIES = {  # name -> the coefficients it adds to viscous + Coulomb + offset, simplest first
     "viscous_coulomb": (),
     "stribeck": ("stribeck",),

@@ -121,7 +121,7 @@ def axis_rotation(axis: np.ndarray, angle: np.ndarray, samples_last: bool = Fals
 
 def _times_constant(R: np.ndarray, C: np.ndarray) -> np.ndarray:
     """R C for R (3, 3, N) component-major and a constant C (3, 3): row i of R C is C^T R[i], one
-    matrix product over the stack of rows (six times faster than nine products summed)."""
+    matrix product over the stack of rows."""
     return np.matmul(C.T, R)
 
 
@@ -149,8 +149,8 @@ def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.n
     N = q.shape[0]
     bodies = [b.name for b in spec.bodies]
     nb, nj = len(bodies), len(spec.joints)
-    # body by body, each body's (3, N) or (3, 3, N) block contiguous (a block strided over the bodies
-    # runs several times slower)
+    # body by body, each body's (3, N) or (3, 3, N) block contiguous (strided over the bodies, the
+    # kinematics of 2048 Panda states ran about twice as long)
     R_c, R_WB_c = np.empty((nb, 3, 3, N)), np.empty((nb, 3, 3, N))
     c_c, a_c, w_c, wd_c = (np.empty((nb, 3, N)) for _ in range(4))
     v_c = np.empty((nb, 3, N)) if velocities else np.full((nb, 3, N), np.nan)

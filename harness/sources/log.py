@@ -59,6 +59,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from harness.base.numerics import sampled
 from harness.base.tomlio import MAX_DATA_BYTES, InputError, Table, read_bounded
 from harness.model.spec import RobotSpec
 
@@ -529,7 +530,7 @@ def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, chec
     grid = tk[0] + np.arange(int(np.floor((tk[-1] - tk[0]) * rate)) + 1) / rate
 
     def resample(x: np.ndarray) -> np.ndarray:
-        return np.column_stack([np.interp(grid, tk, x[:, j]) for j in range(x.shape[1])])
+        return sampled(tk, x, grid)
 
     q, tau = resample(raw.q), resample(raw.tau)
     qd = resample(raw.qd) if raw.qd is not None else None

@@ -559,14 +559,12 @@ def _series(li: LogIdentification) -> dict:
 
 def configure(t, scenario) -> FrictionLawConfig:
     """`[friction_law] choose = true, folds = 5, families = [...]`, validated (one-line errors
-    naming the key)."""
-    config = FrictionLawConfig(
+    naming the key). Only a `[data]` scenario reads it (runner/scenario.py refuses the table
+    elsewhere, stages.LOG_TABLES)."""
+    return FrictionLawConfig(
         t.boolean("choose", default=FrictionLawConfig.choose),
         t.integer("folds", default=FrictionLawConfig.folds, minimum=2),
         tuple(t.strings("families", choices=tuple(FAMILIES), default=list(FrictionLawConfig.families))))
-    if getattr(scenario, "data", None) is None:
-        raise t.error("choose", "the friction law is chosen from a measured log: give [data]")
-    return config
 
 
 STAGE = Stage("log_identification", "identification from the measured log", run, LogIdentification.serialise,

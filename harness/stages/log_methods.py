@@ -28,11 +28,11 @@ import numpy as np
 from harness.base.numerics import parameter_scale, relative_error
 from harness.base.plugins import PluginError, Stage, guard, inverse_dynamics
 from harness.identify.consistent import consistency
-from harness.model.friction import IDENTIFIED_KEYS
+from harness.model.friction import IDENTIFIED_KEYS, NONNEGATIVE_KEYS
 from harness.stages.identification import SkippedMethod, base_map, fit_method, reported
 from harness.stages.metrics import torque_errors
 
-NONNEGATIVE = ("armature", "viscous", "coulomb")  # a drive's rotor inertia and dissipation; the offset has any sign
+NONNEGATIVE = tuple(k for k in IDENTIFIED_KEYS if k in NONNEGATIVE_KEYS)  # rotor inertia, viscous, Coulomb
 MAX_NOTE = 300  # characters of one of a method's notes kept
 BUILT_IN = "harness (built in)"  # the plugin column of the harness's own two fits
 

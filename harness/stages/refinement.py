@@ -174,11 +174,10 @@ def run(ctx, config: RefineConfig | None) -> RefinementResult | None:
     t, (q, qd, qdd), tau = li.t["training"], li.states["training"], li.measured["training"]
     identified = identified_spec(robot, li.fit.theta, li.frictions)
     rigid = _rigid(identified, sc.gravity_W, q, qd, qdd)
-    theta, frictions, laws, lag = li.fit.theta, li.frictions, li.laws, np.zeros(n)
+    spec, theta, frictions, laws, lag = identified, li.fit.theta, li.frictions, li.laws, np.zeros(n)
     passes, candidates = [], []
     for k in range(config.passes):
         ctx.progress(f"refinement by forward simulation, pass {k + 1} of {config.passes} (MuJoCo rollouts)", None)
-        spec = identified_spec(robot, theta, frictions)
         try:
             r = refine(spec, sc.gravity_W, t, q, qd, qdd, tau, rigid, laws, config, lag)
         except ValueError as exc:
@@ -201,16 +200,14 @@ def run(ctx, config: RefineConfig | None) -> RefinementResult | None:
     chosen, reason = choose(candidates)
     c = candidates[chosen]
     refined = identified_spec(robot, c.theta, c.frictions)
-    largest = channel_delay.LARGEST if "delay" in config.adjust else 0.0
     return RefinementResult(tuple(passes), tuple(candidates), chosen, reason, None,
-                            _judged(ctx, li, c, identified, refined, largest), _beside(ctx),
+                            _judged(ctx, li, c, identified, refined, config.reach), _beside(ctx),
                             time.perf_counter() - started)
 
 
 def configure(t, scenario) -> RefineConfig:
-    """`[refinement]`, validated (one-line errors naming the key)."""
-    if getattr(scenario, "data", None) is None:
-        raise t.error("adjust", "the refinement is of a fit to a measured log: give [data]")
+    """`[refinement]`, validated (one-line errors naming the key). Only a `[data]` scenario reads it
+    (runner/scenario.py refuses the table elsewhere, stages.LOG_TABLES)."""
     d = RefineConfig()
     config = RefineConfig(tuple(t.strings("adjust", choices=ADJUSTABLE, default=list(d.adjust))),
                           t.number("horizon", default=d.horizon, positive=True),
