@@ -104,16 +104,22 @@ def skew(v: np.ndarray) -> np.ndarray:
     return out
 
 
+def _unit_skew(axis: np.ndarray) -> tuple[float, np.ndarray]:
+    """|axis| and the cross-product matrix K of the unit axis (of axis itself when it is zero): a
+    rotation by t |axis| about it is 1 + sin K + (1 - cos) K^2 (Rodrigues)."""
+    axis = np.asarray(axis, dtype=float)
+    norm = float(np.linalg.norm(axis))
+    return norm, skew(axis / norm if norm > 0 else axis)
+
+
 def axis_rotation(axis: np.ndarray, angle: np.ndarray, samples_last: bool = False) -> np.ndarray:
     """(N, 3, 3) rotations by angle (N,) |axis| about axis (3,) (a rotation vector s axis, as
     scipy's Rotation.from_rotvec reads it): Rodrigues' formula R = 1 + sin(t) K + (1 - cos(t)) K^2,
     K the cross-product matrix of the unit axis. Written here: scipy.spatial costs 0.25 to 0.6 s
     to import, more than a whole kr500 run's kinematics. `samples_last`: (3, 3, N) instead, each
     entry's samples contiguous (the batched regressor's layout, harness/model/regressor.py)."""
-    axis = np.asarray(axis, dtype=float)
-    norm = np.linalg.norm(axis)
+    norm, K = _unit_skew(axis)
     angle = np.asarray(angle, dtype=float) * norm
-    K = skew(axis / norm if norm > 0 else axis)
     if samples_last:
         return np.eye(3)[:, :, None] + np.sin(angle) * K[:, :, None] + (1.0 - np.cos(angle)) * (K @ K)[:, :, None]
     return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
@@ -168,8 +174,7 @@ def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.n
         R_B, t_B, c_B = R_c[i], t_c[i], c_c[i]
         a_O = _point_acceleration(a_P, wd_P, w_P, O_J - c_P)  # the parent's point at O_J
         if joint.revolute:
-            norm = np.linalg.norm(joint.axis_W0)
-            K = skew(joint.axis_W0 / norm if norm > 0 else joint.axis_W0)
+            norm, K = _unit_skew(joint.axis_W0)  # R_J by Rodrigues, as axis_rotation, folded into R_P R_J
             angle = s * norm
             R_B[...] = (R_P + _times_constant(R_P, K) * np.sin(angle)
                         + _times_constant(R_P, K @ K) * (1.0 - np.cos(angle)))
