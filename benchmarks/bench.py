@@ -62,6 +62,14 @@ def joint_motion(n: int, samples: int, rate: float = 1000.0, seed: int = 0):
     return q, qd, qdd
 
 
+def _in_pinocchio_order(pm, q, qd, qdd):
+    """(q, q', q'') of the spec's joints (N, n) as Pinocchio's configuration vectors (N, nq), zero elsewhere."""
+    out = tuple(np.zeros((len(q), pm.model.nq)) for _ in range(3))
+    for x, y in zip(out, (q, qd, qdd), strict=True):
+        x[:, pm.q_index] = y
+    return out
+
+
 def torques(figures: dict) -> None:
     import mujoco
     import pinocchio as pin
@@ -86,8 +94,7 @@ def torques(figures: dict) -> None:
     plugin = make_graph_model(spec, sc.gravity_W)  # as a model under test: (q, q', q'') in, kinematics its own
     pm = build_pinocchio(spec, sc.gravity_W)
     data = pm.model.createData()
-    qq, vv, aa = (np.zeros((N, pm.model.nq)) for _ in range(3))
-    qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    qq, vv, aa = _in_pinocchio_order(pm, q, qd, qdd)
 
     def pinocchio_loop():
         for k in range(N):
@@ -136,8 +143,7 @@ def _like_for_like(scenario: str) -> dict:
     n = len(sc.robot.joints)
     graph, pm = make(sc.robot, sc.gravity_W), build_model(sc.robot, sc.gravity_W)
     q, qd, qdd = joint_motion(n, N)
-    qq, vv, aa = (np.zeros((N, pm.model.nq)) for _ in range(3))
-    qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    qq, vv, aa = _in_pinocchio_order(pm, q, qd, qdd)
     data = pm.model.createData()
     pool = pin.ModelPool(pm.model, 1)
     Q, V, A = (np.asfortranarray(x.T) for x in (qq, vv, aa))
