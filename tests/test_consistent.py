@@ -13,7 +13,7 @@ from harness.engines.pinocchio import build_model
 from harness.identify import consistent
 from harness.identify.torque_id import regressor, true_parameters
 from harness.model.friction import values as friction_values
-from harness.model.inertia import kind_scale, pseudo_inertia
+from harness.model.inertia import from_pseudo_inertia, kind_scale, pseudo_inertia
 from harness.model.load import load_spec
 from harness.model.states import random_states
 from tests.conftest import SCENARIOS
@@ -99,3 +99,18 @@ def test_where_every_solver_fails_the_projected_fit_is_physical_and_close(proble
     # the truth is physical, so the unconstrained fit is nearly so: projected, it predicts the
     # noise-free torques within half the noise (measured 0.31 %; least squares 0.18 %, noise 1 %)
     assert _prediction_error(problem, fit) < NOISE / 2
+
+
+@pytest.mark.parametrize(("depth", "physical"), [(0.0, True), (1e-11, True), (1e-7, False), (1e-3, False)])
+def test_a_link_on_the_cones_boundary_is_physical_to_the_solvers_accuracy_and_one_past_it_is_not(problem, depth,
+                                                                                                 physical):
+    """A real link's pseudo-inertia J with its smallest eigenvalue moved to -depth of its largest (the
+    eigenvector kept): what an interior-point solver leaves on the boundary (1e-11 of the scale) is
+    judged physical; a link past the boundary by 1e-7 of its scale or more is not."""
+    theta = problem[3][2]  # the UR5's elbow link
+    w, V = np.linalg.eigh(pseudo_inertia(theta))
+    w[0] = -depth * w[-1]
+    moved = from_pseudo_inertia((V * w) @ V.T)
+    verdict = consistent.consistency(moved)
+    assert verdict["min_eig_pseudo_inertia"] == pytest.approx(-depth * w[-1], abs=1e-15 * w[-1])
+    assert verdict["consistent"] is physical

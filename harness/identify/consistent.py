@@ -67,16 +67,29 @@ def _pseudo_inertia_expr(t) -> cp.Expression:
     return cp.bmat([[tr - xx, -xy, -xz, hx], [-xy, tr - yy, -yz, hy], [-xz, -yz, tr - zz, hz], [hx, hy, hz, m]])
 
 
+# A link is judged physical when its pseudo-inertia's smallest eigenvalue is at least -PSD_TOLERANCE of
+# its largest. A fit held to the cone by an interior-point solver ends on the cone's boundary to the
+# solver's accuracy, not to round-off: FIGAROH's physical fit (cvxopt, feasibility tolerance 1e-7)
+# leaves the Panda's links 4 to 7 at -4e-12 to -8e-12 (2e-12 to 7e-11 of their largest eigenvalue)
+# on an Intel Xeon, above -1e-12 max(1, m) on an AMD EPYC; FIGAROH itself accepts -1e-8. Eigenvalues
+# computed from J carry round-off of about 1e-16 of the largest, and a link past physical by
+# anything a torque shows is far beyond 1e-9 (FIGAROH's least-squares split of the same log:
+# -2e-3 to -1.1).
+PSD_TOLERANCE = 1e-9
+
+
 def consistency(theta: np.ndarray) -> dict:
     """One link's physical consistency: mass, principal moments about the centre of mass, the
-    triangle inequality's slack, and the smallest eigenvalue of J (>= 0: consistent)."""
+    triangle inequality's slack, and the smallest eigenvalue of J (consistent: at least
+    -PSD_TOLERANCE times its largest)."""
     m = float(theta[0])
     J = pseudo_inertia(theta)
-    out = {"mass": m, "min_eig_pseudo_inertia": float(np.linalg.eigvalsh(J)[0])}
+    eigenvalues = np.linalg.eigvalsh(J)
+    out = {"mass": m, "min_eig_pseudo_inertia": float(eigenvalues[0])}
     if m > 0:
         p = np.linalg.eigvalsh(about_centre_of_mass(theta)[2])
         out.update(principal_moments=[float(x) for x in p], triangle_slack=float(p[0] + p[1] - p[2]))
-    out["consistent"] = bool(out["min_eig_pseudo_inertia"] >= -1e-12 * max(1.0, abs(m)))
+    out["consistent"] = bool(eigenvalues[0] >= -PSD_TOLERANCE * max(abs(eigenvalues[-1]), np.finfo(float).tiny))
     return out
 
 

@@ -17,8 +17,9 @@ Joint by joint (two passes, so that each choice sees the others'), every family 
   - v_c searched over a logarithmic grid (and a sharp sign, v_c = 0), then refined between the best
     point's neighbours by a bounded scalar search in log v_c (_search);
   - Stribeck: v_s over its own grid at that v_c, then v_c searched again at the chosen v_s;
-  - load-dependent: |tau_R| s with tau_R the rigid-body torque of the fit so far (the fit is
-    bilinear in it; its rigid torque is held while the joint's columns are tried).
+  - load-dependent: |tau_R| s with tau_R the rigid-body torque of the fit so far, the links' part of
+    the base parameters (the fit is bilinear in it; its rigid torque is held while the joint's
+    columns are tried).
 The family chosen is the simplest whose held-out error is within one standard error of the best
 family's (the one-standard-error rule of cross-validation, Hastie, Tibshirani and Friedman, The
 Elements of Statistical Learning, 2nd ed., section 7.10): a richer law must earn its terms by more than
@@ -132,13 +133,15 @@ class _Normal:
     fold k out solves (sum M - M_k) x = sum r - r_k and predicts fold k's rows. Replacing joint j's
     columns rewrites its slot only: O(N r) per trial."""
 
-    def __init__(self, G: np.ndarray, rigid: np.ndarray, tau: np.ndarray, folds: list[slice], slot: int):
+    def __init__(self, G: np.ndarray, rigid: np.ndarray, share: np.ndarray, tau: np.ndarray, folds: list[slice],
+                 slot: int):
         N, n = tau.shape
         self.slot = slot  # friction columns a joint may have: q', s and the most terms of a law tried
         r = G.shape[1]
         self.n, self.r = n, r
         self.G3 = G.reshape(N, n, r)
-        self.rigid = rigid  # (r,) bool: the fixed columns that are rigid-body (inertial) parameters
+        self.rigid = rigid  # (r,) bool: the fixed columns that hold the links' (inertial) parameters
+        self.share = share  # (r,) the drive's share in each (BaseParameters.link_part)
         self.tau = tau
         self.folds = folds
         p = r + slot * n
@@ -202,14 +205,17 @@ class _Normal:
     def rigid_torque(self) -> np.ndarray:
         """(N, n) the rigid-body torque of the fit on every fold."""
         g = self._solve(self.M.sum(0), self.rhs.sum(0))[: self.r]
-        return self.G3[..., self.rigid] @ g[self.rigid]
+        return self.G3[..., self.rigid] @ (g - self.share)[self.rigid]
 
 
-def choose(W: np.ndarray, independent: np.ndarray, tau: np.ndarray, qd: np.ndarray, t: np.ndarray,
-           model: tuple[JointFriction, ...], config: FrictionLawConfig) -> FrictionChoice:
+def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
+           qd: np.ndarray, t: np.ndarray, model: tuple[JointFriction, ...], config: FrictionLawConfig
+           ) -> FrictionChoice:
     """Each joint's friction law, chosen within the training span. W: (N n, 10 n + 4 n) the
     regressor with friction (harness/identify/torque_id.py), `independent` the base parameters'
-    columns; tau, qd: (N, n); t: (N,). Raises ValueError when the span is too short to cut."""
+    columns and `link_part` which hold a link's parameters and the drive's share in each
+    (BaseParameters.link_part: the rigid-body torque of a load-dependent law); tau, qd: (N, n);
+    t: (N,). Raises ValueError when the span is too short to cut."""
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
     tau, qd = tau[order], qd[order]
@@ -225,9 +231,9 @@ def choose(W: np.ndarray, independent: np.ndarray, tau: np.ndarray, qd: np.ndarr
         raise ValueError(f"{unknowns} unknowns with every joint's friction slot: over {MAX_UNKNOWNS}, the search "
                          f"(about {300 * n} trials of {config.folds} factorisations each) would take too long")
     shaped = {10 * n + 4 * j + k for j in range(n) for k in (1, 2)}  # each joint's viscous and Coulomb columns
-    fixed = np.array([c for c in independent if c not in shaped])
-    G = W.reshape(N, n, -1)[order][:, :, fixed]
-    normal = _Normal(G.reshape(N * n, -1), fixed < 10 * n, tau, folds, slot)
+    kept = np.array([k for k, c in enumerate(independent) if c not in shaped])
+    G = W.reshape(N, n, -1)[order][:, :, independent[kept]]
+    normal = _Normal(G.reshape(N * n, -1), link_part[0][kept], link_part[1][kept], tau, folds, slot)
     # a joint that never moves faster than the smallest v_c tried shows nothing of its friction's shape:
     # it keeps the model's law
     moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]
@@ -237,10 +243,12 @@ def choose(W: np.ndarray, independent: np.ndarray, tau: np.ndarray, qd: np.ndarr
     def place(j: int, law: Law) -> None:
         """Joint j's columns under `law`; a load-dependent law's |tau_R| s column from the rigid-body
         torque of the fit with it, iterated LOAD_ITERATIONS times towards a fixed point (the fit is
-        bilinear in f_l and tau_R; the map contracts by about f_l, a few hundredths). A fixed point
-        is not the least-squares minimum of the bilinear fit: where a joint's |tau_R| s keeps one sign
-        for long stretches, f_l trades against the scale of the inertial parameters, and f_l comes
-        out biased (docs/identification.md, "Friction chosen by the data")."""
+        bilinear in f_l and tau_R; the map contracts by about f_l, a few hundredths). tau_R is read
+        from the base parameters that hold a link's inertia, less the drive's share in each (the
+        model's rotor inertia where one is regrouped with a link's: BaseParameters.link_part). A fixed
+        point need not be the bilinear fit's least-squares minimum; on the bench of
+        tests/test_friction_law.py, Levenberg-Marquardt on the whole bilinear fit moved f_l by 1e-4 of
+        itself, and the alternation is kept."""
         normal.set(j, _columns(law, qd[:, j], rigid[:, j]))
         if "load_coulomb" in law.terms:
             for _ in range(LOAD_ITERATIONS):

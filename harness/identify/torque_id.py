@@ -108,6 +108,19 @@ class BaseParameters:
     def of(self, theta: np.ndarray) -> np.ndarray:
         return theta[self.independent] + self.combination @ theta[self.dependent]
 
+    def link_part(self, theta: np.ndarray, links: int) -> tuple[np.ndarray, np.ndarray]:
+        """Which base parameters hold a link's inertial parameter (the first `links` = 10 n of theta),
+        (r,) bool, and in each of those the drive parameters' share at theta's values, (r,): beta_k less
+        it is base parameter k's part in the rigid-body torque. Where a rotor inertia is regrouped with a
+        link's inertia (the UR5's shoulder lift: I_a + I_yy + ...; a vertical first joint: its I_a in a
+        link's mass term) the torques cannot tell the two apart, and the drive's share is theta's."""
+        dep_link = self.dependent < links
+        held = np.abs(self.combination) > COEFFICIENT_FLOOR
+        link = (self.independent < links) | np.any(held & dep_link, axis=1)
+        share = (np.where(self.independent >= links, theta[self.independent], 0.0)
+                 + self.combination[:, ~dep_link] @ theta[self.dependent[~dep_link]])
+        return link, np.where(link, share, 0.0)
+
 
 def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameters:
     from scipy.linalg import qr, solve_triangular  # pivoted QR: numpy has none; imported where needed

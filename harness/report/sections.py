@@ -200,6 +200,10 @@ def log_identification(r: dict, log) -> str:
     else:
         headline = table(["model", f"{span}: ||tau_pred - tau|| / ||tau||"],
                          [[esc(m), num(li["validation_rel_error"][m])] for m in models])
+    floor = li.get("validation_floor")
+    if floor:
+        headline += (f"<p>The model class's floor on the validation span: {num(floor['rel_error'])}, "
+                     f"{esc(floor['definition'])}.</p>")
     extra = ""
     lags = li.get("delays") or {}
     if lags.get("estimated"):

@@ -46,6 +46,11 @@ from harness.sources.log import JointLog, room
 from harness.stages.identification import joint_data
 from harness.stages.metrics import torque_errors
 
+FLOOR_DEFINITION = (
+    "the least-squares fit's columns (the same base parameters, friction laws and families) fitted on the "
+    "validation span itself, its error there: what no fit of this model class can beat on that span, read "
+    "for this figure alone. A held-out error near it is the model class's limit, not the fit's")
+
 
 @dataclass(frozen=True, eq=False)
 class LogIdentification:
@@ -75,6 +80,7 @@ class LogIdentification:
     extra_names: list[str] = field(default_factory=list)  # the families' coefficients after the base parameters
     laws: tuple = ()  # each joint's law (harness/identify/friction_law.py Law): family and velocities
     states: dict[str, tuple] = field(default_factory=dict)  # span -> (q, q', q''), as the fit read them
+    floor: float | None = None  # the least-squares columns fitted on the validation span itself: its error there
 
     def _against_truth(self, ctx) -> dict:
         errors = {span: _truth_errors(self, span) for span in self.truth}
@@ -118,6 +124,8 @@ class LogIdentification:
                       for span, t in self.t.items()},
             "errors": errors,
             "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()},
+            "validation_floor": None if self.floor is None else {
+                "definition": FLOOR_DEFINITION, "rel_error": self.floor},
             "consistent_costs": {span: e["consistent"]["rel_error"] - e["least squares"]["rel_error"]
                                  for span, e in errors.items()},
             "least_squares": {
@@ -415,6 +423,9 @@ def run(ctx, config) -> LogIdentification | None:
         W = regressor(pm, q, qd, qdd, with_friction=True)
     x_model = true_parameters(pm, with_friction=True)
     beta_model = base.of(x_model)
+    # the base parameters that hold a link's inertia, and the drive's share in each (the model's own, where a
+    # rotor inertia is regrouped with a link's): what a load-dependent law's rigid-body torque reads
+    link_part = link, share = base.link_part(x_model, 10 * n)
     constants = None
     if sc.data.units["tau"] == "current" and sc.data.identify_constants:
         ctx.progress("torque constants (motor currents)", None)
@@ -428,7 +439,8 @@ def run(ctx, config) -> LogIdentification | None:
     if law_config.choose:
         ctx.progress("the friction law of every joint (cross-validated within the training span)", None)
         try:
-            choice = friction_law.choose(W, base.independent, tau, qd, train.t, robot.frictions, law_config)
+            choice = friction_law.choose(W, base.independent, link_part, tau, qd, train.t, robot.frictions,
+                                         law_config)
         except ValueError as exc:
             law_note = f"friction law not chosen, the model's kept: {exc}"
     laws = choice.laws if choice is not None else tuple(Law.of(f) for f in robot.frictions)
@@ -440,8 +452,9 @@ def run(ctx, config) -> LogIdentification | None:
     else:
         rigid_train = (W[:, : 10 * n] @ theta_model.ravel()).reshape(tau.shape)
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in terms])
-    W_ls = np.hstack([W[:, base.independent], extra_regressor(laws, qd, rigid_train)])
     beta_model = np.concatenate([beta_model, extra_model])
+    r = len(base.independent)
+    W_ls = np.hstack([W[:, base.independent], extra_regressor(laws, qd, rigid_train)])
     ls = with_structure(fit_base(W_ls, tau, beta_model), base)
     repeated, repeat_note = None, None
     if sc.data.repeat:
@@ -487,14 +500,13 @@ def run(ctx, config) -> LogIdentification | None:
     if validation is not None:
         spans["validation"] = (*joint_data(validation, joints), validation.t)
     predictions, measured, times, truth_tau = {}, {}, {}, {}
+    floor = None
     pm_truth = build_model(sc.truth, sc.gravity_W) if sc.truth is not None else None
     identified = identified_spec(robot, fit.theta, identified_frictions)
     pm_identified = build_model(identified, sc.gravity_W)
-    r = len(base.independent)
-    rigid_base = base.independent < 10 * n  # the least-squares fit's rigid-body part: its inertial base parameters
     for span, (qs, qds, qdds, taus, ts) in spans.items():
         Ws = W if span == "training" else regressor(pm_identified, qs, qds, qdds, with_friction=True)
-        rigid_ls = (Ws[:, base.independent[rigid_base]] @ ls.beta[:r][rigid_base]).reshape(taus.shape)
+        rigid_ls = (Ws[:, base.independent[link]] @ (ls.beta[:r] - share)[link]).reshape(taus.shape)
         W_span = np.hstack([Ws[:, base.independent], extra_regressor(laws, qds, rigid_ls)])
         predictions[span] = {
             "least squares": (W_span @ ls.beta).reshape(taus.shape),
@@ -502,6 +514,9 @@ def run(ctx, config) -> LogIdentification | None:
             "model as given": rnea(pm, qs, qds, qdds).tau,
         }
         measured[span], times[span] = taus, ts
+        if span == "validation":  # the model class's floor there: its least squares on that span itself
+            fitted = W_span @ np.linalg.lstsq(W_span, taus.ravel(), rcond=None)[0]
+            floor = float(np.linalg.norm(fitted - taus.ravel()) / np.linalg.norm(taus))
         if pm_truth is not None:  # what the robot that made the log needs at these states
             truth_tau[span] = rnea(pm_truth, qs, qds, qdds).tau
     refused = None  # why robot.xml was not written
@@ -530,7 +545,7 @@ def run(ctx, config) -> LogIdentification | None:
                              truth_tau, _delay_section(lags, lag_note, sc.data.delay, joints),
                              _constants_section(constants, sc.data, joints), repeated, predicted,
                              identified_frictions, choice, [f"{joints[k]}.{key}" for k, key in terms], laws,
-                             {span: v[:3] for span, v in spans.items()})
+                             {span: v[:3] for span, v in spans.items()}, floor)
 
 
 def _truth_errors(li: LogIdentification, span: str) -> dict:
