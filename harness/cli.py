@@ -51,6 +51,29 @@ line; --debug adds the traceback), 130 interrupted. --junit-xml and --summary ar
 case."""
 
 
+def _worker_options(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument("--jobs", type=int, default=1, metavar="K",
+                        help=f"run {what} in K forked worker processes (default 1: this process)")
+    parser.add_argument("--dask", nargs="?", const="local", default=None, metavar="ADDRESS",
+                        help=f"run {what} on Dask, its workers started once for the whole command: a local cluster "
+                             "(one worker per core) when no address is given, otherwise the scheduler at ADDRESS "
+                             "(e.g. tcp://10.0.0.5:8786), whose workers have harness installed")
+
+
+def _workers(args: argparse.Namespace, source):
+    """The workers --jobs and --dask ask for (harness/base/workers.py); bad values name `source`."""
+    from harness.base.workers import Workers
+
+    if not 1 <= args.jobs <= max_jobs():
+        raise InputError(source, "--jobs", f"needs 1 to {max_jobs()} processes (4 per core), got {args.jobs}")
+    if args.dask is not None and args.jobs != 1:
+        raise InputError(source, "--dask", f"the trials run either on Dask or on --jobs {args.jobs} processes, "
+                                           "not both")
+    if args.dask is not None and not args.dask.strip():
+        raise InputError(source, "--dask", "needs a scheduler address (or none, for a local cluster)")
+    return Workers(args.jobs, args.dask)
+
+
 def _resolve_scenario(arg: str) -> Path:
     """A path to a scenario file, or a bare name: ./scenarios/NAME.toml, ./NAME.toml, then the
     built-in scenario of that name (harness/base/builtin.py)."""
@@ -77,6 +100,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="output folder: with one scenario, its folder; with several, the folder that gets "
                           "one subfolder per scenario (default: reports/<scenario name>)")
     run.add_argument("--quiet", action="store_true", help="no progress messages")
+    _worker_options(run, "a stage's Monte Carlo trials (the estimators', an identification method's)")
     _ci_options(run)
     report = sub.add_parser("report", help="re-render report.html from a results.json",
                             description="Re-render the HTML report from a results.json and the recording.csv "
@@ -104,11 +128,7 @@ def _parser() -> argparse.ArgumentParser:
                     "trials (bias, spread, RMS error, and the coverage of their intervals where they give them).")
     sweep.add_argument("scenario", metavar="SCENARIO", help="scenario file or name (e.g. kr500_noise)")
     sweep.add_argument("--trials", type=int, default=200, metavar="N", help="number of trials (default 200)")
-    sweep.add_argument("--jobs", type=int, default=1, metavar="K", help="forked worker processes (default 1)")
-    sweep.add_argument("--dask", nargs="?", const="local", default=None, metavar="ADDRESS",
-                       help="run the trials on Dask: a local cluster (one worker per core) when no address is given, "
-                            "otherwise the scheduler at ADDRESS (e.g. tcp://10.0.0.5:8786), whose workers have harness "
-                            "installed")
+    _worker_options(sweep, "the trials")
     sweep.add_argument("--out", metavar="DIR", type=Path, default=None, help="default: reports/<scenario name>")
     excite = sub.add_parser(
         "excite", help="optimise a scenario's excitation and write the trajectory for a robot to play",
@@ -218,14 +238,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     import mujoco  # noqa: F401  every run needs both engines: their import is timed here, not in a stage
     import pinocchio  # noqa: F401
 
-    from harness.api import run
-    from harness.base.progress import Progress
-    from harness.report import render
-    from harness.runner.results import RECORDING_FILE, RESULTS_FILE, write_results
+    import harness.api  # the pipeline and the report: their import is timed here too
+    import harness.report  # noqa: F401
+    from harness.base.workers import WorkersError
     from harness.runner.scenario import load_scenario
 
     imported = started + time.perf_counter() - start  # Python, mujoco, pinocchio, numpy, scipy, the harness
     names = args.scenarios or [DEFAULT_SCENARIO]
+    workers = _workers(args, " ".join(names))
     scenarios = [load_scenario(_resolve_scenario(a)) for a in names]  # all validated before any work
     seen = set()
     for s in scenarios:
@@ -238,6 +258,21 @@ def cmd_run(args: argparse.Namespace) -> int:
             if entry.skipped is not None:
                 print(f"harness: warning: {s.name}: identification method {entry.name} skipped: {entry.skipped}",
                       file=sys.stderr)
+    try:  # the workers cannot be reached or started: the address, or dask not installed
+        with workers.opened():  # started once for every scenario
+            passed, verdicts = _run_each(args, scenarios, workers, imported)
+    except WorkersError as exc:
+        raise InputError(" ".join(names), "--dask", str(exc)) from None
+    _write_ci(args, verdicts)
+    return EXIT_OK if passed else EXIT_GATE_FAILED
+
+
+def _run_each(args: argparse.Namespace, scenarios: list, workers, imported: float) -> tuple[bool, list]:
+    from harness.api import run
+    from harness.base.progress import Progress
+    from harness.report import render
+    from harness.runner.results import RECORDING_FILE, RESULTS_FILE, write_results
+
     passed, verdicts = True, []
     for scenario in scenarios:
         if args.out is None:
@@ -246,7 +281,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             out = args.out if len(scenarios) == 1 else args.out / scenario.name
         progress = Progress(scenario.name, args.quiet)
         with closing(progress):  # a bar in progress ends its line before anything else is printed
-            result = run(scenario, progress)
+            result = run(scenario, progress, workers)
         progress("writing the report", None)
         results = result.results
         for warning in (results.get("data", {}).get("conditioning", {}).get("warnings", [])
@@ -269,8 +304,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         _print_summary(results, out)
         passed &= results["passed"]
         verdicts.append((scenario.name, results["gates"]))
-    _write_ci(args, verdicts)
-    return EXIT_OK if passed else EXIT_GATE_FAILED
+    return passed, verdicts
 
 
 def _print_summary(results: dict, out: Path) -> None:
@@ -373,7 +407,7 @@ def _sweep_of(scenario):
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     from harness.base.progress import Progress
-    from harness.base.workers import Workers, WorkersError
+    from harness.base.workers import WorkersError
     from harness.runner.results import with_nulls
     from harness.runner.scenario import load_scenario
 
@@ -386,19 +420,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
                                                      "([identification]) can")
     if not 2 <= args.trials <= MAX_TRIALS:
         raise InputError(args.scenario, "--trials", f"needs 2 to {MAX_TRIALS:,} trials, got {args.trials}")
-    if not 1 <= args.jobs <= max_jobs():
-        raise InputError(args.scenario, "--jobs", f"needs 1 to {max_jobs()} processes (4 per core), got {args.jobs}")
-    if args.dask is not None and args.jobs != 1:
-        raise InputError(args.scenario, "--dask", f"the trials run either on Dask or on --jobs {args.jobs} processes, "
-                                                  "not both")
-    if args.dask is not None and not args.dask.strip():
-        raise InputError(args.scenario, "--dask", "needs a scheduler address (or none, for a local cluster)")
+    workers = _workers(args, args.scenario)
     if scenario.measurement.ideal:
         raise InputError(scenario.source, "measurement", "the scenario measures ideally: there is nothing to sweep")
     out = args.out or args.reports / scenario.name
-    workers = Workers(args.jobs, args.dask)
     try:  # the workers cannot be reached or started: the address, or dask not installed
-        with closing(Progress(scenario.name, after=0.0)) as progress:  # a bar ends its line on any exit
+        with workers.opened(), closing(Progress(scenario.name, after=0.0)) as progress:  # a bar ends its line
             results = sweep.run(scenario, args.trials, workers, progress)
     except WorkersError as exc:
         raise InputError(args.scenario, "--dask", str(exc)) from None

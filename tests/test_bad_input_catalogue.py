@@ -135,6 +135,9 @@ CLI_CASES = {
     "dask address empty": ["sweep", str(SCENARIOS / "kr500_noise.toml"), "--dask", " "],
     "dask address without a port": ["sweep", str(SCENARIOS / "kr500_noise.toml"), "--trials", "2", "--dask", "nowhere"],
     "sweep of an ideal measurement": ["sweep", str(SCENARIOS / "kr500_rail.toml")],
+    "run on no process": ["run", str(SCENARIOS / "kr500_rail.toml"), "--jobs", "0"],
+    "run on dask beside forked processes": ["run", str(SCENARIOS / "kr500_rail.toml"), "--dask", "--jobs", "2"],
+    "run on a dask address without a port": ["run", str(SCENARIOS / "kr500_rail.toml"), "--dask", "nowhere"],
     "scenario that does not exist": ["run", "no_such_scenario"],
     "results that do not exist": ["report", "no_such_results.json"],
 }

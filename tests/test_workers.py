@@ -5,6 +5,7 @@ estimators' seconds per fit differ."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import shutil
@@ -141,3 +142,75 @@ def test_without_dask_installed_a_dask_sweep_is_refused_in_one_line(monkeypatch,
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--dask" in err and "pip install" in err, err
     assert not out.exists()
+
+
+def _pid_setup(shared: np.ndarray) -> int:
+    return int(shared.sum())
+
+
+def _pid_trial(state: int, task: int) -> tuple[int, int]:
+    time.sleep(0.01)  # long enough for every worker to take a share
+    return os.getpid(), state + task
+
+
+def test_within_an_opened_block_every_map_runs_on_the_same_workers_and_shared_data_is_sent_once(monkeypatch):
+    """`Workers.opened()`: the local cluster started once for two maps (the worker processes of the
+    second are those of the first) and an object both maps share scattered once; after the block,
+    a map starts a cluster of its own (new processes)."""
+    from distributed import Client
+
+    scattered = []
+    original = Client.scatter
+    monkeypatch.setattr(Client, "scatter", lambda self, data, **kw: scattered.append(1) or original(self, data, **kw))
+    shared = np.arange(4.0)
+    workers = Workers(dask=LOCAL)
+    with workers.opened():
+        first = workers.map(_pid_setup, (shared,), _pid_trial, range(32))
+        second = workers.map(_pid_setup, (shared,), _pid_trial, range(32))
+    after = workers.map(_pid_setup, (shared,), _pid_trial, range(32))
+    assert [r[1] for r in first] == [r[1] for r in second] == [r[1] for r in after] == [6 + t for t in range(32)]
+    assert {r[0] for r in second} <= {r[0] for r in first}
+    assert not {r[0] for r in after} & {r[0] for r in first}
+    assert len(scattered) == 2  # once in the block, once for the map after it
+
+
+def _without_where_and_when(results: dict) -> dict:
+    run = results.pop("run")
+    results.pop("report", None)
+    for m in results["estimators"]["methods"].values():
+        del m["seconds_per_fit"]
+    return {**results, "versions": run["versions"], "scenario_text": run["scenario_text"]}
+
+
+@pytest.mark.slow  # ur5_estimators twice over its trials, two methods: about 20 s
+def test_harness_run_runs_the_estimators_monte_carlo_on_the_workers_it_is_given(tmp_path):
+    """`harness run SCENARIO --jobs 2` against `harness run SCENARIO`: the estimators' Monte Carlo on two
+    forked processes gives the same results.json apart from when, how long and where (`run`) and the
+    seconds per fit, and `run.workers` says where it ran."""
+    from harness.cli import main
+
+    source = (SCENARIOS / "ur5_estimators.toml").read_text()
+    source = (source.replace('"../models/', f'"{SCENARIOS.parent / "models"}/')
+              .replace('"ur5_friction_validation.toml"', f'"{SCENARIOS / "ur5_friction_validation.toml"}"')
+              .replace('methods = ["ols", "wls", "irls", "iv"]', 'methods = ["ols", "iv"]'))
+    (tmp_path / "s.toml").write_text(source)
+    runs = {}
+    for name, flags in (("here", []), ("forked", ["--jobs", "2"])):
+        out = tmp_path / name
+        assert main(["run", str(tmp_path / "s.toml"), "--out", str(out), "--quiet", *flags]) == 0
+        runs[name] = json.loads((out / "results.json").read_text())
+    assert runs["here"]["run"]["workers"] == "this process"
+    assert runs["forked"]["run"]["workers"] == "2 forked processes"
+    assert _without_where_and_when(runs["here"]) == _without_where_and_when(runs["forked"])
+
+
+@pytest.mark.parametrize(("n", "slots"), [(1, 1), (7, 2), (1000, 2), (100_003, 64)])
+def test_dask_chunks_cover_every_task_once_in_order_and_shrink_as_the_tasks_run_out(n, slots):
+    from harness.base.workers import CHUNK, MAX_DASK_CHUNK, guided_chunks
+
+    bounds = guided_chunks(n, slots)
+    assert bounds[0][0] == 0 and bounds[-1][1] == n
+    assert all(a[1] == b[0] for a, b in itertools.pairwise(bounds))  # contiguous: each task once, in order
+    sizes = [b - a for a, b in bounds]
+    assert all(CHUNK <= s <= MAX_DASK_CHUNK for s in sizes[:-1]) and 0 < sizes[-1] <= MAX_DASK_CHUNK
+    assert sizes == sorted(sizes, reverse=True)

@@ -12,6 +12,10 @@ it is split over threads, and one thread makes the numbers the same bits in this
 forked one and on a Dask worker with the same numpy (and the workers do not oversubscribe the
 cores). BLAS's thread count belongs to a process, so Dask workers are started single-threaded
 (`dask worker ADDRESS --nthreads 1`, as many processes as cores; the local cluster is made so).
+
+Within `with workers.opened():` the workers are started once (the Dask cluster started, or the
+scheduler reached) for every map in the block, and what the maps share (the scenario, its
+recording) is sent to them once; outside such a block each map starts and stops its own.
 """
 
 from __future__ import annotations
@@ -19,12 +23,17 @@ from __future__ import annotations
 import os
 import threading
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
 LOCAL = "local"  # --dask with no address: a cluster of processes on this machine
 CHUNK = 8  # tasks sent to a worker at once: a trial takes tens of milliseconds, a round trip about one
+# On Dask a chunk costs about 8 ms of the scheduler's and client's time in the calling process, which
+# shares the cores with the workers: chunks there shrink as the tasks run out (guided scheduling),
+# from MAX_DASK_CHUNK down to CHUNK, so that few chunks are sent and the workers still end together.
+MAX_DASK_CHUNK = 64
 
 
 class WorkersError(Exception):
@@ -46,6 +55,23 @@ class Workers:
         if self.dask:
             return f"dask, scheduler {self.dask}"
         return "this process" if self.processes == 1 else f"{self.processes} forked processes"
+
+    @contextmanager
+    def opened(self) -> Iterator[Workers]:
+        """These workers started once for every map in the block: a Dask cluster started (or the
+        scheduler reached) on entry and stopped (or left) on exit, each object the maps share sent
+        to the workers once. Forked processes are cheap to start (ms) and are forked per map, with
+        the shared objects inherited, not sent; this process needs nothing. Nested blocks share
+        the outer one's."""
+        if not self.dask or self.dask in _OPEN:
+            yield self
+            return
+        _OPEN[self.dask] = connection = _Connection(self.dask)
+        try:
+            yield self
+        finally:
+            del _OPEN[self.dask]
+            connection.close()
 
     def map(self, setup: Callable[..., Any], shared: tuple, trial: Callable[[Any, Any], Any], tasks: Sequence,
             progress: Callable[[int, int], None] | None = None) -> list:
@@ -119,17 +145,45 @@ def _dask_chunk(token: str, setup, trial, tasks: list, *shared) -> list:
         return [trial(state, t) for t in tasks]
 
 
+class _Connection:
+    """A Dask client, the local cluster it started (LOCAL) and what it has sent to the workers."""
+
+    def __init__(self, address: str):
+        self.client, self.cluster = _client(address)
+        self._sent: dict[int, tuple[Any, Any]] = {}  # id(object) -> (the object, kept alive; its future)
+
+    def send(self, obj):
+        """obj on every worker, sent once per connection (a future the workers resolve to it)."""
+        if id(obj) not in self._sent:
+            self._sent[id(obj)] = (obj, self.client.scatter([obj], broadcast=True)[0])
+        return self._sent[id(obj)][1]
+
+    def close(self) -> None:
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+_OPEN: dict[str, _Connection] = {}  # address -> the connection a `Workers.opened()` block holds
+
+
 def _client(address: str):
     try:
+        import dask
         from distributed import Client, LocalCluster
     except ImportError:
         raise WorkersError("needs dask.distributed: pip install 'dask[distributed]'") from None
     if address == LOCAL:
         import logging
+        import multiprocessing
 
-        cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=":0",  # any free port: clusters on one machine do not collide
-                               silence_logs=logging.ERROR)
+        # workers forked from this process start with its modules imported (about 0.5 s for two on 2
+        # cores, against 2 s spawned: each would import numpy, MuJoCo, Pinocchio and the harness again)
+        method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+        with dask.config.set({"distributed.worker.multiprocessing-method": method}):
+            cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0",  # any free port: clusters on one machine do not collide
+                                   silence_logs=logging.ERROR)
         return Client(cluster), cluster
     try:
         return Client(address, timeout="10s"), None
@@ -137,14 +191,29 @@ def _client(address: str):
         raise WorkersError(f"cannot reach a Dask scheduler at {address!r} ({exc})") from None
 
 
+def guided_chunks(n: int, slots: int) -> list[tuple[int, int]]:
+    """[start, stop) of each chunk of n tasks for `slots` workers: a quarter of each worker's share of
+    what is left, within CHUNK and MAX_DASK_CHUNK (the scheduler hands them out in this order)."""
+    bounds, start = [], 0
+    while start < n:
+        size = min(MAX_DASK_CHUNK, max(CHUNK, -(-(n - start) // (4 * slots))))
+        bounds.append((start, min(start + size, n)))
+        start += size
+    return bounds
+
+
 def _on_dask(address, setup, shared, trial, tasks, progress) -> list:
-    client, cluster = _client(address)
+    connection = _OPEN.get(address)
+    temporary = connection is None
+    if temporary:
+        connection = _Connection(address)
     from distributed import as_completed
 
     try:
+        client = connection.client
         token = uuid.uuid4().hex
-        shared_on_workers = client.scatter(list(shared), broadcast=True) if shared else []
-        chunks = [tasks[i:i + CHUNK] for i in range(0, len(tasks), CHUNK)]
+        shared_on_workers = [connection.send(x) for x in shared]
+        chunks = [tasks[a:b] for a, b in guided_chunks(len(tasks), sum(client.nthreads().values()) or 1)]
         futures = {client.submit(_dask_chunk, token, setup, trial, chunk, *shared_on_workers, pure=False): i
                    for i, chunk in enumerate(chunks)}
         results: list = [None] * len(chunks)
@@ -157,6 +226,5 @@ def _on_dask(address, setup, shared, trial, tasks, progress) -> list:
                 progress(done, len(tasks))
         return [r for chunk in results for r in chunk]
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        if temporary:
+            connection.close()

@@ -132,6 +132,7 @@ def run_section(out: RunOutput, when: str) -> dict:
                               for m in out.scenario.models},
         "identification_methods": {m.name: m.reference for m in out.scenario.methods},
         "studies": [study.name for study, _ in out.scenario.studies],
+        "workers": out.context.workers.describe(),  # where a stage's Monte Carlo trials ran
         "timings": out.timings or {},
         "scenario_text": out.scenario.text,
     }
@@ -139,7 +140,8 @@ def run_section(out: RunOutput, when: str) -> dict:
 
 def build_results(out: RunOutput, when: str | None = None) -> dict:
     """results.json without the verdict (harness.runner.gates.verdict adds it). `when` (ISO time) defaults
-    to now; it and `run.timings` are the only fields that differ between two runs of a scenario."""
+    to now; it and `run.timings` are the only fields that differ between two runs of a scenario
+    (`run.workers` too, where the two ran their trials on different workers)."""
     when = when or datetime.now(UTC).isoformat(timespec="seconds")
     from harness.runner.scenario import DataScenario
 
