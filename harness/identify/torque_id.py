@@ -151,11 +151,14 @@ def structurally_weak(W: np.ndarray, independent: np.ndarray, norms: np.ndarray,
     column that is WEAK_STRUCTURE or less of what parameters of its kind have (its column against the
     median column of the same kind: mass, first moment, inertia, or one drive term), or by the
     difference between columns (a right singular vector with sigma / sigma_max below WEAK_STRUCTURE
-    of the column-scaled base regressor, weight above 0.1). A property of the model's structure,
-    not of a base chosen among equivalent ones: whichever column stands for such a direction is
-    tiny, or nearly collinear with the others. so100's pan axis, 3e-6 rad off the vertical: its
-    columns at 4e-6 of their kind's; every other column of so100, the Panda, the UR5, the KR500 and
-    the planar arm at 6e-4 or more, and their scaled singular values at 0.1 or more of the largest."""
+    of the column-scaled base regressor, weight above 0.1). The directions are the model's
+    structure, not the base's: whichever column stands for such a direction is tiny, or nearly
+    collinear with the others. How many base parameters carry them is the base's, and round-off
+    can decide the pivoting's choice: one direction can then be shared by two base parameters
+    (so100: two weak on an AMD EPYC, three on an Intel Xeon, for the tilt's two directions).
+    so100's pan axis, 3e-6 rad off the vertical: its columns at 4e-6 of their kind's; every other
+    column of so100, the Panda, the UR5, the KR500 and the planar arm at 6e-4 or more, and their
+    scaled singular values at 0.1 or more of the largest."""
     n10 = W.shape[1] // 14 * 10 if with_friction else W.shape[1]  # columns of the links; the drives after them
     c = np.arange(W.shape[1])
     kind = np.where(c < n10, np.array([0, 1, 1, 1, 2, 2, 2, 2, 2, 2])[c % 10], 3 + (c - n10) % 4)
