@@ -107,17 +107,21 @@ def test_a_force_path_sweep_is_the_same_in_this_process_in_forked_processes_and_
     assert all(r == first for r in runs.values())
 
 
+def _two_estimators(path: Path) -> None:
+    """ur5_estimators with two of its four estimators, written to `path`."""
+    source = (SCENARIOS / "ur5_estimators.toml").read_text()
+    path.write_text(source.replace('"../models/', f'"{SCENARIOS.parent / "models"}/')
+                    .replace('"ur5_friction_validation.toml"', f'"{SCENARIOS / "ur5_friction_validation.toml"}"')
+                    .replace('methods = ["ols", "wls", "irls", "iv"]', 'methods = ["ols", "iv"]'))
+
+
 @pytest.mark.slow  # ur5_estimators twice over 4 trials: about 15 s
 def test_harness_sweep_runs_the_estimators_on_a_dask_scheduler_with_the_same_results(scheduler, tmp_path):
     """`harness sweep SCENARIO --dask ADDRESS` against `--jobs 1`: the same sweep.json apart from
     where and how long ("run") and the seconds per fit."""
     from harness.cli import main
 
-    source = (SCENARIOS / "ur5_estimators.toml").read_text()
-    source = (source.replace('"../models/', f'"{SCENARIOS.parent / "models"}/')
-              .replace('"ur5_friction_validation.toml"', f'"{SCENARIOS / "ur5_friction_validation.toml"}"')
-              .replace('methods = ["ols", "wls", "irls", "iv"]', 'methods = ["ols", "iv"]'))
-    (tmp_path / "s.toml").write_text(source)
+    _two_estimators(tmp_path / "s.toml")
     sweeps = {}
     for name, flags in (("here", ["--jobs", "1"]), ("dask", ["--dask", scheduler])):
         out = tmp_path / name
@@ -189,11 +193,7 @@ def test_harness_run_runs_the_estimators_monte_carlo_on_the_workers_it_is_given(
     seconds per fit, and `run.workers` says where it ran."""
     from harness.cli import main
 
-    source = (SCENARIOS / "ur5_estimators.toml").read_text()
-    source = (source.replace('"../models/', f'"{SCENARIOS.parent / "models"}/')
-              .replace('"ur5_friction_validation.toml"', f'"{SCENARIOS / "ur5_friction_validation.toml"}"')
-              .replace('methods = ["ols", "wls", "irls", "iv"]', 'methods = ["ols", "iv"]'))
-    (tmp_path / "s.toml").write_text(source)
+    _two_estimators(tmp_path / "s.toml")
     runs = {}
     for name, flags in (("here", []), ("forked", ["--jobs", "2"])):
         out = tmp_path / name
