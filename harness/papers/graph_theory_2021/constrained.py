@@ -148,18 +148,26 @@ def equilibrate(X: np.ndarray) -> np.ndarray:
     on the units of the coordinates (m, rad) or of the constraint rows: the scaling converges to
     one that any diagonal rescaling of X leads to as well. cond and rank are reported and decided
     on this form. Entries at round-off of the largest are zero first: scaled up, an entry of 1e-17
-    in a row of nothing would pass for data."""
+    in a row of nothing would pass for data. The scalings are iterated as vectors, u (N, r) and
+    v (N, c) with diag(u) X diag(v) the scaled matrix, two batched matrix-vector products with the
+    squared entries a sweep, and applied once at the end (scaling the matrix itself at every sweep
+    read and wrote it four times)."""
     X = np.array(X, dtype=float)
     size = np.max(np.abs(X), axis=(1, 2), keepdims=True)
     X[np.abs(X) <= ROUND_OFF * size] = 0.0
+    A = X * X
+    u, v = np.ones(X.shape[:2]), np.ones((X.shape[0], X.shape[2]))
     for _ in range(EQUILIBRATION_SWEEPS):
-        rows = np.sqrt(np.einsum("nrc,nrc->nr", X, X))[:, :, None]  # Euclidean norms, without temporaries
-        X /= np.where(rows > 0, rows, 1.0)
-        cols = np.sqrt(np.einsum("nrc,nrc->nc", X, X))[:, None, :]
-        X /= np.where(cols > 0, cols, 1.0)
-        if np.all(np.abs(rows[rows > 0] - 1.0) < EQUILIBRATED) and np.all(np.abs(cols[cols > 0] - 1.0) < EQUILIBRATED):
+        rows = (A @ (v * v)[:, :, None])[:, :, 0]  # each row's squared norm over u^2
+        rows_now = np.sqrt(u * u * rows)  # the scaled matrix's row norms before this sweep
+        u = np.where(rows > 0, 1.0 / np.sqrt(np.where(rows > 0, rows, 1.0)), 1.0)
+        cols = ((u * u)[:, None, :] @ A)[:, 0, :]
+        cols_now = np.sqrt(v * v * cols)
+        v = np.where(cols > 0, 1.0 / np.sqrt(np.where(cols > 0, cols, 1.0)), 1.0)
+        if (np.all(np.abs(rows_now[rows > 0] - 1.0) < EQUILIBRATED)
+                and np.all(np.abs(cols_now[cols > 0] - 1.0) < EQUILIBRATED)):
             break  # a further sweep would change no entry by more than this
-    return X
+    return u[:, :, None] * X * v[:, None, :]
 
 
 def _cond_rank(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
