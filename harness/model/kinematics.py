@@ -57,10 +57,13 @@ def cross(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
     times faster on 10,000 states than stacking them)."""
     a, b = np.asarray(a), np.asarray(b)
     if axis == 0:
-        out = np.empty((3,) + np.broadcast_shapes(a.shape[1:], b.shape[1:]), dtype=np.result_type(a, b))
+        shape = a.shape[1:] if a.shape == b.shape else np.broadcast_shapes(a.shape[1:], b.shape[1:])
+        out = np.empty((3,) + shape, dtype=np.result_type(a, b))
+        term = np.empty(shape, dtype=out.dtype)  # the subtracted product, one buffer for the three
         for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
             np.multiply(a[i], b[j], out=out[k, ...])  # [k, ...]: a view even of a 0-d component
-            out[k, ...] -= a[j] * b[i]
+            np.multiply(a[j], b[i], out=term)
+            out[k, ...] -= term
         return out
     if axis != -1:
         raise ValueError(f"axis must be 0 or -1, got {axis}")
