@@ -100,7 +100,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="output folder: with one scenario, its folder; with several, the folder that gets "
                           "one subfolder per scenario (default: reports/<scenario name>)")
     run.add_argument("--quiet", action="store_true", help="no progress messages")
-    _worker_options(run, "a stage's Monte Carlo trials (the estimators', an identification method's)")
+    _worker_options(run, "the estimators' Monte Carlo trials ([estimators])")
     _ci_options(run)
     report = sub.add_parser("report", help="re-render report.html from a results.json",
                             description="Re-render the HTML report from a results.json and the recording.csv "
