@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
+from harness.identify.torque_id import links_torque
 from harness.model import friction
 from harness.model.friction import EXTRA_KEYS, FAMILIES, JointFriction
 
@@ -133,15 +134,14 @@ class _Normal:
     fold k out solves (sum M - M_k) x = sum r - r_k and predicts fold k's rows. Replacing joint j's
     columns rewrites its slot only: O(N r) per trial."""
 
-    def __init__(self, G: np.ndarray, rigid: np.ndarray, share: np.ndarray, tau: np.ndarray, folds: list[slice],
-                 slot: int):
+    def __init__(self, G: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
+                 folds: list[slice], slot: int):
         N, n = tau.shape
         self.slot = slot  # friction columns a joint may have: q', s and the most terms of a law tried
         r = G.shape[1]
         self.n, self.r = n, r
         self.G3 = G.reshape(N, n, r)
-        self.rigid = rigid  # (r,) bool: the fixed columns that hold the links' (inertial) parameters
-        self.share = share  # (r,) the drive's share in each (BaseParameters.link_part)
+        self.link_part = link_part  # the fixed columns that hold a link's parameters, the drive's share in each
         self.tau = tau
         self.folds = folds
         p = r + slot * n
@@ -205,7 +205,7 @@ class _Normal:
     def rigid_torque(self) -> np.ndarray:
         """(N, n) the rigid-body torque of the fit on every fold."""
         g = self._solve(self.M.sum(0), self.rhs.sum(0))[: self.r]
-        return self.G3[..., self.rigid] @ (g - self.share)[self.rigid]
+        return links_torque(self.G3, g, self.link_part)
 
 
 def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
@@ -233,7 +233,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     shaped = {10 * n + 4 * j + k for j in range(n) for k in (1, 2)}  # each joint's viscous and Coulomb columns
     kept = np.array([k for k, c in enumerate(independent) if c not in shaped])
     G = W.reshape(N, n, -1)[order][:, :, independent[kept]]
-    normal = _Normal(G.reshape(N * n, -1), link_part[0][kept], link_part[1][kept], tau, folds, slot)
+    normal = _Normal(G.reshape(N * n, -1), tuple(x[kept] for x in link_part), tau, folds, slot)
     # a joint that never moves faster than the smallest v_c tried shows nothing of its friction's shape:
     # it keeps the model's law
     moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]

@@ -122,6 +122,14 @@ class BaseParameters:
         return link, np.where(link, share, 0.0)
 
 
+def links_torque(G: np.ndarray, beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """The links' part of a base-parameter fit's torque, the rigid-body torque tau_R: G (..., r) the
+    base parameters' columns, beta (r,) their values, link_part from BaseParameters.link_part (which
+    of them hold a link's inertia, and the drive's share in each, taken out)."""
+    link, share = link_part
+    return G[..., link] @ (beta - share)[link]
+
+
 def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameters:
     from scipy.linalg import qr, solve_triangular  # pivoted QR: numpy has none; imported where needed
 

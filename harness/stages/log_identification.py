@@ -31,6 +31,7 @@ from harness.identify.torque_id import (
     BaseParameters,
     describe_base,
     fit_base,
+    links_torque,
     parameter_names,
     regressor,
     structural_base,
@@ -425,7 +426,7 @@ def run(ctx, config) -> LogIdentification | None:
     beta_model = base.of(x_model)
     # the base parameters that hold a link's inertia, and the drive's share in each (the model's own, where a
     # rotor inertia is regrouped with a link's): what a load-dependent law's rigid-body torque reads
-    link_part = link, share = base.link_part(x_model, 10 * n)
+    link_part = base.link_part(x_model, 10 * n)
     constants = None
     if sc.data.units["tau"] == "current" and sc.data.identify_constants:
         ctx.progress("torque constants (motor currents)", None)
@@ -506,8 +507,9 @@ def run(ctx, config) -> LogIdentification | None:
     pm_identified = build_model(identified, sc.gravity_W)
     for span, (qs, qds, qdds, taus, ts) in spans.items():
         Ws = W if span == "training" else regressor(pm_identified, qs, qds, qdds, with_friction=True)
-        rigid_ls = (Ws[:, base.independent[link]] @ (ls.beta[:r] - share)[link]).reshape(taus.shape)
-        W_span = np.hstack([Ws[:, base.independent], extra_regressor(laws, qds, rigid_ls)])
+        W_base = Ws[:, base.independent]
+        rigid_ls = links_torque(W_base, ls.beta[:r], link_part).reshape(taus.shape)
+        W_span = np.hstack([W_base, extra_regressor(laws, qds, rigid_ls)])
         predictions[span] = {
             "least squares": (W_span @ ls.beta).reshape(taus.shape),
             "consistent": rnea(pm_identified, qs, qds, qdds).tau,
@@ -516,7 +518,7 @@ def run(ctx, config) -> LogIdentification | None:
         measured[span], times[span] = taus, ts
         if span == "validation":  # the model class's floor there: its least squares on that span itself
             fitted = W_span @ np.linalg.lstsq(W_span, taus.ravel(), rcond=None)[0]
-            floor = float(np.linalg.norm(fitted - taus.ravel()) / np.linalg.norm(taus))
+            floor = torque_errors(fitted.reshape(taus.shape), taus, joints)["rel_error"]
         if pm_truth is not None:  # what the robot that made the log needs at these states
             truth_tau[span] = rnea(pm_truth, qs, qds, qdds).tau
     refused = None  # why robot.xml was not written
