@@ -160,10 +160,10 @@ def equilibrate(X: np.ndarray) -> np.ndarray:
     for _ in range(EQUILIBRATION_SWEEPS):
         rows = (A @ (v * v)[:, :, None])[:, :, 0]  # each row's squared norm over u^2
         rows_now = np.sqrt(u * u * rows)  # the scaled matrix's row norms before this sweep
-        u = np.where(rows > 0, 1.0 / np.sqrt(np.where(rows > 0, rows, 1.0)), 1.0)
+        u = 1.0 / np.sqrt(np.where(rows > 0, rows, 1.0))  # an empty row keeps u = 1
         cols = ((u * u)[:, None, :] @ A)[:, 0, :]
         cols_now = np.sqrt(v * v * cols)
-        v = np.where(cols > 0, 1.0 / np.sqrt(np.where(cols > 0, cols, 1.0)), 1.0)
+        v = 1.0 / np.sqrt(np.where(cols > 0, cols, 1.0))
         if (np.all(np.abs(rows_now[rows > 0] - 1.0) < EQUILIBRATED)
                 and np.all(np.abs(cols_now[cols > 0] - 1.0) < EQUILIBRATED)):
             break  # a further sweep would change no entry by more than this
