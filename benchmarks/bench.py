@@ -307,6 +307,12 @@ def long_baseline() -> None:
     print(json.dumps({"seconds": seconds, "peak_rss_mib": rss, "unknowns": len(beta)}))
 
 
+# A command's start as on an installed harness: Python's bytecode cache written and read (an
+# environment that sets PYTHONDONTWRITEBYTECODE would compile every module of the harness at every
+# start, about 0.18 s of `harness run kr500_rail` on a 2-core Intel Xeon)
+AS_INSTALLED = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
 def import_time(figures: dict) -> None:
     """`import harness` over a bare interpreter: Python's own account (`-X importtime`, the cumulative
     microseconds of the `harness` line: what the import adds, the interpreter's start left out), best
@@ -364,12 +370,6 @@ def chain_scenario(folder: Path) -> Path:
 
     scenario("chain20_validation", 0.77, "")
     return scenario("chain20_sines", 1.0, '[torque_identification]\nvalidation = "chain20_validation.toml"\n\n')
-
-
-# A command's start as on an installed harness: Python's bytecode cache written and read (an
-# environment that sets PYTHONDONTWRITEBYTECODE would compile every module of the harness at every
-# start, about 0.18 s of `harness run kr500_rail` on a 2-core Intel Xeon)
-AS_INSTALLED = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
 def harness_run(scenario: Path | str, out: Path) -> tuple[float, dict]:
