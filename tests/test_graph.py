@@ -148,3 +148,21 @@ def test_torques_from_joint_coordinates_in_blocks_are_pinocchios_state_by_state(
         x[:, pm.q_index] = q[k], qd[k], qdd[k]
         ref[k] = pin.rnea(pm.model, data, x[0], x[1], x[2])[pm.q_index]
     assert np.max(np.abs(tau - ref)) <= 1e-12 * np.max(np.abs(ref))
+
+
+def test_blocks_of_states_written_into_the_same_arrays_are_each_evaluated_alone(kr500_rail):
+    """The blocks of one call share their kinematics' arrays: the joint wrenches and torques of the
+    first block and of the last, shorter one equal those of the same states evaluated alone,
+    bit for bit (the same operations on the same numbers)."""
+    from harness.papers.graph_theory_2021.inverse import BLOCK
+    from harness.papers.graph_theory_2021.model import make
+
+    graph = make(kr500_rail.robot, kr500_rail.gravity_W)
+    n, states = len(kr500_rail.robot.joints), BLOCK * 5 // 2
+    rng = np.random.default_rng(12)
+    q, qd, qdd = (rng.uniform(-1, 1, (states, n)) for _ in range(3))
+    whole = graph.solve(q, qd, qdd)
+    for rows in (slice(0, BLOCK), slice(2 * BLOCK, states)):
+        alone = graph.solve(q[rows], qd[rows], qdd[rows])
+        for key in ("tau", "F_W", "M_W"):
+            np.testing.assert_array_equal(getattr(whole, key)[rows], getattr(alone, key), err_msg=key)

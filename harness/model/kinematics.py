@@ -24,6 +24,7 @@ frames that the graph model uses. Checked against Pinocchio state by state on fi
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,9 +85,9 @@ def rotate(A_c: np.ndarray, v: np.ndarray) -> np.ndarray:
     """A v in component-major form (the batched Newton-Euler and regressor): A_c (3, 3, ...) and
     v (3, ...) -> (3, ...). A v with every sample's own vector: einsum (1.4 times faster than the
     three products summed, on 10,000 samples of seven bodies); a vector fixed in the body, broadcast
-    over the samples (v of fewer dimensions): the three products summed (three times faster than
-    einsum's broadcasting), the same bits."""
-    if v.ndim == A_c.ndim - 1:
+    over the samples (v of fewer dimensions, or of length 1 along them): the three products summed
+    (three times faster than einsum's broadcasting), the same bits."""
+    if v.shape == A_c.shape[1:]:
         return np.einsum("ij...,j...->i...", A_c, v)
     out = np.empty((3,) + np.broadcast_shapes(A_c.shape[2:], v.shape[1:]))
     for i in range(3):
@@ -128,10 +129,10 @@ def axis_rotation(axis: np.ndarray, angle: np.ndarray, samples_last: bool = Fals
     return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
 
 
-def _times_constant(R: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """R C for R (3, 3, N) component-major and a constant C (3, 3): row i of R C is C^T R[i], one
-    matrix product over the stack of rows."""
-    return np.matmul(C.T, R)
+def _times_constant(R: np.ndarray, C_T: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """R C for R (3, 3, N) component-major and a constant C given as its transpose C_T: row i of R C
+    is C^T R[i], one matrix product over the stack of rows."""
+    return np.matmul(C_T, R, out=out)
 
 
 def _turned(R: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -141,69 +142,155 @@ def _turned(R: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def _point_acceleration(a_c, wd, w, r):
     """a_c + w' x r + w x (w x r), component-major (3, ...)."""
-    return a_c + cross(wd, r, axis=0) + cross(w, cross(w, r, axis=0), axis=0)
+    out = cross(w, cross(w, r, axis=0), axis=0)
+    out += cross(wd, r, axis=0)
+    out += a_c
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Step:
+    """One joint of the recursion and the constants it reads (initial-pose world components)."""
+
+    parent: int  # body index of the inner body, -1 for the world
+    child: int  # body index of the outer body
+    revolute: bool
+    u0: np.ndarray  # (3,) axis
+    p0: np.ndarray  # (3,) joint point
+    K_T: np.ndarray  # (3, 3) transposed cross-product matrix of the unit axis (revolute)
+    KK_T: np.ndarray  # (3, 3) the same of K^2
+    norm: float  # |axis|: a revolute joint turns by q |axis|
+    r0: np.ndarray  # (3,) joint point to centre of mass (revolute), the centre of mass (prismatic)
+    R_WB0_T: np.ndarray  # (3, 3) the outer body's initial orientation, transposed
+
+
+_STEPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _steps(spec: RobotSpec) -> tuple[_Step, ...]:
+    """The recursion's constants of a spec, computed once per spec (a spec is immutable)."""
+    steps = _STEPS.get(spec)
+    if steps is None:
+        bodies = [b.name for b in spec.bodies]
+        steps = []
+        for joint in spec.joints:
+            body = spec.body(joint.child)
+            norm, K = _unit_skew(joint.axis_W0)
+            steps.append(_Step(bodies.index(joint.parent) if joint.parent != WORLD else -1,
+                               bodies.index(joint.child), joint.revolute, joint.axis_W0, joint.p_W0, K.T,
+                               (K @ K).T, norm,
+                               body.p_W_com0 - joint.p_W0 if joint.revolute else body.p_W_com0, body.R_WB0.T))
+        reached = {s.child for s in steps}
+        for i, name in enumerate(bodies):  # a body no joint moves (none in a spec: every body has its joint)
+            if i not in reached:
+                raise ValueError(f"body {name!r} has no inner joint")
+        steps = _STEPS[spec] = tuple(steps)
+    return steps
+
+
+@dataclass(frozen=True, eq=False)
+class KinematicsBuffers:
+    """The arrays forward_kinematics writes for N states, to be written again by the next N states
+    (what a TreeKinematics read from them shows changes then): blocks of states evaluated one after
+    another reuse them instead of allocating and freeing megabytes each time, which the C library
+    returns to the system and takes back, page by page (a fifth of the time of the kinematics of 2048
+    Panda states)."""
+
+    N: int
+    R: np.ndarray  # (n_bodies, 3, 3, N) each body's displacement R_B, a contiguous block per body
+    t: np.ndarray  # (n_bodies, 3, N) and t_B
+    R_WB: np.ndarray  # (3, 3, n_bodies, N)
+    c: np.ndarray  # (3, n_bodies, N) centre of mass
+    a: np.ndarray
+    w: np.ndarray
+    wd: np.ndarray
+    axes: np.ndarray  # (3, n_joints, N)
+    points: np.ndarray
+
+    @classmethod
+    def of(cls, spec: RobotSpec, N: int) -> KinematicsBuffers:
+        nb, nj = len(spec.bodies), len(spec.joints)
+        return cls(N, np.empty((nb, 3, 3, N)), np.empty((nb, 3, N)), np.empty((3, 3, nb, N)),
+                   *(np.empty((3, nb, N)) for _ in range(4)), np.empty((3, nj, N)), np.empty((3, nj, N)))
 
 
 def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                       velocities: bool = True) -> TreeKinematics:
+                       velocities: bool = True, buffers: KinematicsBuffers | None = None) -> TreeKinematics:
     """(q, q', q'') of shape (N, n_joints) in spec joint order -> TreeKinematics (`velocities` False:
     the centres of mass' velocities left out, NaN: Newton-Euler does not read them).
 
-    Computed component-major, every quantity a (3, N) or (3, 3, N) array written into one array per
-    kind, (n_bodies, 3, N) or (n_bodies, 3, 3, N), of which TreeKinematics holds (N, n, ...) views.
-    A revolute joint's rotation by Rodrigues' formula folded into the product with the parent's,
+    Computed component-major with the samples last, every quantity a (3, N) or (3, 3, N) array
+    written into one array per kind, (3, n_bodies, N) or (3, 3, n_bodies, N), of which
+    TreeKinematics holds (N, n, ...) views and `components` the arrays themselves. A revolute
+    joint's rotation by Rodrigues' formula folded into the product with the parent's,
     R_B = R_P + sin(q) R_P K + (1 - cos(q)) R_P K^2 (K the axis' cross-product matrix, constant),
     and t_B = O_J - R_B p_J0."""
-    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-    N = q.shape[0]
-    bodies = [b.name for b in spec.bodies]
-    nb, nj = len(bodies), len(spec.joints)
-    # body by body, each body's (3, N) or (3, 3, N) block contiguous (strided over the bodies, the
-    # kinematics of 2048 Panda states ran about twice as long)
-    R_c, R_WB_c = np.empty((nb, 3, 3, N)), np.empty((nb, 3, 3, N))
-    c_c, a_c, w_c, wd_c = (np.empty((nb, 3, N)) for _ in range(4))
-    v_c = np.empty((nb, 3, N)) if velocities else np.full((nb, 3, N), np.nan)
-    t_c, axes_c, points_c = np.empty((nb, 3, N)), np.empty((nj, 3, N)), np.empty((nj, 3, N))
-    identity, zero = np.eye(3)[:, :, None], np.zeros((3, 1))
-    # per body, views into the arrays above: displacement (R, t), centre of mass c, v, a, omega, omega'
-    state = {WORLD: (identity, zero, zero, zero, zero, zero, zero)}
-    for k, joint in enumerate(spec.joints):
-        R_P, t_P, c_P, v_P, a_P, w_P, wd_P = state[joint.parent]
-        body = spec.body(joint.child)
-        i = bodies.index(body.name)
-        u = _turned(R_P, joint.axis_W0)
-        O_J = _turned(R_P, joint.p_W0) + t_P
-        s, sd, sdd = q[:, k], qd[:, k], qdd[:, k]
-        R_B, t_B, c_B = R_c[i], t_c[i], c_c[i]
-        a_O = _point_acceleration(a_P, wd_P, w_P, O_J - c_P)  # the parent's point at O_J
-        if joint.revolute:
-            norm, K = _unit_skew(joint.axis_W0)  # R_J by Rodrigues, as axis_rotation, folded into R_P R_J
-            angle = s * norm
-            R_B[...] = (R_P + _times_constant(R_P, K) * np.sin(angle)
-                        + _times_constant(R_P, K @ K) * (1.0 - np.cos(angle)))
-            r = _turned(R_B, body.p_W_com0 - joint.p_W0)  # c_B - O_J
-            t_B[...] = O_J - _turned(R_B, joint.p_W0)
-            c_B[...] = O_J + r
-            w_c[i] = w_P + u * sd
-            wd_c[i] = wd_P + u * sdd + cross(w_P, u, axis=0) * sd
+    q, qd, qdd = (np.ascontiguousarray(np.atleast_2d(np.asarray(x, dtype=float)).T) for x in (q, qd, qdd))
+    N = q.shape[1]
+    steps = _steps(spec)
+    nb = len(spec.bodies)
+    if buffers is None or buffers.N != N:
+        buffers = KinematicsBuffers.of(spec, N)
+    R, t, R_WB, c, a, w, wd, axes, points = (buffers.R, buffers.t, buffers.R_WB, buffers.c, buffers.a, buffers.w,
+                                             buffers.wd, buffers.axes, buffers.points)
+    v = np.empty((3, nb, N)) if velocities else np.broadcast_to(np.nan, (3, nb, N))
+    for k, st in enumerate(steps):
+        i, P = st.child, st.parent
+        s, sd, sdd = q[k], qd[k], qdd[k]
+        R_B, t_B = R[i], t[i]
+        if P < 0:  # on the world: at rest, its frame the initial pose's
+            R_P, u, O_J = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, N)), st.u0[:, None], st.p0[:, None]
+            w_P = wd_P = c_P = v_P = None
+            a_O = np.zeros((3, 1))
+        else:
+            R_P, w_P, wd_P, c_P, v_P = R[P], w[:, P], wd[:, P], c[:, P], v[:, P]
+            u = _turned(R_P, st.u0)
+            O_J = _turned(R_P, st.p0)
+            O_J += t[P]
+            a_O = _point_acceleration(a[:, P], wd_P, w_P, O_J - c_P)  # the parent's point at O_J
+        w_B, wd_B = w[:, i], wd[:, i]
+        if st.revolute:
+            angle = s * st.norm
+            _times_constant(R_P, st.K_T, out=R_B)
+            R_B *= np.sin(angle)
+            turn = _times_constant(R_P, st.KK_T)
+            turn *= 1.0 - np.cos(angle)
+            R_B += turn
+            R_B += R_P
+            r = _turned(R_B, st.r0)  # c_B - O_J
+            np.subtract(O_J, _turned(R_B, st.p0), out=t_B)
+            np.add(O_J, r, out=c[:, i])
+            np.multiply(u, sd, out=w_B)
+            np.multiply(u, sdd, out=wd_B)
+            if P >= 0:
+                w_B += w_P
+                wd_B += wd_P
+                wd_B += cross(w_P, u, axis=0) * sd
             if velocities:
-                v_c[i] = v_P + cross(w_P, O_J - c_P, axis=0) + cross(w_c[i], r, axis=0)
-            a_c[i] = _point_acceleration(a_O, wd_c[i], w_c[i], r)
+                v[:, i] = cross(w_B, r, axis=0) + (0.0 if P < 0 else v_P + cross(w_P, O_J - c_P, axis=0))
+            a[:, i] = _point_acceleration(a_O, wd_B, w_B, r)
         else:
             R_B[...] = R_P
-            t_B[...] = u * s + t_P
-            c_B[...] = _turned(R_B, body.p_W_com0) + t_B
-            w_c[i], wd_c[i] = w_P, wd_P
-            d = c_B - O_J
-            if velocities:
-                v_c[i] = v_P + cross(w_P, c_B - c_P, axis=0) + u * sd
-            a_c[i] = (_point_acceleration(a_O, wd_P, w_P, d) + u * sdd + 2.0 * cross(w_P, u, axis=0) * sd)
-        R_WB_c[i] = _times_constant(R_B, body.R_WB0)
-        state[body.name] = (R_B, t_B, c_B, v_c[i], a_c[i], w_c[i], wd_c[i])
-        axes_c[k], points_c[k] = u, O_J
-    for name in bodies:  # a body no joint moves (none in a spec: every body has its joint)
-        if name not in state:
-            raise ValueError(f"body {name!r} has no inner joint")
-    vec = lambda x: x.transpose(2, 0, 1)  # noqa: E731  (n, 3, N) -> (N, n, 3), a view
-    return TreeKinematics(tuple(bodies), R_WB_c.transpose(3, 0, 1, 2), vec(c_c), vec(v_c), vec(a_c),
-                          vec(w_c), vec(wd_c), vec(axes_c), vec(points_c))
+            np.multiply(u, s, out=t_B)
+            if P >= 0:
+                t_B += t[P]
+            np.add(_turned(R_B, st.r0), t_B, out=c[:, i])
+            d = c[:, i] - O_J
+            acc = u * sdd
+            if P < 0:
+                w_B[...], wd_B[...] = 0.0, 0.0
+                if velocities:
+                    v[:, i] = u * sd
+                a[:, i] = acc + a_O
+            else:
+                w_B[...], wd_B[...] = w_P, wd_P
+                if velocities:
+                    v[:, i] = v_P + cross(w_P, c[:, i] - c_P, axis=0) + u * sd
+                acc += 2.0 * cross(w_P, u, axis=0) * sd
+                acc += _point_acceleration(a_O, wd_P, w_P, d)
+                a[:, i] = acc
+        _times_constant(R_B, st.R_WB0_T, out=R_WB[:, :, i])
+        axes[:, k], points[:, k] = u, O_J
+    vec = lambda x: x.transpose(2, 1, 0)  # noqa: E731  (3, n, N) -> (N, n, 3), a view
+    return TreeKinematics(tuple(b.name for b in spec.bodies), R_WB.transpose(3, 2, 0, 1), vec(c), vec(v),
+                          vec(a), vec(w), vec(wd), vec(axes), vec(points))

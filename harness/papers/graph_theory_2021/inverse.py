@@ -16,12 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.heap import keep_heap
 from harness.engines.recording import Recording
-from harness.model.kinematics import cross, forward_kinematics, rotate
+from harness.model.kinematics import KinematicsBuffers, cross, forward_kinematics, rotate
 from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.cardano import A_0i_components
 from harness.papers.graph_theory_2021.dynamics import GraphModel
-from harness.papers.graph_theory_2021.topology import joint_arms_components
+from harness.papers.graph_theory_2021.topology import Topology, joint_arms_components
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,9 +38,13 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
     top = model.topology
     b = [rec.body_index(x) for x in top.bodies]
     q = rec.q[:, [rec.joint_index(j) for j in top.joints]]
-    a_c, w_c, wd_c = (_components(x, b) for x in (rec.a_W, rec.omega_W, rec.omegadot_W))
+    a, w, wd = (_samples_last(x, b) for x in (rec.a_W, rec.omega_W, rec.omegadot_W))
     # the angles only feed sines and cosines, which read a strided view as fast: no copy
-    return newton_euler(spec, model, q, A_0i_components(np.moveaxis(_bodies(rec.theta, b), -1, 0)), a_c, w_c, wd_c)
+    A = A_0i_components(_select(rec.theta, b).transpose(2, 1, 0))
+    F, M = newton_euler(model, A, a, w, wd, *joint_arms_components(top, A, np.ascontiguousarray(q.T)))
+    tau, F_W, M_W = _drives(spec, top, F, M, lambda jj, on: np.einsum(
+        "ijn,j->in", A[:, :, top.bodies.index(on)], spec.body(on).R_WB0.T @ spec.joints[jj].axis_W0))
+    return GraphInverse(np.ascontiguousarray(tau.T), F_W.transpose(2, 1, 0), M_W.transpose(2, 1, 0))
 
 
 BLOCK = 2048  # states evaluated together from joint coordinates: about 12 MiB of scratch (Panda), whatever N
@@ -49,73 +54,98 @@ def inverse_dynamics_of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray
                                qdd: np.ndarray) -> GraphInverse:
     """From joint coordinates alone (spec joint order, (N, n)): the body motion by forward
     kinematics of the tree (harness/model/kinematics.py), then Newton-Euler as on a recording; in
-    blocks of BLOCK states, so that the scratch memory is bounded and the time linear in N."""
+    blocks of BLOCK states, so that the scratch memory is bounded and the time linear in N, the
+    kinematics of each block written into the same arrays, the heap kept from block to block
+    (harness/base/heap.py)."""
+    keep_heap()
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-    N = len(q)
-    if N <= BLOCK:
-        return _of_motion(spec, model, q, qd, qdd)
-    n = len(spec.joints)
-    tau, F_W, M_W = np.empty((N, n)), np.empty((N, n, 3)), np.empty((N, n, 3))
+    N, n = q.shape
+    tau, F_W, M_W = np.empty((n, N)), np.empty((3, n, N)), np.empty((3, n, N))
+    buffers = KinematicsBuffers.of(spec, min(N, BLOCK))
     for start in range(0, N, BLOCK):
         rows = slice(start, start + BLOCK)
-        out = _of_motion(spec, model, q[rows], qd[rows], qdd[rows])
-        tau[rows], F_W[rows], M_W[rows] = out.tau, out.F_W, out.M_W
-    return GraphInverse(tau, F_W, M_W)
+        tau[:, rows], F_W[:, :, rows], M_W[:, :, rows] = _of_motion(spec, model, q[rows], qd[rows], qdd[rows],
+                                                                    buffers)
+    return GraphInverse(np.ascontiguousarray(tau.T), F_W.transpose(2, 1, 0), M_W.transpose(2, 1, 0))
 
 
-def _of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> GraphInverse:
-    kin = forward_kinematics(spec, q, qd, qdd, velocities=False)
+def _of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+               buffers: KinematicsBuffers) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One block: the drive torques (n, N) and the joints' F, M (3, n, N), spec joint order. The
+    joint arms C_e,ik (Eq. 19) are read off the kinematics, which has every joint point and centre
+    of mass in the world already: the joint point of the outer body less either body's centre of
+    mass; so is each drive's axis."""
+    if len(q) != buffers.N:  # a last, shorter block
+        buffers = KinematicsBuffers.of(spec, len(q))
+    kin = forward_kinematics(spec, q, qd, qdd, velocities=False, buffers=buffers)
     top = model.topology
     b = [kin.body_index(x) for x in top.bodies]
     cols = [spec.joint_names.index(j) for j in top.joints]
-    A_c = np.ascontiguousarray(np.moveaxis(_bodies(kin.R_WB, b), (-2, -1), (0, 1)))
-    return newton_euler(spec, model, q[:, cols], A_c,
-                        *(_components(x, b) for x in (kin.a_W_com, kin.omega_W, kin.omegadot_W)))
+    c = _select(buffers.c, b, axis=1)
+    # the joint point of the outer body: the inner body's, slid along the axis across a prismatic joint
+    O = _select(buffers.points, cols, axis=1).copy()
+    for j, name in enumerate(top.joints):
+        if not spec.joint(name).revolute:
+            O[:, j] += buffers.axes[:, cols[j]] * q[:, cols[j]]
+    c_out = O - c
+    c_in = np.zeros_like(c_out)
+    has_inner = np.any(top.S == 1, axis=0)
+    inner = np.argmax(top.S == 1, axis=0)[has_inner]
+    c_in[:, has_inner] = O[:, has_inner] - c[:, inner]
+    F, M = newton_euler(model, _select(buffers.R_WB, b, axis=2), _select(buffers.a, b, axis=1),
+                        _select(buffers.w, b, axis=1), _select(buffers.wd, b, axis=1), c_out, c_in)
+    return _drives(spec, top, F, M, lambda jj, on: buffers.axes[:, jj])
 
 
-def _bodies(x: np.ndarray, bodies: list[int]) -> np.ndarray:
-    """x[:, bodies], without a copy when they are all the bodies in order."""
-    return x if bodies == list(range(x.shape[1])) else x[:, bodies]
+def _select(x: np.ndarray, index: list[int], axis: int = 1) -> np.ndarray:
+    """x's entries listed along `axis` (bodies or joints), without a copy when they are all of them in order."""
+    return x if index == list(range(x.shape[axis])) else np.take(x, index, axis=axis)
 
 
-def _components(x: np.ndarray, bodies: list[int]) -> np.ndarray:
-    """(N, nb, 3) -> (3, N, n) of the bodies listed, as one contiguous array (what follows runs four
-    times faster on it than on a strided view)."""
-    return np.ascontiguousarray(np.moveaxis(_bodies(x, bodies), -1, 0))
+def _samples_last(x: np.ndarray, bodies: list[int]) -> np.ndarray:
+    """(N, nb, 3) -> (3, n, N) of the bodies listed, as one contiguous array: what follows are then
+    operations on whole (n, N) arrays, the samples contiguous (in an (N, n) layout the bodies'
+    constants broadcast along an inner axis of n: the product with the masses took 3.7 times as long)."""
+    return np.ascontiguousarray(_select(x, bodies).transpose(2, 1, 0))
 
 
-def newton_euler(spec: RobotSpec, model: GraphModel, q: np.ndarray, A_c: np.ndarray, a_c: np.ndarray,
-                 w_c: np.ndarray, wd_c: np.ndarray) -> GraphInverse:
-    """Eqs. 22-23 solved for the force elements and joint moments, all samples at once. Inputs in
-    the graph's order and component-major form: q (N, joints), A_c (3, 3, N, n) with A_c[i, j] the
-    entries A(0i)_ij, and the world components of r_i'', omega_i, omega_i' as (3, N, n) arrays.
-    Every step is then an operation on whole (N, n) arrays, and each sum over joints one matrix
-    product (the (N, n, 3) layout made it 2.5 times slower)."""
+def newton_euler(model: GraphModel, A: np.ndarray, a: np.ndarray, w: np.ndarray, wd: np.ndarray,
+                 c_out: np.ndarray, c_in: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eqs. 22-23 solved for the force elements F_k and joint moments M_k (about O_k), all samples at
+    once, in the graph's order. Component-major with the samples last: A (3, 3, n, N) with A[i, j]
+    the entries A(0i)_ij; r_i'', omega_i, omega_i' and the arms from each joint's outer and inner
+    body's centre of mass to the joint point (world components, zero where the inner body is the
+    ground) each (3, n, N). Every step is an operation on whole (n, N) arrays, and each sum over
+    joints one matrix product. Returns F, M, (3, n, N) each."""
     top = model.topology
-    F = -((model.m * (a_c - model.g_W[:, None, None])) @ np.linalg.inv(top.S_e.astype(float)).T)
-    c_out, c_in = joint_arms_components(top, A_c, q)
-    P_out, P_in = (top.S == -1).astype(float), (top.S == 1).astype(float)
+    F = -(top.S_e_inv @ (model.m[:, None] * (a - model.g_W[:, None, None])))
+    P_out, P_in = top.outer_of, top.inner_of
     # sum_k C_e,ik x F_k, joint by joint: C = -c on the outer body, +c on the inner one
-    C_x_F = cross(c_in, F, axis=0) @ P_in.T - cross(c_out, F, axis=0) @ P_out.T
+    C_x_F = P_in @ cross(c_in, F, axis=0)
+    C_x_F -= P_out @ cross(c_out, F, axis=0)
     # J omega' + omega x J omega with J = A diag(J_B) A^T: in body components, then turned back
-    A_T = np.swapaxes(A_c, 0, 1)
-    w_B, wd_B = rotate(A_T, w_c), rotate(A_T, wd_c)
-    J = model.J.T[:, None, :]  # (3, 1, n)
-    euler = rotate(A_c, J * wd_B + cross(w_B, J * w_B, axis=0))
-    M = -((euler + C_x_F) @ np.linalg.inv(top.S.astype(float)).T)
+    A_T = np.swapaxes(A, 0, 1)
+    w_B, wd_B = rotate(A_T, w), rotate(A_T, wd)
+    J = model.J.T[:, :, None]  # (3, n, 1)
+    body = cross(w_B, J * w_B, axis=0)
+    body += J * wd_B
+    C_x_F += rotate(A, body)
+    M = -(top.S_inv @ C_x_F)
+    return F, M
 
-    # each spec joint's wrench is that of the graph joint it is or carries (a carriage transmits its
-    # child's); its drive is the moment (revolute) or force (prismatic) along its axis in the world
+
+def _drives(spec: RobotSpec, top: Topology, F: np.ndarray, M: np.ndarray, axis_W) -> tuple:
+    """Each spec joint's wrench is that of the graph joint it is or carries (a carriage transmits its
+    child's); its drive is the moment (revolute) or force (prismatic) along its axis in the world,
+    axis_W(jj, on) of the spec joint jj whose axis turns with body `on` (None: fixed to the ground).
+    Returns tau (n_spec, N) and F, M (3, n_spec, N)."""
     carried = [spec.carried_joint(j.name) for j in spec.joints]
     k = [top.joints.index(c.name) for c in carried]
-    F_out, M_out = np.moveaxis(F[:, :, k], 0, -1), np.moveaxis(M[:, :, k], 0, -1)
-    tau = np.empty((len(q), len(spec.joints)))
+    F_out, M_out = _select(F, k, axis=1), _select(M, k, axis=1)
+    tau = np.empty((len(spec.joints), F.shape[-1]))
     for jj, (joint, c) in enumerate(zip(spec.joints, carried, strict=True)):
         # the axis turns with the outer body of a revolute joint, with the inner body of a prismatic one
         on = c.child if joint.revolute else (joint.parent if joint.parent in top.bodies else None)
-        if on is None:  # a rail fixed to the ground
-            u = joint.axis_W0[:, None]
-        else:
-            u = np.einsum("ijn,j->in", A_c[..., top.bodies.index(on)], spec.body(on).R_WB0.T @ joint.axis_W0)
-        tau[:, jj] = np.einsum("an,an->n", (M if joint.revolute else F)[:, :, k[jj]], u)
-    return GraphInverse(tau, F_out, M_out)
+        u = joint.axis_W0[:, None] if on is None else axis_W(jj, on)
+        np.einsum("an,an->n", (M_out if joint.revolute else F_out)[:, jj], u, out=tau[jj])
+    return tau, F_out, M_out

@@ -24,6 +24,7 @@ Conventions (signs restored where the text extraction lost them, and fixed by Eq
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +55,27 @@ class Topology:
     def n(self) -> int:
         return len(self.bodies)
 
+    @functools.cached_property
+    def S_inv(self) -> np.ndarray:
+        """S^-1: upper triangular in root-first order (a tree), so solving with it is back
+        substitution, the outermost body first (Eq. 23 solved for the joint moments)."""
+        return np.linalg.inv(self.S.astype(float))
+
+    @property
+    def S_e_inv(self) -> np.ndarray:
+        """S_e^-1 (Eq. 22 solved for the force elements)."""
+        return self.S_inv
+
+    @functools.cached_property
+    def outer_of(self) -> np.ndarray:
+        """(n, n) 1 where B_i is O_k's outer body (S_ik = -1)."""
+        return (self.S == -1).astype(float)
+
+    @functools.cached_property
+    def inner_of(self) -> np.ndarray:
+        """(n, n) 1 where B_i is O_k's inner body (S_ik = +1)."""
+        return (self.S == 1).astype(float)
+
 
 def build_topology(spec: RobotSpec) -> Topology:
     """S and c for any tree of the spec; nothing here is specific to six bodies."""
@@ -82,23 +104,23 @@ def joint_arms(top: Topology, A: np.ndarray, q: np.ndarray) -> tuple[np.ndarray,
     """World vectors from each joint's outer and inner body's centre of mass to the joint point,
     (N, n_joints, 3) each; the inner one is zero where the inner body is the ground. These are
     the non-zero C_e,ik of Eq. 19 (with signs S_ik), gathered joint by joint."""
-    c_out, c_in = joint_arms_components(top, np.moveaxis(A, (-2, -1), (0, 1)), q)
-    return np.moveaxis(c_out, 0, -1), np.moveaxis(c_in, 0, -1)
+    c_out, c_in = joint_arms_components(top, np.asarray(A).transpose(2, 3, 1, 0), np.asarray(q).T)
+    return c_out.transpose(2, 1, 0), c_in.transpose(2, 1, 0)
 
 
-def joint_arms_components(top: Topology, A_c: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """joint_arms in component-major form: A_c (3, 3, N, n) with A_c[i, j] the (N, n) entries A_ij,
-    the arms (3, N, n_joints) each (a batch of small vectors is fastest as three arrays)."""
+def joint_arms_components(top: Topology, A: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """joint_arms component-major with the samples last: A (3, 3, n, N) with A[i, j] the (n, N)
+    entries A_ij, q (n, N); the arms (3, n_joints, N) each."""
     k = np.arange(top.n)
     outer = np.argmax(top.S == -1, axis=0)
     has_inner = np.any(top.S == 1, axis=0)
     inner = np.where(has_inner, np.argmax(top.S == 1, axis=0), 0)
-    A_out = A_c if np.array_equal(outer, k) else A_c[..., outer]
-    c_out = rotate(A_out, top.c_B[outer, k].T)
-    c_in_B = top.c_B[inner, k].T[:, None, :] + top.slide_B[inner, k].T[:, None, :] * q[None]
+    A_out = A if np.array_equal(outer, k) else A[:, :, outer]
+    c_out = rotate(A_out, top.c_B[outer, k].T[:, :, None])
     c_in = np.zeros_like(c_out)
     for j in np.flatnonzero(has_inner):  # joint by joint: no copy of the inner bodies' rotations
-        c_in[:, :, j] = np.einsum("ijn,jn->in", A_c[..., inner[j]], c_in_B[:, :, j])
+        arm_B = top.c_B[inner[j], j][:, None] + top.slide_B[inner[j], j][:, None] * q[j]
+        c_in[:, j] = np.einsum("ijn,jn->in", A[:, :, inner[j]], arm_B)
     return c_out, c_in
 
 
