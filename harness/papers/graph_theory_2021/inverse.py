@@ -60,13 +60,13 @@ def inverse_dynamics_of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray
     keep_heap()
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
     N, n = q.shape
-    tau, F_W, M_W = np.empty((n, N)), np.empty((3, n, N)), np.empty((3, n, N))
+    tau, F_W, M_W = np.empty((N, n)), np.empty((3, n, N)), np.empty((3, n, N))
     buffers = KinematicsBuffers.of(spec, min(N, BLOCK))
     for start in range(0, N, BLOCK):
         rows = slice(start, start + BLOCK)
-        tau[:, rows], F_W[:, :, rows], M_W[:, :, rows] = _of_motion(spec, model, q[rows], qd[rows], qdd[rows],
-                                                                    buffers)
-    return GraphInverse(np.ascontiguousarray(tau.T), F_W.transpose(2, 1, 0), M_W.transpose(2, 1, 0))
+        tau_T, F_W[:, :, rows], M_W[:, :, rows] = _of_motion(spec, model, q[rows], qd[rows], qdd[rows], buffers)
+        tau[rows] = tau_T.T
+    return GraphInverse(tau, F_W.transpose(2, 1, 0), M_W.transpose(2, 1, 0))
 
 
 def _of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
