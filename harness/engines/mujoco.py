@@ -237,47 +237,64 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     qadr = np.array([model.joint(j).qposadr[0] for j in spec.joint_names])
     vadr = np.array([model.joint(j).dofadr[0] for j in spec.joint_names])
     act = np.array([model.actuator(f"drive_{j}").id for j in spec.joint_names])
-    # the callback runs at every stage of every step: a run of consecutive addresses (the usual
-    # case) is read and written as a slice, a view, rather than by fancy indexing, a copy
     n_joints = len(spec.joint_names)
-    qadr, vadr, act = (_as_slice(a) for a in (qadr, vadr, act))
+    if not (model.nq == model.nv == model.nu == n_joints and np.array_equal(qadr, vadr)):
+        raise RuntimeError("the MuJoCo model has other coordinates or actuators than the spec's joints")
     w = simulation.tracking_bandwidth
     dt = simulation.timestep
     substeps = round(output_dt / dt)
     n_rows = output_steps + 1
     n_steps = (n_rows - 1) * substeps
     # The integrators evaluate the dynamics at whole and half steps (RK4 stages): the prescribed
-    # motion is evaluated once, batched, on that half-step grid.
+    # motion is evaluated once, batched, on that half-step grid, and its columns put in MuJoCo's
+    # order of coordinates once (depth-first; the spec's is breadth-first), so that the callback
+    # below, run at every stage of every step, reads and writes MjData's arrays whole, through views
+    # taken once, and every product into an array made once (each attribute access of MjData builds
+    # a new array object, each indexing a copy)
     half = dt / 2.0
-    q_d, qd_d, qdd_d = prescribed(np.arange(2 * n_steps + 2) * half)
-    qacc_cmd, tau = np.zeros(model.nv), np.zeros(model.nv)
-    dry = friction.Dry.of(spec.frictions)
-    armature = friction.values(spec.frictions)[:, 0]
-    stages: list[np.ndarray] = []  # the drive torques of every evaluation inside mj_step
-    capture = [False]
-
-    # MjData's arrays, taken once: each attribute access builds a new array object, and the callback
-    # below runs at every stage of every step
+    in_spec_order = prescribed(np.arange(2 * n_steps + 2) * half)
+    q_d, qd_d, qdd_d = (np.empty_like(x) for x in in_spec_order)
+    for x, y in zip((q_d, qd_d, qdd_d), in_spec_order, strict=True):
+        x[:, vadr] = y
+    at_dof = np.argsort(vadr)  # the spec joint at each dof
+    dry = friction.Dry.of(tuple(spec.frictions[j] for j in at_dof))
+    armature = friction.values(spec.frictions)[at_dof, 0]
+    to_ctrl = np.empty(n_joints, dtype=int)
+    to_ctrl[act] = vadr  # ctrl[a] is the drive of the joint at dof to_ctrl[a]
+    to_ctrl = None if np.array_equal(to_ctrl, np.arange(n_joints)) else to_ctrl
+    stages = np.empty((n_steps * 4, n_joints))  # the drive torques of every evaluation inside mj_step, by dof
+    captured = [0, False]  # how many rows of `stages` are written, whether to write the next
     qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
     qfrc_bias, qfrc_passive, qfrc_applied = data.qfrc_bias, data.qfrc_passive, data.qfrc_applied
+    e, ed, qacc_cmd, tau = (np.empty(n_joints) for _ in range(4))
+    kp, kd = w * w, 2.0 * w
 
     def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        """Computed torque at the state being evaluated: tau = M q''_cmd + bias - passive - applied
-        (M with the rotor inertias, passive the viscous friction, applied the Coulomb friction and
-        offset set here from the joint velocities), called by MuJoCo after the velocity stage (on
-        `data`, the one MjData simulated here, whose arrays are read through the views above)."""
+        """Computed torque at the state being evaluated: tau = M q''_cmd + bias - passive - applied,
+        q''_cmd = q''_d + 2 w (q'_d - q') + w^2 (q_d - q) (M with the rotor inertias, passive the
+        viscous friction, applied the Coulomb friction and offset set here from the joint
+        velocities), called by MuJoCo after the velocity stage (on `data`, the one MjData simulated
+        here, whose arrays are read through the views above)."""
         k = round(d.time / half)
-        e, ed = q_d[k] - qpos[qadr], qd_d[k] - qvel[vadr]
-        qacc_cmd[vadr] = qdd_d[k] + 2.0 * w * ed + w * w * e
+        np.multiply(np.subtract(q_d[k], qpos, out=e), kp, out=e)
+        np.multiply(np.subtract(qd_d[k], qvel, out=ed), kd, out=ed)
+        np.add(np.add(qdd_d[k], ed, out=qacc_cmd), e, out=qacc_cmd)
         mujoco.mj_mulM(m, d, tau, qacc_cmd)
         if dry.any:  # the rigid-body torque: the computed torque less the rotor inertia's part
-            rigid = tau[vadr] + qfrc_bias[vadr] - armature * qacc_cmd[vadr] if dry.needs_load else None
-            qfrc_applied[vadr] = -dry(qvel[vadr], rigid)
-        ctrl[act] = tau[vadr] + qfrc_bias[vadr] - qfrc_passive[vadr] - qfrc_applied[vadr]
-        if capture[0]:
-            stages.append(ctrl[act].copy())
+            rigid = tau + qfrc_bias - armature * qacc_cmd if dry.needs_load else None
+            np.negative(dry(qvel, rigid), out=qfrc_applied)
+        np.add(tau, qfrc_bias, out=tau)
+        np.subtract(tau, qfrc_passive, out=tau)
+        np.subtract(tau, qfrc_applied, out=tau)
+        if to_ctrl is None:
+            ctrl[:] = tau
+        else:
+            np.take(tau, to_ctrl, out=ctrl)
+        if captured[1]:
+            stages[captured[0]] = tau
+            captured[0] += 1
 
-    data.qpos[qadr], data.qvel[vadr] = q_d[0], qd_d[0]
+    data.qpos[:], data.qvel[:] = q_d[0], qd_d[0]
     sensor_rows = np.empty((n_rows, model.nsensordata))
     qacc_rows = np.empty((n_rows, n_joints))
     mujoco.set_mjcb_control(drive)
@@ -290,22 +307,22 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
             sensor_rows[row] = data.sensordata
             qacc_rows[row] = data.qacc[vadr]
             if row < n_rows - 1:
-                capture[0] = True
+                captured[1] = True
                 for step in range(substeps):
                     mujoco.mj_step(model, data)
                     if len(_WARNINGS) > warned and any(data.warning[k].number for k in _UNSTABLE):
                         # MuJoCo has reset the data: stop at the first such step, with one message
                         raise _diverged(model, data, (row * substeps + step + 1) * dt, _WARNINGS[warned])
-                capture[0] = False
+                captured[1] = False
     finally:
         mujoco.set_mjcb_control(None)
         _COLLECTING[0] = False
     for message in _WARNINGS[warned:]:
         logging.getLogger("harness.mujoco").warning(message)
     per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]
-    drive_stages = np.array(stages).reshape(n_steps, per_step, n_joints)
+    drive_stages = stages[:captured[0], vadr].reshape(n_steps, per_step, n_joints)
     t = np.arange(n_rows) * substeps * dt
-    q_ref, qd_ref, qdd_ref = (x[::2 * substeps] for x in (q_d, qd_d, qdd_d))
+    q_ref, qd_ref, qdd_ref = (x[::2 * substeps] for x in in_spec_order)
 
     def sensor(name: str) -> np.ndarray:
         s = model.sensor(name)
