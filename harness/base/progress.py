@@ -10,8 +10,10 @@ import shutil
 import sys
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-from tqdm import tqdm
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 STEPS = 1000  # a bar's resolution
 
@@ -42,6 +44,8 @@ class Progress:
                 print(f"  [{self.name} {elapsed:5.1f} s] {stage} {100 * fraction:3.0f}%", file=sys.stderr, flush=True)
             return
         if self.bar is None:
+            from tqdm import tqdm  # only where a bar is drawn: a run in a log or --quiet has no use for it
+
             self.stage = stage
             size = shutil.get_terminal_size()  # 80 x 24 where the terminal reports none (tqdm would show nothing)
             self.bar = tqdm(total=STEPS, desc=f"  [{self.name} {elapsed:5.1f} s] {stage}", file=sys.stderr,
