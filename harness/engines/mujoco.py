@@ -202,7 +202,7 @@ class Diverged(Exception):
 def _diverged(model: mujoco.MjModel, data: mujoco.MjData, t: float, message: str) -> Diverged:
     """The joint and time of MuJoCo's first instability warning, `message` ("... in CTRL at
     ACTUATOR 1. ... Time = 0.0013."), where it can be read; else the last index MuJoCo noted and the
-    end of the step (`t`)."""
+    end of the steps to the row being simulated (`t`)."""
     import re
 
     said = re.search(r"in (QPOS|QVEL|QACC|CTRL) at (DOF|ACTUATOR) (\d+)", message)
@@ -308,11 +308,10 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
             qacc_rows[row] = data.qacc[vadr]
             if row < n_rows - 1:
                 captured[1] = True
-                for step in range(substeps):
-                    mujoco.mj_step(model, data)
-                    if len(_WARNINGS) > warned and any(data.warning[k].number for k in _UNSTABLE):
-                        # MuJoCo has reset the data: stop at the first such step, with one message
-                        raise _diverged(model, data, (row * substeps + step + 1) * dt, _WARNINGS[warned])
+                mujoco.mj_step(model, data, substeps)  # one call for the steps to the next row
+                if len(_WARNINGS) > warned and any(data.warning[k].number for k in _UNSTABLE):
+                    # MuJoCo has reset the data: stop at the first such row, with its first message
+                    raise _diverged(model, data, (row + 1) * substeps * dt, _WARNINGS[warned])
                 captured[1] = False
     finally:
         mujoco.set_mjcb_control(None)
