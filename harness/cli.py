@@ -709,17 +709,29 @@ def entry() -> None:
         handed = b""
     os.close(read_end)
     if handed:
-        sys.exit(handed[0])
+        _leave(handed[0])
     if os.WIFSIGNALED(wait_status) and os.WTERMSIG(wait_status) in (signal.SIGINT, signal.SIGTERM):
         print("harness: interrupted", file=sys.stderr)
-        sys.exit(130)
+        _leave(130)
     how = (f"killed by signal {signal.Signals(os.WTERMSIG(wait_status)).name}" if os.WIFSIGNALED(wait_status)
            else f"exit status {os.WEXITSTATUS(wait_status)}")
     message = (f"internal error: the command ended without a verdict ({how}): code it ran (a plugin?) ended the "
                "process or crashed it")
     print(f"harness: {message}", file=sys.stderr)
     _no_verdict(args, "internal error", message)
-    sys.exit(EXIT_INTERNAL)
+    _leave(EXIT_INTERNAL)
+
+
+def _leave(status: int) -> None:
+    """The waiting process ends with the child's verdict: its output flushed, and without the
+    interpreter's teardown of the modules it imported (numpy's among them: 10 to 15 ms), since it
+    holds nothing else to release."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(status)
 
 
 if __name__ == "__main__":  # pragma: no cover
