@@ -222,8 +222,16 @@ def _write_atomically(out: Path, files: dict[str, Callable[[Path], object]]) -> 
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+_BORN: float | None = None  # time.perf_counter() at the start of the `harness` process, noted by `entry`
+
+
 def _process_age() -> float:
-    """Seconds since this process started (Linux: /proc), 0 where that cannot be read."""
+    """Seconds since the `harness` process started (Linux: /proc), 0 where that cannot be read. The
+    command runs in a child that `entry` forks, whose own start is the fork: it counts from the
+    start of the process that forked it, which `entry` notes beforehand (the interpreter's start and
+    the imports of this module happen there)."""
+    if _BORN is not None:
+        return max(time.perf_counter() - _BORN, 0.0)
     try:
         since_boot = float(Path("/proc/uptime").read_text().split()[0])
         stat = Path("/proc/self/stat").read_text()
@@ -252,7 +260,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     imported = started + time.perf_counter() - start  # Python, mujoco, pinocchio, numpy, scipy, the harness
     names = args.scenarios or [DEFAULT_SCENARIO]
     workers = _workers(args, " ".join(names))
-    scenarios = [load_scenario(_resolve_scenario(a)) for a in names]  # all validated before any work
+    scenarios, reading = [], []  # all validated before any work
+    for a in names:
+        t0 = time.perf_counter()
+        scenarios.append(load_scenario(_resolve_scenario(a)))
+        reading.append(time.perf_counter() - t0)
     seen = set()
     for s in scenarios:
         if s.name in seen:
@@ -266,21 +278,22 @@ def cmd_run(args: argparse.Namespace) -> int:
                       file=sys.stderr)
     try:  # the workers cannot be reached or started: the address, or dask not installed
         with workers.opened():  # started once for every scenario
-            passed, verdicts = _run_each(args, scenarios, workers, imported)
+            passed, verdicts = _run_each(args, scenarios, reading, workers, imported)
     except WorkersError as exc:
         raise InputError(" ".join(names), "--dask", str(exc)) from None
     _write_ci(args, verdicts)
     return EXIT_OK if passed else EXIT_GATE_FAILED
 
 
-def _run_each(args: argparse.Namespace, scenarios: list, workers, imported: float) -> tuple[bool, list]:
+def _run_each(args: argparse.Namespace, scenarios: list, reading: list[float], workers,
+              imported: float) -> tuple[bool, list]:
     from harness.api import run
     from harness.base.progress import Progress
     from harness.report import render
     from harness.runner.results import RECORDING_FILE, RESULTS_FILE, write_results
 
     passed, verdicts = True, []
-    for scenario in scenarios:
+    for scenario, read in zip(scenarios, reading, strict=True):
         if args.out is None:
             out = args.reports / scenario.name
         else:
@@ -294,6 +307,7 @@ def _run_each(args: argparse.Namespace, scenarios: list, workers, imported: floa
                         + results.get("log_identification", {}).get("warnings", [])):
             print(f"harness: warning: {scenario.name}: {warning}", file=sys.stderr)  # once per run, not per row
         results["run"]["timings"] = {"starting Python and importing the engines and libraries": imported,
+                                     "reading the scenario, its model and plugins": read,
                                      **results["run"]["timings"]}
         imported = 0.0
         page = render(results, result.recording, [s.stage for s in result.output.stages.values()])
@@ -681,6 +695,8 @@ def entry() -> None:
     args = _parser().parse_args(argv)  # usage errors: exit 2 here, before anything is started
     sys.stdout.flush()
     sys.stderr.flush()
+    global _BORN
+    _BORN = time.perf_counter() - _process_age()  # the child's clock and this one are the same (monotonic)
     read_end, write_end = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: the command
