@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 N = 10_000
 LONG = 900_000
 ROUNDS = 7
+TURNS = 5  # 1000-trial sweeps, 2 processes against Dask
 
 
 def alternately(*fs, rounds: int = ROUNDS) -> list[float]:
@@ -409,8 +410,9 @@ def sweeps(figures: dict) -> None:
     """Trials per second of `harness sweep kr500_noise` (at the scenario's noise, the simulation
     included): 200 trials in this process; 1000 in 2 forked processes and on a Dask cluster started on
     this machine, as `harness sweep --trials 1000 --dask` runs it (its start and stop included),
-    in turns three times, the median of each (one run moves by 10 to 20 % on a shared 2-core
-    machine); the cluster's start and stop alone, measured on trials that do nothing."""
+    in TURNS turns, each going first in every other turn, the median of each and of their ratios
+    (one run moves by 10 to 20 % on a shared 2-core machine); the cluster's start and stop alone,
+    measured on trials that do nothing."""
     from harness.base.workers import LOCAL, Workers
     from harness.papers.graph_theory_2021.sweep import run_sweep
     from harness.runner.scenario import load_scenario
@@ -424,7 +426,13 @@ def sweeps(figures: dict) -> None:
         return trials / (time.perf_counter() - t0)
 
     figures["sweep_trials_per_s_1_process"] = rate(Workers(1), 200)
-    turns = [(rate(Workers(2), 1000), rate(Workers(dask=LOCAL), 1000)) for _ in range(3)]
+    turns = []
+    for k in range(TURNS):  # which goes first alternates, so that a drift of the machine favours neither
+        if k % 2:
+            b, a = rate(Workers(dask=LOCAL), 1000), rate(Workers(2), 1000)
+        else:
+            a, b = rate(Workers(2), 1000), rate(Workers(dask=LOCAL), 1000)
+        turns.append((a, b))
     figures["sweep_trials_per_s_2_process"] = float(np.median([a for a, _ in turns]))
     figures["sweep_trials_per_s_dask_local"] = float(np.median([b for _, b in turns]))
     figures["sweep_dask_over_jobs2_turns"] = [b / a for a, b in turns]
@@ -433,6 +441,7 @@ def sweeps(figures: dict) -> None:
     figures["dask_local_cluster_start_and_stop_s"] = time.perf_counter() - t0
     figures["sweep_dask_over_jobs2"] = (figures["sweep_trials_per_s_dask_local"]
                                         / figures["sweep_trials_per_s_2_process"])
+    figures["sweep_dask_over_jobs2_median_of_turns"] = float(np.median(figures["sweep_dask_over_jobs2_turns"]))
 
 
 def main() -> None:
@@ -484,7 +493,9 @@ def main() -> None:
     print(f"sweep kr500_noise: {figures['sweep_trials_per_s_1_process']:.1f} trials/s with 1 process, "
           f"{figures['sweep_trials_per_s_2_process']:.1f} with 2, {figures['sweep_trials_per_s_dask_local']:.1f} on a "
           f"local Dask cluster (which takes {figures['dask_local_cluster_start_and_stop_s']:.1f} s to start and stop); "
-          f"Dask over 2 processes {figures['sweep_dask_over_jobs2']:.2f}")
+          f"Dask over 2 processes {figures['sweep_dask_over_jobs2']:.2f} (turn by turn: "
+          + " / ".join(f"{r:.2f}" for r in figures["sweep_dask_over_jobs2_turns"])
+          + f"; their median {figures['sweep_dask_over_jobs2_median_of_turns']:.2f})")
     print(f"wrote {out}")
 
 
