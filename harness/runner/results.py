@@ -15,6 +15,7 @@ NaN or infinity that a stage computes is written as null and its path listed in 
 from __future__ import annotations
 
 import json
+import math
 import platform
 from datetime import UTC, datetime
 from pathlib import Path
@@ -172,13 +173,23 @@ def _finite(node, path: str, found: list[str]):
     """The tree with every NaN or infinite number replaced by null, its path noted in `found`: a
     gate on such a value fails closed, and the file stays valid JSON."""
     if isinstance(node, dict):
-        return {k: _finite(v, f"{path}.{k}" if path else str(k), found) for k, v in node.items()}
+        return {k: _entry(v, path, k, found) for k, v in node.items()}
     if isinstance(node, list | tuple):
-        return [_finite(v, f"{path}.{i}", found) for i, v in enumerate(node)]
-    if isinstance(node, float | np.floating) and not np.isfinite(node):
+        return [_entry(v, path, i, found) for i, v in enumerate(node)]
+    if isinstance(node, float | np.floating) and not math.isfinite(node):
         found.append(path)
         return None
     return node
+
+
+def _entry(value, path: str, key, found: list[str]):
+    """An entry of a dict or list: a finite number or other leaf as it is, anything else through
+    `_finite` at its path (spelt out only there: a results tree holds thousands of numbers, nearly
+    all finite)."""
+    if isinstance(value, dict | list | tuple) or (isinstance(value, float | np.floating)
+                                                  and not math.isfinite(value)):
+        return _finite(value, f"{path}.{key}" if path else str(key), found)
+    return value
 
 
 def write_results(path: Path, results: dict) -> None:
