@@ -47,7 +47,7 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> Grap
     return GraphInverse(np.ascontiguousarray(tau.T), F_W.transpose(2, 1, 0), M_W.transpose(2, 1, 0))
 
 
-BLOCK = 2048  # states evaluated together from joint coordinates: about 12 MiB of scratch (Panda), whatever N
+BLOCK = 2048  # states evaluated together from joint coordinates: 10 to 14 MiB of scratch (Panda), whatever N
 
 
 def inverse_dynamics_of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray,
