@@ -83,7 +83,7 @@ def _of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray
     cols = [spec.joint_names.index(j) for j in top.joints]
     c = _select(buffers.c, b, axis=1)
     # the joint point of the outer body: the inner body's, slid along the axis across a prismatic joint
-    O = _select(buffers.points, cols, axis=1).copy()
+    O = np.take(buffers.points, cols, axis=1)
     for j, name in enumerate(top.joints):
         if not spec.joint(name).revolute:
             O[:, j] += buffers.axes[:, cols[j]] * q[:, cols[j]]

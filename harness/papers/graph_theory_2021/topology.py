@@ -57,8 +57,9 @@ class Topology:
 
     @functools.cached_property
     def S_inv(self) -> np.ndarray:
-        """S^-1: upper triangular in root-first order (a tree), so solving with it is back
-        substitution, the outermost body first (Eq. 23 solved for the joint moments)."""
+        """S^-1, made once: S of a tree in root-first order is upper triangular with -1 on its
+        diagonal, so S^-1 sums each joint's wrench from the outermost body in (Eq. 23 solved for the
+        joint moments)."""
         return np.linalg.inv(self.S.astype(float))
 
     @property
