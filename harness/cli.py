@@ -223,6 +223,7 @@ def _write_atomically(out: Path, files: dict[str, Callable[[Path], object]]) -> 
 
 
 _BORN: float | None = None  # time.perf_counter() at the start of the `harness` process, noted by `entry`
+_ENDS_WITH_COMMAND = False  # True in the child `entry` forks: the process ends when the command does
 
 
 def _process_age() -> float:
@@ -244,9 +245,13 @@ def _process_age() -> float:
 def cmd_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     started = _process_age()  # the interpreter's start and the imports of this module, before `start`
-    # the modules' objects live as long as the process: the cyclic garbage collector is kept from
-    # walking them while they are made, and from then on (gc.freeze: 20 ms of a kr500_rail run)
-    gc.disable()
+    # in the child `entry` forks, the modules' objects live as long as the process: the cyclic garbage
+    # collector is kept from walking them while they are made, and from then on (gc.freeze: 20 ms of
+    # a kr500_rail run); a process that goes on after the command (main() called from Python) keeps
+    # its collector as it was
+    freeze = _ENDS_WITH_COMMAND and gc.isenabled()
+    if freeze:
+        gc.disable()
     import mujoco  # noqa: F401  every run needs both engines: their import is timed here, not in a stage
     import pinocchio  # noqa: F401
 
@@ -255,8 +260,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.base.workers import WorkersError
     from harness.runner.scenario import load_scenario
 
-    gc.freeze()
-    gc.enable()
+    if freeze:
+        gc.freeze()
+        gc.enable()
     imported = started + time.perf_counter() - start  # Python, mujoco, pinocchio, numpy, scipy, the harness
     names = args.scenarios or [DEFAULT_SCENARIO]
     workers = _workers(args, " ".join(names))
@@ -695,13 +701,14 @@ def entry() -> None:
     args = _parser().parse_args(argv)  # usage errors: exit 2 here, before anything is started
     sys.stdout.flush()
     sys.stderr.flush()
-    global _BORN
+    global _BORN, _ENDS_WITH_COMMAND
     _BORN = time.perf_counter() - _process_age()  # the child's clock and this one are the same (monotonic)
     read_end, write_end = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: the command
         os.close(read_end)
         status = EXIT_INTERNAL
+        _ENDS_WITH_COMMAND = True
         try:
             status = main(argv)
         finally:
