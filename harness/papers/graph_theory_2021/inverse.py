@@ -89,9 +89,8 @@ def _of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray
             O[:, j] += buffers.axes[:, cols[j]] * q[:, cols[j]]
     c_out = O - c
     c_in = np.zeros_like(c_out)
-    has_inner = np.any(top.S == 1, axis=0)
-    inner = np.argmax(top.S == 1, axis=0)[has_inner]
-    c_in[:, has_inner] = O[:, has_inner] - c[:, inner]
+    has_inner = top.inner >= 0
+    c_in[:, has_inner] = O[:, has_inner] - c[:, top.inner[has_inner]]
     F, M = newton_euler(model, _select(buffers.R_WB, b, axis=2), _select(buffers.a, b, axis=1),
                         _select(buffers.w, b, axis=1), _select(buffers.wd, b, axis=1), c_out, c_in)
     return _drives(spec, top, F, M, lambda jj, on: buffers.axes[:, jj])

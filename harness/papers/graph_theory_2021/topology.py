@@ -68,6 +68,16 @@ class Topology:
         return self.S_inv
 
     @functools.cached_property
+    def outer(self) -> np.ndarray:
+        """(n,) each joint O_k's outer body i (S_ik = -1)."""
+        return np.argmax(self.S == -1, axis=0)
+
+    @functools.cached_property
+    def inner(self) -> np.ndarray:
+        """(n,) each joint O_k's inner body i (S_ik = +1), -1 where it is the ground."""
+        return np.where(np.any(self.S == 1, axis=0), np.argmax(self.S == 1, axis=0), -1)
+
+    @functools.cached_property
     def outer_of(self) -> np.ndarray:
         """(n, n) 1 where B_i is O_k's outer body (S_ik = -1)."""
         return (self.S == -1).astype(float)
@@ -112,14 +122,11 @@ def joint_arms(top: Topology, A: np.ndarray, q: np.ndarray) -> tuple[np.ndarray,
 def joint_arms_components(top: Topology, A: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """joint_arms component-major with the samples last: A (3, 3, n, N) with A[i, j] the (n, N)
     entries A_ij, q (n, N); the arms (3, n_joints, N) each."""
-    k = np.arange(top.n)
-    outer = np.argmax(top.S == -1, axis=0)
-    has_inner = np.any(top.S == 1, axis=0)
-    inner = np.where(has_inner, np.argmax(top.S == 1, axis=0), 0)
+    k, outer, inner = np.arange(top.n), top.outer, top.inner
     A_out = A if np.array_equal(outer, k) else A[:, :, outer]
     c_out = rotate(A_out, top.c_B[outer, k].T[:, :, None])
     c_in = np.zeros_like(c_out)
-    for j in np.flatnonzero(has_inner):  # joint by joint: no copy of the inner bodies' rotations
+    for j in np.flatnonzero(inner >= 0):  # joint by joint: no copy of the inner bodies' rotations
         arm_B = top.c_B[inner[j], j][:, None] + top.slide_B[inner[j], j][:, None] * q[j]
         c_in[:, j] = np.einsum("ijn,jn->in", A[:, :, inner[j]], arm_B)
     return c_out, c_in
@@ -134,7 +141,7 @@ def joint_resultants(top: Topology, A: np.ndarray, q: np.ndarray, F_W: np.ndarra
     Returns F_J_W, M_J_W, each (N, n, 3), world components (Eqs. 17, 20, 26), and the sizes of the
     terms summed into each, (N, n) each: the scale at which they cancel."""
     c_out, c_in = joint_arms(top, A, q)
-    P_out, P_in = (top.S == -1).astype(float), (top.S == 1).astype(float)
+    P_out, P_in = top.outer_of, top.inner_of
     on_outer = M_W + cross(c_out, F_W)  # -(C_e x F + S M) for S = -1
     on_inner = M_W + cross(c_in, F_W)
     F_J_W = -(top.S_e.astype(float) @ F_W)
