@@ -176,18 +176,21 @@ def _finite(node, path: str, found: list[str]):
         return {k: _entry(v, path, k, found) for k, v in node.items()}
     if isinstance(node, list | tuple):
         return [_entry(v, path, i, found) for i, v in enumerate(node)]
-    if isinstance(node, float | np.floating) and not math.isfinite(node):
+    if _not_finite(node):
         found.append(path)
         return None
     return node
+
+
+def _not_finite(x) -> bool:
+    return isinstance(x, float | np.floating) and not math.isfinite(x)
 
 
 def _entry(value, path: str, key, found: list[str]):
     """An entry of a dict or list: a finite number or other leaf as it is, anything else through
     `_finite` at its path (spelt out only there: a results tree holds thousands of numbers, nearly
     all finite)."""
-    if isinstance(value, dict | list | tuple) or (isinstance(value, float | np.floating)
-                                                  and not math.isfinite(value)):
+    if isinstance(value, dict | list | tuple) or _not_finite(value):
         return _finite(value, f"{path}.{key}" if path else str(key), found)
     return value
 
