@@ -3,6 +3,7 @@ the forward simulation of the constrained model. Results are plain data for resu
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,7 +14,7 @@ from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, A_0i, D, cond_D
 from harness.papers.graph_theory_2021.constrained import Constrained, solve_constrained
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, build_constraints
-from harness.papers.graph_theory_2021.dynamics import GraphModel, body_series
+from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, body_series
 from harness.papers.graph_theory_2021.forward import ForwardResult, forward_simulate
 from harness.runner.scenario import Scenario
 from harness.stages.metrics import largest
@@ -36,11 +37,16 @@ class LagrangeOutput:
     open_loop: ForwardResult | None  # without it, stopped once 1e-6 away
 
 
-def _formulation(spec: RobotSpec, model: GraphModel, rec: Recording, name: str) -> Formulation:
+FORMULATIONS = ("normal", "paper")
+
+
+def _formulation(spec: RobotSpec, model: GraphModel, rec: Recording, s: BodySeries, well: np.ndarray,
+                 name: str) -> Formulation:
+    """One formulation's constraints and Eq. 111 on the recording (`s` its body series, `well` the
+    rows where every body's Cardano angles are regular)."""
     cs = build_constraints(spec, model.topology, name)
-    sol = solve_constrained(spec, model, cs, rec, body_series(rec, model.topology))
+    sol = solve_constrained(spec, model, cs, rec, s)
     # axis-row rank wherever Cardano angles are regular (Eq. 111 may still be singular there)
-    well = np.all(cond_D(body_series(rec, model.topology).theta) <= GIMBAL_COND_D, axis=1)
     deficient = {}
     for joint in model.topology.joints:
         rows = [k for k, lab in enumerate(cs.labels) if lab.startswith(f"{joint}.axis")]
@@ -61,8 +67,15 @@ class Settings:
 
 def lagrange(scenario: Scenario, spec: RobotSpec, lg: Settings, model: GraphModel, rec: Recording,
              progress=None) -> LagrangeOutput:
-    """Sections 2.4-2.5 on the recording of `scenario`, for the graph model of `spec`."""
-    forms = {name: _formulation(spec, model, rec, name) for name in ("normal", "paper")}
+    """Sections 2.4-2.5 on the recording of `scenario`, for the graph model of `spec`. The two
+    formulations are independent and evaluated at once, on two threads: most of each is batched
+    LAPACK (the condition numbers of Eq. 111 at every row), which runs without the interpreter's
+    lock, and each is computed exactly as it would be alone."""
+    s = body_series(rec, model.topology)
+    well = np.all(cond_D(s.theta) <= GIMBAL_COND_D, axis=1)
+    with ThreadPoolExecutor(len(FORMULATIONS)) as pool:
+        forms = dict(zip(FORMULATIONS, pool.map(lambda name: _formulation(spec, model, rec, s, well, name),
+                                                FORMULATIONS), strict=True))
     row = None if lg.time is None else round(lg.time / scenario.output_dt)
     forward = open_loop = None
     if lg.forward_simulation:
