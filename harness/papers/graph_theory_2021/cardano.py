@@ -15,6 +15,8 @@ branch (alpha + pi, pi - beta, gamma + pi) that keeps the series continuous is c
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 LOCK_COS_BETA = 1e-10  # |cos beta| below which alpha and gamma are not separable at all
@@ -113,31 +115,48 @@ def angles_from_rotation(R: np.ndarray, reference: np.ndarray | None = None) -> 
     # In lock: sin beta = +1 fixes alpha + gamma = atan2(R10, R11); -1 fixes gamma - alpha.
     combo = np.arctan2(R[:, 1, 0], R[:, 1, 1])
 
-    out = np.empty((len(R), 3))
+    # The branch at each row depends on the row before (its 2 pi turns and branch), so the rows are
+    # walked in order; the walk is on Python floats (a row's three angles), the arithmetic the same
+    # as numpy's on the same doubles: round() is numpy's round half to even, and the squared
+    # distance is summed in the same order.
+    alpha_k, beta_k, gamma_k, combo_k = alpha.tolist(), beta.tolist(), gamma.tolist(), combo.tolist()
+    up_k, locked_k = (sb > 0).tolist(), locked.tolist()
     free = np.flatnonzero(~locked)
-    prev = None if reference is None else np.asarray(reference, dtype=float)
+    prev = None if reference is None else tuple(float(x) for x in np.asarray(reference, dtype=float))
+    turn = 2.0 * np.pi
+    out = []
     for k in range(len(R)):
-        if locked[k]:
+        if locked_k[k]:
             if prev is not None:
                 a = prev[0]
             elif len(free):
-                a = alpha[free[0]]  # leading locked rows: the limit from the first free row
+                a = alpha_k[free[0]]  # leading locked rows: the limit from the first free row
             else:
                 a = 0.0
-            g = combo[k] - a if sb[k] > 0 else combo[k] + a
-            candidates = [np.array([a, beta[k], g])]
+            g = combo_k[k] - a if up_k[k] else combo_k[k] + a
+            candidates = [(a, beta_k[k], g)]
         else:
-            first = np.array([alpha[k], beta[k], gamma[k]])
-            candidates = [first, first + np.array([np.pi, np.pi - 2.0 * beta[k], np.pi])]
-        if prev is None and not locked[k]:
+            a, b, g = alpha_k[k], beta_k[k], gamma_k[k]
+            candidates = [(a, b, g), (a + np.pi, b + (np.pi - 2.0 * b), g + np.pi)]
+        if prev is None and not locked_k[k]:
             best = candidates[0]
         else:
             ref = prev if prev is not None else candidates[0]
-            shifted = [c + 2.0 * np.pi * np.round((ref - c) / (2.0 * np.pi)) for c in candidates]
-            best = min(shifted, key=lambda c: float(np.sum((c - ref) ** 2)))
-        out[k] = best
+            best, closest = None, None
+            for c in candidates:  # the first of the nearest, each shifted by whole turns towards ref
+                c = tuple(ci + turn * _rint((ri - ci) / turn) for ci, ri in zip(c, ref, strict=True))
+                d = [ci - ri for ci, ri in zip(c, ref, strict=True)]
+                distance = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                if closest is None or distance < closest:
+                    best, closest = c, distance
+        out.append(best)
         prev = best
-    return out
+    return np.array(out, dtype=float).reshape(len(R), 3)
+
+
+def _rint(x: float) -> float:
+    """numpy's round half to even of one float, NaN and infinities kept (round() raises on them)."""
+    return round(x) if math.isfinite(x) else x
 
 
 def body_angles(R_WB: np.ndarray) -> np.ndarray:
