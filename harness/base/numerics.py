@@ -63,6 +63,16 @@ def sampled(t: np.ndarray, x: np.ndarray, when: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(when, t, x[:, j]) for j in range(x.shape[1])], axis=-1)
 
 
+def evenly_spaced(n: int, count: int) -> np.ndarray:
+    """`count` indices spread evenly over range(n), from the first to the last (the first alone where
+    count is 1), each rounded to the nearest and kept once: min(n, count) of them, ascending; none
+    where n or count is 0. The rounded points never decrease, so a repeat is next to its twin."""
+    if n < 1 or count < 1:
+        return np.empty(0, dtype=int)
+    x = np.linspace(0, n - 1, count).round().astype(int)
+    return x[np.concatenate(([True], x[1:] != x[:-1]))]
+
+
 def floats(v) -> list[float]:
     """An array as a flat list of Python floats, for JSON."""
     return [float(x) for x in np.ravel(v)]

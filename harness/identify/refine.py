@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
-from harness.base.numerics import sampled
+from harness.base.numerics import evenly_spaced, sampled
 from harness.engines.mujoco import PREDICTION_TIMESTEP, log_drives, rollouts
 from harness.identify import delay as channel_delay
 from harness.identify.friction_law import Law
@@ -219,7 +219,7 @@ def _problem(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarra
     usable = np.flatnonzero((back >= largest) & (ahead >= config.horizon + largest))
     if not len(usable) or len(rows) < 10:
         raise ValueError(f"no stretch of the training span is {config.horizon + 2 * largest:g} s long")
-    starts = usable[np.unique(np.linspace(0, len(usable) - 1, config.starts).round().astype(int))]
+    starts = usable[evenly_spaced(len(usable), config.starts)]
     steps = round(config.horizon / timestep)
     return _Problem(spec, np.asarray(gravity_W, dtype=float), t, q, qd, qdd, tau, rigid, rows, starts, steps,
                     max(1, round(config.sample / timestep)), np.maximum(np.sqrt(np.mean(qd**2, axis=0)), 1e-9),

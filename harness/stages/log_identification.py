@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.base.numerics import PARAMETER_FLOOR, finite_or_null, parameter_scale, relative_error
+from harness.base.numerics import PARAMETER_FLOOR, evenly_spaced, finite_or_null, parameter_scale, relative_error
 from harness.base.plugins import Stage
 from harness.engines.mujoco import mjcf
 from harness.engines.pinocchio import build_model, rnea
@@ -325,7 +325,7 @@ def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
     usable = np.flatnonzero(room(t)[1] >= reach)
     if not len(usable):
         return usable
-    return usable[np.unique(np.linspace(0, len(usable) - 1, count).round().astype(int))]
+    return usable[evenly_spaced(len(usable), count)]
 
 
 def prediction(sc, models: dict, t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, span: str,
@@ -567,7 +567,7 @@ SERIES_POINTS = 600  # samples per curve kept in results.json for the report's v
 def _series(li: LogIdentification) -> dict:
     """The validation span's measured and predicted torques, thinned to SERIES_POINTS, for the plot."""
     span = "validation" if "validation" in li.t else "training"
-    rows = np.unique(np.linspace(0, len(li.t[span]) - 1, SERIES_POINTS).round().astype(int))
+    rows = evenly_spaced(len(li.t[span]), SERIES_POINTS)
     return {"span": span, "t": [float(x) for x in li.t[span][rows]],
             "measured": {j: [float(x) for x in li.measured[span][rows, k]] for k, j in enumerate(li.joints)},
             **{model: {j: [float(x) for x in pred[rows, k]] for k, j in enumerate(li.joints)}

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import floats, relative_error
+from harness.base.numerics import evenly_spaced, floats, relative_error
 from harness.base.plugins import PluginError, Stage, call, check_array, column_maps, inverse_dynamics, invoke
 from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.states import motion_scale, position_bounds, random_states
@@ -173,7 +173,7 @@ def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
     q, qd, qdd = rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols]
     pm = build_model(sc.robot, sc.gravity_W)
     pin = rnea(pm, q, qd, qdd)
-    rows = np.unique(np.linspace(0, len(rec.t) - 1, MASS_MATRIX_SAMPLES).round().astype(int))
+    rows = evenly_spaced(len(rec.t), MASS_MATRIX_SAMPLES)
 
     def M_pin_at():  # Pinocchio's CRBA, computed once, only if a model offers a mass matrix
         return ctx.once("mass matrix (CRBA) at the comparison rows", lambda: crba(pm, q[rows]))
