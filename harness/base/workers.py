@@ -198,7 +198,11 @@ def _client(address: str):
                               "distributed.admin.tick.interval": "1s"}):
             cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
                                    dashboard_address=":0",  # any free port: clusters on one machine do not collide
-                                   silence_logs=logging.ERROR)
+                                   # its processes log nothing short of critical: a worker whose
+                                   # heartbeat is under way while the cluster stops logs a traceback
+                                   # (dask/distributed#7105), and a trial or worker that fails reaches
+                                   # the harness as the task's exception, reported in one line
+                                   silence_logs=logging.CRITICAL)
         return Client(cluster), cluster
     try:
         return Client(address, timeout="10s"), None
