@@ -137,8 +137,8 @@ def _dask_chunk(token: str, setup, trial, tasks: list, *shared) -> bytes:
     chunk that reaches it) and kept for the sweep's other chunks. The chunk's results go back
     pickled whole, here, in the task's thread: left to Dask, each array of each trial's result
     would be serialised and framed on its own by the worker's event loop, whose thread shares
-    the interpreter with the trials (a trial of kr500_noise returns three arrays: 0.15 s of the
-    event loop's time per 200 trials, which the trials waited for)."""
+    the interpreter with the trials (a trial of kr500_noise returns three arrays: about 0.1 s of
+    the event loop's time per 200 trials, which the trials waited for)."""
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(1, user_api="blas"):
