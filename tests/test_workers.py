@@ -148,6 +148,23 @@ def test_without_dask_installed_a_dask_sweep_is_refused_in_one_line(monkeypatch,
     assert not out.exists()
 
 
+def _made_at_run_time(state: dict, task: int) -> tuple:
+    """A trial whose result holds a function and a class that exist only at run time, which plain
+    pickle cannot send back and Dask can."""
+    scale = state["offset"] + task
+    return (lambda x: scale * x), type(f"Made{task}", (), {"k": task}), np.full(3, float(task))
+
+
+def test_a_dask_trial_may_return_functions_and_classes_made_at_run_time_and_arrays_come_back_equal():
+    """A chunk's results go back pickled whole, from the trial's thread (harness/base/workers.py,
+    _dask_chunk): what Dask itself would have sent, a function or class made at run time included,
+    comes back, in the tasks' order."""
+    out = Workers(dask=LOCAL).map(_toy_setup, (10,), _made_at_run_time, range(20))
+    assert [f(2) for f, _, _ in out] == [2 * (10 + t) for t in range(20)]
+    assert [c.k for _, c, _ in out] == list(range(20))
+    assert all(np.array_equal(a, np.full(3, float(t))) for t, (_, _, a) in enumerate(out))
+
+
 def _pid_setup(shared: np.ndarray) -> int:
     return int(shared.sum())
 

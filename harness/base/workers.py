@@ -139,6 +139,7 @@ def _dask_chunk(token: str, setup, trial, tasks: list, *shared) -> bytes:
     would be serialised and framed on its own by the worker's event loop, whose thread shares
     the interpreter with the trials (a trial of kr500_noise returns three arrays: about 0.1 s of
     the event loop's time per 200 trials, which the trials waited for)."""
+    import cloudpickle  # a dependency of dask.distributed, as this runs only there
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(1, user_api="blas"):
@@ -147,7 +148,9 @@ def _dask_chunk(token: str, setup, trial, tasks: list, *shared) -> bytes:
                 _STATES.clear()
                 _STATES[token] = setup(*shared)
             state = _STATES[token]
-        return pickle.dumps([trial(state, t) for t in tasks], protocol=pickle.HIGHEST_PROTOCOL)
+        # cloudpickle, as Dask itself would fall back to: a trial may return a function or a class
+        # made at run time; the file is plain pickle, read back with pickle.loads
+        return cloudpickle.dumps([trial(state, t) for t in tasks], protocol=pickle.HIGHEST_PROTOCOL)
 
 
 class _Connection:
