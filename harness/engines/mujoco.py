@@ -262,7 +262,8 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     to_ctrl = np.empty(n_joints, dtype=int)
     to_ctrl[act] = vadr  # ctrl[a] is the drive of the joint at dof to_ctrl[a]
     to_ctrl = None if np.array_equal(to_ctrl, np.arange(n_joints)) else to_ctrl
-    stages = np.empty((n_steps * 4, n_joints))  # the drive torques of every evaluation inside mj_step, by dof
+    per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]  # evaluations in a step
+    stages = np.empty((n_steps * per_step, n_joints))  # the drive torques of every evaluation inside mj_step, by dof
     captured = [0, False]  # how many rows of `stages` are written, whether to write the next
     qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
     qfrc_bias, qfrc_passive, qfrc_applied = data.qfrc_bias, data.qfrc_passive, data.qfrc_applied
@@ -322,7 +323,6 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
         _COLLECTING[0] = False
     for message in _WARNINGS[warned:]:
         logging.getLogger("harness.mujoco").warning(message)
-    per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]
     drive_stages = stages[:captured[0], vadr].reshape(n_steps, per_step, n_joints)
     t = np.arange(n_rows) * substeps * dt
     q_ref, qd_ref, qdd_ref = (x[::2 * substeps] for x in in_spec_order)
