@@ -231,3 +231,38 @@ def test_dask_chunks_cover_every_task_once_in_order_and_shrink_as_the_tasks_run_
     sizes = [b - a for a, b in bounds]
     assert all(CHUNK <= s <= MAX_DASK_CHUNK for s in sizes[:-1]) and 0 < sizes[-1] <= MAX_DASK_CHUNK
     assert sizes == sorted(sizes, reverse=True)
+
+
+def _ends_its_process(state: dict, task: int) -> int:
+    """A trial whose code ends the process it runs in, as a plugin may: sys.exit, or os._exit."""
+    if task == 5:
+        if state["offset"] == 0:
+            sys.exit(0)
+        os._exit(0)
+    return task
+
+
+_RUN_ENDING = """
+import sys
+from harness.base.workers import LOCAL, Workers
+from tests.test_workers import _ends_its_process, _toy_setup
+workers = Workers(dask=LOCAL) if sys.argv[1] == "dask" else Workers(processes=2)
+try:
+    workers.map(_toy_setup, (int(sys.argv[2]),), _ends_its_process, range(20))
+except BaseException as exc:
+    print(type(exc).__name__, exc)
+"""
+
+
+@pytest.mark.parametrize("where", ["fork", "dask"])
+def test_a_trial_that_ends_its_worker_process_ends_the_map_with_an_error_not_a_wait(where):
+    """sys.exit in a trial is raised in the caller as it would be in this process (the CLI reports
+    it, exit 2); os._exit, which no worker can report, is a RuntimeError saying so (exit 3). Both
+    once waited for the lost trials forever: the map runs in a child with a deadline."""
+    def ended(code: int) -> str:
+        run = subprocess.run([sys.executable, "-c", _RUN_ENDING, where, str(code)], capture_output=True, text=True,
+                             timeout=120, cwd=Path(__file__).resolve().parent.parent)
+        return run.stdout.strip()
+
+    assert ended(0) == "SystemExit 0"
+    assert ended(1).startswith("RuntimeError a worker process ended without handing back its trials")

@@ -35,6 +35,7 @@ CHUNK = 8  # tasks sent to a worker at once: a trial takes tens of milliseconds,
 # shares the cores with the workers: chunks there shrink as the tasks run out (guided scheduling),
 # from MAX_DASK_CHUNK down to CHUNK, so that few chunks are sent and the workers still end together.
 MAX_DASK_CHUNK = 64
+WATCH_S = 1.0  # how often a Dask map that waits for its trials looks whether a local cluster has workers left
 
 
 class WorkersError(Exception):
@@ -78,10 +79,13 @@ class Workers:
             progress: Callable[[int, int], None] | None = None) -> list:
         """[trial(setup(*shared), task) for task in tasks], setup run once per worker."""
         tasks = list(tasks)
-        if self.dask:
-            return _on_dask(self.dask, setup, shared, trial, tasks, progress)
-        if self.processes > 1:
-            return _on_fork_pool(self.processes, setup, shared, trial, tasks, progress)
+        try:
+            if self.dask:
+                return _on_dask(self.dask, setup, shared, trial, tasks, progress)
+            if self.processes > 1:
+                return _on_fork_pool(self.processes, setup, shared, trial, tasks, progress)
+        except Ended as exc:  # raised here as in this process, where the caller decides what it means
+            raise exc.original() from None
         from threadpoolctl import threadpool_limits
 
         out = []
@@ -97,32 +101,74 @@ class Workers:
 IN_PROCESS = Workers()  # the default: every trial in this process, one after the other
 
 
+class Ended(Exception):
+    """SystemExit or KeyboardInterrupt raised by the code of a setup or a trial in a worker process
+    (a plugin calling sys.exit): carried back to the caller of `map` as an exception, where it is
+    raised again as it was. In the worker it would end the process or its task thread, and the
+    caller would wait for the trials forever."""
+
+    def __init__(self, kind: str, code: object = None):
+        super().__init__(kind, code)
+        self.kind, self.code = kind, code
+
+    def original(self) -> BaseException:
+        return SystemExit(self.code) if self.kind == "SystemExit" else KeyboardInterrupt()
+
+
+_WORKER_ENDED = ("a worker process ended without handing back its trials: code a trial ran (a plugin?) ended the "
+                 "process or crashed it")
+
+
+def _carried(f: Callable, *args):
+    """f(*args) in a worker, SystemExit and KeyboardInterrupt turned into Ended."""
+    try:
+        return f(*args)
+    except (SystemExit, KeyboardInterrupt) as exc:
+        raise Ended(type(exc).__name__, getattr(exc, "code", None)) from None
+
+
 # --- forked processes ---------------------------------------------------------------------------
 
-_FORKED: dict = {}  # per forked worker: its state and trial function
+_FORKED: dict = {}  # per forked worker: the sweep's setup, shared objects and trial, and its state once built
 
 
 def _fork_init(setup, shared, trial) -> None:
+    import signal
+
     from threadpoolctl import threadpool_limits
 
+    # the harness's SIGTERM handler (harness/base/plugins.py, user_interrupts) is the calling
+    # process's: a worker the pool stops ends quietly, without a KeyboardInterrupt on stderr
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     threadpool_limits(1, user_api="blas")  # for the life of the worker
-    _FORKED.update(state=setup(*shared), trial=trial)
+    _FORKED.update(setup=setup, shared=shared, trial=trial)
 
 
 def _fork_trial(task):
-    return _FORKED["trial"](_FORKED["state"], task)
+    """Runs in a forked worker: the state built by its first trial (so that whatever setup raises
+    comes back as that trial's exception), the trial then run on it."""
+    if "state" not in _FORKED:
+        _FORKED["state"] = _carried(_FORKED["setup"], *_FORKED["shared"])
+    return _carried(_FORKED["trial"], _FORKED["state"], task)
 
 
 def _on_fork_pool(processes, setup, shared, trial, tasks, progress) -> list:
     import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
 
     out = []
-    with multiprocessing.get_context("fork").Pool(processes, initializer=_fork_init,
-                                                  initargs=(setup, shared, trial)) as pool:
-        for r in pool.imap(_fork_trial, tasks, chunksize=CHUNK):
+    pool = ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("fork"), initializer=_fork_init,
+                               initargs=(setup, shared, trial))
+    try:
+        for r in pool.map(_fork_trial, tasks, chunksize=CHUNK):
             out.append(r)
             if progress:
                 progress(len(out), len(tasks))
+    except BrokenProcessPool:  # multiprocessing.Pool would have waited for the lost trials forever
+        raise RuntimeError(_WORKER_ENDED) from None
+    finally:  # on an exception, the trials not started are dropped, not run
+        pool.shutdown(wait=True, cancel_futures=True)
     return out
 
 
@@ -146,18 +192,18 @@ def _dask_chunk(token: str, setup, trial, tasks: list, *shared) -> bytes:
         with _LOCK:
             if token not in _STATES:
                 _STATES.clear()
-                _STATES[token] = setup(*shared)
+                _STATES[token] = _carried(setup, *shared)
             state = _STATES[token]
         # cloudpickle, as Dask itself would fall back to: a trial may return a function or a class
         # made at run time; the file is plain pickle, read back with pickle.loads
-        return cloudpickle.dumps([trial(state, t) for t in tasks], protocol=pickle.HIGHEST_PROTOCOL)
+        return cloudpickle.dumps([_carried(trial, state, t) for t in tasks], protocol=pickle.HIGHEST_PROTOCOL)
 
 
 class _Connection:
     """A Dask client, the local cluster it started (LOCAL) and what it has sent to the workers."""
 
     def __init__(self, address: str):
-        self.client, self.cluster = _client(address)
+        self.client, self.cluster, self._config = _client(address)
         self._sent: dict[int, tuple[Any, Any]] = {}  # id(object) -> (the object, kept alive; its future)
 
     def send(self, obj):
@@ -170,6 +216,8 @@ class _Connection:
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+        if self._config is not None:
+            self._config.__exit__(None, None, None)  # Dask's configuration as it was before the cluster
 
 
 _OPEN: dict[str, _Connection] = {}  # address -> the connection a `Workers.opened()` block holds
@@ -192,13 +240,16 @@ def _client(address: str):
         # warning after 3 s), taken every second instead of every 20 ms. A worker's loop shares the
         # interpreter with its trials: idle, each worker's thread then takes 3 to 5 ms of CPU a second
         # instead of 18 to 20, and the scheduler and nannies in this process 8 to 10 instead of 45
+        # The configuration holds while the cluster runs, not only while it starts: a nanny reads it
+        # again when it restarts a worker that died (which it would otherwise spawn, not fork).
         method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
-        with dask.config.set({"distributed.worker.multiprocessing-method": method,
-                              "distributed.worker.profile.enabled": False,
-                              "distributed.admin.system-monitor.interval": "5s",
-                              "distributed.admin.system-monitor.gil.enabled": False,
-                              "distributed.worker.memory.monitor-interval": "1s",
-                              "distributed.admin.tick.interval": "1s"}):
+        config = dask.config.set({"distributed.worker.multiprocessing-method": method,
+                                  "distributed.worker.profile.enabled": False,
+                                  "distributed.admin.system-monitor.interval": "5s",
+                                  "distributed.admin.system-monitor.gil.enabled": False,
+                                  "distributed.worker.memory.monitor-interval": "1s",
+                                  "distributed.admin.tick.interval": "1s"})
+        try:
             cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
                                    dashboard_address=":0",  # any free port: clusters on one machine do not collide
                                    # its processes log nothing short of critical: a worker whose
@@ -206,9 +257,12 @@ def _client(address: str):
                                    # (dask/distributed#7105), and a trial or worker that fails reaches
                                    # the harness as the task's exception, reported in one line
                                    silence_logs=logging.CRITICAL)
-        return Client(cluster), cluster
+            return Client(cluster), cluster, config
+        except BaseException:
+            config.__exit__(None, None, None)
+            raise
     try:
-        return Client(address, timeout="10s"), None
+        return Client(address, timeout="10s"), None, None
     except (OSError, TimeoutError, ValueError) as exc:
         raise WorkersError(f"cannot reach a Dask scheduler at {address!r} ({exc})") from None
 
@@ -229,7 +283,9 @@ def _on_dask(address, setup, shared, trial, tasks, progress) -> list:
     temporary = connection is None
     if temporary:
         connection = _Connection(address)
-    from distributed import as_completed
+    from concurrent.futures import CancelledError
+
+    from distributed import KilledWorker, wait
 
     try:
         client = connection.client
@@ -239,13 +295,28 @@ def _on_dask(address, setup, shared, trial, tasks, progress) -> list:
         futures = {client.submit(_dask_chunk, token, setup, trial, chunk, *shared_on_workers, pure=False): i
                    for i, chunk in enumerate(chunks)}
         results: list = [None] * len(chunks)
-        done = 0
-        for future in as_completed(futures):
-            i = futures[future]
-            results[i] = pickle.loads(future.result())  # what the workers return, as Dask itself would unpickle it
-            done += len(chunks[i])
-            if progress:
-                progress(done, len(tasks))
+        done, pending = 0, set(futures)
+        while pending:
+            try:
+                finished, pending = wait(pending, timeout=WATCH_S, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                if connection.cluster is not None and not client.nthreads():
+                    # a worker that exits with status 0 is not restarted: with none left, nothing
+                    # would ever run the trials (a remote cluster's workers may come back)
+                    raise RuntimeError(_WORKER_ENDED) from None
+                continue
+            except CancelledError:  # a chunk's inputs were lost with the workers that held them
+                raise RuntimeError(_WORKER_ENDED) from None
+            for future in finished:
+                i = futures[future]
+                try:
+                    chunk = future.result()  # a trial's own exception raised here as it was
+                except (KilledWorker, CancelledError):  # the workers running it died, or its inputs with them
+                    raise RuntimeError(_WORKER_ENDED) from None
+                results[i] = pickle.loads(chunk)  # what the workers return, as Dask itself would unpickle it
+                done += len(chunks[i])
+                if progress:
+                    progress(done, len(tasks))
         return [r for chunk in results for r in chunk]
     finally:
         if temporary:
