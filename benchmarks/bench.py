@@ -8,7 +8,8 @@ things are measured alternately, the best of several rounds of each):
   with friction and rotor inertia (Panda, 7 joints, block by block: harness/identify/streaming.py) at 1e4,
   1e5 and 9e5 samples; at 9e5, in a process of its own, its time over that of Pinocchio's
   joint-torque regressor alone evaluated once on the same samples from Python, and the peak memory;
-- `harness run` end to end in a fresh process: kr500_rail (seconds, and its stages), and the same
+- `harness run` end to end in a fresh process: kr500_rail (seconds, its stages, and its floor: a fresh
+  interpreter importing the engines, and MuJoCo's steps without the drive law), and the same
   kind of scenario (graph model, torques, torque identification) on robots of 6, 7, 7 and 20 joints;
 - `harness sweep` throughput on kr500_noise in 1 and 2 processes and on a local Dask cluster (trials per
   second).
@@ -381,18 +382,58 @@ def harness_run(scenario: Path | str, out: Path) -> tuple[float, dict]:
     return seconds, json.loads((out / "results.json").read_text())["run"]["timings"]
 
 
+ENGINES = "import numpy, mujoco, pinocchio"  # what every run of the harness imports before its own code
+
+
+def simulation_floor() -> dict:
+    """kr500_rail's simulation in this process, best of ROUNDS in turns: the harness's `simulate`
+    (MuJoCo's RK4 steps with the drive law called from Python at each of their 16,000 evaluations,
+    and the recording's sensors), and MuJoCo's steps alone, on the same model from the same state
+    with no callback (the arm then moves under gravity alone: the same arithmetic per step)."""
+    import mujoco
+
+    from harness.engines.mujoco import build_model, simulate
+    from harness.runner.scenario import load_scenario
+
+    sc = load_scenario(ROOT / "harness" / "data" / "scenarios" / "kr500_rail.toml")
+    model = build_model(sc.robot, sc.gravity_W, sc.simulation)
+    steps = sc.output_steps * sc.substeps
+
+    def steps_alone():
+        data = mujoco.MjData(model)
+        mujoco.mj_step(model, data, steps)
+
+    def with_drive_law():
+        simulate(sc.robot, sc.gravity_W, sc.prescribed, sc.output_steps, sc.output_dt, sc.simulation)
+
+    alone, driven = alternately(steps_alone, with_drive_law)
+    return {"mujoco_steps": steps, "mujoco_steps_alone_s": alone, "simulate_with_drive_law_s": driven}
+
+
 def runs(figures: dict) -> None:
+    """`harness run kr500_rail` in a fresh process (best of 3, after a run that writes the bytecode
+    cache), against its floor, what no code of the harness can take away: a fresh interpreter that
+    imports the engines (best of 3, in turns with the runs) and MuJoCo's steps alone; and the
+    simulation with the drive law, which the harness's run makes."""
+    env = dict(AS_INSTALLED, MUJOCO_GL="disable")  # as the command sets it (no OpenGL context)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        best, stages = np.inf, {}
+        best, stages, engines = np.inf, {}, np.inf
         harness_run("kr500_rail", tmp / "kr500_warm")  # the bytecode cache written, as at installation
         for k in range(3):
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-c", ENGINES], check=True, cwd=ROOT, env=env)
+            engines = min(engines, time.perf_counter() - t0)
             seconds, timings = harness_run("kr500_rail", tmp / f"kr500_{k}")
             if seconds < best:
                 best, stages = seconds, timings
         figures["harness_run_kr500_rail_s"] = best
         figures["harness_run_kr500_s"] = best
         figures["harness_run_kr500_rail_stages_s"] = stages
+        floor = {"interpreter_and_engine_imports_s": engines, **simulation_floor()}
+        figures["harness_run_kr500_floor"] = floor
+        figures["harness_run_kr500_over_floor"] = best / (engines + floor["mujoco_steps_alone_s"])
+        figures["harness_run_kr500_own_work_s"] = best - engines - floor["simulate_with_drive_law_s"]
         by_joints = {}
         for name, scenario, joints in (("kr500_rail", "kr500_rail", 7), ("ur5_sines", "ur5_sines", 6),
                                        ("panda_sines", "panda_sines", 7),
@@ -488,6 +529,13 @@ def main() -> None:
     print(f"harness run kr500_rail, fresh process: {figures['harness_run_kr500_rail_s']:.2f} s")
     for k, v in figures["harness_run_kr500_rail_stages_s"].items():
         print(f"    {k:<55} {v:6.2f} s")
+    fl = figures["harness_run_kr500_floor"]
+    print("    its floor: a fresh interpreter importing numpy, mujoco and pinocchio "
+          f"{fl['interpreter_and_engine_imports_s']:.2f} s, MuJoCo's {fl['mujoco_steps']} steps alone "
+          f"{fl['mujoco_steps_alone_s']:.3f} s: the run is "
+          f"{figures['harness_run_kr500_over_floor']:.2f} x its floor; with the drive law the simulation takes "
+          f"{fl['simulate_with_drive_law_s']:.3f} s, and the rest of the run "
+          f"{figures['harness_run_kr500_own_work_s']:.2f} s")
     for k, v in figures["harness_run_s_by_joints"].items():
         print(f"harness run {k} ({v['joints']} joints): {v['seconds']:.2f} s")
     print(f"sweep kr500_noise: {figures['sweep_trials_per_s_1_process']:.1f} trials/s with 1 process, "
