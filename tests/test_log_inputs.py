@@ -93,8 +93,8 @@ def test_a_log_in_degrees_with_its_units_gives_the_fit_of_the_log_in_radians(si_
 def test_a_log_in_degrees_read_as_radians_is_refused_naming_the_unit(si_log, tmp_path, capsys):
     df = si_log[1].copy()
     for c in df.columns:
-        if c.startswith("q"):
-            df[c] = np.degrees(df[c]) + 200.0  # beyond three times every limit (2 pi) however it moves
+        if c.startswith("q"):  # positions beyond three times every limit (2 pi) however they move
+            df[c] = np.degrees(df[c]) + (0.0 if c.startswith("qd") else 200.0)
     df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
     status, _ = _run(tmp_path, "")
     err = capsys.readouterr().err.strip()
@@ -102,6 +102,97 @@ def test_a_log_in_degrees_read_as_radians_is_refused_naming_the_unit(si_log, tmp
     assert not (tmp_path / "out").exists()
     status, _ = _run(tmp_path, "limits_check = false\n")  # the scenario says it knows: accepted
     assert status in (0, 1)
+
+
+def _refused(folder, capsys, data: str = "", columns: str | None = None) -> tuple[str, str]:
+    """The run of folder/log.csv refused at reading: exit 2, one line, nothing written. Returns the
+    key the line names and the line."""
+    status, _ = _run(folder, data, columns=columns)
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and "\n" not in err and not (folder / "out").exists(), err
+    return err.split(": ")[3], err
+
+
+@pytest.mark.parametrize(("factor", "unit"), [(1e3, "milliseconds"), (1e9, "nanoseconds")])
+def test_a_log_timed_in_milliseconds_or_nanoseconds_is_refused_naming_the_time_base(si_log, tmp_path, capsys,
+                                                                                   factor, unit):
+    """Every joint's positions then change 1e-3 (1e-9) times as fast as its logged velocity says."""
+    df = si_log[1].copy()
+    df["t"] = 1.7e9 * (factor == 1e9) * factor + df["t"] * factor  # nanoseconds as a ROS clock writes them
+    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    key, err = _refused(tmp_path, capsys)
+    assert key == "t" and f"t in {unit}?" in err
+
+
+def test_a_log_timed_in_milliseconds_without_velocities_is_refused_by_its_grids_rate(si_log, tmp_path, capsys):
+    """Without q' nothing tells the time base but the grid asked for: 1000 times the log's own rate."""
+    df = si_log[1].copy()
+    df["t"] = df["t"] * 1e3
+    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    columns = 'columns = { t = "t", q = "q{j}", tau = "tau{j}" }\n'
+    key, err = _refused(tmp_path, capsys, "rate = 200.0\n", columns=columns)
+    assert key == "rate" and "Is t in seconds?" in err
+
+
+def test_velocities_in_degrees_per_second_read_as_radians_per_second_are_refused(si_log, tmp_path, capsys):
+    df = si_log[1].copy()
+    for j in range(6):
+        df[f"qd{j + 1}"] = np.degrees(df[f"qd{j + 1}"])
+    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    key, err = _refused(tmp_path, capsys, 'units = { q = "rad", qd = "rad/s", tau = "N m" }\n')
+    assert key == "qd1" and 'units = { qd = "deg/s" }' in err
+
+
+def test_a_velocity_column_of_the_wrong_sign_is_refused_naming_it(si_log, tmp_path, capsys):
+    df = si_log[1].copy()
+    df["qd3"] = -df["qd3"]
+    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    key, err = _refused(tmp_path, capsys)
+    assert key == "qd3" and "opposite sign" in err
+
+
+def test_on_a_real_log_every_joints_velocity_is_its_positions_rate_of_change(si_log):
+    """The check's slope is 1 in a consistent log: 1.000 on the bench log, and within 3 % on the real
+    Panda log (its velocities are the robot's own estimate), every joint moving."""
+    from harness.sources.log import check, read_raw
+
+    for scenario in ("panda_gaz2019.toml", None):
+        if scenario is None:
+            df = si_log[1]
+            t, q, qd = df["t"].to_numpy(), df.filter(regex=r"^q\d").to_numpy(), df.filter(regex=r"^qd").to_numpy()
+            tolerance = 1e-3  # a bench log: positions and velocities of one simulation, at 400 Hz
+        else:
+            s = load_scenario(SCENARIOS / scenario)
+            checked = check(read_raw(s.data, s.robot), s.robot, s.data)  # the check passes
+            t, q, qd = checked.kept.t, checked.kept.q, checked.kept.qd
+            tolerance = 0.03
+        d, v = np.diff(q, axis=0) / np.diff(t)[:, None], 0.5 * (qd[1:] + qd[:-1])
+        k = (d * v).sum(axis=0) / (v * v).sum(axis=0)
+        cosine = (d * v).sum(axis=0) / np.sqrt((v * v).sum(axis=0) * (d * d).sum(axis=0))
+        assert np.all(np.abs(k - 1.0) < tolerance) and np.all(cosine > 0.9), (scenario, k, cosine)
+
+
+def test_a_header_written_with_blanks_after_the_commas_gives_the_fit_of_the_log_without(si_log, reference, tmp_path):
+    text = si_log[1].to_csv(index=False, float_format="%.17g").split("\n", 1)
+    (tmp_path / "log.csv").write_text(text[0].replace(",", ", ") + "\n" + text[1])
+    status, results = _run(tmp_path, 'units = { q = "rad", qd = "rad/s", tau = "N m" }\n')
+    assert status == 0
+    assert _base(results).tolist() == _base(reference).tolist()
+
+
+def test_a_column_named_twice_is_refused_not_read_from_one_of_the_two(si_log, tmp_path, capsys):
+    text = si_log[1].to_csv(index=False, float_format="%.17g").split("\n", 1)
+    (tmp_path / "log.csv").write_text(text[0].replace("tau6", "qd2") + "\n" + text[1])
+    key, err = _refused(tmp_path, capsys)
+    assert key == "qd2" and "named twice" in err
+
+
+def test_an_empty_cell_is_named_with_its_row(si_log, tmp_path, capsys):
+    df = si_log[1].copy()
+    df.loc[7, "tau2"] = np.nan  # written as an empty cell
+    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    key, err = _refused(tmp_path, capsys)
+    assert key == "tau2" and "row 9 is empty" in err and "(1 such row)" in err
 
 
 def test_motor_currents_with_their_constants_give_the_fit_of_the_torques(si_log, reference, tmp_path):

@@ -29,14 +29,17 @@ validation `file` is then a bag too.
 
 Units are converted on reading (`to_si`): degrees of revolute joints to radians; motor currents to
 joint torques, tau = i k_t N. A revolute joint whose positions reach UNIT_FACTOR times its limit is
-refused, with the unit that would fit suggested.
+refused, with the unit that would fit suggested; so are velocities that are not the positions' rate
+of change (`_check_velocities`: t in milliseconds, q' in deg/s read as rad/s, a column of the other
+sign), and a grid over MAX_UPSAMPLING times finer than the log.
 
 Conditioning, in this order, each step stated in results.json (`data.conditioning`), each warning
 also printed once on the terminal:
 1. checks, on the whole file: every cell a finite number (else the file, the column and the row are
-   named); time strictly increasing once repeated rows are dropped; rows that repeat the previous
-   row's positions exactly (a logger's sample and hold) dropped and counted; steps over twice the
-   median and the clock's jitter counted; positions beyond the model's joint limits counted;
+   named); time strictly increasing once repeated rows are dropped; the velocities against the
+   positions' rate of change; rows that repeat the previous row's positions exactly (a logger's
+   sample and hold) dropped and counted; steps over twice the median and the clock's jitter
+   counted; positions beyond the model's joint limits counted;
 2. the log cut at every gap (a step over `split_step`) and, when split by time, at the split: each
    stretch alone goes through steps 3-6, and one too short for them is dropped, said so;
 3. resampling of q, q', tau to a uniform grid (the whole file's rate) by linear interpolation;
@@ -51,6 +54,7 @@ sha256 is recorded.
 
 from __future__ import annotations
 
+import csv
 import hashlib
 import io
 from dataclasses import dataclass, field
@@ -78,6 +82,10 @@ GAP_SPLIT = 5.0  # default: a step over five median steps splits the log into se
 DELAY_CHOICES = ("estimate", "correct", "none")
 MAX_REPEAT = 100
 UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more look like a unit mistake
+VELOCITY_FACTOR = 3.0  # the positions' rate of change and the logged velocities this far apart: a unit mistake
+TRACKING = 0.5  # a joint whose logged velocity follows its positions' changes this closely (cosine) moves
+TIME_UNITS = ((1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds"))
+MAX_UPSAMPLING = 100.0  # a grid this many times finer than the log's own median step is not resampling
 
 
 @dataclass(frozen=True)
@@ -346,6 +354,17 @@ def _read_frame(path: Path, nrows: int | None = None, content: bytes | None = No
         raise InputError(path, "", f"not a CSV log ({str(exc).splitlines()[0]})") from None
     if len(df.columns) < 2:
         raise InputError(path, "", f"not a CSV log (one column, {str(df.columns[0])[:40]!r})")
+    # the header's names as written, blanks around them dropped ("t, q1, q2" is read as "t,q1,q2"); pandas
+    # would rename a repeated name ("q1", "q1.1") and the log would be read from one of them unsaid
+    text = content if content is not None else _first_line(path)
+    end = text.find(b"\n")
+    line = text if end < 0 else text[:end]  # not split: `content` may be the whole file
+    header = [name.strip() for name in next(csv.reader([line.decode("utf-8-sig", errors="replace")]), [])]
+    if len(header) == len(df.columns):
+        repeated = [name for k, name in enumerate(header) if name in header[:k]]
+        if repeated:
+            raise InputError(path, repeated[0], "column named twice in the header")
+        df.columns = header
     return df
 
 
@@ -399,8 +418,8 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
         x = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float)
         bad = np.flatnonzero(~np.isfinite(x))
         if len(bad):
-            raise InputError(path, name, f"row {bad[0] + 2} is {df[name].iloc[bad[0]]!r}, not a finite number "
-                                         f"({len(bad)} such rows)")
+            raise InputError(path, name, f"row {bad[0] + 2} is {_cell(df[name].iloc[bad[0]])}, not a finite number "
+                                         f"({len(bad)} such row{'s' if len(bad) > 1 else ''})")
         return x
 
     names = column_names(source, robot)
@@ -410,6 +429,18 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     digest = hashlib.sha256(content).hexdigest()
     q, qd, tau = to_si(source, robot, q, qd, tau)
     return RawLog(Path(path), digest, t, q, qd, tau, len(t))
+
+
+def _cell(value) -> str:
+    """A cell of the log as its reader saw it: text quoted, a missing value (empty, or a marker such as
+    NA or nan, which the CSV reader turns into NaN) said so, a number as Python writes it."""
+    if isinstance(value, str):
+        return repr(value)
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return repr(value)
+    return "empty (or a missing-value marker: NA, nan, null)" if np.isnan(x) else repr(x)
 
 
 def to_si(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,
@@ -460,9 +491,17 @@ def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Ch
         raise InputError(path, "t", f"time goes backwards at row {row + 2} ({t[row]:g} s after "
                                     f"{tk[backwards[0]]:g} s): not a log in time order")
     if len(tk) < 10:
-        raise InputError(path, "t", f"only {len(tk)} distinct samples")
+        dropped = int(drop.sum())
+        raise InputError(path, "t", f"{len(tk)} distinct sample{'' if len(tk) == 1 else 's'} in {raw.rows} rows, "
+                                    "at least 10 needed" + (f" ({dropped} rows repeat the time or the positions of "
+                                                            "the row before them, and are dropped)" if dropped else ""))
+    _check_velocities(raw.span(keep), robot, source)
     dt = np.diff(tk)
     median = float(np.median(dt))
+    if source is not None and source.rate is not None and source.rate * median > MAX_UPSAMPLING:
+        raise InputError(path, "rate", f"{source.rate:g} Hz is {source.rate * median:.3g} times the log's own rate "
+                                       f"(its median step {median:.3g} s): a grid over {MAX_UPSAMPLING:g} times finer "
+                                       "than the samples would be made by interpolation alone. Is t in seconds?")
     gaps = dt > GAP_FACTOR * median
     jitter = float(np.std(dt) / median)
     steps.append({"step": "checks", "rows": raw.rows, "repeated_rows_dropped": int(held.sum()),
@@ -488,6 +527,49 @@ def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Ch
                         + ", ".join(f"{k} {v} rows" for k, v in beyond.items()))
     steps[0]["beyond_joint_limits"] = beyond
     return Checked(raw.span(keep), steps[0], warnings, median)
+
+
+def _check_velocities(kept: RawLog, robot: RobotSpec, source: DataSource | None) -> None:
+    """The logged velocities against the positions' rate of change, joint by joint: k, the
+    least-squares slope of (q[i+1] - q[i]) / (t[i+1] - t[i]) on (q'[i] + q'[i+1]) / 2 over the kept
+    rows (1.02 on every joint of the real Panda log of scenarios/panda_gaz2019.toml, 1.000 on a bench
+    log), judged where the two follow each other (their cosine at least TRACKING: the joint moves). A
+    k beyond VELOCITY_FACTOR either way, or negative, is a unit, time-base or sign mistake: refused,
+    naming the likeliest one (t in milliseconds gives k = 1e-3 on every joint; q' in deg/s read as
+    rad/s, k = 1/57.3)."""
+    if kept.qd is None or len(kept.t) < 3:
+        return
+    d = np.diff(kept.q, axis=0) / np.diff(kept.t)[:, None]
+    v = 0.5 * (kept.qd[1:] + kept.qd[:-1])
+    dv, vv, dd = (d * v).sum(axis=0), (v * v).sum(axis=0), (d * d).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k, cosine = dv / vv, dv / np.sqrt(vv * dd)
+    moves = np.isfinite(cosine) & (np.abs(cosine) >= TRACKING)
+    off = moves & ~((k >= 1.0 / VELOCITY_FACTOR) & (k <= VELOCITY_FACTOR))
+    if not off.any():
+        return
+    columns = source is not None and source.topic is None and "qd" in source.columns
+    names = column_names(source, robot) if columns else {"t": ["t"], "qd": list(robot.joint_names)}
+    j = int(np.flatnonzero(off)[0])
+
+    def near(x: float, to: float) -> bool:
+        return x > 0 and abs(np.log(x / to)) < np.log(1.5)
+
+    how = "the least-squares slope of the differences of q over those of t on q'; 1 in a consistent log"
+    every = off.sum() == moves.sum()
+    time_base = [unit for factor, unit in TIME_UNITS if every and all(near(x, factor) for x in k[off])]
+    if time_base:
+        median = float(np.median(k[off]))
+        raise InputError(kept.file, names["t"][0], f"on every joint that moves, q changes {median:.3g} times as fast "
+                                                   f"as the logged q' says ({how}): t in {time_base[0]}? t must be in "
+                                                   "seconds")
+    hint = ("q' in deg/s read as rad/s? units = { qd = \"deg/s\" }" if near(k[j], np.pi / 180) else
+            "q in degrees with q' in radians? give both units" if near(k[j], 180 / np.pi) else
+            "q' has the opposite sign to q's changes" if near(-k[j], 1.0) else
+            "q' is not the rate of change of q in the units given")
+    raise InputError(kept.file, names["qd"][j], f"joint {robot.joint_names[j]!r}: q changes {k[j]:.3g} times as "
+                                                f"fast as the logged q' says ({how}): {hint}; or leave qd out of "
+                                                "[data] columns, and q is differentiated")
 
 
 def _check_units(raw: RawLog, robot: RobotSpec, source: DataSource | None) -> None:
