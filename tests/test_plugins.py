@@ -144,6 +144,11 @@ PLUGIN_FAULTS = {
                              "inverse_dynamics raised IndexError"),
     "wrong shape": ({"model": USER_MODEL.replace("return tau[:, ::-1]", "return tau[:, :1]")},
                     "returned shape"),
+    "complex torques": ({"model": USER_MODEL.replace("return tau[:, ::-1]", "return tau[:, ::-1] + 0j")},
+                        "returned complex numbers (complex128)"),  # not cut to their real part
+    "a torque not finite": ({"model": USER_MODEL.replace("return tau[:, ::-1]",  # inf in the first row alone
+                                                         "return tau[:, ::-1] / (s != s[0])[:, None]")},
+                            "returned values that are not finite"),
 }
 
 

@@ -246,9 +246,13 @@ def invoke(plugin: str, what: str, fn: Callable, *args) -> Any:
 
 
 def check_array(plugin: str, what: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
-    """What a plugin returned must be a finite array of the shape."""
+    """What a plugin returned must be a finite real array of the shape (a complex one is refused, not
+    cut to its real part)."""
     try:
-        out = np.asarray(value, dtype=float)
+        out = np.asarray(value)
+        if out.dtype.kind == "c":
+            raise PluginError(plugin, f"{what} returned complex numbers ({out.dtype}): real values expected")
+        out = np.asarray(out, dtype=float)
     except (TypeError, ValueError) as exc:
         raise PluginError(plugin, f"{what} returned something that is not an array ({_exception(exc)})") from None
     if out.shape != shape:
