@@ -116,6 +116,12 @@ BAD_URDFS = {
     "not positive definite": (('ixx="0.0003"', 'ixx="-0.01"'), "not positive semi-definite"),
     "triangle inequality": (('ixx="0.0008"', 'ixx="0.5"'), "break the triangle inequality"),
     "inertia without mass": (('<mass value="1.2"/>', '<mass value="0"/>'), "rotational inertia but no mass"),
+    "limits the wrong way round": (('lower="-3.1" upper="3.1"', 'lower="3.1" upper="-3.1"'),
+                                   "joint 'shoulder': limit lower='3.1' upper='-3.1' is no range"),
+    "a NaN limit": (('lower="-3.1" upper="3.1"', 'lower="-3.1" upper="nan"'), "is no range"),
+    "a moving link without mass": (('<mass value="1.2"/>\n      <inertia ixx="0.0003" ixy="0" ixz="0" iyy="0.01615" '
+                                    'iyz="0" izz="0.01615"/>', ""),
+                                   "link 'fore' moves (joint 'elbow') and has no mass"),
 }
 
 
@@ -133,6 +139,26 @@ def test_a_urdf_that_no_rigid_body_could_have_is_refused_in_one_line(tmp_path, c
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "arm.urdf" in err and phrase in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_mimic_joint_is_read_as_a_joint_of_its_own_and_said_so(tmp_path, capsys):
+    """A URDF's <mimic> couples a joint to another; the harness moves and identifies every joint
+    independently, and says so once on the terminal (and in results.json's model notes)."""
+    mimic = '<child link="fore"/>\n    <mimic joint="shoulder"/>'
+    text = EXAMPLE_URDF.read_text().replace('<child link="fore"/>', mimic)
+    (tmp_path / "arm.urdf").write_text(text)
+    (tmp_path / "arm.toml").write_text('[urdf]\nfile = "arm.urdf"\n')
+    (tmp_path / "s.toml").write_text('[scenario]\nmodel = "arm.toml"\nduration = 1.0\noutput_steps = 10\n'
+                                     '[motion.shoulder]\ntype = "locked"\n[motion.elbow]\ntype = "locked"\n'
+                                     '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("joint 'elbow' mimics 'shoulder'") == 1, err
+    (tmp_path / "arm.toml").write_text('[urdf]\nfile = "arm.urdf"\nfixed = ["elbow"]\n')
+    scenario = (tmp_path / "s.toml").read_text()
+    (tmp_path / "s.toml").write_text(scenario.replace('[motion.elbow]\ntype = "locked"\n', ""))
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out2"), "--quiet"]) == 0
+    assert "mimics" not in capsys.readouterr().err  # held at 0: nothing to say
 
 
 def test_a_massless_link_fixed_to_a_body_adds_its_rotational_inertia(tmp_path):

@@ -76,7 +76,8 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
                 raise ut.error("file", f"URDF file {urdf_path} not found")
         fixed = ut.strings("fixed", choices=None) if ut.has("fixed") else ()
         ut.finish()
-        bodies, joints, limits, drive_limits = read_urdf(urdf_path, ut, fixed)
+        bodies, joints, limits, drive_limits, urdf_notes = read_urdf(urdf_path, ut, fixed)
+        notes = tuple(urdf_notes)
         joints = _joint_friction(root, joints, "the URDF")
         body_tables = [Table({"name": b.name}, path, f"urdf.{b.name}") for b in bodies]
         joint_tables = [Table({"name": j.name}, path, f"urdf.{j.name}") for j in joints]
@@ -349,6 +350,11 @@ def _check_massless(spec: RobotSpec, tables: dict[str, Table]) -> None:
             continue
         t = tables[b.name]
         outer = spec.outer_joints(b.name)
+        if not outer:  # nothing to merge it into: it would move alone
+            where = f"{spec.urdf}: link" if spec.urdf else f"{spec.mjcf}: body" if spec.mjcf else "body"
+            raise t.error("mass", f"{where} {b.name!r} moves (joint {spec.inner_joint(b.name).name!r}) and has no "
+                                  "mass: no engine moves a body without mass; give it mass (in a URDF, an "
+                                  "<inertial>) or fix its joint")
         if len(outer) != 1 or not outer[0].revolute:
             raise t.error("shape", f"massless body {b.name!r} must carry exactly one revolute joint")
         inner = spec.inner_joint(b.name)

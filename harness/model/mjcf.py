@@ -29,6 +29,8 @@ from harness.model.friction import JointFriction
 from harness.model.inertia import union
 from harness.model.spec import Body, Joint
 
+FLOATING_BASE_FIXED = "the floating base is taken as fixed to the world at the file's pose"  # ends its note
+
 
 def read_mjcf(path: Path, table: Table, key: str = "file"
               ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...]]:
@@ -107,8 +109,7 @@ def _read(model, mujoco, path: Path) -> tuple[list[Body], list[Joint], dict, dic
         adr = model.jnt_qposadr[free_root]
         data.qpos[adr:adr + 7] = model.qpos0[adr:adr + 7]
         notes = (f"{path.name}: free joint {_name(model, obj.mjOBJ_JOINT, free_root)!r} of body "
-                 f"{_name(model, obj.mjOBJ_BODY, int(model.jnt_bodyid[free_root]))!r}: the floating base is taken as "
-                 "fixed to the world at the file's pose",)
+                 f"{_name(model, obj.mjOBJ_BODY, int(model.jnt_bodyid[free_root]))!r}: {FLOATING_BASE_FIXED}",)
     mujoco.mj_kinematics(model, data)
 
     # every body belongs to the nearest body at or above it with a hinge or slide joint, or to the world

@@ -155,10 +155,12 @@ def _dynamics(joint) -> JointFriction:
     return JointFriction(viscous=viscous, coulomb=coulomb)
 
 
-def read_urdf(path: Path, table: Table, fixed: tuple[str, ...] = ()) -> tuple[list[Body], list[Joint], dict, dict]:
-    """Bodies and joints (world frame at q = 0) of a URDF, plus joint position limits by name and
-    velocity and effort limits by name ({"velocity": .., "effort": ..}, where given). The joints
-    named in `fixed` are taken as fixed at q = 0 (a gripper's fingers), their bodies merged."""
+def read_urdf(path: Path, table: Table,
+              fixed: tuple[str, ...] = ()) -> tuple[list[Body], list[Joint], dict, dict, list[str]]:
+    """Bodies and joints (world frame at q = 0) of a URDF, plus joint position limits by name,
+    velocity and effort limits by name ({"velocity": .., "effort": ..}, where given) and notes on
+    what the reading assumed (a mimic joint read as a joint of its own). The joints named in `fixed`
+    are taken as fixed at q = 0 (a gripper's fingers), their bodies merged."""
     content = read_bounded(path, MAX_XML_BYTES)
     try:
         root = ET.fromstring(content)
@@ -172,7 +174,8 @@ def read_urdf(path: Path, table: Table, fixed: tuple[str, ...] = ()) -> tuple[li
         raise table.error("urdf", f"{path}: {exc}") from None
 
 
-def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[Body], list[Joint], dict, dict]:
+def _read(path: Path, root, table: Table,
+          fixed: tuple[str, ...]) -> tuple[list[Body], list[Joint], dict, dict, list[str]]:
     links, joints, parent_of, child_of = _structure(path, root)
     unknown = sorted(set(fixed) - {j.get("name") for j in joints})
     if unknown:
@@ -270,9 +273,13 @@ def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[
         lim = j.find("limit")
         if lim is not None and j.get("type") != "continuous":
             try:
-                limits[j.get("name")] = (float(lim.get("lower", "-inf")), float(lim.get("upper", "inf")))
+                lower, upper = float(lim.get("lower", "-inf")), float(lim.get("upper", "inf"))
             except ValueError:
                 raise _Bad(f"joint {j.get('name')!r}: limit lower/upper are not numbers") from None
+            if np.isnan(lower) or np.isnan(upper) or lower > upper:
+                raise _Bad(f"joint {j.get('name')!r}: limit lower={lim.get('lower')!r} upper={lim.get('upper')!r} "
+                           "is no range (lower above upper, or not a number)")
+            limits[j.get("name")] = (lower, upper)
         if lim is not None:  # URDF's velocity and effort limits (of continuous joints too)
             rates = {}
             for key in ("velocity", "effort"):
@@ -282,4 +289,7 @@ def _read(path: Path, root, table: Table, fixed: tuple[str, ...]) -> tuple[list[
                         rates[key] = float(value)
             if rates:
                 drive_limits[j.get("name")] = rates
-    return bodies, spec_joints, limits, drive_limits
+    notes = [f"joint {j.get('name')!r} mimics {j.find('mimic').get('joint')!r} in the URDF: read as a joint of its "
+             "own, moved and identified as the others (list it in [urdf] fixed to hold it at 0)"
+             for j in kept if j.find("mimic") is not None]
+    return bodies, spec_joints, limits, drive_limits, notes

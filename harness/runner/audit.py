@@ -285,6 +285,7 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
     from harness.engines.pinocchio import build_model, crba, rnea
     from harness.identify.torque_id import structural_base
     from harness.model.load import spec_from_data
+    from harness.model.mjcf import FLOATING_BASE_FIXED
 
     t0 = time.perf_counter()
     row = AuditRow(name, str(path), "refused")
@@ -297,7 +298,8 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
         return row
     row.notes = list(spec.notes)
     row.dof = len(spec.joints)
-    row.root = "floating (fixed to the world)" if spec.notes else "fixed"
+    floating = any(note.endswith(FLOATING_BASE_FIXED) for note in spec.notes)  # an MJCF's free joint, held
+    row.root = "floating (fixed to the world)" if floating else "fixed"
     row.bodies = len(spec.massive_bodies)
     row.invalid_bodies = _invalid_bodies(spec)
     problems = []
