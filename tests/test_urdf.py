@@ -3,6 +3,8 @@ joint-torque identifications, the optimised excitation, and an arm the project h
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -154,6 +156,8 @@ def test_a_mimic_joint_is_read_as_a_joint_of_its_own_and_said_so(tmp_path, capsy
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     err = capsys.readouterr().err
     assert err.count("joint 'elbow' mimics 'shoulder'") == 1, err
+    notes = json.loads((tmp_path / "out" / "results.json").read_text())["scenario"]["model_notes"]
+    assert [n.startswith("joint 'elbow' mimics 'shoulder'") for n in notes] == [True]
     (tmp_path / "arm.toml").write_text('[urdf]\nfile = "arm.urdf"\nfixed = ["elbow"]\n')
     scenario = (tmp_path / "s.toml").read_text()
     (tmp_path / "s.toml").write_text(scenario.replace('[motion.elbow]\ntype = "locked"\n', ""))
