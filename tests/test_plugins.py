@@ -13,6 +13,7 @@ import textwrap
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import harness
@@ -319,6 +320,51 @@ limit = 1e-9
     assert judged["validation"] is None and judged["base_parameters"]["count"] == 6
     error = judged["base_parameters"]["max_rel_error"]
     assert error < worst if worst else error > 1e-2
+
+
+class _Fitted:
+    """What a method's fit returns, reduced to what the base-parameter table reads of it."""
+
+    joint_names = ("elbow", "shoulder")
+
+    def __init__(self, covariance):
+        self.parameters, self.covariance = np.zeros((2, 10)), covariance
+
+
+def _spd(seed: int) -> np.ndarray:
+    """A symmetric positive definite (20, 20) matrix, products of round-off and all (A A^T / 20)."""
+    A = np.random.default_rng(seed).standard_normal((20, 20))
+    return A @ A.T / 20
+
+
+@pytest.mark.parametrize("case", ["positive definite", "not symmetric", "indefinite, positive diagonal"])
+def test_a_methods_covariance_must_be_one_on_the_base_parameters(case):
+    """A method's `covariance` gives the intervals of the base parameters beta = T theta: the standard
+    deviations are the square roots of diag(T C T^T). A matrix that is no covariance is refused: not
+    symmetric beyond round-off, or with a negative eigenvalue on the base parameters even where every
+    variance is positive (which the diagonal alone does not show)."""
+    from harness.base.plugins import PluginError
+    from harness.stages.identification import BaseMap, base_table
+
+    T = np.random.default_rng(1).standard_normal((6, 20))  # 6 base parameters of 2 links, as a planar 2R arm
+    bm = BaseMap([f"beta{k}" for k in range(6)], T, np.zeros(6))
+    C = _spd(0)  # in the robot's joint order (shoulder, elbow)
+    if case == "not symmetric":
+        C[0, 5] += 1e-3 * np.abs(C).max()
+    elif case == "indefinite, positive diagonal":
+        w, V = np.linalg.eigh(T @ C @ T.T)
+        v = T.T @ np.linalg.solve(T @ T.T, V[:, 0])  # C moved along the base direction of least variance
+        C = C - 2.0 * w[0] * np.outer(v, v)
+        assert np.all(np.diag(T @ C @ T.T) > 0) and np.linalg.eigvalsh(T @ C @ T.T)[0] < 0
+    order = np.r_[10:20, 0:10]  # the method's joint order is (elbow, shoulder): its covariance
+    fitted = _Fitted(C[np.ix_(order, order)])
+    if case == "positive definite":
+        table = base_table("m", fitted, ["shoulder", "elbow"], bm)
+        np.testing.assert_allclose(table.std, np.sqrt(np.diag(T @ C @ T.T)), rtol=1e-12)
+    else:
+        refusal = "not symmetric" if case == "not symmetric" else "positive semidefinite"
+        with pytest.raises(PluginError, match=refusal):
+            base_table("m", fitted, ["shoulder", "elbow"], bm)
 
 
 def _pytest_in(folder: Path) -> subprocess.CompletedProcess:

@@ -303,6 +303,10 @@ def reported(plugin: str, fitted, what: str, joints: list[str], width: int) -> n
     return check_array(plugin, what, value, (len(joints), width))[back]
 
 
+COVARIANCE_ROUND_OFF = 1e-9  # of a covariance's largest entry: what its products leave of asymmetry or of a
+# negative eigenvalue (a method's sigma^2 (W^T W)^-1 turned to world axes: about 1e-16); beyond it, no covariance
+
+
 def base_table(plugin: str, fitted, joints: list[str], bm: BaseMap) -> BaseTable | None:
     """The fitted model's `parameters` ((n, 10), its joint order) and, when given, `covariance`
     ((10 n, 10 n), of those parameters flattened row by row) as the robot's structural base
@@ -318,9 +322,18 @@ def base_table(plugin: str, fitted, joints: list[str], bm: BaseMap) -> BaseTable
         _, fit_to_robot = column_maps(fitted.joint_names, joints)
         order = (np.asarray(fit_to_robot)[:, None] * 10 + np.arange(10)).reshape(-1)  # its entries, robot order
         cov = check_array(plugin, "covariance", cov, (10 * n, 10 * n))[np.ix_(order, order)]
-        var = np.einsum("ij,jk,ik->i", bm.T, cov, bm.T)
-        if np.any(var < -1e-12 * np.max(np.abs(var), initial=0.0)):
-            raise PluginError(plugin, "covariance is not positive semidefinite on the base parameters")
+        size = np.max(np.abs(cov), initial=0.0)
+        asymmetry = np.max(np.abs(cov - cov.T), initial=0.0)
+        if asymmetry > COVARIANCE_ROUND_OFF * size:
+            raise PluginError(plugin, f"covariance is not symmetric (largest |C - C^T| is {asymmetry / size:.2g} of "
+                                      "its largest entry)")
+        base = bm.T @ cov @ bm.T.T
+        var = np.diag(base)
+        lowest = np.linalg.eigvalsh(0.5 * (base + base.T))[0] if base.size else 0.0
+        if (np.any(var < -1e-12 * np.max(np.abs(var), initial=0.0))
+                or lowest < -COVARIANCE_ROUND_OFF * np.max(np.abs(var), initial=0.0)):
+            raise PluginError(plugin, "covariance is not positive semidefinite on the base parameters (lowest "
+                                      f"eigenvalue {lowest:.3g}, largest variance {np.max(var, initial=0.0):.3g})")
         std = np.sqrt(np.maximum(var, 0.0))
     return BaseTable(bm.expressions, bm.true, bm.T @ theta.reshape(-1), std)
 
