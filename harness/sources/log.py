@@ -495,7 +495,8 @@ def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Ch
         raise InputError(path, "t", f"{len(tk)} distinct sample{'' if len(tk) == 1 else 's'} in {raw.rows} rows, "
                                     "at least 10 needed" + (f" ({dropped} rows repeat the time or the positions of "
                                                             "the row before them, and are dropped)" if dropped else ""))
-    _check_velocities(raw.span(keep), robot, source)
+    kept = raw.span(keep)  # the rows kept: checked here, conditioned after
+    _check_velocities(kept, robot, source)
     dt = np.diff(tk)
     median = float(np.median(dt))
     if source is not None and source.rate is not None and source.rate * median > MAX_UPSAMPLING:
@@ -519,14 +520,14 @@ def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Ch
     beyond = {}
     for j, name in enumerate(robot.joint_names):
         lo, hi = (robot.limits or {}).get(name, (-np.inf, np.inf))
-        outside = int(np.sum((raw.q[keep, j] < lo) | (raw.q[keep, j] > hi)))
+        outside = int(np.sum((kept.q[:, j] < lo) | (kept.q[:, j] > hi)))
         if outside:
             beyond[name] = outside
     if beyond:
         warnings.append("positions beyond the model's joint limits: "
                         + ", ".join(f"{k} {v} rows" for k, v in beyond.items()))
     steps[0]["beyond_joint_limits"] = beyond
-    return Checked(raw.span(keep), steps[0], warnings, median)
+    return Checked(kept, steps[0], warnings, median)
 
 
 def _check_velocities(kept: RawLog, robot: RobotSpec, source: DataSource | None) -> None:
