@@ -6,7 +6,7 @@
     for g in result.gates:          # name, metric, value, limit, direction, passed, reason
         print(g.name, g.value, g.limit, g.passed)
     result.results                  # the content of results.json
-    result.recording                # the recording (harness.engines.recording.Recording)
+    result.recording                # the recording (harness.base.series.TimeSeries)
 
 A model object is judged without a module file or a scenario entry (in a notebook, say):
 
@@ -33,8 +33,8 @@ from pathlib import Path
 from typing import Any
 
 from harness.base.plugins import ModelUnderTest, check_protocol
+from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
-from harness.engines.recording import Recording
 from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate
@@ -61,7 +61,7 @@ class Result:
     passed: bool
     gates: tuple[GateRow, ...]
     results: dict  # results.json
-    recording: Recording
+    recording: TimeSeries
     output: Any = None  # the pipeline's typed results (harness.runner.pipeline.RunOutput)
 
     @property

@@ -376,10 +376,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     if not recording.is_file():
         raise InputError(recording, "", f"file not found (the report needs the {kind} beside results.json)")
     out = args.out or args.results.parent / REPORT_FILE
-    from harness.engines.recording import read_csv
-    from harness.sources.log import read_log_csv
+    from harness.base.series import read_csv
 
-    rec = read_log_csv(recording) if kind == "data" else read_csv(recording)
+    rec = read_csv(recording, bodies=kind == "recording")
     stated = results[kind]
     if len(rec.t) != stated.get("rows") or list(rec.joints) != stated.get("joints"):
         raise InputError(recording, "", f"has {len(rec.t)} rows of joints {list(rec.joints)}; results.json "
@@ -473,7 +472,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def cmd_excite(args: argparse.Namespace) -> int:
     from harness.identify.excitation import optimise, trajectory
     from harness.runner.scenario import Scenario, load_scenario
-    from harness.stages.identification import with_friction
+    from harness.stages.shared import with_friction
 
     scenario = load_scenario(_resolve_scenario(args.scenario))
     if not isinstance(scenario, Scenario) or scenario.excitation is None:

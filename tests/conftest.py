@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from harness.base.series import TimeSeries, read_csv
 from harness.cli import main
-from harness.engines.recording import Recording, read_csv
 from harness.runner.scenario import Scenario, load_scenario
 from harness.sources.bench import record, write_log
 
@@ -24,7 +24,7 @@ def kr500_rail() -> Scenario:
 
 
 @pytest.fixture(scope="session")
-def kr500_recording(kr500_rail: Scenario) -> Recording:
+def kr500_recording(kr500_rail: Scenario) -> TimeSeries:
     """The recording as the engine returned it (with MuJoCo's own orientation matrices)."""
     return record(kr500_rail)
 
@@ -38,7 +38,7 @@ def kr500_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="session")
-def kr500_csv(kr500_run: Path) -> Recording:
+def kr500_csv(kr500_run: Path) -> TimeSeries:
     """The recording read back from recording.csv: what a user of the file has, nothing more."""
     return read_csv(kr500_run / "recording.csv")
 

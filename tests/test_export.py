@@ -1,4 +1,4 @@
-"""The identified model as exported (harness/model/export.py, harness/engines/mujoco.py `mjcf`) reloads
+"""The identified model as exported (harness/model/export.py, harness/model/mjcf.py `write_mjcf`) reloads
 to the identified model in every reader: the harness's own (`robot.toml`, and `robot.xml` through
 `[mjcf]`), MuJoCo's compiler and Pinocchio's MJCF parser. The model: a [data] identification of a
 bench log of the UR5 with drives (2 s at 200 Hz). Tolerances: 1e-9 relative, the issue's bar for

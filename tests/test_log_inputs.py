@@ -154,7 +154,8 @@ def test_a_velocity_column_of_the_wrong_sign_is_refused_naming_it(si_log, tmp_pa
 def test_on_a_real_log_every_joints_velocity_is_its_positions_rate_of_change(si_log):
     """The check's slope is 1 in a consistent log: 1.000 on the bench log, and within 3 % on the real
     Panda log (its velocities are the robot's own estimate), every joint moving."""
-    from harness.sources.log import check, read_raw
+    from harness.sources.log.checks import check
+    from harness.sources.log.read import read_raw
 
     for scenario in ("panda_gaz2019.toml", None):
         if scenario is None:

@@ -216,11 +216,11 @@ def test_figaroh_least_squares_is_the_least_squares_of_its_own_model(bench_run):
     from harness.engines.pinocchio import build_model
     from harness.identify.torque_id import regressor
     from harness.sources.log import load
-    from harness.stages.identification import joint_data
 
     _, results, _, _ = bench_run
     sc = load_scenario(SCENARIO)
-    _, train, validation = load(sc.data, sc.robot)
+    split = load(sc.data, sc.robot)
+    train, validation = split.training, split.validation
     pm = build_model(sc.robot, sc.gravity_W)
     joints = sc.robot.joint_names
     n = len(joints)
@@ -232,11 +232,11 @@ def test_figaroh_least_squares_is_the_least_squares_of_its_own_model(bench_run):
             drive[:, j, 4 * j: 4 * j + 4] = np.stack([qdd[:, j], qd[:, j], np.sign(qd[:, j]), np.ones(len(q))], -1)
         return np.concatenate([W, drive], axis=2).reshape(len(q) * n, -1)
 
-    q, qd, qdd, tau = joint_data(train, joints)
+    q, qd, qdd, tau = train.joint_data(joints)
     x = np.linalg.lstsq(columns(q, qd, qdd), tau.ravel(), rcond=None)[0]
     row = results["identification_methods"]["figaroh"]
     for span, log in (("training", train), ("validation", validation)):
-        qs, qds, qdds, taus = joint_data(log, joints)
+        qs, qds, qdds, taus = log.joint_data(joints)
         pred = (columns(qs, qds, qdds) @ x).reshape(taus.shape)
         assert row[f"{span}_rel_error"] == pytest.approx(np.linalg.norm(pred - taus) / np.linalg.norm(taus), rel=1e-6)
 

@@ -344,7 +344,7 @@ def test_a_methods_covariance_must_be_one_on_the_base_parameters(case):
     symmetric beyond round-off, or with a negative eigenvalue on the base parameters even where every
     variance is positive (which the diagonal alone does not show)."""
     from harness.base.plugins import PluginError
-    from harness.stages.identification import BaseMap, base_table
+    from harness.stages.plugin_fits import BaseMap, base_table
 
     T = np.random.default_rng(1).standard_normal((6, 20))  # 6 base parameters of 2 links, as a planar 2R arm
     bm = BaseMap([f"beta{k}" for k in range(6)], T, np.zeros(6))

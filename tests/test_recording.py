@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model.load import load_spec
 from harness.papers.graph_theory_2021.cardano import A_0i, cond_D
 from harness.papers.graph_theory_2021.readings import Readings, exact
@@ -23,11 +23,11 @@ from tests.conftest import MODELS
 REL = 1e-9
 
 
-def _masses(scenario, rec: Recording) -> np.ndarray:
+def _masses(scenario, rec: TimeSeries) -> np.ndarray:
     return np.array([scenario.robot.body(b).mass for b in rec.bodies])
 
 
-def _outboard(scenario, rec: Recording, joint: str) -> list[int]:
+def _outboard(scenario, rec: TimeSeries, joint: str) -> list[int]:
     return [rec.body_index(b.name) for b in scenario.robot.outboard_bodies(joint) if not b.massless]
 
 
@@ -168,6 +168,6 @@ def test_csv_round_trip_is_exact(kr500_recording, kr500_csv):
         np.testing.assert_array_equal(getattr(kr500_csv, name), getattr(kr500_recording, name), name)
 
 
-def _readings(rec: Recording) -> Readings:
+def _readings(rec: TimeSeries) -> Readings:
     """The graph-theory study's readings of a kr500 recording: its Cardano angles and gimbal flags."""
     return exact(rec, load_spec(MODELS / "kr500.toml").inner_joint_arms_B())

@@ -1,5 +1,5 @@
 """Refinement by simulation (harness/identify/refine.py, harness/stages/refinement.py) and the batched
-rollouts it runs on (harness/engines/mujoco.py, `rollouts`).
+rollouts it runs on (harness/engines/rollout.py, `rollouts`).
 
 The rollouts are checked against an independent computation: MuJoCo's own mj_step, one start at a
 time, with the drive and the friction law applied at every RK4 stage by a control callback. Both
@@ -19,7 +19,8 @@ import pytest
 
 from harness.api import load_scenario
 from harness.cli import main
-from harness.engines.mujoco import build_spec, log_drives, rollouts, stage_times
+from harness.engines.mujoco import build_spec
+from harness.engines.rollout import log_drives, rollouts, stage_times
 from harness.model import friction
 from harness.stages.refinement import Candidate, choose, values
 from tests.conftest import SCENARIOS, late_log

@@ -227,7 +227,7 @@ def test_d_optimality_raises_the_information_and_keeps_the_limits():
     from harness.identify.torque_id import structural_base
 
     sc = load_scenario(SCENARIOS / "ur5_excitation.toml")
-    from harness.stages.identification import with_friction
+    from harness.stages.shared import with_friction
 
     settings = dataclasses.replace(sc.excitation, criterion="d-optimality", evaluations=40)
     optimised, report = optimise(sc, settings, with_friction(sc))

@@ -1,6 +1,7 @@
-"""Numbers every layer defines the same way, written once: relative errors and their floor, column
-scaling of a regressor and its equilibrated condition number, and how a number goes into
-results.json.
+"""Numbers every layer defines the same way, written once: relative errors and their floor, the
+relative residual of a fit (||tau_pred - tau||_F / ||tau||_F), column scaling of a regressor and its
+equilibrated condition number, consecutive blocks of samples, the normal quantile of a 95 % interval,
+and how a number goes into results.json.
 
 Relative error. A difference is reported relative to a scale that says how large the quantity
 is where it is measured, never to the quantity at the same sample (a torque through zero would
@@ -20,10 +21,14 @@ look independent.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 PARAMETER_FLOOR = 1e-6  # relative errors of parameters near zero are taken against 1e-6 of the largest
 ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off (see above)
+NORMAL_975 = 1.959963984540054  # the standard normal's 97.5 % quantile: a 95 % interval where no degrees of
+# freedom are stated (an estimate's own intervals take Student's t: harness/identify/lstsq.py)
 
 
 def relative_error(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -32,16 +37,35 @@ def relative_error(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> np.ndarra
         return np.abs(a - b) / scale
 
 
+def relative_residual(e: np.ndarray, reference: np.ndarray) -> float:
+    """||e||_F / ||reference||_F: a fit's residual e (or predicted - measured) relative to what it fits,
+    over every sample and joint at once (the figure published identifications quote). 0/0 is NaN."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return float(np.linalg.norm(e) / np.linalg.norm(reference))
+
+
+def relative_residual_of_sums(squared_error: float, squared_reference: float) -> float:
+    """`relative_residual` from its two sums of squares, where they are gathered piece by piece (the
+    folds of a cross-validation, joint by joint): sqrt(sum e^2 / sum reference^2)."""
+    return float(np.sqrt(squared_error / squared_reference))
+
+
 def parameter_scale(true: np.ndarray, floor: float = PARAMETER_FLOOR) -> np.ndarray:
     """What a parameter's error is relative to: |true|, at least `floor` of the largest |true|."""
     return np.maximum(np.abs(true), floor * np.max(np.abs(true), initial=0.0))
 
 
+def live_columns(norms: np.ndarray) -> np.ndarray:
+    """(p,) bool: the columns whose norm is over ZERO_COLUMN of the largest (the others are round-off,
+    or never moved by the trajectory)."""
+    return norms > ZERO_COLUMN * np.max(norms, initial=0.0)
+
+
 def column_scale(W: np.ndarray) -> np.ndarray:
-    """(p,) each column's norm; 1 for a column below ZERO_COLUMN of the largest (round-off or
-    never moved by the trajectory: left as it is, not divided by zero or blown up)."""
+    """(p,) each column's norm; 1 for a column that is not live (`live_columns`: left as it is, not
+    divided by zero or blown up)."""
     s = np.linalg.norm(W, axis=0)
-    return np.where(s > ZERO_COLUMN * np.max(s, initial=0.0), s, 1.0)
+    return np.where(live_columns(s), s, 1.0)
 
 
 def equilibrated_singular_values(W: np.ndarray) -> np.ndarray:
@@ -49,12 +73,22 @@ def equilibrated_singular_values(W: np.ndarray) -> np.ndarray:
     return np.linalg.svd(W / column_scale(W), compute_uv=False)
 
 
-def equilibrated_condition_number(W: np.ndarray) -> float:
-    """sigma_max / sigma_min of the column-scaled W: the condition number a least-squares solve of
-    the scaled problem meets (inf when a column is zero or dependent)."""
-    sv = equilibrated_singular_values(W)
+def condition(sv: np.ndarray) -> float:
+    """sigma_max / sigma_min of singular values sv, largest first (inf where the smallest is 0)."""
     with np.errstate(divide="ignore"):
         return float(sv[0] / sv[-1])
+
+
+def equilibrated_condition_number(W: np.ndarray) -> float:
+    """The condition number a least-squares solve of the column-scaled W meets (inf when a column is
+    zero or dependent)."""
+    return condition(equilibrated_singular_values(W))
+
+
+def consecutive_blocks(n: int, count: int) -> list[slice]:
+    """range(n) cut into `count` consecutive blocks of (nearly) equal length, in order."""
+    edges = np.linspace(0, n, count + 1).round().astype(int)
+    return [slice(int(a), int(b)) for a, b in itertools.pairwise(edges)]
 
 
 def sampled(t: np.ndarray, x: np.ndarray, when: np.ndarray) -> np.ndarray:

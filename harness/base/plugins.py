@@ -282,7 +282,8 @@ class Stage:
     results.json, under `key` (the core's stages pass their result type's own method, e.g.
     `TorqueComparison.serialise`). `render(results, recording)` draws that part of the report, titled
     `title` in the report's navigation. `files(result)`, when given, returns files to write into the
-output folder ({relative path: text}, e.g. an exported model). `context` is a harness.stages.Context."""
+output folder ({relative path: text}, e.g. an exported model). `context` is a harness.stages.Context:
+a stage reads its data there and computes; it neither simulates nor reads a file."""
 
     key: str
     progress: str
@@ -293,6 +294,9 @@ output folder ({relative path: text}, e.g. an exported model). `context` is a ha
     files: Callable[[Any], dict[str, str]] | None = None  # files it adds beside results.json: {path: text}
     table: str | None = None  # the scenario's table that configures it, as `[studies.NAME]` configures a study
     configure: Callable[[Any, Any], Any] | None = None  # (table, scenario) -> its configuration, validated
+    recordings: Callable[[Any, Any], Any] | None = None  # (config, scenario) -> the other scenarios whose bench
+    # recordings it reads (a validation trajectory, the same motion without a payload), recorded once by the
+    # source before any stage runs (harness.stages.Context.recorded)
 
 
 @dataclass(frozen=True, eq=False)

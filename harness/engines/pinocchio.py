@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model import friction
 from harness.model.friction import JointFriction
 from harness.model.spec import WORLD, RobotSpec
@@ -101,7 +101,7 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> 
     return InverseDynamics(tau + friction.torque(pm.frictions, qd, qdd, tau), F, M)
 
 
-def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: Recording) -> InverseDynamics:
+def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: TimeSeries) -> InverseDynamics:
     pm = build_model(spec, gravity_W)
     cols = [rec.joint_index(j) for j in spec.joint_names]
     return rnea(pm, rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols])

@@ -45,9 +45,10 @@ from dataclasses import dataclass, field
 import cvxpy as cp
 import numpy as np
 
-from harness.base.numerics import column_scale
-from harness.model.friction import BOUNDED_BY, IDENTIFIED_KEYS
-from harness.model.inertia import about_centre_of_mass, nearest_physical, pseudo_inertia
+from harness.base.numerics import PARAMETER_FLOOR, column_scale, relative_residual
+from harness.identify.friction_law import Law, extra_terms
+from harness.model.friction import BOUNDED_BY, IDENTIFIED_KEYS, JointFriction
+from harness.model.inertia import about_centre_of_mass, model_kind_scales, nearest_physical, pseudo_inertia
 
 PULL = 1e-4  # weight of the pull towards the model's values, relative to the least-squares residual
 # the objective is 1 at the least-squares optimum: 1e-7 of it is far below anything the data resolve
@@ -177,7 +178,7 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
         xv = zv / col
         if fallback:  # a looser solution may sit just outside the constraints: moved onto them
             xv = _physical(xv, eps, n, extra)
-    residual = float(np.linalg.norm(W @ xv - tau) / norm_tau)
+    residual = relative_residual(W @ xv - tau, tau)
     return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n: 14 * n].reshape(n, 4), status, residual, solver,
                          fallback, tuple(attempts), eps, xv[14 * n:])
 
@@ -212,3 +213,64 @@ def _physical(x: np.ndarray, eps: float, n: int, extra: tuple = ()) -> np.ndarra
 
 # the asymmetry -> its symmetric coefficient's place in (n, 4) (friction.BOUNDED_BY)
 ASYMMETRY = {key: IDENTIFIED_KEYS.index(bound) for key, bound in BOUNDED_BY.items()}
+
+
+def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law, ...], theta_model: np.ndarray,
+                   friction_model: np.ndarray, extra_model: np.ndarray) -> tuple[ConsistentFit,
+                                                                                 tuple[JointFriction, ...]]:
+    """The physically consistent fit (`fit`) of the torques tau (N, n) on the
+    regressor W (N n, 14 n: every link's ten parameters, every joint's four drive terms at its law's
+    velocities) and the families' columns E (N n, e, extra_terms(laws)), pulled towards the model's
+    own values (theta_model (n, 10), friction_model (n, 4), extra_model (e,)) where the data cannot
+    tell; and each joint's identified friction law."""
+    N, n = tau.shape
+    terms = extra_terms(laws)
+    W_all = np.hstack([W, E])
+    # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
+    # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
+    rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(N, n, -1) ** 2, axis=0)).reshape(n, n, 4)
+    cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
+    rms_tau = np.sqrt(np.mean(tau**2, axis=0))
+    carry = rms_tau[:, None] / np.where(cols > 0, cols, 1.0)
+    friction_scale = np.maximum(np.abs(friction_model), carry)
+    friction_scale = np.maximum(friction_scale, PARAMETER_FLOOR * friction_scale.max(axis=0, initial=0.0))  # a joint
+    # that carries nothing has no size of its own
+    extra_rms = np.sqrt(np.mean(E.reshape(N, n, -1) ** 2, axis=0))  # (n, e): each column's RMS on each joint's rows
+    extra_scale = np.array([max(abs(extra_model[c]), rms_tau[k] / max(float(extra_rms[k, c]), 1e-300))
+                            for c, (k, _) in enumerate(terms)])
+    scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel(), extra_scale])
+    result = fit(W_all, tau.reshape(-1), theta_model, friction_model, scale, tuple(terms), extra_model)
+    frictions = tuple(
+        JointFriction(*map(float, result.friction[k]), coulomb_velocity=law.coulomb_velocity,
+                      stribeck_velocity=law.stribeck_velocity,
+                      **{key: float(result.extra[c]) for c, (kk, key) in enumerate(terms) if kk == k})
+        for k, law in enumerate(laws))
+    return result, frictions
+
+
+PLAUSIBLE = 3.0  # a link's identified mass or inertia more than 3 times, or under a third of, the model's: warned
+ON_MARGIN = 1.01  # a link whose smallest pseudo-inertia eigenvalue is within 1 % of the fit's margin sits on it
+
+
+def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], margin: float) -> dict:
+    """Beside consistency, plausibility: per link (by its joint) the identified mass and the trace of
+    the inertia about the centre of mass as ratios to the model's own; the links outside
+    [1/PLAUSIBLE, PLAUSIBLE] on either; and the links on the fit's positive-definiteness margin
+    (their smallest pseudo-inertia eigenvalue within ON_MARGIN of it), which the data pushed there."""
+    ratios, outside, on_margin = {}, [], []
+    for k, j in enumerate(joints):
+        m, m0 = float(theta[k][0]), float(theta_model[k][0])
+        tr = float(np.trace(about_centre_of_mass(theta[k])[2])) if m > 0 else float("nan")
+        tr0 = float(np.trace(about_centre_of_mass(theta_model[k])[2])) if m0 > 0 else float("nan")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = {"mass": m / m0 if m0 > 0 else float("nan"), "inertia_trace": tr / tr0 if tr0 > 0 else float("nan")}
+        ratios[j] = r
+        if any(np.isfinite(v) and not 1 / PLAUSIBLE <= v <= PLAUSIBLE for v in r.values()):
+            outside.append(j)
+        if np.linalg.eigvalsh(pseudo_inertia(theta[k]))[0] <= ON_MARGIN * margin:
+            on_margin.append(j)
+    return {"definition": f"per link, identified / model: its mass and the trace of its inertia about the centre "
+                          f"of mass; implausible outside [1/{PLAUSIBLE:g}, {PLAUSIBLE:g}]; on_margin: links whose "
+                          f"smallest pseudo-inertia eigenvalue is within {ON_MARGIN:g} x the fit's margin",
+            "band": [1 / PLAUSIBLE, PLAUSIBLE], "ratios": ratios, "implausible": outside,
+            "implausible_links": len(outside), "on_margin": on_margin, "links_on_margin": len(on_margin)}

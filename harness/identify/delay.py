@@ -13,15 +13,17 @@ nothing is read across a gap.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import column_scale
-from harness.sources.log import room
+from harness.base.numerics import column_scale, relative_residual
+from harness.base.series import STRETCH_BREAK, TimeSeries, room
 
 LARGEST = 0.02  # s: the candidates span +-20 ms
 STEP = 0.0005  # s
+GAIN = 0.9  # a delay is found where reading the torque that much later leaves at most 90 % of the residual at zero
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,12 @@ class Delays:
     curve: np.ndarray  # (n, K)
     at_edge: np.ndarray  # (n,) bool: the best candidate is the first or last (the delay may lie beyond)
 
+    @property
+    def found(self) -> np.ndarray:
+        """(n,) bool: per joint, whether the delay is found: inside the search, and the fit clearly
+        better for it (its residual at most GAIN times the residual at zero delay)."""
+        return ~self.at_edge & (self.residual <= GAIN * self.residual_at_zero)
+
 
 def _basis(Wj: np.ndarray) -> np.ndarray:
     """An orthonormal basis of the column space of the column-scaled Wj (its numerical rank's left
@@ -45,7 +53,7 @@ def _basis(Wj: np.ndarray) -> np.ndarray:
 
 
 def _residual(U: np.ndarray, y: np.ndarray) -> float:
-    return float(np.linalg.norm(y - U @ (U.T @ y)) / np.linalg.norm(y))
+    return relative_residual(y - U @ (U.T @ y), y)
 
 
 def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LARGEST, step: float = STEP) -> Delays:
@@ -78,7 +86,7 @@ def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LAR
 
 def shifted(t: np.ndarray, tau: np.ndarray, delay: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
     """tau read `delay` later (tau_j(t + d_j), by linear interpolation) and the rows where that lies
-    between two samples at most 1.5 `step` apart (not across a gap, not beyond an end)."""
+    between two samples at most STRETCH_BREAK `step` apart (not across a gap, not beyond an end)."""
     out = np.empty_like(tau)
     keep = np.ones(len(t), dtype=bool)
     for j, d in enumerate(delay):
@@ -86,8 +94,20 @@ def shifted(t: np.ndarray, tau: np.ndarray, delay: np.ndarray, step: float) -> t
         right = np.searchsorted(t, at)
         inside = (right > 0) & (right < len(t))
         close = np.zeros(len(t), dtype=bool)
-        close[inside] = (t[right[inside]] - t[right[inside] - 1]) <= 1.5 * step
+        close[inside] = (t[right[inside]] - t[right[inside] - 1]) <= STRETCH_BREAK * step
         exact = np.isin(at, t)
         keep &= close | exact
         out[:, j] = np.interp(at, t, tau[:, j])
     return out, keep
+
+
+def corrected(series: TimeSeries, lags: Delays, joints) -> TimeSeries:
+    """The series with each joint's torque read its delay later where the delay is found (`found`;
+    the others as they are), the rows where that falls across a gap or beyond an end dropped: a
+    channel that lags by d is read at t + d, where it shows the torque of the state at t."""
+    cols = [series.joint_index(j) for j in joints]
+    step = float(np.median(np.diff(series.t)))
+    tau, keep = shifted(series.t, series.tau[:, cols], np.where(lags.found, lags.delay, 0.0), step)
+    out = series.tau.copy()
+    out[:, cols] = tau
+    return dataclasses.replace(series, tau=out).span(keep)

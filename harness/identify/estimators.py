@@ -55,12 +55,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import column_scale
+from harness.base.numerics import NORMAL_975, column_scale
 from harness.identify.lstsq import sandwich_std, t_quantile
 
 HUBER_C = 1.345  # Huber's constant: 95 % efficiency under Gaussian noise
 IRLS_ITERATIONS = 20
-NORMAL_975 = 1.959963984540054  # the standard normal's 97.5 % quantile
 IRLS_TOL = 1e-6  # relative change of the scaled estimate that ends the iteration (far below its noise)
 
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.base.numerics import equilibrated_condition_number, equilibrated_singular_values
+from harness.base.numerics import condition, equilibrated_condition_number, equilibrated_singular_values
 from harness.base.tomlio import InputError, Table
 from harness.engines.pinocchio import build_model, rnea
 from harness.identify.torque_id import regressor, structural_base
@@ -111,7 +111,7 @@ def _criterion(pm, q, qd, qdd, base, criterion: str) -> float:
     W1 = regressor(pm, q, qd, qdd, base.with_friction)[:, base.independent]
     sv = equilibrated_singular_values(W1)
     if criterion == "condition":
-        return float(np.log(sv[0] / sv[-1]))
+        return float(np.log(condition(sv)))
     return float(-np.mean(np.log(sv**2)))  # -log det(W^T W) / p of the scaled regressor
 
 

@@ -28,13 +28,13 @@ the scatter of the parts' errors.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
-from harness.identify.torque_id import links_torque
+from harness.base.numerics import consecutive_blocks, relative_residual_of_sums
+from harness.identify.torque_id import drive_column, links_torque
 from harness.model import friction
 from harness.model.friction import EXTRA_KEYS, FAMILIES, JointFriction
 
@@ -219,9 +219,8 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
     tau, qd = tau[order], qd[order]
-    edges = np.linspace(0, N, config.folds + 1).round().astype(int)
-    folds = [slice(a, b) for a, b in itertools.pairwise(edges)]
-    if min(np.diff(edges)) < MIN_FOLD:
+    folds = consecutive_blocks(N, config.folds)
+    if min(f.stop - f.start for f in folds) < MIN_FOLD:
         raise ValueError(f"{N} training samples: too few for {config.folds} parts of at least {MIN_FOLD}")
     laws = [Law.of(f) for f in model]  # the model's own, where the search starts
     # a joint's slot: q', s and the most terms of a law it may be given (a model's own may join families)
@@ -230,7 +229,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     if unknowns > MAX_UNKNOWNS:
         raise ValueError(f"{unknowns} unknowns with every joint's friction slot: over {MAX_UNKNOWNS}, the search "
                          f"(about {300 * n} trials of {config.folds} factorisations each) would take too long")
-    shaped = {10 * n + 4 * j + k for j in range(n) for k in (1, 2)}  # each joint's viscous and Coulomb columns
+    shaped = {drive_column(n, j, key) for j in range(n) for key in ("viscous", "coulomb")}  # what a law shapes
     kept = np.array([k for k, c in enumerate(independent) if c not in shaped])
     G = W.reshape(N, n, -1)[order][:, :, independent[kept]]
     normal = _Normal(G.reshape(N * n, -1), tuple(x[kept] for x in link_part), tau, folds, slot)
@@ -256,7 +255,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
 
     for j in range(n):
         place(j, laws[j])
-    model_error = float(np.sqrt(normal.held_out_sse().sum() / total))
+    model_error = relative_residual_of_sums(normal.held_out_sse().sum(), total)
     scores: list[dict] = [{} for _ in range(n)]
     for sweep in range(PASSES):
         first = sweep == 0  # the first pass searches v_c over the whole grid; the next, around its choice
@@ -265,7 +264,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
 
             def score(law: Law, j=j) -> float:
                 place(j, law)
-                return float(np.sqrt(normal.held_out_sse().sum() / total))
+                return relative_residual_of_sums(normal.held_out_sse().sum(), total)
 
             found = {"viscous_coulomb": _search(score, Law("viscous_coulomb"), "coulomb_velocity",
                                                 _grid(None if first else laws[j].coulomb_velocity))}
@@ -286,7 +285,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
             scores[j] = {f: {"held_out_rel_error": e, "coulomb_velocity": law.coulomb_velocity,
                              **({"stribeck_velocity": law.stribeck_velocity} if f == "stribeck" else {})}
                          for f, (law, e) in found.items()}
-    chosen_error = float(np.sqrt(normal.held_out_sse().sum() / total))
+    chosen_error = relative_residual_of_sums(normal.held_out_sse().sum(), total)
     tau_rigid = np.empty_like(tau)
     tau_rigid[order] = normal.rigid_torque()
     return FrictionChoice(tuple(laws), tuple(scores), model_error, chosen_error, config.folds, tau_rigid)

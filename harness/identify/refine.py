@@ -13,7 +13,7 @@ For a candidate z:
    less the consistent fit's rigid-body torque, which stays as fitted: the linear part is the best
    the torques allow for that z (variable projection). An asymmetry is then held within its
    symmetric term, as the consistent fit holds it;
-2. that model is forward-simulated in MuJoCo (engines.mujoco.rollouts: RK4, `timestep`) from K
+2. that model is forward-simulated in MuJoCo (harness/engines/rollout.py, rollouts: RK4, `timestep`) from K
    measured states of the training span, each over `horizon` seconds under the measured torques read
    d_j later, every start and every finite-difference column of the Jacobian in one batch;
 3. the residual is, every `sample` seconds of each rollout and per joint,
@@ -37,8 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
-from harness.base.numerics import evenly_spaced, sampled
-from harness.engines.mujoco import PREDICTION_TIMESTEP, log_drives, rollouts
+from harness.base.numerics import evenly_spaced, relative_residual_of_sums, sampled
+from harness.base.series import room
+from harness.engines.rollout import PREDICTION_TIMESTEP, log_drives, rollouts
 from harness.identify import delay as channel_delay
 from harness.identify.friction_law import Law
 from harness.model.friction import (
@@ -47,11 +48,10 @@ from harness.model.friction import (
     IDENTIFIED_KEYS,
     NONNEGATIVE_KEYS,
     JointFriction,
-    coulomb_shape,
+    columns,
     extra_columns,
 )
 from harness.model.spec import RobotSpec
-from harness.sources.log import room
 
 ADJUSTABLE = ("coulomb_velocity", "stribeck_velocity", "delay")
 VELOCITY_RANGE = 30.0  # a smoothing or Stribeck velocity stays within [v0 / 30, 30 v0]
@@ -143,13 +143,12 @@ def _read(t: np.ndarray, tau_k: np.ndarray, rows: np.ndarray, lag: float) -> np.
 def _columns(qd: np.ndarray, qdd: np.ndarray, rigid: np.ndarray, v_c: float, v_s: float,
              terms: tuple[str, ...]) -> tuple[np.ndarray, tuple[str, ...]]:
     """One joint's drive regressor at velocities qd, accelerations qdd and rigid-body torque rigid
-    (each (N,)): [q'', q', s, 1, its family's shapes] and their keys."""
-    s = coulomb_shape(qd, np.array(v_c))
-    extra = extra_columns((JointFriction(coulomb_velocity=v_c, stribeck_velocity=v_s),), qd[:, None],
-                          rigid[:, None])[:, 0]
+    (each (N,)): [q'', q', s, 1] (harness/model/friction.py, columns), its family's shapes, and their keys."""
+    law = (JointFriction(coulomb_velocity=v_c, stribeck_velocity=v_s),)
+    drive = columns(law, qd[:, None], qdd[:, None])[:, 0]
+    extra = extra_columns(law, qd[:, None], rigid[:, None])[:, 0]
     keys = (*IDENTIFIED_KEYS, *terms)
-    cols = [qdd, qd, s, np.ones_like(qd)] + [extra[:, EXTRA_KEYS.index(key)] for key in terms]
-    return np.column_stack(cols), keys
+    return np.column_stack([drive, *(extra[:, EXTRA_KEYS.index(key)] for key in terms)]), keys
 
 
 def _drive_fit(p: _Problem, k: int, velocity: dict, lag: float) -> JointFriction:
@@ -190,7 +189,7 @@ def torque_rel_error(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.nda
         y = _read(t, tau[:, k], rows, lag[k])
         num += float(np.sum((y - rigid[rows, k] - A @ np.array([getattr(f, key) for key in keys])) ** 2))
         den += float(np.sum(y**2))
-    return float(np.sqrt(num / den))
+    return relative_residual_of_sums(num, den)
 
 
 def _residuals(p: _Problem, candidates: list[tuple[tuple[JointFriction, ...], np.ndarray]]) -> np.ndarray:

@@ -10,11 +10,11 @@ same robot, noise that is what the fit takes it to be) is thereby checked on the
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.numerics import consecutive_blocks
 from harness.identify.torque_id import fit_base
 
 MIN_SAMPLES_PER_PARAMETER = 3  # a segment needs at least three samples (each n torques) per base parameter
@@ -54,6 +54,5 @@ def repeat(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray, segments: in
     if N // segments < MIN_SAMPLES_PER_PARAMETER * r:
         raise ValueError(f"{segments} segments of {N // segments} samples: each needs {MIN_SAMPLES_PER_PARAMETER * r} "
                          f"at least ({MIN_SAMPLES_PER_PARAMETER} per base parameter)")
-    bounds = np.linspace(0, N, segments + 1).round().astype(int)
-    fits = [fit_base(W1[a * n: b * n], tau[a:b], beta_model) for a, b in itertools.pairwise(bounds)]
+    fits = [fit_base(W1[b.start * n: b.stop * n], tau[b], beta_model) for b in consecutive_blocks(N, segments)]
     return Repeatability(segments, np.stack([f.beta for f in fits]), np.stack([f.ci_half_width for f in fits]))

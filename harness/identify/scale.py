@@ -16,13 +16,16 @@ beta (over those the model gives a size), and said so. Columns are scaled to uni
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import column_scale
+from harness.base.numerics import column_scale, relative_residual
+from harness.base.series import TimeSeries
 
 SIZED = 1e-3  # of the largest: a model's base parameter below it gives no scale
+
 
 @dataclass(frozen=True)
 class TorqueScales:
@@ -66,7 +69,7 @@ def torque_scales(W1: np.ndarray, tau1: np.ndarray, beta_model: np.ndarray, W2: 
     sigma2 = float(residual @ residual) / dof
     cov = sigma2 * np.linalg.pinv((A / col).T @ (A / col))
     std = np.sqrt(np.diag(cov))[r:] / col[r:]
-    return TorqueScales(x[r:], std, "payload", float(np.linalg.norm(residual) / max(np.linalg.norm(b), 1e-300)))
+    return TorqueScales(x[r:], std, "payload", relative_residual(residual, b))
 
 
 def payload_parameters(mass: float, com_W: np.ndarray, inertia_c: np.ndarray, p_J: np.ndarray) -> np.ndarray:
@@ -79,3 +82,31 @@ def payload_parameters(mass: float, com_W: np.ndarray, inertia_c: np.ndarray, p_
     d = np.asarray(com_W, dtype=float) - np.asarray(p_J, dtype=float)
     I = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) + parallel_axis(mass, d)
     return np.array([mass, *(mass * d), I[0, 0], I[0, 1], I[1, 1], I[0, 2], I[1, 2], I[2, 2]])
+
+
+def torque_constants(pm, base, W: np.ndarray, tau: np.ndarray, beta_model: np.ndarray, robot, payload=None,
+                     loaded: TimeSeries | None = None) -> TorqueScales:
+    """Each joint's factor on its nominal torque constant, from the training span's regressor W (N n,
+    14 n: harness/identify/torque_id.py, with friction) and torques tau (N, n) at the nominal
+    constants: fixed by `loaded`, a log of the robot carrying `payload` (the scenario's
+    `[data.payload]`, a harness.sources.log.KnownPayload, conditioned as the log), where given; else
+    by the model's own base parameters `beta_model` (`base` the structural base parameters)."""
+    from harness.identify.torque_id import regressor
+
+    if payload is None:
+        return torque_scales(W[:, base.independent], tau, beta_model)
+    joints = robot.joint_names
+    q2, qd2, qdd2, tau2 = loaded.joint_data(joints)
+    W2 = regressor(pm, q2, qd2, qdd2, with_friction=True)
+    k = joints.index(robot.inner_joint(payload.body).name)
+    theta_p = payload_parameters(payload.mass, payload.com_W, payload.inertia, robot.joints[k].p_W0)
+    known = (W2[:, 10 * k: 10 * k + 10] @ theta_p).reshape(tau2.shape)
+    return torque_scales(W[:, base.independent], tau, beta_model, W2[:, base.independent], tau2, known)
+
+
+def scaled(series: TimeSeries, factor: np.ndarray, joints) -> TimeSeries:
+    """The series with each joint's torque times its factor (joints in `joints`' order)."""
+    cols = [series.joint_index(j) for j in joints]
+    tau = series.tau.copy()
+    tau[:, cols] *= factor
+    return dataclasses.replace(series, tau=tau)

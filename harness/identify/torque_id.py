@@ -20,7 +20,9 @@ import pinocchio as pin
 
 from harness.base.numerics import (
     column_scale,
+    condition,
     equilibrated_singular_values,
+    live_columns,
     parameter_scale,
 )
 from harness.engines.pinocchio import PinocchioModel
@@ -33,10 +35,21 @@ from harness.model.regressor import supports as batched_supports
 from harness.model.states import position_bounds
 
 RANK_TOL = 1e-8  # |R_ii| / |R_00| below this: the column depends on the others (exact data: 1e-14)
-ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off: the parameter has no
-# effect on any torque (e.g. a body's mass moment along its own joint axis); such columns sit at
-# 1e-16, every other column at 1e-3 or more. Scaling them to unit norm would make them look
-# independent.
+# A column that is not live (harness/base/numerics.py, live_columns) is round-off: the parameter has no
+# effect on any torque (e.g. a body's mass moment along its own joint axis); such columns sit at 1e-16,
+# every other column at 1e-3 or more. Scaling them to unit norm would make them look independent.
+DRIVE_TERMS = len(friction.IDENTIFIED_KEYS)  # a joint's drive columns, after every link's ten
+
+
+def drive_columns(n: int, j: int) -> slice:
+    """The columns of joint j's drive terms (friction.IDENTIFIED_KEYS, in that order) in a regressor
+    with friction of n joints: after the 10 n of the links, DRIVE_TERMS per joint."""
+    return slice(10 * n + DRIVE_TERMS * j, 10 * n + DRIVE_TERMS * (j + 1))
+
+
+def drive_column(n: int, j: int, key: str) -> int:
+    """The column of joint j's drive term `key` (friction.IDENTIFIED_KEYS)."""
+    return drive_columns(n, j).start + friction.IDENTIFIED_KEYS.index(key)
 
 
 def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -83,7 +96,7 @@ def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: n
     if with_friction:  # joint j's four columns act on joint j's row only
         shapes = friction.columns(pm.frictions, qd, qdd)  # (N, n, 4)
         for j in range(n):
-            out[j, 10 * n + 4 * j: 10 * n + 4 * j + 4] = shapes[:, j].T
+            out[j, drive_columns(n, j)] = shapes[:, j].T
     return out
 
 
@@ -134,8 +147,8 @@ def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameter
     from scipy.linalg import qr, solve_triangular  # pivoted QR: numpy has none; imported where needed
 
     norms = np.linalg.norm(W, axis=0)
-    live = np.flatnonzero(norms > ZERO_COLUMN * norms.max())
-    dead = np.flatnonzero(norms <= ZERO_COLUMN * norms.max())
+    live = np.flatnonzero(live_columns(norms))
+    dead = np.flatnonzero(~live_columns(norms))
     scale = norms[live]
     _, R, P = qr(W[:, live] / scale, mode="economic", pivoting=True)
     d = np.abs(np.diag(R))
@@ -170,7 +183,7 @@ def structurally_weak(W: np.ndarray, independent: np.ndarray, norms: np.ndarray,
     n10 = W.shape[1] // 14 * 10 if with_friction else W.shape[1]  # columns of the links; the drives after them
     c = np.arange(W.shape[1])
     kind = np.where(c < n10, np.array([0, 1, 1, 1, 2, 2, 2, 2, 2, 2])[c % 10], 3 + (c - n10) % 4)
-    live = norms > ZERO_COLUMN * norms.max()
+    live = live_columns(norms)
     median = {k: float(np.median(norms[live & (kind == k)])) for k in np.unique(kind[live])}
     small = np.array([norms[j] < WEAK_STRUCTURE * median[kind[j]] for j in independent], bool)
     _, S, Vt = np.linalg.svd(W[:, independent] / norms[independent], full_matrices=False)
@@ -254,7 +267,7 @@ def fit_base(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit
     s = column_scale(W1)
     sv = equilibrated_singular_values(W1)
     kappa = sensitivity(W1 / s, L) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
-    return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), float(sv[0] / sv[-1]))
+    return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), condition(sv))
 
 
 def with_structure(fit: BaseFit, base: BaseParameters) -> BaseFit:

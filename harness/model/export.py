@@ -122,7 +122,7 @@ def export(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, .
            description: str) -> dict[str, str]:
     """{relative path: text} of the exported model: theta (n, 10) each joint's body, `frictions` each
     joint's whole friction law. The MJCF file and the README are added by the caller
-    (harness/engines/mujoco.py writes MJCF; `readme`)."""
+    (harness/model/mjcf.py writes MJCF; `readme`)."""
     files = {f"identified/{JOINTS_FILE}": joints_toml(spec, frictions)}
     if spec.urdf is not None:
         files[f"identified/{URDF_FILE}"] = write_urdf(spec, theta, frictions)

@@ -27,7 +27,7 @@ import numpy as np
 from harness.base.tomlio import MAX_XML_BYTES, Table, read_bounded
 from harness.model.friction import JointFriction
 from harness.model.inertia import union
-from harness.model.spec import Body, Joint
+from harness.model.spec import Body, Joint, RobotSpec
 
 FLOATING_BASE_FIXED = "the floating base is taken as fixed to the world at the file's pose"  # ends its note
 
@@ -159,3 +159,70 @@ def _read(model, mujoco, path: Path) -> tuple[list[Body], list[Joint], dict, dic
         efforts[name] = {"effort": effort + efforts.get(name, {}).get("effort", 0.0)}  # actuators on one joint add
     return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes
 
+
+# --- the robot as an MJCF file for others to simulate: the reader's counterpart ---------------------
+
+
+def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "") -> str:
+    """The robot as an MJCF file: its bodies with their inertials, hinge and slide joints with their
+    ranges, `armature` (rotor inertia), `damping` (viscous friction) and `frictionloss` (Coulomb
+    friction, which MuJoCo applies as dry friction: the mapping of the smooth law is the caller's to
+    state), and a motor per joint (gear 1) with the joint's effort limit as its force range. Built
+    with MjSpec and written by MuJoCo's own writer, then every number it wrote rewritten from the
+    MjSpec's doubles at full precision (the writer keeps six digits), so the file reloads to the bit.
+    `comment` (plain text) heads the file."""
+    import xml.etree.ElementTree as ET
+
+    import mujoco
+
+    from harness.model.mjspec import add_robot, new_spec
+
+    ms = new_spec(spec.name, gravity_W)
+    add_robot(ms, spec)
+    for joint in spec.joints:
+        j = ms.joint(joint.name)
+        j.frictionloss = joint.friction.coulomb
+        lo, hi = (spec.limits or {}).get(joint.name, (-np.inf, np.inf))
+        if np.isfinite(lo) and np.isfinite(hi):
+            j.range = [lo, hi]
+        effort = (spec.drive_limits or {}).get(joint.name, {}).get("effort")
+        motor = ms.add_actuator(name=joint.name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                                gear=[1.0, 0, 0, 0, 0, 0])
+        if effort is not None:
+            motor.forcerange = [-effort, effort]
+    ms.compile()  # what MuJoCo refuses is refused here, not by the reader of the file
+    root = ET.fromstring(ms.to_xml())
+    for el in root.iter():
+        _exact_numbers(el, ms, root)
+    ET.indent(root)
+    head = "".join(f"<!-- {line} -->\n" for line in comment.replace("--", "- -").splitlines())
+    return head + ET.tostring(root, encoding="unicode") + "\n"
+
+
+# what each MJCF attribute holds in the MjSpec element it belongs to
+_ATTRIBUTES = {"body": {"pos": "pos", "quat": "quat"},
+               "inertial": {"pos": "ipos", "quat": "iquat", "mass": "mass", "diaginertia": "inertia"},
+               "joint": {"pos": "pos", "axis": "axis", "range": "range", "armature": "armature",
+                         "damping": "damping", "frictionloss": "frictionloss"},
+               "general": {"gear": "gear", "forcerange": "forcerange"},
+               "option": {"gravity": "gravity"}}
+
+
+def _exact_numbers(el, ms, root) -> None:
+    """Every number MuJoCo's writer put in `el` replaced by the double the MjSpec holds."""
+    names = _ATTRIBUTES.get(el.tag)
+    if names is None:
+        return
+    if el.tag == "inertial":
+        owner = next(b for b in root.iter("body") if el in list(b))
+        source = ms.body(owner.get("name"))
+    elif el.tag == "option":
+        source = ms.option
+    else:
+        source = {"body": ms.body, "joint": ms.joint, "general": ms.actuator}[el.tag](el.get("name"))
+    for attribute, field in names.items():
+        if el.get(attribute) is None:
+            continue
+        values = np.atleast_1d(np.asarray(getattr(source, field), dtype=float))
+        written = len(el.get(attribute).split())
+        el.set(attribute, " ".join(repr(float(v)) for v in values[:written]))

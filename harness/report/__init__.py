@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.engines.recording import Recording, read_csv
+from harness.base.series import TimeSeries, read_csv
 from harness.report import sections
 from harness.report.html import page
 
@@ -39,14 +39,14 @@ def _registered_stages(results: dict) -> list:
     return stages
 
 
-def render(results: dict, rec: Recording, stages: list | None = None) -> str:
+def render(results: dict, rec: TimeSeries, stages: list | None = None) -> str:
     """The report of a results.json and its recording. `stages` (default: the registered ones
     of the studies the results name) give the sections after the motion, one per stage result."""
     with np.errstate(invalid="ignore", divide="ignore"):  # an undefined error is drawn as a gap
         return _render(results, rec, stages)
 
 
-def _render(results: dict, rec: Recording, stages: list | None) -> str:
+def _render(results: dict, rec: TimeSeries, stages: list | None) -> str:
     name = results["scenario"]["name"]
     if "data" in results:  # a measured log: its conditioning and signals in place of the motion
         parts = [sections.verdict(results), sections.model(results), sections.data(results, rec)]
@@ -70,11 +70,7 @@ def _render(results: dict, rec: Recording, stages: list | None) -> str:
 
 def render_report(results: dict, results_dir: Path) -> str:
     """The report of a results.json's content, with the recording (or log) beside it."""
-    if "data" in results:
-        from harness.sources.log import read_log_csv
-
-        rec = read_log_csv(Path(results_dir) / results["data"]["file"])
-    else:
-        rec = read_csv(Path(results_dir) / results["recording"]["file"])
+    kind = "data" if "data" in results else "recording"
+    rec = read_csv(Path(results_dir) / results[kind]["file"], bodies=kind == "recording")
     return render(results, rec)
 

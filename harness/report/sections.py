@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from markupsafe import Markup
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.report import plots
 from harness.report.html import DASH, code, esc, figure, mark, num, page, section, table
 from harness.runner.gates import summary_line
@@ -122,7 +122,7 @@ def model(r: dict) -> str:
     )
 
 
-def motion(r: dict, rec: Recording) -> str:
+def motion(r: dict, rec: TimeSeries) -> str:
     t = rec.t
     rev = {j: rec.q[:, k] for k, j in enumerate(rec.joints) if r["model"]["joints"][k]["type"] == "revolute"}
     pri = {j: rec.q[:, k] for k, j in enumerate(rec.joints) if r["model"]["joints"][k]["type"] != "revolute"}

@@ -16,14 +16,14 @@ from typing import Any
 import numpy as np
 
 from harness.base.plugins import Stage, guard
+from harness.base.series import TimeSeries
 from harness.base.workers import IN_PROCESS, Workers
-from harness.engines.recording import Recording
 from harness.identify.excitation import optimise as optimise_excitation
 from harness.runner.scenario import DataScenario, Scenario
 from harness.sources.bench import record
 from harness.sources.measurement import measure
-from harness.stages import Context, Progress, core_stages, log_stages
-from harness.stages.identification import with_friction
+from harness.stages import VALIDATION_SPAN, Context, Progress, core_stages, log_stages, recording_key
+from harness.stages.shared import with_friction
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,8 +36,8 @@ class StageOutput:
 @dataclass(frozen=True, eq=False)
 class RunOutput:
     scenario: Scenario  # with the optimised motion, where the excitation was optimised
-    recording: Recording  # the ideal recording: the truth
-    measured: Recording  # what the identification sees
+    recording: TimeSeries  # what the run writes: the bench's ideal recording (the truth), or the whole conditioned log
+    measured: TimeSeries  # what the identification sees: the measured recording, or the log's training span
     context: Context
     stages: dict[str, StageOutput]  # by results.json key, in the order they ran
     excitation: dict | None = None
@@ -97,32 +97,43 @@ def stages_of(scenario: Scenario | DataScenario) -> Iterator[tuple[Stage, Any, s
 
 @dataclass(frozen=True, eq=False)
 class Sourced:
-    """What a source gives the stages: the truth (the bench's ideal recording, or the whole log),
-    what a fit may use (the measurement of the recording, or the log's training span) and, for a
-    log, the validation span."""
+    """What a source gives the stages (harness.stages.Context): the truth (the bench's ideal
+    recording; None for a log), what a fit may read (the measurement of the recording, or the log's
+    training span, with a known-payload log beside it), what only the judging reads (the log's
+    validation span, or every scenario the bench scenario's stages name, recorded once), and what the
+    run writes beside results.json (the recording, or the whole conditioned log)."""
 
-    truth: Recording
-    training: Recording
-    validation: Recording | None = None
+    truth: TimeSeries | None
+    training: TimeSeries
+    validation: dict[str, TimeSeries]
+    written: TimeSeries
+    payload: TimeSeries | None = None
 
 
 def from_bench(scenario: Scenario, timed: _Timed) -> Sourced:
-    """The scenario's robot simulated in MuJoCo along its motion, then measured."""
+    """The scenario's robot simulated in MuJoCo along its motion, then measured; each other scenario
+    its stages read (Stage.recordings: a validation trajectory, the same motion without a payload)
+    simulated once."""
     timed("simulating in MuJoCo", None)
     recording = record(scenario)
-    return Sourced(recording, measure(recording, scenario.measurement))
+    related: dict[str, TimeSeries] = {}
+    for stage, config, _ in stages_of(scenario):
+        for setup in (stage.recordings(config, scenario) if stage.recordings is not None else ()):
+            if recording_key(setup) not in related:
+                timed(f"simulating {setup.name} in MuJoCo", None)
+                related[recording_key(setup)] = record(setup)
+    return Sourced(recording, measure(recording, scenario.measurement), related, recording)
 
 
 def from_log(scenario: DataScenario, timed: _Timed) -> Sourced:
-    """A measured log (harness/sources/log.py) read and conditioned; its spans checked disjoint."""
-    from harness.sources.log import load
+    """A measured log (harness/sources/log/) read, conditioned and split once; a known-payload log
+    beside it conditioned the same way."""
+    from harness.sources.log import load, load_payload
 
     timed("reading and conditioning the log", None)
-    full, train, validation = load(scenario.data, scenario.robot)
-    if validation is not None and scenario.data.validation_file is None and not train.t[-1] < validation.t[0]:
-        raise RuntimeError(f"the training span (to {train.t[-1]:g} s) and the validation span (from "
-                           f"{validation.t[0]:g} s) overlap")
-    return Sourced(full, train, validation)
+    split = load(scenario.data, scenario.robot)
+    validation = {} if split.validation is None else {VALIDATION_SPAN: split.validation}
+    return Sourced(None, split.training, validation, split.whole, load_payload(scenario.data, scenario.robot))
 
 
 def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
@@ -140,7 +151,7 @@ def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
             timed("optimising the excitation (Fourier series)", None)
             scenario, excitation = optimise_excitation(scenario, scenario.excitation, with_friction(scenario))
         data = from_bench(scenario, timed)
-    ctx = Context(scenario, data.truth, data.training, timed, workers=workers, validation=data.validation)
+    ctx = Context(scenario, data.truth, data.training, timed, data.validation, workers=workers, payload=data.payload)
     outputs: dict[str, StageOutput] = {}
     for stage, config, study in stages_of(scenario):
         timed(stage.progress, None)
@@ -156,4 +167,4 @@ def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
         else:
             outputs[stage.key] = StageOutput(stage, config, result)
     timed.close()
-    return RunOutput(scenario, data.truth, data.training, ctx, outputs, excitation, timed.timings)
+    return RunOutput(scenario, data.written, data.training, ctx, outputs, excitation, timed.timings)

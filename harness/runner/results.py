@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from harness.base.numerics import floats
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model.spec import RobotSpec
 from harness.runner.scenario import Scenario
 
@@ -64,11 +64,11 @@ def data_scenario_section(s) -> dict:
 
 
 def data_section(log) -> dict:
-    """The measured log and every step of its conditioning (harness/sources/log.py)."""
+    """The measured log and every step of its conditioning (harness/sources/log/)."""
     from harness.sources.log import LOG_FILE
 
     return {"file": LOG_FILE, "rows": len(log.t), "joints": list(log.joints), "t_start": float(log.t[0]),
-            "t_end": float(log.t[-1]), "conditioning": log.conditioning}
+            "t_end": float(log.t[-1]), "conditioning": log.meta}
 
 
 def model_section(spec: RobotSpec) -> dict:
@@ -88,7 +88,7 @@ def model_section(spec: RobotSpec) -> dict:
             "bodies": bodies, "joints": joints}
 
 
-def recording_section(rec: Recording) -> dict:
+def recording_section(rec: TimeSeries) -> dict:
     meta = rec.meta
     tracking = {}
     for j, name in enumerate(rec.joints):

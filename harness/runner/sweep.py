@@ -15,9 +15,8 @@ import numpy as np
 
 from harness.base.progress import Progress
 from harness.base.workers import Workers
-from harness.runner.pipeline import run
+from harness.runner.pipeline import from_bench, run
 from harness.runner.scenario import Scenario
-from harness.sources.bench import record
 from harness.stages import Context
 from harness.stages.identification import sweep_methods
 
@@ -37,9 +36,8 @@ def identification_sweep(scenario: Scenario, trials: int, workers: Workers, prog
         done = out.stages["estimators"]
         results["estimators"] = done.stage.serialise(done.result, out.context, done.config)
     if scenario.methods:
-        progress("simulating in MuJoCo", None)
-        recording = record(scenario)
-        ctx = Context(scenario, recording, recording, progress, workers=workers)
+        source = from_bench(scenario, progress)
+        ctx = Context(scenario, source.truth, source.truth, progress, source.validation, workers=workers)
         with np.errstate(invalid="ignore", divide="ignore"):  # a parameter the trials never move: 0/0, null
             results["identification_methods"] = sweep_methods(ctx, trials)
     results["run"] = {"workers": workers.describe(), "seconds": round(time.perf_counter() - t0, 3)}

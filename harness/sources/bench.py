@@ -9,9 +9,9 @@ from typing import Protocol
 
 import numpy as np
 
+from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
 from harness.engines.mujoco import Diverged, simulate
-from harness.engines.recording import Recording
 from harness.engines.simulation import Simulation
 from harness.model.spec import RobotSpec
 
@@ -28,7 +28,7 @@ class Setup(Protocol):
     prescribed: Callable  # t -> (q, q', q''), each (len(t), n) in the robot's joint order
 
 
-def record(scenario: Setup) -> Recording:
+def record(scenario: Setup) -> TimeSeries:
     """The scenario simulated in MuJoCo: `output_steps + 1` rows from t = 0. A motion that drives
     the simulation to non-finite values is bad input, named by its joint and time."""
     try:
@@ -41,7 +41,7 @@ def record(scenario: Setup) -> Recording:
                          "simulated") from None
 
 
-def write_log(rec: Recording, joints: list[str], path: Path) -> None:
+def write_log(rec: TimeSeries, joints: list[str], path: Path) -> None:
     """A recording written as a lab's joint log would be: a CSV of t, then q{k}, qd{k}, tau{k} for
     k = 1..n in the order of `joints` (what `[data] columns = { q = "q{j}", ... }` reads), every number
     to the last bit."""

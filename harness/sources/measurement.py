@@ -35,8 +35,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from harness.base.series import TimeSeries
 from harness.base.tomlio import Table
-from harness.engines.recording import Recording
 
 CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "a_W", "omega_W", "omegadot_W")
 GROUPS = {
@@ -137,7 +137,7 @@ def read_encoders(q: np.ndarray, resolution: float, rng: np.random.Generator) ->
     return np.round((q - zero) / resolution) * resolution + zero
 
 
-def add_noise(rec: Recording, noise: dict[str, Noise], rng: np.random.Generator) -> dict[str, np.ndarray]:
+def add_noise(rec: TimeSeries, noise: dict[str, Noise], rng: np.random.Generator) -> dict[str, np.ndarray]:
     """Each channel of `rec` that a noise group names, with its noise drawn from `rng`."""
     return add_noise_to({c: getattr(rec, c) for c in CHANNELS}, GROUPS, noise, rng)
 
@@ -176,7 +176,7 @@ def study_stream(m: Measurement, name: str) -> np.random.Generator:
     return np.random.default_rng([m.seed, zlib.crc32(name.encode())])
 
 
-def measure(rec: Recording, m: Measurement) -> Recording:
+def measure(rec: TimeSeries, m: Measurement) -> TimeSeries:
     """What the test bench reports under the measurement conditions `m` (deterministic in m.seed)."""
     if m.ideal:
         return rec
@@ -197,7 +197,7 @@ def measure(rec: Recording, m: Measurement) -> Recording:
     return dataclasses.replace(sampled, **values)
 
 
-def dither(rec: Recording, m: Measurement, rng: np.random.Generator) -> Recording:
+def dither(rec: TimeSeries, m: Measurement, rng: np.random.Generator) -> TimeSeries:
     """A recording as different from `rec` as the measurement allows: its noise drawn afresh, and
     every value moved by up to the rounding resolution times the largest value of its channel at
     that instant (an engine computes every body's quantities together, and a component that is zero

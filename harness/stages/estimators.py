@@ -20,14 +20,15 @@ import numpy as np
 
 from harness.base.numerics import parameter_scale
 from harness.base.plugins import Stage
+from harness.base.series import TimeSeries
 from harness.engines.pinocchio import PinocchioModel, build_model
-from harness.engines.recording import Recording
 from harness.identify.estimators import DESCRIPTIONS, ESTIMATORS, Instruments, iv
 from harness.identify.propagation import propagates, score_covariance
 from harness.identify.torque_id import parameter_names, regressor, true_parameters
 from harness.identify.trials import over_trials
 from harness.sources.measurement import Measurement, measure, savgol
 from harness.stages.metrics import joint_load_scale
+from harness.stages.shared import structural_base_of, torque_config
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,8 +109,6 @@ class EstimatorsConfig:
 def configure(t, scenario) -> EstimatorsConfig:
     """`[estimators] methods = ["ols", "wls", "irls", "iv"], trials = 200`, validated (one-line
     errors naming the key). The estimators are judged on the scenario's validation trajectory."""
-    from harness.stages.identification import torque_config
-
     if torque_config(scenario) is None:
         raise t.error("methods", "estimators are judged on a validation trajectory: give "
                                  "[torque_identification] validation = ...")
@@ -125,15 +124,13 @@ def run(ctx, config: EstimatorsConfig | None) -> Comparison | None:
     cfg = config
     if cfg is None:
         return None
-    from harness.stages.identification import joint_data, structural_base_of, torque_config, validation_recording
-
     torque = torque_config(sc)
     friction = torque.friction
     joints = sc.robot.joint_names
     pm = build_model(sc.robot, sc.gravity_W)
     base = structural_base_of(ctx)
     cols = base.independent
-    rec = ctx.recording
+    rec = ctx.truth
     m = sc.measurement
     edge = m.filter_window // 2 if m.differentiate else 0
     # two outputs of the differentiating filter share no encoder reading beyond a window apart
@@ -157,8 +154,8 @@ def run(ctx, config: EstimatorsConfig | None) -> Comparison | None:
     sensors = propagates(m)  # the IV intervals from the sensors' specification, where it is complete
     instruments = Instruments(Z1, nonlinear, score_covariance(pm, Z1, rec.t[rows], keep, q_ref, qd_ref, qdd_ref,
                                                               rec.tau[rows][:, idx], m)) if sensors else from_residuals
-    val = validation_recording(ctx, torque.validation)
-    qv, qdv, qddv, tauv = joint_data(val, joints)
+    val = ctx.recorded(torque.validation)
+    qv, qdv, qddv, tauv = val.joint_data(joints)
     Wv = regressor(pm, qv, qdv, qddv, with_friction=friction)[:, cols]
     load = joint_load_scale(sc.robot, val)
     methods = list(cfg.methods)
@@ -182,7 +179,7 @@ class _Bench:
     validation trajectory. Sent once to each worker."""
 
     pm: PinocchioModel
-    rec: Recording  # the ideal recording
+    rec: TimeSeries  # the ideal recording
     m: Measurement  # the scenario's
     joints: tuple[str, ...]
     cols: np.ndarray  # the base parameters' columns of the regressor
@@ -203,11 +200,9 @@ def _setup(bench: _Bench) -> _Bench:
 
 def _trial(b: _Bench, k: int) -> tuple:
     """Trial k: the measurement drawn from seed + k, every method's fit of it."""
-    from harness.stages.identification import joint_data
-
     n = len(b.joints)
     meas = measure(b.rec, b.m.with_seed(b.m.seed + k))
-    q, qd, qdd, tau = (x[b.keep] for x in joint_data(meas, b.joints))
+    q, qd, qdd, tau = (x[b.keep] for x in meas.joint_data(b.joints))
     W1 = regressor(b.pm, q, qd, qdd, with_friction=b.friction)[:, b.cols]
     r = len(b.cols)
     beta, std, half = (np.empty((len(b.methods), r)) for _ in range(3))
@@ -223,4 +218,5 @@ def _trial(b: _Bench, k: int) -> tuple:
 
 
 STAGE = Stage("estimators", "estimators side by side (Monte Carlo over the measurement noise)", run,
-              Comparison.serialise, "Estimators side by side", table="estimators", configure=configure)
+              Comparison.serialise, "Estimators side by side", table="estimators", configure=configure,
+              recordings=lambda c, sc: (torque_config(sc).validation,) if c is not None else ())

@@ -9,24 +9,13 @@ validation trajectory it never saw, against the recorded ones, relative to each 
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from harness.base.numerics import PARAMETER_FLOOR, finite_or_null, parameter_scale, relative_error
-from harness.base.plugins import (
-    ModelUnderTest,
-    PluginError,
-    Stage,
-    check_array,
-    check_protocol,
-    column_maps,
-    guard,
-    inverse_dynamics,
-    invoke,
-)
+from harness.base.numerics import NORMAL_975, PARAMETER_FLOOR, finite_or_null, parameter_scale, relative_error
+from harness.base.plugins import PluginError, Stage, inverse_dynamics
 from harness.engines.pinocchio import build_model
 from harness.identify.lstsq import WEAK_RATIO
 from harness.identify.torque_id import (
@@ -36,39 +25,12 @@ from harness.identify.torque_id import (
     TorqueIdentification,
     describe_base,
     identify_from_torques,
-    parameter_names,
-    structural_base,
-    true_parameters,
 )
 from harness.identify.trials import over_trials
 from harness.model import friction
-from harness.sources.bench import Setup, record
 from harness.stages.metrics import joint_load_scale
-
-
-def joint_data(rec, joints: list[str]) -> tuple[np.ndarray, ...]:
-    """(q, q', q'', tau) of a recording in the given joint order, each (N, n)."""
-    cols = [rec.joint_index(j) for j in joints]
-    return rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols], rec.tau[:, cols]
-
-
-def validation_recording(ctx, scenario):
-    """The validation scenario simulated once per run, whichever stage asks first."""
-    def make():
-        ctx.progress(f"simulating the validation trajectory {scenario.name}", None)
-        return record(scenario)
-
-    return ctx.once(("validation recording", str(scenario.source)), make)
-
-
-@dataclass(frozen=True, eq=False)
-class TorqueConfig:
-    """`[torque_identification]`: the trajectory the identified model is validated on (another
-    scenario of the same robot), and whether each joint's rotor inertia, viscous and Coulomb friction
-    and offset are identified with the bodies' parameters."""
-
-    validation: Setup
-    friction: bool
+from harness.stages.plugin_fits import BaseMap, BaseTable, SkippedMethod, base_map, base_table, fit_method
+from harness.stages.shared import TorqueConfig, structural_base_of, torque_config
 
 
 def configure_torque(t, scenario) -> TorqueConfig:
@@ -81,34 +43,14 @@ def configure_torque(t, scenario) -> TorqueConfig:
     return TorqueConfig(validation, t.boolean("friction", default=not all(f.none for f in scenario.robot.frictions)))
 
 
-def torque_config(scenario) -> TorqueConfig | None:
-    """The scenario's `[torque_identification]`, None without one."""
-    return getattr(scenario, "configs", {}).get("torque_identification")
-
-
-def with_friction(scenario) -> bool:
-    """Whether the scenario's joint-torque fits identify the joints' friction and rotor inertia."""
-    config = torque_config(scenario)
-    return config is not None and config.friction
-
-
-def structural_base_of(ctx):
-    """The scenario's structural base parameters (harness/identify/torque_id.py), found once per run."""
-    sc = ctx.scenario
-    friction = with_friction(sc)
-    return ctx.once(("structural base parameters", friction),
-                    lambda: structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits,
-                                            with_friction=friction))
-
-
 def run_builtin(ctx, config: TorqueConfig | None) -> BuiltinIdentification | None:
     if config is None:
         return None
     sc = ctx.scenario
     joints = sc.robot.joint_names
-    val = validation_recording(ctx, config.validation)
+    val = ctx.recorded(config.validation)
     pm = build_model(sc.robot, sc.gravity_W)
-    ti = identify_from_torques(pm, joints, *joint_data(ctx.measured, joints), joint_data(val, joints),
+    ti = identify_from_torques(pm, joints, *ctx.training.joint_data(joints), val.joint_data(joints),
                                structural_base_of(ctx))
     ti.validation_scale = joint_load_scale(sc.robot, val)
     return BuiltinIdentification(ti, config.validation.name)
@@ -201,20 +143,6 @@ class BuiltinIdentification:
 
 
 @dataclass(frozen=True, eq=False)
-class BaseTable:
-    """A method's parameters reduced to the robot's structural base parameters (harness/identify/torque_id.py)."""
-
-    expressions: list[str]  # each base parameter as the combination of standard parameters it stands for
-    true: np.ndarray  # (r,) the robot's
-    identified: np.ndarray  # (r,) the method's
-    std: np.ndarray | None  # (r,) from the method's covariance, when it gives one
-
-    @property
-    def rel_error(self) -> np.ndarray:
-        return relative_error(self.identified, self.true, parameter_scale(self.true))
-
-
-@dataclass(frozen=True, eq=False)
 class MethodResult:
     name: str
     reference: str
@@ -239,13 +167,13 @@ class MethodResult:
                 "uncertainty": ("std from the method's covariance of its parameters, carried to the base parameters "
                                 "(T Sigma T^T); ci95 = identified +- 1.96 std" if b.std is not None else
                                 "the method gives no covariance"),
-                "coverage_ci95": (float(np.mean(np.abs(b.identified - b.true) <= CI95 * b.std))
+                "coverage_ci95": (float(np.mean(np.abs(b.identified - b.true) <= NORMAL_975 * b.std))
                                   if b.std is not None else None),
                 "base": [{"expression": b.expressions[k], "true": float(b.true[k]),
                           "identified": float(b.identified[k]), "rel_error": float(rel[k]),
                           "std": None if b.std is None else float(b.std[k]),
-                          "ci95": None if b.std is None else [float(b.identified[k] - CI95 * b.std[k]),
-                                                              float(b.identified[k] + CI95 * b.std[k])]}
+                          "ci95": None if b.std is None else [float(b.identified[k] - NORMAL_975 * b.std[k]),
+                                                              float(b.identified[k] + NORMAL_975 * b.std[k])]}
                          for k in range(len(b.true))],
             }
         if self.validation_rel_error is not None:
@@ -261,106 +189,16 @@ class MethodResult:
         return entry
 
 
-@dataclass(frozen=True, eq=False)
-class BaseMap:
-    """The robot's structural base parameters as a map from a method's parameters: beta = T theta."""
-
-    expressions: list[str]  # each base parameter as the combination of standard parameters it stands for
-    T: np.ndarray  # (r, 10 n)
-    true: np.ndarray  # (r,) the robot's own
-
-
-def base_map(ctx, truth: bool = False, with_friction: bool = False) -> BaseMap:
-    """The structural base parameters of the scenario's robot, or (`truth`) of the model that made a
-    bench log (a log scenario's `[data] truth`), with that model's own values; `with_friction`: of the
-    links' parameters and each joint's [armature, viscous, coulomb, offset] after them (T: (r, 14 n))."""
-    sc = ctx.scenario
-    robot = sc.truth if truth else sc.robot
-
-    def make() -> BaseMap:
-        pm = build_model(robot, sc.gravity_W)
-        base = ctx.once(("truth's structural base" if truth else "structural base parameters", with_friction),
-                        lambda: structural_base(pm, robot.limits, with_friction=with_friction))
-        r = len(base.independent)
-        T = np.zeros((r, len(base.independent) + len(base.dependent)))
-        T[np.arange(r), base.independent] = 1.0
-        T[:, base.dependent] = base.combination
-        names = parameter_names(robot.joint_names, with_friction)
-        return BaseMap([describe_base(names, base, k) for k in range(r)], T,
-                       base.of(true_parameters(pm, with_friction)))
-
-    return ctx.once(("base parameters of the methods", truth, with_friction), make)
-
-
-def reported(plugin: str, fitted, what: str, joints: list[str], width: int) -> np.ndarray | None:
-    """A fitted model's (n, width) `what` ("parameters", "friction"), checked and brought from its
-    `joint_names` order to the robot's; None where it reports none."""
-    with guard(plugin, f"reading the fitted model's {what}"):
-        value = getattr(fitted, what, None)
-    if value is None:
-        return None
-    _, back = column_maps(fitted.joint_names, joints)
-    return check_array(plugin, what, value, (len(joints), width))[back]
-
-
-COVARIANCE_ROUND_OFF = 1e-9  # of a covariance's largest entry: what its products leave of asymmetry or of a
-# negative eigenvalue (a method's sigma^2 (W^T W)^-1 turned to world axes: about 1e-16); beyond it, no covariance
-
-
-def base_table(plugin: str, fitted, joints: list[str], bm: BaseMap) -> BaseTable | None:
-    """The fitted model's `parameters` ((n, 10), its joint order) and, when given, `covariance`
-    ((10 n, 10 n), of those parameters flattened row by row) as the robot's structural base
-    parameters beta = T theta, with covariance T Sigma T^T. None: it reports no parameters."""
-    theta = reported(plugin, fitted, "parameters", joints, 10)
-    if theta is None:
-        return None
-    with guard(plugin, "reading the fitted model's covariance"):
-        cov = getattr(fitted, "covariance", None)
-    std = None
-    if cov is not None:
-        n = len(joints)
-        _, fit_to_robot = column_maps(fitted.joint_names, joints)
-        order = (np.asarray(fit_to_robot)[:, None] * 10 + np.arange(10)).reshape(-1)  # its entries, robot order
-        cov = check_array(plugin, "covariance", cov, (10 * n, 10 * n))[np.ix_(order, order)]
-        size = np.max(np.abs(cov), initial=0.0)
-        asymmetry = np.max(np.abs(cov - cov.T), initial=0.0)
-        if asymmetry > COVARIANCE_ROUND_OFF * size:
-            raise PluginError(plugin, f"covariance is not symmetric (largest |C - C^T| is {asymmetry / size:.2g} of "
-                                      "its largest entry)")
-        base = bm.T @ cov @ bm.T.T
-        var = np.diag(base)
-        lowest = np.linalg.eigvalsh(0.5 * (base + base.T))[0] if base.size else 0.0
-        if (np.any(var < -1e-12 * np.max(np.abs(var), initial=0.0))
-                or lowest < -COVARIANCE_ROUND_OFF * np.max(np.abs(var), initial=0.0)):
-            raise PluginError(plugin, "covariance is not positive semidefinite on the base parameters (lowest "
-                                      f"eigenvalue {lowest:.3g}, largest variance {np.max(var, initial=0.0):.3g})")
-        std = np.sqrt(np.maximum(var, 0.0))
-    return BaseTable(bm.expressions, bm.true, bm.T @ theta.reshape(-1), std)
-
-
-def fit_method(plugin: str, method, joints: list[str], q, qd, qdd, tau, t=None):
-    """A method's fit on measured (q, q', q'', tau) in the robot's joint order, and the sample times
-    `t` (s) where its fit takes a parameter `t`; the fitted model, checked against the
-    model-under-test protocol."""
-    to_method, _ = column_maps(method.joint_names, joints)
-    args = (q[:, to_method], qd[:, to_method], qdd[:, to_method], tau[:, to_method])
-    with guard(plugin, "reading its fit's signature"):
-        takes_t = "t" in inspect.signature(method.fit).parameters
-    fitted = invoke(plugin, "fit", (lambda *a: method.fit(*a, t=t)) if takes_t else method.fit, *args)
-    check_protocol(f"{plugin} (its fitted model)", fitted, ModelUnderTest, joints)
-    return fitted
-
-
 def _judge(ctx, entry) -> MethodResult:
     sc, plugin = ctx.scenario, entry.reference
     joints = sc.robot.joint_names
-    fitted = fit_method(plugin, entry.instance, joints, *joint_data(ctx.measured, joints), ctx.measured.t)
+    fitted = fit_method(plugin, entry.instance, joints, *ctx.training.joint_data(joints), ctx.training.t)
     table = base_table(plugin, fitted, joints, base_map(ctx))
     validation = entry.validation or _validation_of(sc)
     val_err = val_t = None
     if validation is not None:
-        val = validation_recording(ctx, validation)
-        qv, qdv, qddv, tauv = joint_data(val, joints)
+        val = ctx.recorded(validation)
+        qv, qdv, qddv, tauv = val.joint_data(joints)
         pred = inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, joints, qv, qdv, qddv)
         val_err, val_t = relative_error(pred, tauv, joint_load_scale(sc.robot, val)), val.t
     if table is None and val_err is None:
@@ -382,22 +220,6 @@ class MethodResults:
         return {r.name: r.serialise() for r in self.methods}
 
 
-@dataclass(frozen=True, eq=False)
-class SkippedMethod:
-    """A method whose tool is not installed (harness/base/plugins.py, ToolUnavailable)."""
-
-    name: str
-    reference: str
-    reason: str
-
-    @classmethod
-    def of(cls, entry) -> SkippedMethod:
-        return cls(entry.name, entry.reference, entry.skipped)
-
-    def serialise(self) -> dict:
-        return {"plugin": self.reference, "skipped": self.reason}
-
-
 def run_methods(ctx, config) -> MethodResults | None:
     if not ctx.scenario.methods:
         return None
@@ -405,19 +227,22 @@ def run_methods(ctx, config) -> MethodResults | None:
                                for e in ctx.scenario.methods))
 
 
-CI95 = 1.959963984540054  # the normal 97.5 % quantile: a method's covariance states no degrees of freedom
-
-
 def _validation_of(scenario):
     config = torque_config(scenario)
     return None if config is None else config.validation
 
 
+def _method_recordings(config, scenario) -> tuple:
+    """The validation trajectories of the methods: each one's own, else the torque identification's."""
+    return tuple(v for v in (e.validation or _validation_of(scenario) for e in scenario.methods
+                             if e.skipped is None) if v is not None)
+
+
 TORQUE_STAGE = Stage("torque_identification", "joint-torque identification (base parameters)", run_builtin,
                      BuiltinIdentification.serialise, "Torque identification", table="torque_identification",
-                     configure=configure_torque)
+                     configure=configure_torque, recordings=lambda c, sc: (c.validation,) if c is not None else ())
 METHODS_STAGE = Stage("identification_methods", "identification methods under test", run_methods,
-                      MethodResults.serialise, "Identification methods")
+                      MethodResults.serialise, "Identification methods", recordings=_method_recordings)
 
 
 # --- a method under measurement noise: `harness sweep` ---------------------------------------------
@@ -451,7 +276,7 @@ def _method_trial(state: tuple, k: int) -> tuple:
     b, method = state
     plugin = b.entry.reference
     meas = measure(b.rec, b.m.with_seed(b.m.seed + k))
-    fitted = fit_method(plugin, method, b.joints, *joint_data(meas, b.joints), meas.t)
+    fitted = fit_method(plugin, method, b.joints, *meas.joint_data(b.joints), meas.t)
     table = base_table(plugin, fitted, b.joints, b.bm)
     val = None
     if b.validation is not None:
@@ -480,10 +305,10 @@ def sweep_methods(ctx, trials: int) -> dict:
         validation = entry.validation or _validation_of(sc)
         val = None
         if validation is not None:
-            vrec = validation_recording(ctx, validation)
-            val = (*joint_data(vrec, joints), joint_load_scale(sc.robot, vrec))
+            vrec = ctx.recorded(validation)
+            val = (*vrec.joint_data(joints), joint_load_scale(sc.robot, vrec))
         shipped = entry if entry.recipe is None else dataclasses.replace(entry, instance=None, validation=None)
-        bench = _MethodBench(shipped, ctx.recording, sc.measurement, joints, bm, val)
+        bench = _MethodBench(shipped, ctx.truth, sc.measurement, joints, bm, val)
         label = f"identification method {entry.name}"
         ctx.progress(label, 0.0)
         rows = ctx.workers.map(_method_setup, (bench,), _method_trial, range(trials),
@@ -502,7 +327,7 @@ def _method_statistics(entry, rows: list[tuple], bm: BaseMap) -> dict:
     if rows and rows[0][0] is not None:
         beta = np.stack([r[0] for r in rows])  # (trials, r)
         with_std = all(r[1] is not None for r in rows)
-        half = CI95 * np.stack([r[1] for r in rows]) if with_std else None
+        half = NORMAL_975 * np.stack([r[1] for r in rows]) if with_std else None
         s = over_trials(beta - bm.true, half, parameter_scale(bm.true))
         lo, hi = s.band
         summary["base_parameters"] = {

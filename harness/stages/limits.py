@@ -59,7 +59,7 @@ def ratios(robot, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> LimitRatios
 
 
 def run(ctx, config) -> LimitRatios:
-    sc, rec = ctx.scenario, ctx.recording
+    sc, rec = ctx.scenario, ctx.truth
     cols = [rec.joint_index(j) for j in sc.robot.joint_names]
     result = ratios(sc.robot, rec.q[:, cols], rec.qd[:, cols], rec.tau[:, cols])
     beyond = result.beyond()

@@ -29,8 +29,8 @@ from harness.base.numerics import parameter_scale, relative_error
 from harness.base.plugins import PluginError, Stage, guard, inverse_dynamics
 from harness.identify.consistent import consistency
 from harness.model.friction import IDENTIFIED_KEYS, NONNEGATIVE_KEYS
-from harness.stages.identification import SkippedMethod, base_map, fit_method, reported
 from harness.stages.metrics import torque_errors
+from harness.stages.plugin_fits import SkippedMethod, base_map, fit_method, reported
 
 NONNEGATIVE = tuple(k for k in IDENTIFIED_KEYS if k in NONNEGATIVE_KEYS)  # rotor inertia, viscous, Coulomb
 MAX_NOTE = 300  # characters of one of a method's notes kept
@@ -130,11 +130,12 @@ def _judge(ctx, entry, li) -> LogMethod | SkippedMethod:
     plugin = entry.reference
     ctx.progress(f"identification method {entry.name}", None)
     start = time.perf_counter()
-    fitted = fit_method(plugin, entry.instance, joints, *li.states["training"], li.measured["training"],
-                        li.t["training"])
+    judged = li.judged
+    fitted = fit_method(plugin, entry.instance, joints, *judged.states["training"], judged.measured["training"],
+                        judged.t["training"])
     seconds = time.perf_counter() - start
     predictions = {span: inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, joints, *states)
-                   for span, states in li.states.items()}
+                   for span, states in judged.states.items()}
     return LogMethod(entry.name, plugin, predictions, reported(plugin, fitted, "parameters", joints, 10),
                      reported(plugin, fitted, "friction", joints, 4), seconds, _notes(plugin, fitted),
                      _rollouts(plugin, fitted))
@@ -146,10 +147,11 @@ def run(ctx, config) -> LogMethods | None:
     if not sc.methods or li is None:
         return None
     own = tuple(LogMethod(f"harness_{name.replace(' ', '_')}", BUILT_IN,
-                          {span: pred[name] for span, pred in li.predictions.items()}, theta, friction)
+                          {span: pred[name] for span, pred in li.judged.predictions.items()}, theta, friction)
                 for name, theta, friction in (("least squares", None, None),
                                               ("consistent", li.fit.theta, li.fit.friction)))
-    return LogMethods(li.joints, own + tuple(_judge(ctx, e, li) for e in sc.methods), li.measured, li.truth)
+    return LogMethods(li.joints, own + tuple(_judge(ctx, e, li) for e in sc.methods), li.judged.measured,
+                      li.judged.truth)
 
 
 STAGE = Stage("identification_methods", "identification methods on the log", run, LogMethods.serialise,

@@ -16,15 +16,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.base.numerics import relative_error
-from harness.engines.recording import Recording
+from harness.base.numerics import relative_error, relative_residual
+from harness.base.series import TimeSeries
 from harness.model.spec import RobotSpec
 
 DEFINITION = ("relative error = |a - b| / L_J, L_J the largest magnitude over the run of the moment "
               "(revolute) or force (prismatic) that joint J transmits in the recording")
 
 
-def joint_load_scale(spec: RobotSpec, rec: Recording) -> np.ndarray:
+def joint_load_scale(spec: RobotSpec, rec: TimeSeries) -> np.ndarray:
     """L_J for each joint of the spec (spec order)."""
     out = []
     for joint in spec.joints:
@@ -71,9 +71,9 @@ def torque_errors(pred: np.ndarray, tau: np.ndarray, joints: list[str]) -> dict:
     same. A log has no truth to take a joint's load from, so the measured torque is the scale."""
     e = pred - tau
     return {
-        "rel_error": float(np.linalg.norm(e) / np.linalg.norm(tau)),
+        "rel_error": relative_residual(e, tau),
         "rms_error": float(np.sqrt(np.mean(e**2))),
         "per_joint": {j: {"rms_error": float(np.sqrt(np.mean(e[:, k] ** 2))),
-                          "rel_error": float(np.linalg.norm(e[:, k]) / np.linalg.norm(tau[:, k]))}
+                          "rel_error": relative_residual(e[:, k], tau[:, k])}
                       for k, j in enumerate(joints)},
     }

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.numerics import relative_residual
 from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model
 from harness.identify.estimators import ols
@@ -30,6 +31,7 @@ from harness.identify.torque_id import regressor, structural_base, true_paramete
 from harness.model.inertia import PARAMETER_NAMES, kind_scale
 from harness.sources.bench import Setup
 from harness.sources.measurement import measure
+from harness.stages.shared import with_friction
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,8 +91,6 @@ def run(ctx, config: PayloadConfig | None) -> Payload | None:
     sc = ctx.scenario
     if config is None:
         return None
-    from harness.stages.identification import joint_data, validation_recording, with_friction
-
     friction = with_friction(sc)
     without = config.without
     body = config.body
@@ -101,22 +101,21 @@ def run(ctx, config: PayloadConfig | None) -> Payload | None:
     pm_without = build_model(without.robot, sc.gravity_W)
     base = structural_base(pm_without, without.robot.limits, with_friction=friction)
     # the run without the payload, measured as this one is (its own noise draws)
-    rec0 = validation_recording(ctx, without)
+    rec0 = ctx.recorded(without)
     m = sc.measurement
     meas0 = measure(rec0, m.with_seed(m.seed + 1))
-    q0, qd0, qdd0, tau0 = joint_data(meas0, joints)
+    q0, qd0, qdd0, tau0 = meas0.joint_data(joints)
     W0 = regressor(pm_without, q0, qd0, qdd0, friction)[:, base.independent]
     beta0 = ols(W0, tau0.reshape(-1), n).beta
-    q, qd, qdd, tau = joint_data(ctx.measured, joints)
+    q, qd, qdd, tau = ctx.training.joint_data(joints)
     W = regressor(pm_without, q, qd, qdd, friction)
     delta = tau.reshape(-1) - W[:, base.independent] @ beta0
     Wb = W[:, 10 * k: 10 * k + 10]
     est = ols(Wb, delta, n)
     r = delta - Wb @ est.beta
     true = true_parameters(pm_with)[10 * k: 10 * k + 10] - true_parameters(pm_without)[10 * k: 10 * k + 10]
-    return Payload(body, joints[k], true, est.beta, est.std, est.ci_half_width,
-                   float(np.linalg.norm(r) / max(np.linalg.norm(delta), np.finfo(float).tiny)))
+    return Payload(body, joints[k], true, est.beta, est.std, est.ci_half_width, relative_residual(r, delta))
 
 
 STAGE = Stage("payload", "payload from the runs with and without it", run, Payload.serialise, "Payload",
-              table="payload", configure=configure)
+              table="payload", configure=configure, recordings=lambda c, sc: (c.without,) if c is not None else ())

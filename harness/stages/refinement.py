@@ -26,6 +26,7 @@ import numpy as np
 from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model, rnea
 from harness.identify import delay as channel_delay
+from harness.identify.consistent import fit_with_laws
 from harness.identify.friction_law import Law, extra_regressor, extra_terms
 from harness.identify.refine import (
     ADJUSTABLE,
@@ -39,7 +40,8 @@ from harness.identify.refine import (
 from harness.identify.torque_id import regressor
 from harness.model.export import identified_spec
 from harness.model.friction import NO_FRICTION, JointFriction
-from harness.stages.log_identification import consistent_fit, prediction
+from harness.model.friction import values as friction_values
+from harness.stages.log_judge import prediction
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,7 +131,7 @@ def _rigid(spec, gravity_W, q, qd, qdd) -> np.ndarray:
 
 
 def _refit(ctx, li, r: Refinement, laws: tuple[Law, ...], rigid: np.ndarray, q, qd, qdd, tau, t):
-    """The consistent fit (log_identification.consistent_fit) again, at the velocities and delays of
+    """The consistent fit (harness/identify/consistent.py, fit_with_laws) again, at the velocities and delays of
     pass r: the laws with its velocities, the torques read its delays later (rows whose reading would
     cross an end or a gap left out)."""
     sc = ctx.scenario
@@ -143,7 +145,8 @@ def _refit(ctx, li, r: Refinement, laws: tuple[Law, ...], rigid: np.ndarray, q, 
     W = regressor(build_model(shaped, sc.gravity_W), q[keep], qd[keep], qdd[keep], with_friction=True)
     E = extra_regressor(laws, qd[keep], rigid[keep])
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws)])
-    fit, frictions = consistent_fit(W, E, later[keep], laws, li.theta_model, li.friction_model, extra_model)
+    fit, frictions = fit_with_laws(W, E, later[keep], laws, li.model.theta, friction_values(robot.frictions),
+                                   extra_model)
     return fit.theta, frictions, laws
 
 
@@ -151,14 +154,15 @@ def _judged(ctx, li, chosen: Candidate, identified, refined, largest: float) -> 
     """The refined model against the consistent fit on the validation span (the training span when
     the log has none): torque error on the same rows, and forward simulation."""
     sc, joints = ctx.scenario, li.joints
-    span = "validation" if "validation" in li.states else "training"
-    q, qd, qdd = li.states[span]
-    tau, t = li.measured[span], li.t[span]
+    judged = li.judged
+    span = "validation" if "validation" in judged.states else "training"
+    q, qd, qdd = judged.states[span]
+    tau, t = judged.measured[span], judged.t[span]
     torque = {name: torque_rel_error(t, qd, qdd, tau, _rigid(spec, sc.gravity_W, q, qd, qdd), spec.frictions,
                                      laws, lag, largest)
-              for name, spec, laws, lag in (("consistent", identified, li.laws, np.zeros(len(joints))),
+              for name, spec, laws, lag in (("consistent", identified, li.laws.laws, np.zeros(len(joints))),
                                             ("refined", refined, chosen.laws, chosen.delay))}
-    simulated = prediction(sc, {"consistent": identified, "refined": refined}, t, q, qd, tau, span, joints,
+    simulated = prediction(sc.gravity_W, {"consistent": identified, "refined": refined}, t, q, qd, tau, span, joints,
                            {"refined": chosen.delay})
     return {"span": span, "torque_rel_error": torque,
             "torque_rel_error_change": torque["refined"] - torque["consistent"], "prediction": simulated}
@@ -171,10 +175,10 @@ def run(ctx, config: RefineConfig | None) -> RefinementResult | None:
     started = time.perf_counter()
     sc = ctx.scenario
     robot, n = sc.robot, len(li.joints)
-    t, (q, qd, qdd), tau = li.t["training"], li.states["training"], li.measured["training"]
+    t, (q, qd, qdd), tau = li.judged.t["training"], li.judged.states["training"], li.judged.measured["training"]
     identified = identified_spec(robot, li.fit.theta, li.frictions)
     rigid = _rigid(identified, sc.gravity_W, q, qd, qdd)
-    spec, theta, frictions, laws, lag = identified, li.fit.theta, li.frictions, li.laws, np.zeros(n)
+    spec, theta, frictions, laws, lag = identified, li.fit.theta, li.frictions, li.laws.laws, np.zeros(n)
     passes, candidates = [], []
     for k in range(config.passes):
         ctx.progress(f"refinement by forward simulation, pass {k + 1} of {config.passes} (MuJoCo rollouts)", None)

@@ -167,7 +167,7 @@ def _random_states(sc, pm, config: RandomStatesConfig) -> RandomStates:
 
 
 def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
-    sc, rec = ctx.scenario, ctx.recording
+    sc, rec = ctx.scenario, ctx.truth
     joints = sc.robot.joint_names
     cols = [rec.joint_index(j) for j in joints]
     q, qd, qdd = rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols]

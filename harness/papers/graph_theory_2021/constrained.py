@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model import friction
 from harness.model.kinematics import cross, skew
 from harness.model.spec import RobotSpec
@@ -183,7 +183,7 @@ def _cond_rank(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: ConstraintSet,
-                      rec: Recording, s: BodySeries) -> Constrained:
+                      rec: TimeSeries, s: BodySeries) -> Constrained:
     """Solve Eq. 111 at every row (batched) and check it against what MuJoCo recorded."""
     top = model.topology
     b = [rec.body_index(name) for name in top.bodies]

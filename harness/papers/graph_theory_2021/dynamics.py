@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model.kinematics import skew  # Eq. 31: a~ b = a x b
 from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, A_0i, D, D_dot, D_from_rotations, cond_D
@@ -63,7 +63,7 @@ class BodySeries:
     M_J_size: np.ndarray  # (N, n) sum of the sizes of the joint moments (about O_ci) on B_i
 
 
-def body_series(rec: Recording, top: Topology, rows: np.ndarray | None = None) -> BodySeries:
+def body_series(rec: TimeSeries, top: Topology, rows: np.ndarray | None = None) -> BodySeries:
     """Gather the graph's inputs from a recording (optionally at selected rows)."""
     rows = np.arange(len(rec.t)) if rows is None else np.asarray(rows)
     b = [rec.body_index(name) for name in top.bodies]

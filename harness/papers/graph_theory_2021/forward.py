@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model import quaternion
 from harness.model.kinematics import cross
 from harness.model.spec import RobotSpec
@@ -80,7 +80,7 @@ def composite_inertia(spec: RobotSpec, model: GraphModel) -> np.ndarray:
     return np.array(out)
 
 
-def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: ConstraintSet, rec: Recording,
+def forward_simulate(spec: RobotSpec, model: GraphModel, constraints: ConstraintSet, rec: TimeSeries,
                      drive_stages: np.ndarray, dt: float, substeps: int,
                      reference: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None,
                      bandwidth: float = CORRECTION_BANDWIDTH, stop_above: float = np.inf,

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model.kinematics import cross, skew
 from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.cardano import A_0i
@@ -39,7 +39,7 @@ def _L(v: np.ndarray) -> np.ndarray:
                      np.stack([o, o, o, x, y, z], -1)], -2)
 
 
-def full_form(spec: RobotSpec, model: GraphModel, rec: Recording, rows: np.ndarray
+def full_form(spec: RobotSpec, model: GraphModel, rec: TimeSeries, rows: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
     """Y (N, n, 6, 10) and Z (N, n, 6) with Y x = Z for every body and sample."""
     top = model.topology

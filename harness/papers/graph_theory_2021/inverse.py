@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.base.heap import keep_heap
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model.kinematics import KinematicsBuffers, cross, forward_kinematics, rotate
 from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.cardano import A_0i_components
@@ -32,7 +32,7 @@ class GraphInverse:
     M_W: np.ndarray  # (N, joints of the spec, 3) moment about each joint point
 
 
-def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: Recording) -> GraphInverse:
+def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: TimeSeries) -> GraphInverse:
     """From a recording: Cardano angles, centre-of-mass accelerations, angular velocities and
     accelerations as measured, and the joint coordinates."""
     top = model.topology

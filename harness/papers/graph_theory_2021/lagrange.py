@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model.kinematics import cross
 from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, A_0i, D, cond_D
@@ -40,7 +40,7 @@ class LagrangeOutput:
 FORMULATIONS = ("normal", "paper")
 
 
-def _formulation(spec: RobotSpec, model: GraphModel, rec: Recording, s: BodySeries, well: np.ndarray,
+def _formulation(spec: RobotSpec, model: GraphModel, rec: TimeSeries, s: BodySeries, well: np.ndarray,
                  name: str) -> Formulation:
     """One formulation's constraints and Eq. 111 on the recording (`s` its body series, `well` the
     rows where every body's Cardano angles are regular)."""
@@ -65,7 +65,7 @@ class Settings:
     forward_simulation: bool = False
 
 
-def lagrange(scenario: Scenario, spec: RobotSpec, lg: Settings, model: GraphModel, rec: Recording,
+def lagrange(scenario: Scenario, spec: RobotSpec, lg: Settings, model: GraphModel, rec: TimeSeries,
              progress=None) -> LagrangeOutput:
     """Sections 2.4-2.5 on the recording of `scenario`, for the graph model of `spec`. The two
     formulations are independent and evaluated at once, on two threads: most of each is batched
@@ -92,7 +92,7 @@ def lagrange(scenario: Scenario, spec: RobotSpec, lg: Settings, model: GraphMode
     return LagrangeOutput(forms, row, forward, open_loop)
 
 
-def reactions_at(out: LagrangeOutput, spec: RobotSpec, model: GraphModel, rec: Recording, row: int
+def reactions_at(out: LagrangeOutput, spec: RobotSpec, model: GraphModel, rec: TimeSeries, row: int
                  ) -> list[dict]:
     """Per joint at one row: its multipliers (normal formulation), the constraint force and moment
     (about the joint point) they exert on the outer body, world components, and the static weight

@@ -29,7 +29,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model.kinematics import cross
 from harness.papers.graph_theory_2021.cardano import A_0i, D, D_dot, body_angles, gimbal_flags
 from harness.sources.measurement import (
@@ -46,7 +46,7 @@ STREAM = "graph_theory_2021"  # this study's random stream (harness/sources/meas
 
 
 @dataclass(frozen=True, eq=False)
-class Readings(Recording):
+class Readings(TimeSeries):
     """A recording with what the paper's bench reads beyond it."""
 
     theta: np.ndarray | None = None  # (n, nb, 3) Cardano angles (alpha, beta, gamma), Eq. 29
@@ -54,19 +54,19 @@ class Readings(Recording):
     gimbal: np.ndarray | None = None  # (n, nb) bool: near gimbal lock, cond(D) > GIMBAL_COND_D
 
 
-def joint_point_accelerations(rec: Recording, arm_O_B: np.ndarray) -> np.ndarray:
+def joint_point_accelerations(rec: TimeSeries, arm_O_B: np.ndarray) -> np.ndarray:
     """(n, nb, 3) the acceleration of each body's inner joint point, from its centre of mass's."""
     r_W = np.einsum("nbij,bj->nbi", rec.R_WB, arm_O_B)
     return rec.a_W + cross(rec.omegadot_W, r_W) + cross(rec.omega_W, cross(rec.omega_W, r_W))
 
 
-def exact(rec: Recording, arm_O_B: np.ndarray) -> Readings:
+def exact(rec: TimeSeries, arm_O_B: np.ndarray) -> Readings:
     """The readings of a recording as they are (the truth)."""
     theta = body_angles(rec.R_WB)
     return _with(rec, theta=theta, aO_W=joint_point_accelerations(rec, arm_O_B), gimbal=gimbal_flags(theta))
 
 
-def read(ideal: Readings, measured: Recording, m: Measurement, arm_O_B: np.ndarray) -> Readings:
+def read(ideal: Readings, measured: TimeSeries, m: Measurement, arm_O_B: np.ndarray) -> Readings:
     """The truth's readings (`exact`) under the measurement `m`, beside the channels `measured`
     (the harness's measurement of the same truth) holds."""
     if m.ideal:
@@ -110,6 +110,6 @@ def dither(readings: Readings, m: Measurement, rng: np.random.Generator) -> Read
     return dataclasses.replace(moved, **moved_by_resolution(values, m.resolution, rng))
 
 
-def _with(rec: Recording, **values) -> Readings:
+def _with(rec: TimeSeries, **values) -> Readings:
     """`rec`'s channels, those named in `values` replaced, and the readings in `values`."""
-    return Readings(**{**{f.name: getattr(rec, f.name) for f in fields(Recording)}, **values})
+    return Readings(**{**{f.name: getattr(rec, f.name) for f in fields(TimeSeries)}, **values})

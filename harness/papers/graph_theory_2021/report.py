@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, body_angles, gimbal_flags
 from harness.report import plots
 from harness.report.html import DASH, esc, figure, num, section, table
 from harness.report.sections import identifiability
 
 
-def cardano_angles(r: dict, rec: Recording) -> str:
+def cardano_angles(r: dict, rec: TimeSeries) -> str:
     """Each body's Cardano angles along the run, derived from its recorded orientation, with the
     rows near gimbal lock shaded."""
     theta = body_angles(rec.R_WB)
@@ -125,7 +125,7 @@ def identification_full(r: dict) -> str:
     )
 
 
-def lagrange(r: dict, rec: Recording) -> str:
+def lagrange(r: dict, rec: TimeSeries) -> str:
     lg = r["lagrange"]
     t = np.array(lg["t"])
     forms = lg["formulations"]

@@ -11,7 +11,7 @@ import numpy as np
 
 from harness.base.numerics import finite_or_null, floats
 from harness.base.reference import reference_table
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.identify.lstsq import WEAK_RATIO, LeastSquares, solve, weakly_identifiable
 from harness.model.inertia import kind_scale
 from harness.model.spec import RobotSpec
@@ -45,20 +45,20 @@ class Identification:
 N_DITHER = 4  # draws for the regressor's measurement-error floor (a size, not a statistic)
 
 
-def _regressor(model: GraphModel, rec: Recording, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _regressor(model: GraphModel, rec: TimeSeries, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The paper's identification form (Eqs. 49-51) at the given rows: id_Y, id_Z."""
     s = body_series(rec, model.topology, rows)
     return id_Y(s, model.g_W), id_Z(s)
 
 
-def measured_rows(measured: Recording, times: np.ndarray) -> np.ndarray:
+def measured_rows(measured: TimeSeries, times: np.ndarray) -> np.ndarray:
     """Rows of a (possibly subsampled) measured recording at the given times."""
     dt = measured.t[1] - measured.t[0] if len(measured.t) > 1 else 1.0
     return np.array([int(np.argmin(np.abs(measured.t - ts))) for ts in times
                      if np.min(np.abs(measured.t - ts)) <= 1e-9 * dt], dtype=int)
 
 
-def _solve_per_body(form: Callable[[Recording], tuple[np.ndarray, np.ndarray]], measured: Recording,
+def _solve_per_body(form: Callable[[TimeSeries], tuple[np.ndarray, np.ndarray]], measured: TimeSeries,
                     measurement: Measurement, names: tuple[str, ...], scale: np.ndarray):
     """Per-body least squares of a regressor form Y x = Z (Y: (N, n, rows, p)), each column judged
     against its measurement-error floor: Y rebuilt from the measured channels moved within the
@@ -78,7 +78,7 @@ def _solve_per_body(form: Callable[[Recording], tuple[np.ndarray, np.ndarray]], 
     return Y, Z, floor, tuple(replace(ls, weak=w) for ls, w in zip(per_body, weak, strict=True))
 
 
-def identify(model: GraphModel, measured: Recording, rows: np.ndarray,
+def identify(model: GraphModel, measured: TimeSeries, rows: np.ndarray,
              measurement: Measurement, truth: GraphModel | None = None, with_system: bool = True) -> Identification:
     """Section 2.3: per body (Eq. 56) and for the whole system (Eq. 64)."""
     scale = parameter_scale(np.column_stack([model.m, model.m, model.m, model.J]))
@@ -107,7 +107,7 @@ class FullIdentification:
         return full_identification_section(self)
 
 
-def identify_full(spec, model: GraphModel, measured: Recording, rows: np.ndarray, measurement: Measurement,
+def identify_full(spec, model: GraphModel, measured: TimeSeries, rows: np.ndarray, measurement: Measurement,
                   true: np.ndarray) -> FullIdentification:
     """All 10 inertial parameters per body (harness/papers/graph_theory_2021/full.py), with the same excitation test
     and uncertainty as the paper's form."""
@@ -265,7 +265,7 @@ def identification_section(ident: Identification, paper_identified: str | None, 
 
 
 def lagrange_section(lg: LagrangeOutput, paper_lambda: str | None, spec: RobotSpec, model: GraphModel,
-                     rec: Recording) -> dict:
+                     rec: TimeSeries) -> dict:
     forms = {}
     for name, f in lg.formulations.items():
         sol = f.solution

@@ -94,8 +94,8 @@ def _readings(ctx) -> tuple[Readings, Readings]:
     sc = ctx.scenario
     arms = sc.robot.inner_joint_arms_B()
     def make() -> tuple[Readings, Readings]:
-        truth = exact(ctx.recording, arms)
-        return truth, read(truth, ctx.measured, sc.measurement, arms)
+        truth = exact(ctx.truth, arms)
+        return truth, read(truth, ctx.training, sc.measurement, arms)
 
     return ctx.once("graph_theory_2021 readings", make)
 

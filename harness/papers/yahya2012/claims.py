@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.engines.recording import Recording
+from harness.base.series import TimeSeries
 from harness.model.spec import RobotSpec
 from harness.stages.metrics import joint_load_scale
 
@@ -22,7 +22,7 @@ def _peak_rms(x: np.ndarray) -> tuple[float, float]:
     return float(np.max(np.abs(x))), float(np.sqrt(np.mean(x**2)))
 
 
-def design_claims(spec: RobotSpec, proposed: Recording, baseline: Recording, shared: list[str],
+def design_claims(spec: RobotSpec, proposed: TimeSeries, baseline: TimeSeries, shared: list[str],
                   baseline_joint: str) -> dict:
     joints = spec.joint_names
     tau_p = proposed.tau[:, [proposed.joint_index(j) for j in joints]]

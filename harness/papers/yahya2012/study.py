@@ -6,7 +6,7 @@
                           shared_motor_baseline_joint = "J3" }
 
 `baseline` is another scenario (relative to this one) that moves the other design along the same
-path; `shared_motor` are the joints that one motor drives in this design.
+path (recorded by the bench before the stages run); `shared_motor` are the joints that one motor drives in this design.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from harness.papers.yahya2012 import report
 from harness.papers.yahya2012.audit import audit_inertia_matrix
 from harness.papers.yahya2012.claims import design_claims
 from harness.runner.scenario import Scenario, load_related
-from harness.sources.bench import record
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,8 +47,7 @@ def configure(t: Table, scenario) -> Config:
 def _claims(ctx, c: Config):
     if c.baseline is None:
         return None
-    ctx.progress(f"baseline design: simulating {c.baseline.name}", None)
-    out = design_claims(ctx.scenario.robot, ctx.recording, record(c.baseline), list(c.shared_motor),
+    out = design_claims(ctx.scenario.robot, ctx.truth, ctx.recorded(c.baseline), list(c.shared_motor),
                         c.baseline_joint)
     out["baseline"] = c.baseline.name
     return out
@@ -69,7 +67,8 @@ STUDY = Study(
     configure=configure,
     stages=(
         Stage("design_comparison", "the paper's design claims", _claims, _section, "Claims",
-              lambda res, rec: report.design_comparison(res)),
+              lambda res, rec: report.design_comparison(res),
+              recordings=lambda c, sc: (c.baseline,) if c.baseline is not None else ()),
         Stage("inertia_matrix_audit", "auditing the printed inertia matrix", _audit, _section,
               "Inertia matrix audit", lambda res, rec: report.inertia_audit(res)),
     ),

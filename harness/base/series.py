@@ -1,0 +1,171 @@
+"""TimeSeries: a robot's motion sampled in time, one row per sample, the one type for what the bench
+records (paper section 3.1) and what a measured log gives (as mujoco.sysid's `TimeSeries`).
+
+SI units; world components (frame W) unless a name says otherwise. Per joint J (in `joints` order): q,
+q', q'' and the drive force or torque along the joint axis. What the bench also records, and a log
+does not (None there): the wrench the inner body applies to the outer body across J, force F_W and
+moment M_W about the joint point O_J; per massive body B its pose (orientation R_WB, the body's
+principal axes as columns in world components, and centre of mass p_W), its twist (centre-of-mass
+velocity v_W, angular velocity omega_W) and their rates (centre-of-mass acceleration a_W, angular
+acceleration omegadot_W). A study derives what else it reads from these: orientation angles, the
+accelerations of other points. `meta` says where the rows came from: the engine and its settings
+(a recording), the file and its digest (a raw log, as read), or every step of the conditioning (a
+conditioned log).
+
+CSV columns (`columns`): t; q_J qd_J qdd_J tau_J; then, where recorded, B_x B_y B_z; B_vx B_vy B_vz;
+B_R11 B_R12 B_R13 B_R21 ... B_R33 (R_WB row by row); B_ax B_ay B_az; B_wx B_wy B_wz; B_wdx B_wdy
+B_wdz; J_Fx J_Fy J_Fz; J_Mx J_My J_Mz. Floats are written with 17 significant digits, so a series read
+back from CSV is bit-for-bit the one written.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from harness.base.tomlio import MAX_DATA_BYTES, InputError, read_bounded
+
+XYZ = ("x", "y", "z")
+ROTATION = tuple(f"R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))  # R_WB row by row
+JOINT_CHANNELS = ("q", "qd", "qdd", "tau")
+WRENCH_CHANNELS = ("F_W", "M_W")
+BODY_CHANNELS = ("p_W", "v_W", "R_WB", "a_W", "omega_W", "omegadot_W")
+
+
+@dataclass(frozen=True, eq=False)
+class TimeSeries:
+    t: np.ndarray  # (N,) s
+    joints: tuple[str, ...]
+    q: np.ndarray  # (N, nj)
+    qd: np.ndarray | None  # None where not measured (a raw log without velocities)
+    qdd: np.ndarray | None  # None where not measured (a raw log: accelerations come from its conditioning)
+    tau: np.ndarray  # (N, nj) drive force (prismatic) or torque (revolute) along the axis
+    bodies: tuple[str, ...] = ()
+    F_W: np.ndarray | None = None  # (N, nj, 3) force of the inner body on the outer body at O_J
+    M_W: np.ndarray | None = None  # (N, nj, 3) moment of the inner body on the outer body about O_J
+    p_W: np.ndarray | None = None  # (N, nb, 3) centre of mass
+    v_W: np.ndarray | None = None  # (N, nb, 3) centre-of-mass velocity
+    R_WB: np.ndarray | None = None  # (N, nb, 3, 3) orientation: the body's axes in world components
+    a_W: np.ndarray | None = None  # (N, nb, 3) centre-of-mass acceleration
+    omega_W: np.ndarray | None = None  # (N, nb, 3)
+    omegadot_W: np.ndarray | None = None  # (N, nb, 3)
+    meta: dict = field(default_factory=dict)
+
+    def joint_index(self, name: str) -> int:
+        return self.joints.index(name)
+
+    def body_index(self, name: str) -> int:
+        return self.bodies.index(name)
+
+    def joint_data(self, joints) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(q, q', q'', tau) in the given joint order, each (N, n)."""
+        cols = [self.joint_index(j) for j in joints]
+        return self.q[:, cols], self.qd[:, cols], self.qdd[:, cols], self.tau[:, cols]
+
+    def span(self, rows: np.ndarray | slice) -> TimeSeries:
+        """The rows `rows` (indices, a boolean mask or a slice) of every per-row array; `meta` kept."""
+        per_row = {f.name: getattr(self, f.name)[rows] for f in fields(self)
+                   if isinstance(getattr(self, f.name), np.ndarray)}
+        return TimeSeries(**{**{f.name: getattr(self, f.name) for f in fields(self)}, **per_row})
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The CSV's columns in order, {name: (N,) values}: the joints', then the bodies' and the joint
+        wrenches where they are recorded."""
+        cols: dict[str, np.ndarray] = {"t": self.t}
+        for j, name in enumerate(self.joints):
+            for k in JOINT_CHANNELS:
+                cols[f"{k}_{name}"] = getattr(self, k)[:, j]
+        if self.R_WB is not None:
+            R = self.R_WB.reshape(len(self.t), len(self.bodies), 9)
+            for b, name in enumerate(self.bodies):
+                for arr, suffixes, prefix in ((self.p_W, XYZ, ""), (self.v_W, XYZ, "v"), (R, ROTATION, ""),
+                                              (self.a_W, XYZ, "a"), (self.omega_W, XYZ, "w"),
+                                              (self.omegadot_W, XYZ, "wd")):
+                    for k, s in enumerate(suffixes):
+                        cols[f"{name}_{prefix}{s}"] = arr[:, b, k]
+        if self.F_W is not None:
+            for j, name in enumerate(self.joints):
+                for k, s in enumerate(XYZ):
+                    cols[f"{name}_F{s}"] = self.F_W[:, j, k]
+                for k, s in enumerate(XYZ):
+                    cols[f"{name}_M{s}"] = self.M_W[:, j, k]
+        return cols
+
+    def write_csv(self, path: Path) -> None:
+        """Every value to 17 significant digits (a double read back is the same double), with numpy's
+        printf formatting (as pandas' float_format="%.17g" writes it, without importing pandas)."""
+        cols = self.columns()
+        fmt = ["%d" if v.dtype.kind in "iub" else "%.17g" for v in cols.values()]
+        data = np.column_stack(list(cols.values())).astype(float)  # '%d' % 1.0 is '1'
+        with open(path, "w", newline="") as f:
+            f.write(",".join(cols) + "\n")
+            np.savetxt(f, data, fmt=fmt, delimiter=",")
+
+
+def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:
+    """A series written by `TimeSeries.write_csv`, read back: joints from the q_ columns, and with
+    `bodies` (a recording) the bodies from the _R11 ones and every joint's wrench; without (a log) the
+    joints alone. A missing column, an empty or unparsable cell (a truncated file) is an InputError."""
+    import pandas as pd
+
+    kind = "recording" if bodies else "conditioned log"
+    try:
+        df = pd.read_csv(io.BytesIO(read_bounded(path, MAX_DATA_BYTES)))
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise InputError(path, "", f"cannot read the {kind} ({str(exc).splitlines()[0]})") from None
+    bad = [c for c in df.columns if not pd.api.types.is_numeric_dtype(df[c]) or df[c].isna().any()]
+    if bad or "t" not in df.columns:
+        raise InputError(path, bad[0] if bad else "t", f"missing, empty or not a number in some row (a truncated or "
+                                                         f"edited {kind})")
+    joints = tuple(c[2:] for c in df.columns if c.startswith("q_"))
+    names = tuple(c[: -len("_R11")] for c in df.columns if c.endswith("_R11")) if bodies else ()
+    if not joints or (bodies and not names):
+        raise InputError(path, "q_<joint>" if not joints else "<body>_R11",
+                         "column missing: a recording.csv holds every joint's q_ and every body's orientation "
+                         "R11 .. R33 (a file of another layout, or of an earlier version, cannot be read)")
+    expected = ["t", *(f"{k}_{j}" for j in joints for k in JOINT_CHANNELS)]
+    if bodies:
+        expected += [*(f"{j}_{k}{a}" for j in joints for k in ("F", "M") for a in XYZ),
+                     *(f"{b}_{k}{a}" for b in names for k in ("", "v", "a", "w", "wd") for a in XYZ),
+                     *(f"{b}_{r}" for b in names for r in ROTATION)]
+    missing = [c for c in expected if c not in df.columns]
+    if missing:
+        raise InputError(path, missing[0], f"column missing: not a complete {kind}")
+
+    def per_joint(prefix: str) -> np.ndarray:
+        return df[[f"{prefix}_{j}" for j in joints]].to_numpy()
+
+    series = dict(t=df["t"].to_numpy(), joints=joints, **{k: per_joint(k) for k in JOINT_CHANNELS})
+    if not bodies:
+        return TimeSeries(**series)
+
+    def vec(of: tuple[str, ...], fmt: str) -> np.ndarray:
+        return np.stack([df[[fmt.format(n=n, s=s) for s in XYZ]].to_numpy() for n in of], axis=1)
+
+    R = np.stack([df[[f"{b}_{r}" for r in ROTATION]].to_numpy() for b in names], axis=1)
+    return TimeSeries(**series, bodies=names, F_W=vec(joints, "{n}_F{s}"), M_W=vec(joints, "{n}_M{s}"),
+                      p_W=vec(names, "{n}_{s}"), v_W=vec(names, "{n}_v{s}"), R_WB=R.reshape(len(df), len(names), 3, 3),
+                      a_W=vec(names, "{n}_a{s}"), omega_W=vec(names, "{n}_w{s}"), omegadot_W=vec(names, "{n}_wd{s}"))
+
+
+STRETCH_BREAK = 1.5  # a conditioned log is on a uniform grid within each stretch: a step over 1.5 of its median
+# step is a gap or the split between its spans (what a raw log counts as a gap: harness/sources/log/segments.py)
+
+
+def stretch_starts(t: np.ndarray) -> np.ndarray:
+    """The rows of a conditioned series (times t, uniform within each stretch) where a stretch
+    begins after a gap, the first row left out."""
+    dt = np.diff(t)
+    return np.flatnonzero(dt > STRETCH_BREAK * np.median(dt)) + 1
+
+
+def room(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Seconds from each row of a conditioned series back to the start of its stretch and on to its
+    end: how far a computation that reads around a row may reach without crossing a gap or an end."""
+    cuts = stretch_starts(t)
+    first = t[np.r_[0, cuts]]
+    stretch = np.searchsorted(first, t, side="right") - 1
+    return t - first[stretch], t[np.r_[cuts - 1, len(t) - 1]][stretch] - t

@@ -1,0 +1,121 @@
+"""Steps 2-6 of the conditioning (harness/sources/log/__init__.py), each stretch of a checked log on
+its own: resampling to a uniform grid, a zero-phase low-pass, derivatives, the guard band trimmed at
+both ends, decimation."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.base.numerics import sampled
+from harness.base.series import TimeSeries
+from harness.base.tomlio import InputError
+from harness.model.spec import RobotSpec
+from harness.sources.log.checks import Checked, check
+from harness.sources.log.schema import DataSource
+from harness.sources.log.segments import guard_band, segments, split_step
+
+
+def condition(raw: TimeSeries, source: DataSource, robot: RobotSpec) -> TimeSeries:
+    """Steps 1-6, for a log taken whole (a validation file, a payload log), cut at its gaps."""
+    checked = check(raw, robot, source)
+    notes: list[str] = []
+    pieces = segments(checked.kept.t, split_step(source, checked.median_step))
+    log = conditioned(checked.kept, pieces, source, robot, checked.rate(source), checked, raw.meta["file"].name, notes)
+    log.meta["warnings"] = log.meta["warnings"] + notes
+    return log
+
+
+def smooth(kept: TimeSeries, source: DataSource, robot: RobotSpec, rate: float, checks: dict,
+           check_warnings: list[str]) -> TimeSeries:
+    """Steps 2-6 of the package docstring on checked rows (`check`), whose record and warnings
+    open the conditioning's."""
+    from scipy.signal import butter, sosfiltfilt
+
+    path, tk, raw = kept.meta["file"], kept.t, kept
+    steps, warnings = [checks], list(check_warnings)
+    # 2. uniform grid
+    grid = tk[0] + np.arange(int(np.floor((tk[-1] - tk[0]) * rate)) + 1) / rate
+
+    def resample(x: np.ndarray) -> np.ndarray:
+        return sampled(tk, x, grid)
+
+    q, tau = resample(raw.q), resample(raw.tau)
+    qd = resample(raw.qd) if raw.qd is not None else None
+    steps.append({"step": "resample", "rate_hz": rate, "method": "linear interpolation of the kept rows",
+                  "samples": len(grid)})
+    # 3. zero-phase low-pass
+    if source.cutoff is not None:
+        if source.cutoff >= rate / 2:
+            raise InputError(path, "cutoff", f"{source.cutoff:g} Hz is not below the Nyquist frequency "
+                                             f"{rate / 2:g} Hz of the {rate:g} Hz grid")
+        sos = butter(source.filter_order, source.cutoff, fs=rate, output="sos")
+        pad = 3 * (2 * len(sos) + 1)
+        if len(grid) <= pad:
+            raise InputError(path, "cutoff", f"{len(grid)} samples are too few to filter (need over {pad})")
+
+        def lowpass(x: np.ndarray) -> np.ndarray:
+            return sosfiltfilt(sos, x, axis=0)
+
+        q, tau = lowpass(q), lowpass(tau)
+        qd = lowpass(qd) if qd is not None else None
+        steps.append({"step": "low-pass", "filter": f"Butterworth order {source.filter_order}, applied forward "
+                      "and backward (zero phase, scipy.signal.sosfiltfilt)", "cutoff_hz": source.cutoff,
+                      "signals": ["q", "qd" if raw.qd is not None else None, "tau"]})
+    else:
+        warnings.append("no low-pass filter (`cutoff`): accelerations are differences of unfiltered data")
+    # 4. derivatives
+    h = 1.0 / rate
+    if qd is None:
+        qd = np.gradient(q, h, axis=0)
+    qdd = np.gradient(qd, h, axis=0)
+    steps.append({"step": "differentiate", "method": "central differences (numpy.gradient, second order) of the "
+                  "filtered " + ("velocities" if raw.qd is not None else "positions (velocities) and velocities"),
+                  "velocities": "measured" if raw.qd is not None else "differentiated"})
+    # 5. trim and decimate
+    trim = guard_band(source, rate)
+    k0 = int(np.ceil(trim * rate))
+    rows = np.arange(k0, len(grid) - k0, source.decimate)
+    if len(rows) < 10:
+        raise InputError(path, "trim", f"trimming {trim:g} s at each end leaves {len(rows)} samples")
+    if source.cutoff is not None and source.decimate > 1 and source.cutoff >= rate / source.decimate / 2:
+        raise InputError(path, "decimate", f"keeping every {source.decimate}th sample of {rate:g} Hz aliases the "
+                                           f"{source.cutoff:g} Hz band: the cut-off must be below "
+                                           f"{rate / source.decimate / 2:g} Hz")
+    steps.append({"step": "trim and decimate", "trim_s": trim, "decimate": source.decimate,
+                  "samples": len(rows), "rate_hz": rate / source.decimate})
+    conditioning = {"file": str(path), "sha256": raw.meta["sha256"], "steps": steps, "warnings": warnings,
+                    "t_start": float(grid[rows[0]]), "t_end": float(grid[rows[-1]])}
+    return TimeSeries(grid[rows], tuple(robot.joint_names), q[rows], qd[rows], qdd[rows], tau[rows], meta=conditioning)
+
+
+
+def conditioned(kept: TimeSeries, pieces: list[np.ndarray], source: DataSource, robot: RobotSpec, rate: float,
+                 checked: Checked, label: str, notes: list[str]) -> TimeSeries:
+    """Each stretch of rows conditioned on its own (steps 2-5), the stretches too short for the filter
+    and the trim dropped (said in `notes`), the rest joined in time order."""
+    reach = guard_band(source, rate)
+    pad = 3 * (2 * int(np.ceil(source.filter_order / 2)) + 1) if source.cutoff is not None else 0
+    logs, dropped = [], []
+    for rows in pieces:
+        t0, t1 = kept.t[rows[0]], kept.t[rows[-1]]
+        samples = int(np.floor((t1 - t0) * rate)) + 1
+        if samples <= pad or samples - 2 * int(np.ceil(reach * rate)) < 10 * source.decimate:
+            dropped.append((float(t0), float(t1)))
+            continue
+        logs.append(smooth(kept.span(np.isin(np.arange(len(kept.t)), rows)), source, robot, rate, checked.record,
+                           checked.warnings))
+    if dropped:
+        notes.append(f"{label}: {len(dropped)} stretch(es) between gaps too short to filter and trim "
+                     f"({', '.join(f'{a:.3g}-{b:.3g} s' for a, b in dropped[:4])}"
+                     f"{' ...' if len(dropped) > 4 else ''}): dropped")
+    if not logs:
+        raise InputError(kept.meta["file"], "gap", f"{label}: no stretch between gaps is long enough to filter and "
+                                                   f"trim ({2 * reach:.3g} s of trim and 10 samples at least)")
+    if len(logs) == 1:
+        return logs[0]
+    joined = (np.concatenate([getattr(g, k) for g in logs]) for k in ("t", "q", "qd", "qdd", "tau"))
+    t, q, qd, qdd, tau = joined
+    conditioning = dict(logs[0].meta)
+    conditioning["t_end"] = logs[-1].meta["t_end"]
+    return TimeSeries(t, logs[0].joints, q, qd, qdd, tau, meta=conditioning)
+

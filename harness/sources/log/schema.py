@@ -1,0 +1,198 @@
+"""The `[data]` table of a scenario (harness/sources/log/__init__.py has its layout), validated: the
+file, its columns and units, the conditioning's settings, the split, and what the fit is asked to do
+with the log (delays, torque constants, repeatability)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from harness.base.tomlio import Table
+from harness.model.spec import RobotSpec
+from harness.sources.log.segments import GAP_FACTOR
+
+MAX_FILTER_ORDER = 20
+UNITS = {"q": ("rad", "deg"), "qd": ("rad/s", "deg/s"), "tau": ("N m", "current")}
+SI = {"q": "rad", "qd": "rad/s", "tau": "N m"}
+DELAY_CHOICES = ("estimate", "correct", "none")
+MAX_REPEAT = 100
+
+
+@dataclass(frozen=True)
+class KnownPayload:
+    """`[data.payload]`: a log of the same robot, the same motion or another, carrying a known load on
+    `body`: its mass (kg), centre of mass and inertia about it (world frame at q = 0, as a model file's
+    `[payload]`: Ixx, Iyy, Izz, Ixy, Ixz, Iyz). What it adds to the torques is known, so it fixes the
+    scale the currents' torque constants leave open."""
+
+    file: Path
+    body: str
+    mass: float
+    com_W: np.ndarray
+    inertia: np.ndarray
+
+
+@dataclass(frozen=True)
+class DataSource:
+    file: Path
+    columns: dict[str, str | tuple[str, ...]]  # "t", "q", "qd" (optional), "tau" -> a template with {j} or
+    # {name}, or (q, qd, tau) an explicit list of column names in the model's joint order
+    cutoff: float | None
+    filter_order: int
+    rate: float | None
+    decimate: int
+    trim: float | None
+    validation_from: float | None  # fraction of the duration where the validation span starts
+    validation_file: Path | None
+    units: dict[str, str] = field(default_factory=lambda: dict(SI))  # of revolute joints; prismatic: m, m/s
+    units_given: bool = False  # False: SI taken, and said so
+    torque_constant: tuple[float, ...] | None = None  # N m/A per joint (motor side), with units.tau = "current"
+    gear_ratio: tuple[float, ...] | None = None  # per joint, with units.tau = "current"
+    gap: float | None = None  # a step over this many median steps splits the log (default: `split_step`)
+    limits_check: bool = True  # positions far beyond the joint limits (a unit mistake?) are refused
+    truth: Path | None = None  # the model that made the log, where it is known (a bench log): errors against it
+    topic: str | None = None  # a ROS bag's JointState topic: `file` is then the bag (harness/sources/bag.py)
+    delay: str = "estimate"  # the torque channels' delay behind the encoders: "estimate", "correct" or "none"
+    payload: KnownPayload | None = None  # a second log with a known load: the torque constants identified
+    identify_constants: bool = False  # currents: each joint's torque constant identified (up to one scale alone)
+    repeat: int | None = None  # the fit repeated on this many disjoint segments of the training span
+
+    def describe(self) -> dict:
+        return {"file": str(self.file),
+                "columns": {k: list(v) if isinstance(v, tuple) else v for k, v in self.columns.items()},
+                "units": dict(self.units), "units_given": self.units_given,
+                "torque_constant": list(self.torque_constant) if self.torque_constant else None,
+                "gear_ratio": list(self.gear_ratio) if self.gear_ratio else None,
+                "cutoff_hz": self.cutoff, "filter_order": self.filter_order, "rate_hz": self.rate,
+                "decimate": self.decimate, "trim_s": self.trim, "gap_median_steps": self.gap,
+                "validation_from": self.validation_from,
+                "validation_file": str(self.validation_file) if self.validation_file else None,
+                "truth": str(self.truth) if self.truth else None, "bag_topic": self.topic, "delay": self.delay,
+                "identify_torque_constants": self.identify_constants, "repeat_segments": self.repeat,
+                "payload_log": None if self.payload is None else {
+                    "file": str(self.payload.file), "body": self.payload.body, "mass": self.payload.mass,
+                    "com": [float(x) for x in self.payload.com_W], "inertia": [float(x) for x in self.payload.inertia]}}
+
+
+
+def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> DataSource:
+    """The `[data]` table, validated (the file must exist and be inside reach of the scenario);
+    `joints`, the model's number of joints, checks explicit column lists and per-joint constants."""
+    topic = None
+    if t.either("file", "bag", "file (a CSV log) or bag (a ROS bag: a rosbag2 folder or a ROS 1 .bag file)") == "bag":
+        file = (scenario_file.parent / t.string("bag")).resolve()
+        if not file.exists():
+            raise t.error("bag", f"no bag {t.data['bag']!r} (looked for {file})")
+        topic = t.string("topic")
+        if t.has("columns"):
+            raise t.error("columns", "a bag's JointState messages name their joints: no columns to give")
+        columns: dict[str, str | tuple[str, ...]] = {}
+        ct = None
+    else:
+        file = _file(t, "file", scenario_file)
+        ct = t.table("columns")
+        columns = {"t": ct.string("t")}
+    for k in ("q", "qd", "tau"):
+        if ct is None or (k == "qd" and not ct.has("qd")):
+            continue
+        if isinstance(ct.data.get(k), list):
+            names = ct.strings(k, choices=None)
+            if joints is not None and len(names) != joints:
+                raise ct.error(k, f"{len(names)} columns for a model of {joints} joints (one per joint, in the "
+                                  "model's joint order)")
+            columns[k] = names
+            continue
+        v = ct.string(k)
+        if "{j}" not in v and "{name}" not in v:
+            raise ct.error(k, f"a per-joint column needs {{j}} (1..n in the model's joint order) or {{name}} (the "
+                              f"joint's name), or a list of the columns in joint order, got {v!r}")
+        try:
+            v.format(j=1, name="joint")
+        except (KeyError, IndexError, ValueError):
+            raise ct.error(k, f"{v!r}: only {{j}} and {{name}} may stand in braces") from None
+        columns[k] = v
+    if ct is not None:
+        ct.finish()
+    units, units_given = dict(SI), t.has("units")
+    if units_given:
+        ut = t.table("units")
+        for k, choices in UNITS.items():
+            if ut.has(k):
+                units[k] = ut.string(k, choices=choices)
+        ut.finish()
+    constant = ratio = None
+    if units["tau"] == "current":
+        constant, ratio = (_per_joint(t, key, joints) for key in ("torque_constant", "gear_ratio"))
+    elif t.has("torque_constant") or t.has("gear_ratio"):
+        raise t.error("torque_constant" if t.has("torque_constant") else "gear_ratio",
+                      'only for a log of motor currents (units = { tau = "current" })')
+    gap = t.number("gap", positive=True) if t.has("gap") else None
+    if gap is not None and gap <= GAP_FACTOR:
+        raise t.error("gap", f"{gap:g} median steps: more than {GAP_FACTOR:g} (a clock's jitter is not a gap)")
+    limits_check = t.boolean("limits_check", default=True)
+    truth = _file(t, "truth", scenario_file) if t.has("truth") else None
+    delay = t.string("delay", default="estimate", choices=DELAY_CHOICES)
+    payload = None
+    if t.has("payload"):
+        pt = t.table("payload")
+        payload = KnownPayload(_file(pt, "file", scenario_file, bag=topic is not None), pt.string("body"),
+                               pt.number("mass", positive=True), pt.vector("com"), pt.vector("inertia", length=6))
+        pt.finish()
+    identify_constants = t.boolean("identify_torque_constants", default=payload is not None)
+    repeat = t.integer("repeat", minimum=2) if t.has("repeat") else None
+    if repeat is not None and repeat > MAX_REPEAT:
+        raise t.error("repeat", f"{repeat} segments: at most {MAX_REPEAT}")
+    if (payload is not None or identify_constants) and units["tau"] != "current":
+        raise t.error("payload" if payload is not None else "identify_torque_constants",
+                      'identifies the torque constants of a log of motor currents: give units = { tau = "current" }')
+    cutoff = t.number("cutoff", positive=True) if t.has("cutoff") else None
+    order = t.integer("filter_order", default=4, minimum=1)
+    if order > MAX_FILTER_ORDER:
+        raise t.error("filter_order", f"{order}: at most {MAX_FILTER_ORDER} (a steeper Butterworth rings longer "
+                                      "after every edge of the data without a useful gain in the band)")
+    rate = t.number("rate", positive=True) if t.has("rate") else None
+    decimate = t.integer("decimate", default=1, minimum=1)
+    trim = t.number("trim", nonnegative=True) if t.has("trim") else None
+    v_from = v_file = None
+    if t.has("validation"):
+        vt = t.table("validation")
+        if vt.either("from", "file", "from (a fraction of the log's duration) or file (another log)") == "from":
+            v_from = vt.number("from")
+            if not 0.0 < v_from < 1.0:
+                raise vt.error("from", f"{v_from:g} is outside the log: a fraction of its duration in (0, 1)")
+        else:
+            v_file = _file(vt, "file", scenario_file, bag=topic is not None)
+        vt.finish()
+    t.finish()
+    return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
+                      ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat)
+
+
+def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:
+    """A positive number per joint (a list in the model's joint order), or one for every joint."""
+    if isinstance(t.data.get(key), list):
+        values = t.vector(key, length=joints)
+    else:
+        values = np.full(joints or 1, t.number(key, positive=True))
+    if not np.all(np.isfinite(values) & (values > 0)):
+        raise t.error(key, "every value must be a positive number")
+    return tuple(float(v) for v in values)
+
+
+def _file(t: Table, key: str, scenario_file: Path, bag: bool = False) -> Path:
+    """A file named relative to the scenario; a bag may be a folder (rosbag2)."""
+    path = (scenario_file.parent / t.string(key)).resolve()
+    if not (path.exists() if bag else path.is_file()):
+        raise t.error(key, f"file {t.data[key]!r} not found (looked for {path})")
+    return path
+
+
+
+def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
+    """The log's column of each quantity and joint: {j} is 1..n in the model's joint order, {name}
+    the joint's name."""
+    return {k: [v] if k == "t" else list(v) if isinstance(v, tuple) else
+            [v.format(j=j + 1, name=name) for j, name in enumerate(robot.joint_names)]
+            for k, v in source.columns.items()}

@@ -1,0 +1,99 @@
+"""A measured log read, checked, conditioned and split once (harness/sources/log/__init__.py): the
+training span, the only data a fit reads, and the validation span, which only the judging reads,
+conditioned apart so that no filter, difference or interpolation reaches across the split (the guard
+band between them is the trim at the end of the one and the start of the other)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.base.series import TimeSeries
+from harness.base.tomlio import InputError
+from harness.model.spec import RobotSpec
+from harness.sources.log.checks import check
+from harness.sources.log.condition import condition, conditioned
+from harness.sources.log.read import read_raw
+from harness.sources.log.schema import DataSource
+from harness.sources.log.segments import segment_record, segments, split_step
+
+LOG_FILE = "data.csv"  # the conditioned log, written beside results.json
+MIN_SPAN_ROWS = 10  # rows each side of the split needs before conditioning
+
+
+@dataclass(frozen=True, eq=False)
+class Split:
+    """A conditioned log split once: `training`, what a fit may read; `validation`, what only the
+    judging reads (the last part by time, another file, or none); `guard_band_s`, the seconds between
+    the two (None where the validation span is another file); `whole`, the spans one after the other
+    as written to data.csv, its `meta` the conditioning record (the training span's steps, the whole
+    file's checks, the stretches and the split)."""
+
+    training: TimeSeries
+    validation: TimeSeries | None
+    guard_band_s: float | None
+    whole: TimeSeries
+
+    def __post_init__(self):
+        """The one check that the spans are disjoint: each is conditioned from rows on its side of the
+        split only, so an overlap is the harness's fault, not the log's."""
+        if self.guard_band_s is not None and not self.training.t[-1] < self.validation.t[0]:
+            raise RuntimeError(f"the training span (to {self.training.t[-1]:g} s) and the validation span (from "
+                               f"{self.validation.t[0]:g} s) overlap")
+
+
+def load(source: DataSource, robot: RobotSpec) -> Split:
+    """The log read (`read_raw`), checked whole (`check`), cut at every gap (a step over `gap` median
+    steps) and, when split by time, at the split: each stretch is resampled, filtered, differentiated
+    and trimmed on its own (on the whole file's grid rate), so that no filter or difference reaches
+    across a gap or the split (the trim at both ends of each stretch is the guard band). A validation
+    file is conditioned whole, on its own."""
+    raw = read_raw(source, robot)
+    checked = check(raw, robot, source)
+    kept, rate = checked.kept, checked.rate(source)
+    longest = split_step(source, checked.median_step)
+    pieces = segments(kept.t, longest)
+    notes: list[str] = []
+    if len(pieces) > 1:
+        notes.append(f"{len(pieces) - 1} gap(s) over {longest:.3g} s (largest {float(np.max(np.diff(kept.t))):.3g} "
+                     f"s): the log is conditioned in {len(pieces)} stretches, nothing filtered across a gap")
+    record = segment_record(kept.t, pieces, source, checked.median_step)
+    if source.validation_from is None:
+        train = conditioned(kept, pieces, source, robot, rate, checked, "log", notes)
+        train.meta["segments"] = record
+        train.meta["warnings"] = train.meta["warnings"] + notes
+        val = None
+        if source.validation_file is not None:
+            val = condition(read_raw(source, robot, source.validation_file), source, robot)
+        return Split(train, val, None, train)
+    t_split = kept.t[0] + source.validation_from * (kept.t[-1] - kept.t[0])
+    before = kept.t < t_split
+    if before.sum() < MIN_SPAN_ROWS or (~before).sum() < MIN_SPAN_ROWS:
+        raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few rows "
+                                                         f"({int(before.sum())} and {int((~before).sum())})")
+    spans = {name: [p[side[p]] for p in pieces if side[p].any()] for name, side in (("training", before),
+                                                                                      ("validation", ~before))}
+    train, val = (conditioned(kept, spans[name], source, robot, rate, checked, f"{name} span", notes)
+                  for name in ("training", "validation"))
+    guard = float(val.t[0] - train.t[-1])
+    conditioning = dict(train.meta)
+    conditioning["warnings"] = conditioning["warnings"] + notes
+    conditioning["segments"] = record
+    conditioning["validation"] = {
+        "from_fraction": source.validation_from, "t_split": float(t_split),
+        "training_samples": len(train.t), "validation_samples": len(val.t),
+        "guard_band_s": guard, "disjoint": True,
+        "conditioned": "each span on its own (resampling, filter, derivatives, trim): nothing crosses the split",
+        "training": {"t_start": train.meta["t_start"], "t_end": train.meta["t_end"]},
+        "validation": {"t_start": val.meta["t_start"], "t_end": val.meta["t_end"]}}
+    joined = (np.concatenate([getattr(train, k), getattr(val, k)]) for k in ("q", "qd", "qdd", "tau"))
+    whole = TimeSeries(np.concatenate([train.t, val.t]), train.joints, *joined, meta=conditioning)
+    return Split(train, val, guard, whole)
+
+
+def load_payload(source: DataSource, robot: RobotSpec) -> TimeSeries | None:
+    """The known-payload log (`[data.payload]`), conditioned as a validation file is, or None."""
+    if source.payload is None:
+        return None
+    return condition(read_raw(source, robot, source.payload.file), source, robot)

@@ -1,0 +1,99 @@
+"""A log's values in SI units, and the checks that catch a unit, time-base or sign mistake before
+anything is fitted: degrees of revolute joints to radians, motor currents to joint torques; positions
+far beyond the joint limits (degrees read as radians?), velocities that are not the positions' rate of
+change (t in milliseconds? q' in deg/s? a column of the other sign?)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from harness.base.series import TimeSeries
+from harness.base.tomlio import InputError
+from harness.model.spec import RobotSpec
+from harness.sources.log.schema import column_names
+
+if TYPE_CHECKING:
+    from harness.sources.log.schema import DataSource
+
+UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more look like a unit mistake
+VELOCITY_FACTOR = 3.0  # the positions' rate of change and the logged velocities this far apart: a unit mistake
+TRACKING = 0.5  # a joint whose logged velocity follows its positions' changes this closely (cosine) moves
+TIME_UNITS = ((1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds"))
+
+
+def to_si(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,
+          tau: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """The log's q, q', tau in SI units: degrees of revolute joints to radians; motor currents to
+    joint torques, tau = i k_t N (torque constant k_t in N m/A on the motor side, gear ratio N)."""
+    revolute = np.array([j.revolute for j in robot.joints])
+    if source.units["q"] == "deg":
+        q = np.where(revolute, np.radians(q), q)
+    if qd is not None and source.units["qd"] == "deg/s":
+        qd = np.where(revolute, np.radians(qd), qd)
+    if source.units["tau"] == "current":
+        tau = tau * np.asarray(source.torque_constant) * np.asarray(source.gear_ratio)
+    return q, qd, tau
+
+
+def check_velocities(kept: TimeSeries, robot: RobotSpec, source: DataSource | None) -> None:
+    """The logged velocities against the positions' rate of change, joint by joint: k, the
+    least-squares slope of (q[i+1] - q[i]) / (t[i+1] - t[i]) on (q'[i] + q'[i+1]) / 2 over the kept
+    rows (1.02 on every joint of the real Panda log of scenarios/panda_gaz2019.toml, 1.000 on a bench
+    log), judged where the two follow each other (their cosine at least TRACKING: the joint moves). A
+    k beyond VELOCITY_FACTOR either way, or negative, is a unit, time-base or sign mistake: refused,
+    naming the likeliest one (t in milliseconds gives k = 1e-3 on every joint; q' in deg/s read as
+    rad/s, k = 1/57.3)."""
+    if kept.qd is None or len(kept.t) < 3:
+        return
+    d = np.diff(kept.q, axis=0) / np.diff(kept.t)[:, None]
+    v = 0.5 * (kept.qd[1:] + kept.qd[:-1])
+    dv, vv, dd = (d * v).sum(axis=0), (v * v).sum(axis=0), (d * d).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k, cosine = dv / vv, dv / np.sqrt(vv * dd)
+    moves = np.isfinite(cosine) & (np.abs(cosine) >= TRACKING)
+    off = moves & ~((k >= 1.0 / VELOCITY_FACTOR) & (k <= VELOCITY_FACTOR))
+    if not off.any():
+        return
+    columns = source is not None and source.topic is None and "qd" in source.columns
+    names = column_names(source, robot) if columns else {"t": ["t"], "qd": list(robot.joint_names)}
+    j = int(np.flatnonzero(off)[0])
+
+    def near(x: float, to: float) -> bool:
+        return x > 0 and abs(np.log(x / to)) < np.log(1.5)
+
+    how = "the least-squares slope of the differences of q over those of t on q'; 1 in a consistent log"
+    path = kept.meta["file"]
+    every = off.sum() == moves.sum()
+    time_base = [unit for factor, unit in TIME_UNITS if every and all(near(x, factor) for x in k[off])]
+    if time_base:
+        median = float(np.median(k[off]))
+        raise InputError(path, names["t"][0], f"on every joint that moves, q changes {median:.3g} times as fast "
+                                              f"as the logged q' says ({how}): t in {time_base[0]}? t must be in "
+                                              "seconds")
+    hint = ("q' in deg/s read as rad/s? units = { qd = \"deg/s\" }" if near(k[j], np.pi / 180) else
+            "q in degrees with q' in radians? give both units" if near(k[j], 180 / np.pi) else
+            "q' has the opposite sign to q's changes" if near(-k[j], 1.0) else
+            "q' is not the rate of change of q in the units given")
+    raise InputError(path, names["qd"][j], f"joint {robot.joint_names[j]!r}: q changes {k[j]:.3g} times as "
+                                           f"fast as the logged q' says ({how}): {hint}; or leave qd out of "
+                                           "[data] columns, and q is differentiated")
+
+
+def check_positions(raw: TimeSeries, robot: RobotSpec, source: DataSource | None) -> None:
+    """Positions UNIT_FACTOR or more beyond a revolute joint's limits are not the robot's motion: a log
+    in degrees read as radians, most likely. Refused, saying which unit would fit."""
+    unit = source.units["q"] if source is not None else "rad"
+    for j, joint in enumerate(robot.joints):
+        lo, hi = (robot.limits or {}).get(joint.name, (-np.inf, np.inf))
+        reach = max(abs(lo), abs(hi))
+        if not joint.revolute or not np.isfinite(reach) or reach <= 0:
+            continue
+        largest = float(np.max(np.abs(raw.q[:, j])))
+        if largest >= UNIT_FACTOR * reach:
+            hint = ('a log in degrees read as radians? give units = { q = "deg", qd = "deg/s" }' if unit == "rad"
+                    else "check the unit and the column")
+            raise InputError(raw.meta["file"], "units.q", f"joint {joint.name!r} reaches {largest:.4g} rad (as {unit} "
+                                                          f"read), {largest / reach:.3g} times its limit {reach:.4g} "
+                                                          f"rad: {hint}, or limits_check = false")

@@ -1,0 +1,213 @@
+"""results.json's `log_identification`: a log run's steps (harness/stages/log_identification.py) as
+plain numbers, one function per section."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.base.numerics import evenly_spaced, finite_or_null, parameter_scale, relative_error
+from harness.identify import consistent, delay, friction_law
+from harness.identify.torque_id import describe_base
+from harness.model.friction import FAMILIES
+from harness.model.inertia import PARAMETER_NAMES
+from harness.stages.metrics import torque_errors
+
+FLOOR_DEFINITION = (
+    "the least-squares fit's columns (the same base parameters, friction laws and families) fitted on the "
+    "validation span itself, its error there: what no fit of this model class can beat on that span, read "
+    "for this figure alone. A held-out error near it is the model class's limit, not the fit's")
+SERIES_POINTS = 600  # samples per curve kept in results.json for the report's validation plot
+
+
+def serialise(li, ctx, config) -> dict:
+    """results.json's `log_identification`: the fits, their errors per span, the consistent model and the export."""
+    errors = {span: _span_errors(li, span) for span in li.judged.predictions}
+    headline = errors.get("validation", errors["training"])
+    floor = li.judged.floor
+    return {
+        "method": "least squares of the structural base parameters with friction and rotor inertia, then all "
+                  "parameters under the pseudo-inertia LMI (harness/identify/consistent.py: Clarabel, else SCS, "
+                  "else the unconstrained fit moved to the nearest physical one; consistent.fallback says which)",
+        "friction_law": _law_section(li),
+        "rel_error_definition": ("||tau_predicted - tau_measured||_F / ||tau_measured||_F over every sample and "
+                                 "joint of the span; per joint the same over its samples, and the RMS error in "
+                                 "N m"),
+        "spans": {span: {"samples": len(t), "t_start": float(t[0]), "t_end": float(t[-1])}
+                  for span, t in li.judged.t.items()},
+        "errors": errors,
+        "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()},
+        "validation_floor": None if floor is None else {"definition": FLOOR_DEFINITION, "rel_error": floor},
+        "consistent_costs": {span: e["consistent"]["rel_error"] - e["least squares"]["rel_error"]
+                             for span, e in errors.items()},
+        "least_squares": _least_squares_section(li),
+        **({"truth": _against_truth(li, ctx)} if li.judged.truth else {}),
+        "prediction": li.prediction,
+        "delays": _delay_section(li.delayed, ctx.scenario.data.delay, li.joints),
+        "torque_constants": _constants_section(li.constants.scales, ctx.scenario.data, li.joints),
+        "repeatability": _repeat_section(li),
+        "plausibility": li.plausible,
+        "warnings": li.warnings,
+        "consistent": _consistent_section(li),
+        "export": sorted(li.exported.files),
+        "export_mjcf_friction": {
+            "definition": "what robot.xml's frictionloss (MuJoCo's dry friction, a sharp sign) and its missing "
+                          "offset change of the identified friction law at the training span's velocities: the "
+                          "RMS change over the RMS torque, the largest over the largest torque, per joint",
+            **li.exported.mjcf_friction},
+        "export_mjcf_not_written": li.exported.refused,
+        "joints": len(li.joints),
+        "series": _series(li),
+    }
+
+
+def _expression(li, k: int) -> str:
+    """Base parameter k as the combination of parameters it stands for, or a family's coefficient."""
+    r = len(li.model.base.independent)
+    return describe_base(li.names, li.model.base, k) if k < r else li.extra_names[k - r]
+
+
+def _least_squares_section(li) -> dict:
+    ls, beta_model = li.fitted.ls, li.fitted.beta_model
+    rel = relative_error(ls.beta, beta_model, parameter_scale(beta_model))
+    return {
+        "base_parameters": len(ls.beta), "parameters": len(li.names), "condition_number": ls.condition_number,
+        "weakly_identifiable": [_expression(li, k) for k in np.flatnonzero(ls.weak)],
+        "base": [{"expression": _expression(li, k), "model": float(beta_model[k]),
+                  "identified": float(ls.beta[k]),
+                  "std": finite_or_null(ls.std[k]),
+                  "rel_std_percent": finite_or_null(100 * ls.std[k] / abs(ls.beta[k])) if ls.beta[k] else None,
+                  "ci95": [finite_or_null(ls.beta[k] - ls.ci_half_width[k]),
+                           finite_or_null(ls.beta[k] + ls.ci_half_width[k])],
+                  "change_from_model": float(rel[k]), "sensitivity": finite_or_null(ls.sensitivity[k]),
+                  "weakly_identifiable": bool(ls.weak[k])} for k in range(len(ls.beta))],
+    }
+
+
+def _repeat_section(li) -> dict | None:
+    repeated = li.fitted.repeated
+    if repeated is None:
+        return None
+    return {"definition": "the base parameters fitted on each of `segments` consecutive, disjoint parts of the "
+                          "training span: per parameter the coefficient of variation over the parts, and whether "
+                          "their 95 % intervals share a common point; `moved` lists those whose intervals do not "
+                          "(harness/identify/repeat.py)",
+            "segments": repeated.segments,
+            "max_variation": finite_or_null(float(np.max(repeated.variation))),
+            "median_variation": finite_or_null(float(np.median(repeated.variation))),
+            "moved_count": int(np.sum(~repeated.overlap)),
+            "moved": [_expression(li, k) for k in np.flatnonzero(~repeated.overlap)],
+            "per_parameter": [{"expression": _expression(li, k), "mean": float(repeated.mean[k]),
+                               "spread": float(repeated.spread[k]),
+                               "variation": finite_or_null(float(repeated.variation[k])),
+                               "intervals_overlap": bool(repeated.overlap[k])}
+                              for k in range(repeated.beta.shape[1])]}
+
+
+def _consistent_section(li) -> dict:
+    fit = li.fit
+    links = {}
+    for k, j in enumerate(li.joints):
+        links[j] = {"identified": dict(zip(PARAMETER_NAMES, map(float, fit.theta[k]), strict=True)),
+                    "model": dict(zip(PARAMETER_NAMES, map(float, li.model.theta[k]), strict=True)),
+                    **consistent.consistency(fit.theta[k])}
+    return {
+        "solver": fit.solver,
+        "solver_status": fit.status,
+        "fallback": fit.fallback,
+        "fallback_definition": "; ".join(f"{k} {text}" for k, text in enumerate(consistent.FALLBACKS)),
+        "solver_attempts": list(fit.attempts),
+        "training_rel_residual": fit.relative_residual,
+        "inconsistent_links": sum(not v["consistent"] for v in links.values()),
+        "links": links,
+        "friction": {j: {"family": f.family, **f.as_dict()} for j, f in zip(li.joints, li.frictions, strict=True)},
+    }
+
+
+def _against_truth(li, ctx) -> dict:
+    errors = {span: _truth_errors(li, span) for span in li.judged.truth}
+    headline = errors.get("validation", errors["training"])
+    return {"model": str(ctx.scenario.truth.source),
+            "definition": "||tau - tau_truth||_F / ||tau_truth||_F, tau_truth the torques of the model that made "
+                          "the log at the conditioned states (its inverse dynamics with its friction): each "
+                          "model's error against the robot, and the measured torques' (the sensor's and the "
+                          "conditioning's)",
+            "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()}, "errors": errors}
+
+
+def _law_section(li) -> dict:
+    """results.json's `friction_law`: the law, and per joint the family and velocities chosen with
+    every family's held-out figure (harness/identify/friction_law.py)."""
+    out = {"law": "I_a q'' + f_v q' + f_c s + f_o, s = tanh(q'/v_c) (sign where v_c = 0), and per joint its "
+                  "family's terms: asymmetric f_va |q'| + f_ca |s|, Stribeck f_s s exp(-(q'/v_s)^2), load f_l "
+                  "|tau_R| s (harness/model/friction.py)",
+           "chosen": li.laws.choice is not None,
+           "families": {j: law.family for j, law in zip(li.joints, li.laws.laws, strict=True)},
+           "coulomb_velocity": {j: f.coulomb_velocity for j, f in zip(li.joints, li.frictions, strict=True)}}
+    c = li.laws.choice
+    if c is None:
+        out["definition"] = "The model's own law per joint ([friction_law] choose = false, or see warnings)"
+        return out
+    out |= {
+        "definition": (f"The training span cut into {c.folds} consecutive parts, each predicted by the base "
+                       "parameters fitted on the others (the validation span is never seen); the held-out error "
+                       "||tau_pred - tau||_F / ||tau||_F over the training span. Joint by joint (two passes), v_c "
+                       f"searched for every family ({', '.join(FAMILIES)}) over a logarithmic grid "
+                       f"{friction_law.VELOCITY_GRID[0]:g} to {friction_law.VELOCITY_GRID[-1]:g} and a sharp "
+                       "sign, then refined; the simplest family within one standard error (over the parts) of the best "
+                       "chosen (harness/identify/friction_law.py)"),
+        "folds": c.folds,
+        "held_out_rel_error": {"model's law": c.model_error, "chosen": c.chosen_error},
+        "per_joint": {j: c.scores[k] for k, j in enumerate(li.joints)},
+    }
+    return out
+
+
+def _delay_section(d, mode: str, joints: list[str]) -> dict:
+    lags = d.lags
+    if lags is None:
+        return {"mode": mode, "estimated": False, "note": d.note}
+    return {"mode": mode, "estimated": True, "corrected": mode == "correct",
+            "definition": "per joint, d such that the torque measured d later fits the joint's regressor rows best "
+                          "(least squares, every parameter); positive: the torque channel lags the encoders "
+                          "(harness/identify/delay.py)",
+            "found_definition": f"inside the search, and the residual at the delay at most {delay.GAIN:g} x the "
+                                "residual at zero delay; only a found delay is corrected",
+            "search_s": [float(lags.candidates[0]), float(lags.candidates[-1])],
+            "per_joint": {j: {"delay_s": float(lags.delay[k]), "found": bool(lags.found[k]),
+                              "residual": float(lags.residual[k]), "residual_at_zero": float(lags.residual_at_zero[k]),
+                              "at_edge_of_search": bool(lags.at_edge[k])} for k, j in enumerate(joints)}}
+
+
+def _constants_section(constants, source, joints: list[str]) -> dict | None:
+    if constants is None:
+        return None
+    return {"definition": "per joint, the torque it carries over the torque its currents give with the nominal "
+                          "constant (harness/identify/scale.py); identified = factor x nominal",
+            "fixed_by": constants.fixed_by, "relative_residual": constants.relative_residual,
+            "per_joint": {j: {"nominal": source.torque_constant[k], "factor": float(constants.factor[k]),
+                              "identified": float(constants.factor[k] * source.torque_constant[k]),
+                              "factor_std": None if constants.std is None else float(constants.std[k])}
+                          for k, j in enumerate(joints)}}
+
+
+def _truth_errors(li, span: str) -> dict:
+    """Each model's torques, and the measured ones, against the truth's at the span's states."""
+    ref = li.judged.truth[span]
+    return {**{model: torque_errors(pred, ref, li.joints) for model, pred in li.judged.predictions[span].items()},
+            "measured": torque_errors(li.judged.measured[span], ref, li.joints)}
+
+
+def _span_errors(li, span: str) -> dict:
+    return {model: torque_errors(pred, li.judged.measured[span], li.joints)
+            for model, pred in li.judged.predictions[span].items()}
+
+
+def _series(li) -> dict:
+    """The validation span's measured and predicted torques, thinned to SERIES_POINTS, for the plot."""
+    j = li.judged
+    span = "validation" if "validation" in j.t else "training"
+    rows = evenly_spaced(len(j.t[span]), SERIES_POINTS)
+    return {"span": span, "t": [float(x) for x in j.t[span][rows]],
+            "measured": {name: [float(x) for x in j.measured[span][rows, k]] for k, name in enumerate(li.joints)},
+            **{model: {name: [float(x) for x in pred[rows, k]] for k, name in enumerate(li.joints)}
+               for model, pred in j.predictions[span].items()}}

@@ -1,0 +1,40 @@
+"""What several stages share of a bench scenario's joint-torque identification: its
+`[torque_identification]` settings and the structural base parameters it is judged in."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from harness.engines.pinocchio import build_model
+from harness.identify.torque_id import structural_base
+from harness.sources.bench import Setup
+
+
+@dataclass(frozen=True, eq=False)
+class TorqueConfig:
+    """`[torque_identification]`: the trajectory the identified model is validated on (another
+    scenario of the same robot), and whether each joint's rotor inertia, viscous and Coulomb friction
+    and offset are identified with the bodies' parameters."""
+
+    validation: Setup
+    friction: bool
+
+
+def torque_config(scenario) -> TorqueConfig | None:
+    """The scenario's `[torque_identification]`, None without one."""
+    return getattr(scenario, "configs", {}).get("torque_identification")
+
+
+def with_friction(scenario) -> bool:
+    """Whether the scenario's joint-torque fits identify the joints' friction and rotor inertia."""
+    config = torque_config(scenario)
+    return config is not None and config.friction
+
+
+def structural_base_of(ctx):
+    """The scenario's structural base parameters (harness/identify/torque_id.py), found once per run."""
+    sc = ctx.scenario
+    friction = with_friction(sc)
+    return ctx.once(("structural base parameters", friction),
+                    lambda: structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits,
+                                            with_friction=friction))
