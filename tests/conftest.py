@@ -145,12 +145,14 @@ def kinova_files(folder: Path) -> tuple[str, str]:
 
 
 def kinova_model(folder: Path, name: str, urdf: str, coulomb_velocity: float | None) -> None:
-    """folder/{name}.toml: the Kinova of `urdf` with drives on every joint (v_c declared or not)."""
+    """folder/{name}.toml: the Kinova of `urdf` with drives on every joint (v_c declared or not), each
+    joint's values its own (a joint read for another shows)."""
     (folder / f"{name}.toml").write_text(
         f'[model]\nname = "{name}"\n[urdf]\nfile = "{urdf}"\n'
-        + "".join(f"[joints.{j}]\narmature = 0.1\nviscous = 0.5\ncoulomb = 1.0\noffset = 0.1\n"
+        + "".join(f"[joints.{j}]\narmature = {0.1 - 0.012 * k:.3f}\nviscous = {0.5 - 0.05 * k:.2f}\n"
+                  f"coulomb = {1.0 - 0.11 * k:.2f}\noffset = {0.1 - 0.035 * k:.3f}\n"
                   + (f"coulomb_velocity = {coulomb_velocity}\n" if coulomb_velocity is not None else "")
-                  for j in KINOVA_JOINTS))
+                  for k, j in enumerate(KINOVA_JOINTS)))
 
 
 def kinova_bench(folder: Path, name: str, truth: str, seconds: float, seed: int) -> Scenario:
@@ -168,3 +170,12 @@ def kinova_bench(folder: Path, name: str, truth: str, seconds: float, seed: int)
         '[simulation]\nintegrator = "RK4"\ntimestep = 0.0005\n' + motion
         + '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
     return load_scenario(folder / f"{name}.toml")
+
+
+def numbers_of(tree) -> list[float]:
+    """Every number of a results.json subtree, in order."""
+    if isinstance(tree, dict):
+        return [x for v in tree.values() for x in numbers_of(v)]
+    if isinstance(tree, list):
+        return [x for v in tree for x in numbers_of(v)]
+    return [float(tree)] if isinstance(tree, int | float) and not isinstance(tree, bool) else []

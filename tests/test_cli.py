@@ -16,7 +16,10 @@ from tests.conftest import MODELS, SCENARIOS, copy_gate_sets
 
 
 def test_run_writes_recording_results_and_report(kr500_run):
-    assert sorted(p.name for p in kr500_run.iterdir()) == ["recording.csv", "report.html", "results.json"]
+    """The recording, results.json, the report, and the graph-theory study's Cardano angles beside the
+    recording (its stage's file)."""
+    assert sorted(p.name for p in kr500_run.iterdir()) == ["cardano.csv", "recording.csv", "report.html",
+                                                           "results.json"]
     results = json.loads((kr500_run / "results.json").read_text())
     assert list(results)[:4] == ["schema", "passed", "gates", "run"]
     assert results["passed"] is True and all(g["passed"] for g in results["gates"])

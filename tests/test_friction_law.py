@@ -39,12 +39,14 @@ def _families_model(folder, joints=tuple(FAMILY_TERMS)) -> str:
 
 
 def _plain_model(folder, true_rotors: bool = False) -> str:
-    """folder/plain.toml: the UR5 with drives of wrong sizes (rotor inertias 0.1, or the true ones),
-    no smoothing velocity, no family."""
+    """folder/plain.toml: the UR5 with drives of wrong sizes (rotor inertias 0.1 to 0.15, or the true
+    ones), no smoothing velocity, no family; each joint's values its own."""
     spec = load_spec(MODEL)
-    rotor = {j: spec.joint(j).friction.armature if true_rotors else 0.1 for j in spec.joint_names}
+    rotor = {j: spec.joint(j).friction.armature if true_rotors else 0.1 + 0.01 * k
+             for k, j in enumerate(spec.joint_names)}
     (folder / "plain.toml").write_text('[model]\nname = "plain"\n[urdf]\nrobot = "ur5"\n' + "".join(
-        f"[joints.{j}]\narmature = {rotor[j]!r}\nviscous = 1.0\ncoulomb = 1.0\n" for j in spec.joint_names))
+        f"[joints.{j}]\narmature = {rotor[j]!r}\nviscous = {1.0 + 0.1 * k:.1f}\ncoulomb = {1.0 + 0.07 * k:.2f}\n"
+        for k, j in enumerate(spec.joint_names)))
     return "plain.toml"
 
 

@@ -71,3 +71,32 @@ def test_no_module_imports_itself_back(graph):
         if v not in index:
             visit(v)
     assert cycles == []
+
+
+def _stage_modules() -> set[str]:
+    """The modules that define a registered core stage (a bench's and a log's)."""
+    import inspect
+
+    from harness.stages import core_stages, log_stages
+
+    return {inspect.getmodule(stage.run).__name__ for stage in (*core_stages(), *log_stages())}
+
+
+def test_no_stage_imports_another_stage_by_any_chain(graph):
+    """A stage reads the results of those before it from the run's context, never their code: no stage
+    module reaches another by any chain of imports (what stages share lives in modules that are no stage)."""
+    stages = _stage_modules()
+    assert len(stages) >= 8  # the check is not vacuous: every registered stage is in it
+    reached = {(a, b) for a in stages for b in stages if a != b and graph.chain_exists(a, b)}
+    assert reached == set()
+
+
+def test_the_import_contract_lists_every_registered_stage():
+    """pyproject.toml's independence contract (run by lint-imports in CI) names exactly the registered
+    stages: a new stage cannot slip past it."""
+    import tomllib
+    from pathlib import Path
+
+    config = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    contract = next(c for c in config["tool"]["importlinter"]["contracts"] if c["type"] == "independence")
+    assert set(contract["modules"]) == _stage_modules()

@@ -1,4 +1,4 @@
-"""A measured log in, a validated and physically consistent model out (harness/sources/log.py,
+"""A measured log in, a validated and physically consistent model out (harness/sources/log/,
 harness/identify/consistent.py, harness/model/export.py): first proven on a bench recording where the truth is
 known, then on the real Panda log of Gaz et al. (2019), whose exported model is judged by
 Pinocchio's own URDF parser and the friction law written out here, not by the code that fitted it."""
@@ -29,6 +29,7 @@ from tests.conftest import (
     kinova_files,
     kinova_model,
     log_scenario,
+    numbers_of,
 )
 
 LOG = BUILTIN / "logs" / "panda_gaz2019" / "log.csv"
@@ -241,7 +242,7 @@ def test_a_log_without_velocities_validated_on_another_file(tmp_path):
 def test_the_fit_reads_nothing_of_the_validation_span(panda, tmp_path):
     """Every torque of the log from the split on tripled: the fit's base parameters, the consistent
     model, the training errors and every exported file are the same bit for bit, and only the
-    validation error changes. The spans are conditioned apart (harness/sources/log.py, load), so not
+    validation error changes. The spans are conditioned apart (harness/sources/log/split.py, load), so not
     even the zero-phase filter carries a scrambled row across the split; a fit that read any of them
     would move by O(1)."""
     import tomli_w
@@ -264,22 +265,13 @@ def test_the_fit_reads_nothing_of_the_validation_span(panda, tmp_path):
     scrambled = result.results["log_identification"]
     li = r["log_identification"]
     for key in ("least_squares", "consistent"):
-        assert _numbers(scrambled[key]) == _numbers(li[key]), key
-    assert _numbers(scrambled["errors"]["training"]) == _numbers(li["errors"]["training"])
+        assert numbers_of(scrambled[key]) == numbers_of(li[key]), key
+    assert numbers_of(scrambled["errors"]["training"]) == numbers_of(li["errors"]["training"])
     assert scrambled["validation_rel_error"]["consistent"] > 2 * li["validation_rel_error"]["consistent"]
     exported = result.output.files
     assert sorted(exported) == sorted(f"identified/{p.name}" for p in (out / "identified").iterdir())
     for name, text in exported.items():
         assert text == (out / name).read_text(), name
-
-
-def _numbers(tree) -> list[float]:
-    """Every number of a results.json subtree, in order."""
-    if isinstance(tree, dict):
-        return [x for v in tree.values() for x in _numbers(v)]
-    if isinstance(tree, list):
-        return [x for v in tree for x in _numbers(v)]
-    return [float(tree)] if isinstance(tree, int | float) and not isinstance(tree, bool) else []
 
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess

@@ -1,4 +1,4 @@
-"""What a lab's log brings (harness/sources/log.py): units other than SI, motor currents, columns named
+"""What a lab's log brings (harness/sources/log/): units other than SI, motor currents, columns named
 one by one, gaps, and warnings that reach the terminal. The log is a bench recording of the UR5 with
 drives (models/ur5_friction.toml) written as a lab would write it, so every variant can be checked
 against the same log in SI units: the fits must agree to round-off (1e-9 relative: the conversions

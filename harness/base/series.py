@@ -20,6 +20,7 @@ back from CSV is bit-for-bit the one written.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -67,9 +68,8 @@ class TimeSeries:
 
     def span(self, rows: np.ndarray | slice) -> TimeSeries:
         """The rows `rows` (indices, a boolean mask or a slice) of every per-row array; `meta` kept."""
-        per_row = {f.name: getattr(self, f.name)[rows] for f in fields(self)
-                   if isinstance(getattr(self, f.name), np.ndarray)}
-        return TimeSeries(**{**{f.name: getattr(self, f.name) for f in fields(self)}, **per_row})
+        return dataclasses.replace(self, **{f.name: getattr(self, f.name)[rows] for f in fields(self)
+                                            if isinstance(getattr(self, f.name), np.ndarray)})
 
     def columns(self) -> dict[str, np.ndarray]:
         """The CSV's columns in order, {name: (N,) values}: the joints', then the bodies' and the joint

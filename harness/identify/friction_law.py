@@ -3,8 +3,9 @@
 the training span.
 
 The training span is cut in time into `folds` consecutive parts (blocked cross-validation: a log's
-neighbouring samples are not independent, so each part is predicted by the fit on the others, never
-by a fit that saw its neighbours); the validation span is never seen. The least-squares fit of the
+neighbouring samples are not independent, so each part is predicted by the fit on the others, less the
+rows within the conditioning's reach of it on either side, `blocked_folds`: never by a fit that saw its
+neighbours); the validation span is never seen. The least-squares fit of the
 structural base parameters is nested in every trial: the columns the friction law does not touch
 (the links' inertial parameters, each joint's rotor inertia and offset) are folded into per-part
 normal equations once; a trial for joint j rewrites only joint j's friction columns, which act on
@@ -92,6 +93,7 @@ class FrictionChoice:
     chosen_error: float  # the held-out error with the chosen laws
     folds: int
     tau_rigid: np.ndarray  # (N, n) the rigid-body torque of the chosen law's fit on the whole training span
+    guard_s: float = 0.0  # the rows within this of a fold are left out of the fit that predicts it
 
     def frictions(self, model: tuple[JointFriction, ...]) -> tuple[JointFriction, ...]:
         """The model's friction values with the chosen velocities (the coefficients are the fit's to find)."""
@@ -124,18 +126,52 @@ def _columns(law: Law, qd: np.ndarray, tau_rigid: np.ndarray) -> np.ndarray:
     return np.column_stack([qd, s[:, 0], *(extra[:, EXTRA_KEYS.index(k)] for k in law.terms)])
 
 
+@dataclass(frozen=True, eq=False)
+class Folds:
+    """Blocked cross-validation with a guard (`blocked_folds`): the folds, each predicted by a fit that
+    reads neither its rows nor those within `guard` rows of it."""
+
+    folds: list[slice]  # each fold's rows, in time order: what is predicted and scored
+    pieces: list[slice]  # the span cut into pieces, in order: each fold's first `guard` rows, its middle, its last
+    left_out: np.ndarray  # (K, P) 0/1: the pieces the fit that predicts fold k does not read
+    guard: int
+
+
+def blocked_folds(N: int, count: int, guard: int) -> Folds:
+    """range(N) cut into `count` consecutive folds (harness/base/numerics.py, consecutive_blocks), each
+    into its first `guard` rows, its middle and its last `guard` rows; fold k is predicted by the fit on
+    every piece but its own and its neighbours' `guard` rows next to it. A conditioned log's samples
+    within the conditioning's reach of each other share filter inputs (harness/sources/log/segments.py,
+    guard_band): without the guard, a fold's neighbours would carry part of it into its own fit."""
+    folds = consecutive_blocks(N, count)
+    if min(f.stop - f.start for f in folds) <= 2 * guard:
+        raise ValueError(f"{N} training samples: {count} parts of at most {min(f.stop - f.start for f in folds)} "
+                         f"cannot be held out with a guard of {guard} rows at each end")
+    pieces, owner = [], []
+    for k, f in enumerate(folds):
+        for a, b in ((f.start, f.start + guard), (f.start + guard, f.stop - guard), (f.stop - guard, f.stop)):
+            if b > a:
+                pieces.append(slice(a, b))
+                owner.append(k)
+    owner = np.array(owner)
+    left_out = np.zeros((count, len(pieces)))
+    for k in range(count):
+        for i, piece in enumerate(pieces):
+            nearest = min(abs(piece.start - folds[k].stop), abs(folds[k].start - piece.stop))
+            left_out[k, i] = owner[i] == k or nearest < guard
+    return Folds(folds, pieces, left_out, guard)
 
 
 class _Normal:
     """The least-squares problem with every joint's friction columns replaceable, cross-validated over
-    `folds` (consecutive slices of the training span): per fold k the normal equations of its rows,
-    M_k x = r_k, with the fixed columns G (the base parameters but each joint's viscous and Coulomb
-    ones) folded once and each joint's friction columns in a slot of their own. The fit leaving
-    fold k out solves (sum M - M_k) x = sum r - r_k and predicts fold k's rows. Replacing joint j's
-    columns rewrites its slot only: O(N r) per trial."""
+    `folds` (Folds: consecutive slices of the training span, each with a guard): per piece i of the span
+    the normal equations of its rows, M_i x = r_i, with the fixed columns G (the base parameters but each
+    joint's viscous and Coulomb ones) folded once and each joint's friction columns in a slot of their
+    own. The fit that predicts fold k solves (sum M - sum_{i left out} M_i) x = (the same of r) and
+    predicts fold k's rows. Replacing joint j's columns rewrites its slot only: O(N r) per trial."""
 
     def __init__(self, G: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
-                 folds: list[slice], slot: int):
+                 folds: Folds, slot: int):
         N, n = tau.shape
         self.slot = slot  # friction columns a joint may have: q', s and the most terms of a law tried
         r = G.shape[1]
@@ -143,14 +179,13 @@ class _Normal:
         self.G3 = G.reshape(N, n, r)
         self.link_part = link_part  # the fixed columns that hold a link's parameters, the drive's share in each
         self.tau = tau
-        self.folds = folds
+        self.folds, self.pieces, self.left_out = folds.folds, folds.pieces, folds.left_out
         p = r + slot * n
-        self.M = np.zeros((len(folds), p, p))
-        self.rhs = np.zeros((len(folds), p))
-        for k, f in enumerate(folds):
+        self.M = np.zeros((len(self.pieces), p, p))
+        self.rhs = np.zeros((len(self.pieces), p))
+        for k, f in enumerate(self.pieces):
             g = self.G3[f].reshape(-1, r)
             self.M[k, :r, :r], self.rhs[k, :r] = g.T @ g, g.T @ tau[f].ravel()
-        self.yy = np.array([float(np.sum(tau[f] ** 2)) for f in folds])
         self.by_joint = [np.ascontiguousarray(self.G3[:, j]) for j in range(n)]  # (N, r): joint j's rows
         self.S = np.zeros((N, n, slot))  # each joint's friction columns, on its own rows
 
@@ -163,14 +198,14 @@ class _Normal:
         self.M[:, :, at] = 0.0
         self.M[:, at, :] = 0.0
         self.rhs[:, at] = 0.0
-        for k, f in enumerate(self.folds):
+        for k, f in enumerate(self.pieces):
             B, D = G_j[f].T @ C[f], C[f].T @ C[f]
             lo = r + slot * j
             self.M[k, :r, lo: lo + m], self.M[k, lo: lo + m, :r] = B, B.T
             self.M[k, lo: lo + m, lo: lo + m] = D
             self.rhs[k, lo: lo + m] = C[f].T @ self.tau[f, j]
             idle = np.arange(lo + m, lo + slot)
-            self.M[k, idle, idle] = 1.0 / len(self.folds)
+            self.M[k, idle, idle] = 1.0 / len(self.pieces)
         self.S[:, j, :m], self.S[:, j, m:] = C, 0.0
 
     def _solve(self, M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -192,7 +227,8 @@ class _Normal:
         """(K,) the squared error of every fold, each predicted by the fit on the others (from the
         fold's rows: its normal equations would give it as |tau_k|^2 - 2 x.r_k + x.M_k x, which loses
         every digit on a log the law fits to round-off)."""
-        x = self._solve(self.M.sum(0) - self.M, self.rhs.sum(0) - self.rhs)  # (K, p)
+        x = self._solve(self.M.sum(0) - np.einsum("ki,ipq->kpq", self.left_out, self.M),
+                        self.rhs.sum(0) - self.left_out @ self.rhs)  # (K, p): fold k's fit
         r, n = self.r, self.n
         sse = np.zeros(len(self.folds))
         for k, f in enumerate(self.folds):
@@ -209,19 +245,21 @@ class _Normal:
 
 
 def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
-           qd: np.ndarray, t: np.ndarray, model: tuple[JointFriction, ...], config: FrictionLawConfig
-           ) -> FrictionChoice:
+           qd: np.ndarray, t: np.ndarray, model: tuple[JointFriction, ...], config: FrictionLawConfig,
+           reach: float = 0.0) -> FrictionChoice:
     """Each joint's friction law, chosen within the training span. W: (N n, 10 n + 4 n) the
     regressor with friction (harness/identify/torque_id.py), `independent` the base parameters'
     columns and `link_part` which hold a link's parameters and the drive's share in each
     (BaseParameters.link_part: the rigid-body torque of a load-dependent law); tau, qd: (N, n);
-    t: (N,). Raises ValueError when the span is too short to cut."""
+    t: (N,); `reach` (s) how far a sample's conditioning reaches, the guard around each fold
+    (`blocked_folds`). Raises ValueError when the span is too short to cut."""
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
     tau, qd = tau[order], qd[order]
-    folds = consecutive_blocks(N, config.folds)
-    if min(f.stop - f.start for f in folds) < MIN_FOLD:
+    if min(f.stop - f.start for f in consecutive_blocks(N, config.folds)) < MIN_FOLD:
         raise ValueError(f"{N} training samples: too few for {config.folds} parts of at least {MIN_FOLD}")
+    step = float(np.median(np.diff(t[order]))) if N > 1 else 0.0
+    folds = blocked_folds(N, config.folds, int(np.ceil(reach / step - 1e-9)) if reach > 0 and step > 0 else 0)
     laws = [Law.of(f) for f in model]  # the model's own, where the search starts
     # a joint's slot: q', s and the most terms of a law it may be given (a model's own may join families)
     slot = 2 + max(len(t) for t in [*(FAMILIES[f] for f in config.families), *(law.terms for law in laws)])
@@ -288,7 +326,8 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     chosen_error = relative_residual_of_sums(normal.held_out_sse().sum(), total)
     tau_rigid = np.empty_like(tau)
     tau_rigid[order] = normal.rigid_torque()
-    return FrictionChoice(tuple(laws), tuple(scores), model_error, chosen_error, config.folds, tau_rigid)
+    return FrictionChoice(tuple(laws), tuple(scores), model_error, chosen_error, config.folds, tau_rigid,
+                          folds.guard * step)
 
 
 def _simplest(found: dict, normal: _Normal, place, j: int, total: float) -> str:

@@ -184,13 +184,35 @@ def _read(path: Path, root, table: Table,
     roots = [n for n in links if n not in children]
     if len(roots) != 1:
         raise table.error("urdf", f"{path}: expected one root link, found {len(roots)}")
-    # world pose of every link at q = 0
-    pose = {roots[0]: (np.eye(3), np.zeros(3))}
-    order = [roots[0]]
+    pose, order = _poses(roots[0], joints, parent_of, child_of)
+    inertial = {name: _inertial(name, links[name], pose[name]) for name in order}
+    owner, kept = _owners(path, table, order, joints, parent_of, child_of, fixed)
+    bodies = _bodies(order, owner, inertial, pose)
+    spec_joints, limits, drive_limits = [], {}, {}
+    for j in kept:
+        child = child_of[j.get("name")]
+        R_c, p_c = pose[child]
+        axis = R_c @ _vec(j.find("axis").get("xyz") if j.find("axis") is not None else None, "1 0 0")
+        if not np.linalg.norm(axis) > 0:
+            raise _Bad(f"joint {j.get('name')!r}: axis is the zero vector")
+        jtype = "prismatic" if j.get("type") == "prismatic" else "revolute"
+        spec_joints.append(Joint(j.get("name"), jtype, owner[parent_of[j.get("name")]], child, p_c,
+                                 axis / np.linalg.norm(axis), _dynamics(j)))
+        _limits(j, limits, drive_limits)
+    notes = [f"joint {j.get('name')!r} mimics {j.find('mimic').get('joint')!r} in the URDF: read as a joint of its "
+             "own, moved and identified as the others (list it in [urdf] fixed to hold it at 0)"
+             for j in kept if j.find("mimic") is not None]
+    return bodies, spec_joints, limits, drive_limits, notes
+
+
+def _poses(root: str, joints: list, parent_of: dict, child_of: dict) -> tuple[dict, list[str]]:
+    """Every link's world pose at q = 0, (R, p), and the links in breadth-first order from the root."""
+    pose = {root: (np.eye(3), np.zeros(3))}
+    order = [root]
     by_parent: dict[str, list] = {}
     for j in joints:
         by_parent.setdefault(parent_of[j.get("name")], []).append(j)
-    frontier = [roots[0]]
+    frontier = [root]
     while frontier:
         parent = frontier.pop(0)
         for j in by_parent.get(parent, []):
@@ -200,31 +222,35 @@ def _read(path: Path, root, table: Table,
             pose[child] = (R_p @ R_j, p_p + R_p @ p_j)
             order.append(child)
             frontier.append(child)
+    return pose, order
 
-    # inertia of every link at the world frame, at q = 0: mass, CoM, tensor about the CoM
-    inertial = {}
-    for name in order:
-        el = links[name].find("inertial")
-        if el is None:
-            inertial[name] = (0.0, pose[name][1], np.zeros((3, 3)))
-            continue
-        mass_el = el.find("mass")
-        mass = _numbers(mass_el.get("value", "") if mass_el is not None else "0", f"link {name!r} mass", 1)[0]
-        if mass < 0:
-            raise _Bad(f"link {name!r}: mass {mass:g} is negative")
-        R_l, p_l = pose[name]
-        R_i, p_i = _origin(el, f"link {name!r} inertial")
-        i = el.find("inertia")
-        values = [_numbers(i.get(k, "0"), f"link {name!r} inertia {k}", 1)[0] if i is not None else 0.0
-                  for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
-        Ixx, Ixy, Ixz, Iyy, Iyz, Izz = values
-        I_local = np.array([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]])
-        R = R_l @ R_i
-        # a link of zero mass keeps its rotational inertia: merged into its body, it adds to it
-        inertial[name] = (float(mass), p_l + R_l @ p_i, R @ I_local @ R.T)
 
-    # merge along fixed joints: each link belongs to the body of its nearest non-fixed ancestor joint
-    owner = {roots[0]: WORLD}
+def _inertial(name: str, link, pose: tuple[np.ndarray, np.ndarray]) -> tuple[float, np.ndarray, np.ndarray]:
+    """A link's inertia in the world frame at q = 0: mass, centre of mass, tensor about the centre of
+    mass. A link of zero mass keeps its rotational inertia: merged into its body, it adds to it."""
+    el = link.find("inertial")
+    if el is None:
+        return 0.0, pose[1], np.zeros((3, 3))
+    mass_el = el.find("mass")
+    mass = _numbers(mass_el.get("value", "") if mass_el is not None else "0", f"link {name!r} mass", 1)[0]
+    if mass < 0:
+        raise _Bad(f"link {name!r}: mass {mass:g} is negative")
+    R_l, p_l = pose
+    R_i, p_i = _origin(el, f"link {name!r} inertial")
+    i = el.find("inertia")
+    values = [_numbers(i.get(k, "0"), f"link {name!r} inertia {k}", 1)[0] if i is not None else 0.0
+              for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")]
+    Ixx, Ixy, Ixz, Iyy, Iyz, Izz = values
+    I_local = np.array([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]])
+    R = R_l @ R_i
+    return float(mass), p_l + R_l @ p_i, R @ I_local @ R.T
+
+
+def _owners(path: Path, table: Table, order: list[str], joints: list, parent_of: dict, child_of: dict,
+            fixed: tuple[str, ...]) -> tuple[dict[str, str], list]:
+    """Each link's body, the link of its nearest non-fixed ancestor joint (merging along fixed joints
+    and those listed in `fixed`), and the joints kept as the robot's, in order."""
+    owner = {order[0]: WORLD}
     kept = []
     joint_of = {child: j for j in joints for child in [child_of[j.get("name")]]}
     for name in order[1:]:
@@ -238,14 +264,18 @@ def _read(path: Path, root, table: Table,
         else:
             raise table.error("urdf", f"{path}: joint {j.get('name')!r} has type {j.get('type')!r} "
                                       "(revolute, continuous, prismatic and fixed are supported)")
+    return owner, kept
+
+
+def _bodies(order: list[str], owner: dict, inertial: dict, pose: dict) -> list[Body]:
+    """The moving bodies, each the union of the links it owns (the links of the ground never move:
+    their inertia, consistent or not, enters nothing)."""
     groups: dict[str, list[str]] = {}
     model_scale = max((float(np.max(np.abs(np.linalg.eigvalsh(inertial[n][2])))) for n in order), default=0.0)
     for name in order[1:]:
         if owner[name] != WORLD:
             groups.setdefault(owner[name], []).append(name)
-            # the links of the ground never move: their inertia, consistent or not, enters nothing
             _check_inertia(name, *inertial[name][::2], model_scale)
-
     bodies = []
     for body_name, members in groups.items():
         m = sum(inertial[n][0] for n in members)
@@ -258,38 +288,29 @@ def _read(path: Path, root, table: Table,
         # every link passed _check_inertia: a moment below zero here is round-off of a link with
         # no rotational inertia (the iCub's -5e-20 kg m^2), which Pinocchio refuses as written
         bodies.append(Body(body_name, m, np.diag(np.maximum(moments, 0.0)), axes, com))
+    return bodies
 
-    spec_joints, limits, drive_limits = [], {}, {}
-    for j in kept:
-        child = child_of[j.get("name")]
-        parent = owner[parent_of[j.get("name")]]
-        R_c, p_c = pose[child]
-        axis = R_c @ _vec(j.find("axis").get("xyz") if j.find("axis") is not None else None, "1 0 0")
-        if not np.linalg.norm(axis) > 0:
-            raise _Bad(f"joint {j.get('name')!r}: axis is the zero vector")
-        jtype = "prismatic" if j.get("type") == "prismatic" else "revolute"
-        spec_joints.append(Joint(j.get("name"), jtype, parent, child, p_c, axis / np.linalg.norm(axis),
-                                 _dynamics(j)))
-        lim = j.find("limit")
-        if lim is not None and j.get("type") != "continuous":
-            try:
-                lower, upper = float(lim.get("lower", "-inf")), float(lim.get("upper", "inf"))
-            except ValueError:
-                raise _Bad(f"joint {j.get('name')!r}: limit lower/upper are not numbers") from None
-            if np.isnan(lower) or np.isnan(upper) or lower > upper:
-                raise _Bad(f"joint {j.get('name')!r}: limit lower={lim.get('lower')!r} upper={lim.get('upper')!r} "
-                           "is no range (lower above upper, or not a number)")
-            limits[j.get("name")] = (lower, upper)
-        if lim is not None:  # URDF's velocity and effort limits (of continuous joints too)
-            rates = {}
-            for key in ("velocity", "effort"):
-                if lim.get(key) is not None:
-                    value = _numbers(lim.get(key), f"joint {j.get('name')!r} limit {key}", 1)[0]
-                    if value > 0:  # 0 is URDF's way of saying none
-                        rates[key] = float(value)
-            if rates:
-                drive_limits[j.get("name")] = rates
-    notes = [f"joint {j.get('name')!r} mimics {j.find('mimic').get('joint')!r} in the URDF: read as a joint of its "
-             "own, moved and identified as the others (list it in [urdf] fixed to hold it at 0)"
-             for j in kept if j.find("mimic") is not None]
-    return bodies, spec_joints, limits, drive_limits, notes
+
+def _limits(j, limits: dict, drive_limits: dict) -> None:
+    """A joint's position limits (not a continuous joint's) into `limits`, its velocity and effort
+    limits into `drive_limits`, by its name."""
+    lim = j.find("limit")
+    if lim is None:
+        return
+    if j.get("type") != "continuous":
+        try:
+            lower, upper = float(lim.get("lower", "-inf")), float(lim.get("upper", "inf"))
+        except ValueError:
+            raise _Bad(f"joint {j.get('name')!r}: limit lower/upper are not numbers") from None
+        if np.isnan(lower) or np.isnan(upper) or lower > upper:
+            raise _Bad(f"joint {j.get('name')!r}: limit lower={lim.get('lower')!r} upper={lim.get('upper')!r} "
+                       "is no range (lower above upper, or not a number)")
+        limits[j.get("name")] = (lower, upper)
+    rates = {}  # URDF's velocity and effort limits (of continuous joints too)
+    for key in ("velocity", "effort"):
+        if lim.get(key) is not None:
+            value = _numbers(lim.get(key), f"joint {j.get('name')!r} limit {key}", 1)[0]
+            if value > 0:  # 0 is URDF's way of saying none
+                rates[key] = float(value)
+    if rates:
+        drive_limits[j.get("name")] = rates

@@ -9,18 +9,20 @@ from pathlib import Path
 import numpy as np
 
 from harness.base.series import TimeSeries, read_csv
-from harness.report import sections
+from harness.report import log_sections, sections
 from harness.report.html import page
 
 # The core stages' sections, by the stage's key; a study's stages bring their own (Stage.render).
 RENDERERS = {
     "torques": lambda r, rec: sections.torques(r),
     "torque_identification": lambda r, rec: sections.torque_identification(r),
-    "identification_methods": lambda r, rec: sections.identification_methods(r),
+    # on a measured log, the table of harness/stages/log_methods.py
+    "identification_methods": lambda r, rec: (log_sections.log_methods(r) if "data" in r
+                                               else sections.identification_methods(r)),
     "estimators": lambda r, rec: sections.estimator_comparison(r),
     "payload": lambda r, rec: sections.payload(r),
-    "log_identification": sections.log_identification,
-    "refinement": lambda r, rec: sections.refinement(r),
+    "log_identification": log_sections.log_identification,
+    "refinement": lambda r, rec: log_sections.refinement(r),
 }
 
 
@@ -49,7 +51,7 @@ def render(results: dict, rec: TimeSeries, stages: list | None = None) -> str:
 def _render(results: dict, rec: TimeSeries, stages: list | None) -> str:
     name = results["scenario"]["name"]
     if "data" in results:  # a measured log: its conditioning and signals in place of the motion
-        parts = [sections.verdict(results), sections.model(results), sections.data(results, rec)]
+        parts = [sections.verdict(results), sections.model(results), log_sections.data(results, rec)]
         nav = [("verdict", "Verdict"), ("model", "Model"), ("data", "Measured log")]
     else:
         parts = [sections.verdict(results), sections.model(results), sections.motion(results, rec)]

@@ -391,7 +391,7 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
     """The robot identified from its own bench log, as a lab's log is: every joint on two
     incommensurate sinusoids about the middle of its range (a third of it, at most 1 rad or 0.1 m),
     simulated in MuJoCo for BENCH_SECONDS, written as a log of t, q, q', tau at BENCH_RATE, and read
-    back through `[data]` (harness/sources/log.py) with its last 30 % held out, with the model's own
+    back through `[data]` (harness/sources/log/) with its last 30 % held out, with the model's own
     friction law (what is audited is the reading; `[friction_law]` is not chosen). Returns the relative
     torque errors on that span and the seconds it took; the files stay in `folder`."""
     from harness.model.states import position_bounds

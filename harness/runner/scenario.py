@@ -200,7 +200,7 @@ def scenario_from_dict(data: dict, name: str = "scenario", folder: Path | str = 
 
 @dataclass(frozen=True, eq=False)
 class DataScenario:
-    """A scenario whose data come from a measured log (`[data]`, harness/sources/log.py) instead of the bench."""
+    """A scenario whose data come from a measured log (`[data]`, harness/sources/log/) instead of the bench."""
 
     name: str
     description: str
@@ -319,7 +319,29 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             raise root.error("motion", "a scenario with [excitation] gets its motion from the optimisation: "
                                        "leave [motion] out")
         root.data["motion"] = {j: {"type": "locked"} for j in robot.joint_names}  # replaced when run
-    motion_table = root.table("motion")
+    motion = _read_motions(root.table("motion"), robot, duration, output_steps)
+    _check_grid(path, s, sample_times, duration, output_steps, measurement, simulation)
+    scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
+                        np.asarray(sample_times), motion, simulation, measurement, gates, text, excitation)
+    models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
+                   for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
+    methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)
+                    for t in (root.one_or_many("identification") if root.has("identification") else ()))
+    for kind, entries in (("model_under_test", models), ("identification", methods)):
+        _check_names(path, kind, entries, gates)
+    from harness.stages import LOG_TABLES, core_stages
+
+    scenario = _configured(root, scenario, core_stages())
+    for table in LOG_TABLES:  # a log's stage's table in a simulated scenario: said, not "unknown key"
+        if root.has(table):
+            raise root.error(table, "a table of a run on a measured log: the scenario needs [data]")
+    studies = _read_studies(root, scenario, path)
+    root.finish()
+    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
+
+
+def _read_motions(motion_table: Table, robot: RobotSpec, duration: float, output_steps: int) -> dict[str, Motion]:
+    """`[motion]`: every joint of the robot, and no other, each finite over the run."""
     motion = {}
     for name in motion_table.data:
         if name not in robot.joint_names:
@@ -337,7 +359,14 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             raise motion_table.error(j, f"the motion is not finite within the run (from t = "
                                         f"{bad * duration / output_steps:g} s on, q, q' or q'' overflows)")
     motion_table.finish()
+    return motion
 
+
+def _check_grid(path: Path, s: Table, sample_times, duration: float, output_steps: int, measurement: Measurement,
+                simulation: Simulation) -> None:
+    """The sample times on the output grid and measured; the measurement's filter within the rows;
+    the simulation's timestep dividing the output interval, and its steps within reach."""
+    output_dt = duration / output_steps
     for ts in sample_times:
         if not 0.0 <= ts <= duration:
             raise s.error("sample_times", f"sample time {ts:g} s is outside the run [0, {duration:g}] s")
@@ -362,20 +391,11 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     if ratio < 1.0 - _GRID_TOL or abs(ratio - round(ratio)) > _GRID_TOL * ratio:
         raise InputError(path, "simulation.timestep",
                          f"{simulation.timestep:g} s must divide the output interval {output_dt:g} s")
-    scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
-                        np.asarray(sample_times), motion, simulation, measurement, gates, text, excitation)
-    models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
-                   for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
-    methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)
-                    for t in (root.one_or_many("identification") if root.has("identification") else ()))
-    for kind, entries in (("model_under_test", models), ("identification", methods)):
-        _check_names(path, kind, entries, gates)
-    from harness.stages import LOG_TABLES, core_stages
 
-    scenario = _configured(root, scenario, core_stages())
-    for table in LOG_TABLES:  # a log's stage's table in a simulated scenario: said, not "unknown key"
-        if root.has(table):
-            raise root.error(table, "a table of a run on a measured log: the scenario needs [data]")
+
+def _read_studies(root: Table, scenario: Scenario, path: Path) -> list:
+    """`[studies.NAME]`: each study (a paper's by name, or `python = "module:attribute"`) with the
+    configuration its own `configure` reads from its table."""
     studies = []
     if root.has("studies"):
         st = root.table("studies")
@@ -392,8 +412,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
                 studies.append((study, study.configure(table, scenario)))
             table.finish()
         st.finish()
-    root.finish()
-    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
+    return studies
 
 
 RESERVED_NAMES = ("mujoco", "pinocchio", "harness_least_squares", "harness_consistent")

@@ -152,7 +152,7 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
         _, qd, _, tau = training.joint_data(joints)
         try:
             choice = friction_law.choose(W, model.base.independent, model.link_part, tau, qd, training.t,
-                                         robot.frictions, config)
+                                         robot.frictions, config, training.meta.get("reach_s", 0.0))
         except ValueError as exc:
             note = f"friction law not chosen, the model's kept: {exc}"
     laws = choice.laws if choice is not None else tuple(Law.of(f) for f in robot.frictions)

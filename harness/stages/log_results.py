@@ -149,13 +149,15 @@ def _law_section(li) -> dict:
         return out
     out |= {
         "definition": (f"The training span cut into {c.folds} consecutive parts, each predicted by the base "
-                       "parameters fitted on the others (the validation span is never seen); the held-out error "
+                       "parameters fitted on the others less their rows within guard_s of it (the conditioning's "
+                       "reach; the validation span is never seen); the held-out error "
                        "||tau_pred - tau||_F / ||tau||_F over the training span. Joint by joint (two passes), v_c "
                        f"searched for every family ({', '.join(FAMILIES)}) over a logarithmic grid "
                        f"{friction_law.VELOCITY_GRID[0]:g} to {friction_law.VELOCITY_GRID[-1]:g} and a sharp "
                        "sign, then refined; the simplest family within one standard error (over the parts) of the best "
                        "chosen (harness/identify/friction_law.py)"),
         "folds": c.folds,
+        "guard_s": c.guard_s,
         "held_out_rel_error": {"model's law": c.model_error, "chosen": c.chosen_error},
         "per_joint": {j: c.scores[k] for k, j in enumerate(li.joints)},
     }

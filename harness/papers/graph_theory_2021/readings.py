@@ -54,6 +54,24 @@ class Readings(TimeSeries):
     gimbal: np.ndarray | None = None  # (n, nb) bool: near gimbal lock, cond(D) > GIMBAL_COND_D
 
 
+ANGLES_FILE = "cardano.csv"  # the bodies' Cardano angles, row by row beside recording.csv
+ANGLE_NAMES = ("alpha", "beta", "gamma")
+
+
+def angles_csv(readings: Readings) -> str:
+    """The Cardano angles (Eq. 29) of every body, row by row as the recording's: t, then
+    <body>_alpha, <body>_beta, <body>_gamma for each massive body in the recording's order, rad, to
+    17 significant digits (a double read back is the same double)."""
+    import io
+
+    header = ["t", *(f"{b}_{a}" for b in readings.bodies for a in ANGLE_NAMES)]
+    data = np.column_stack([readings.t, readings.theta.reshape(len(readings.t), -1)])
+    out = io.StringIO()
+    out.write(",".join(header) + "\n")
+    np.savetxt(out, data, fmt="%.17g", delimiter=",")
+    return out.getvalue()
+
+
 def joint_point_accelerations(rec: TimeSeries, arm_O_B: np.ndarray) -> np.ndarray:
     """(n, nb, 3) the acceleration of each body's inner joint point, from its centre of mass's."""
     r_W = np.einsum("nbij,bj->nbi", rec.R_WB, arm_O_B)

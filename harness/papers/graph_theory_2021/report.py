@@ -177,61 +177,68 @@ def lagrange(r: dict, rec: TimeSeries) -> str:
         )
         + fig
     )
-    at = lg["at_time"]
-    if at is not None and at["bodies"]:
-        rows = []
-        for b in at["bodies"]:
-            lam = ", ".join(f"{lab} {num(v)}" for lab, v in zip(b["labels"], b["lambda"], strict=True))
-            paper = (
-                ", ".join(num(v) for v in b["paper_lambda_magnitudes"])
-                if any(v is not None for v in b["paper_lambda_magnitudes"])
-                else DASH
-            )
-            rows.append(
-                [
-                    esc(b["body"]),
-                    esc(b["joint"]),
-                    lam,
-                    esc(np.round(b["constraint_force_W"], 1).tolist()),
-                    num(b["static_weight_outboard"]),
-                    paper,
-                ]
-            )
-        body += (
-            f"<h3>Lagrange multipliers at t = {at['t']:g} s</h3><p>Well-conditioned formulation. The paper's "
-            "lambda_i1..i5 are printed without signs; its lambda_i3 equal the static weight of the bodies "
-            "outboard of O_i (column 'sum m g'), which the stated motion does not produce.</p>"
-            + table(
-                [
-                    "body",
-                    "joint",
-                    "lambda (ours)",
-                    "constraint force on B_i [N], world",
-                    "sum m g [N]",
-                    "paper |lambda_i1..5|",
-                ],
-                rows,
-            )
-        )
-    fw = lg["forward_simulation"]
-    if fw:
-        dev = table(
-            ["joint", "max deviation", "correction / drive"],
-            [[esc(j), num(v), num(fw["correction_over_drive"][j])] for j, v in fw["max_joint_deviation"].items()],
-        )
-        ol = fw["open_loop_departure_time"]
-        body += (
-            f"<h3>Forward simulation of the constrained model</h3><p>{esc(fw['method'])}. Largest centre-of-mass "
-            f"deviation from MuJoCo {num(fw['max_position_deviation'])} m, largest |Phi| {num(fw['max_abs_phi'])}. "
-            + (
-                f"Open loop (recorded torques alone) the replay leaves MuJoCo's trajectory by more than 1e-6 at "
-                f"t = {ol:g} s: the motion is unstable without feedback."
-                if ol is not None
-                else "Open loop the replay stays within 1e-6 of MuJoCo over the run."
-            )
-            + "</p>"
-            + dev
-        )
+    body += _multipliers(lg["at_time"]) + _forward(lg["forward_simulation"])
     return section("lagrange", "Constraints, Eq. 111 and Lagrange multipliers (sections 2.4, 2.5, 3.2)", body)
 
 
+def _multipliers(at: dict | None) -> str:
+    """The multipliers at the paper's instant beside its printed ones."""
+    if at is None or not at["bodies"]:
+        return ""
+    rows = []
+    for b in at["bodies"]:
+        lam = ", ".join(f"{lab} {num(v)}" for lab, v in zip(b["labels"], b["lambda"], strict=True))
+        paper = (
+            ", ".join(num(v) for v in b["paper_lambda_magnitudes"])
+            if any(v is not None for v in b["paper_lambda_magnitudes"])
+            else DASH
+        )
+        rows.append(
+            [
+                esc(b["body"]),
+                esc(b["joint"]),
+                lam,
+                esc(np.round(b["constraint_force_W"], 1).tolist()),
+                num(b["static_weight_outboard"]),
+                paper,
+            ]
+        )
+    return (
+        f"<h3>Lagrange multipliers at t = {at['t']:g} s</h3><p>Well-conditioned formulation. The paper's "
+        "lambda_i1..i5 are printed without signs; its lambda_i3 equal the static weight of the bodies "
+        "outboard of O_i (column 'sum m g'), which the stated motion does not produce.</p>"
+        + table(
+            [
+                "body",
+                "joint",
+                "lambda (ours)",
+                "constraint force on B_i [N], world",
+                "sum m g [N]",
+                "paper |lambda_i1..5|",
+            ],
+            rows,
+        )
+    )
+
+
+def _forward(fw: dict | None) -> str:
+    """The constrained model integrated over the run, against MuJoCo."""
+    if not fw:
+        return ""
+    dev = table(
+        ["joint", "max deviation", "correction / drive"],
+        [[esc(j), num(v), num(fw["correction_over_drive"][j])] for j, v in fw["max_joint_deviation"].items()],
+    )
+    ol = fw["open_loop_departure_time"]
+    return (
+        f"<h3>Forward simulation of the constrained model</h3><p>{esc(fw['method'])}. Largest centre-of-mass "
+        f"deviation from MuJoCo {num(fw['max_position_deviation'])} m, largest |Phi| {num(fw['max_abs_phi'])}. "
+        + (
+            f"Open loop (recorded torques alone) the replay leaves MuJoCo's trajectory by more than 1e-6 at "
+            f"t = {ol:g} s: the motion is unstable without feedback."
+            if ol is not None
+            else "Open loop the replay stays within 1e-6 of MuJoCo over the run."
+        )
+        + "</p>"
+        + dev
+    )

@@ -33,7 +33,7 @@ from harness.papers.graph_theory_2021.dynamics import (
     unconstrained_residual,
 )
 from harness.papers.graph_theory_2021.lagrange import LagrangeOutput, Settings, lagrange
-from harness.papers.graph_theory_2021.readings import Readings, exact, read
+from harness.papers.graph_theory_2021.readings import ANGLES_FILE, Readings, angles_csv, exact, read
 from harness.papers.graph_theory_2021.solve import (
     PACKAGE,
     FullIdentification,
@@ -115,10 +115,17 @@ class GraphChecks:
     residual: Residual  # Eq. 36 on the recording
     D_error: float  # Eq. 33's D against a rotation library at every recorded orientation
     gimbal_rows: dict[str, list[float]]  # per body, the times of the rows near gimbal lock
+    truth: Readings  # the paper's readings of the recording: its bodies' Cardano angles (Eq. 29)
 
     def serialise(self, ctx, config: Config) -> dict:
-        """results.json's `graph`: the graph's matrices, the residual of Eq. 36 and the check of Eq. 33."""
-        return {**graph_section(self.model, self.residual, self.D_error), "gimbal_lock_rows": self.gimbal_rows}
+        """results.json's `graph`: the graph's matrices, the residual of Eq. 36 and the check of Eq. 33,
+        and the file of the bodies' Cardano angles."""
+        return {**graph_section(self.model, self.residual, self.D_error), "gimbal_lock_rows": self.gimbal_rows,
+                "angles_file": ANGLES_FILE}
+
+    def files(self) -> dict[str, str]:
+        """cardano.csv beside recording.csv: every body's Cardano angles, row by row (readings.angles_csv)."""
+        return {ANGLES_FILE: angles_csv(self.truth)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,7 +148,7 @@ def _graph_checks(ctx, config) -> GraphChecks:
     s = body_series(truth, model.topology)
     gimbal = {b: [float(x) for x in truth.t[truth.gimbal[:, i]]] for i, b in enumerate(truth.bodies)
               if truth.gimbal[:, i].any()}
-    return GraphChecks(model, unconstrained_residual(model, s), D_error(s.theta), gimbal)
+    return GraphChecks(model, unconstrained_residual(model, s), D_error(s.theta), gimbal, truth)
 
 
 def _identification(ctx, config):
@@ -190,7 +197,7 @@ STUDY = Study(
     configure=configure,
     stages=(
         Stage("graph", "graph model: unconstrained dynamics", _graph_checks, GraphChecks.serialise,
-              "Cardano angles", report.cardano_angles),
+              "Cardano angles", report.cardano_angles, files=GraphChecks.files),
         Stage("identification", "identifying parameters (section 2.3)", _identification, Identification.serialise,
               "Identification", lambda res, rec: report.identification(res)),
         Stage("identification_full", "identifying all 10 inertial parameters per body", _identification_full,

@@ -84,6 +84,7 @@ def smooth(kept: TimeSeries, source: DataSource, robot: RobotSpec, rate: float, 
     steps.append({"step": "trim and decimate", "trim_s": trim, "decimate": source.decimate,
                   "samples": len(rows), "rate_hz": rate / source.decimate})
     conditioning = {"file": str(path), "sha256": raw.meta["sha256"], "steps": steps, "warnings": warnings,
+                    "reach_s": trim,  # how far a sample's conditioning reaches: the guard between any two parts
                     "t_start": float(grid[rows[0]]), "t_end": float(grid[rows[-1]])}
     return TimeSeries(grid[rows], tuple(robot.joint_names), q[rows], qd[rows], qdd[rows], tau[rows], meta=conditioning)
 
