@@ -1,13 +1,15 @@
 """Validation harness for robot dynamic models against reference engines (MuJoCo, Pinocchio).
 
 Public API (harness/api.py): `run(scenario_path)` -> Result with `.passed`, `.gates`, `.results`;
-`load_scenario(path)`, `load_model(path)`; the plugin protocols are in harness/base/plugins.py. Importing
+`load_scenario(path)`, `load_model(path)`; `identified_model(run folder)`, the model a log run exported,
+with `joint_names` and `inverse_dynamics(q, qd, qdd)`; the plugin protocols are in harness/base/plugins.py. Importing
 this package loads neither an engine nor a paper's package: they load when a run needs them.
 """
 
 from harness.base.version import DISTRIBUTION
 
-__all__ = ["DISTRIBUTION", "InputError", "PluginError", "Result", "__version__", "load_model", "load_scenario", "run"]
+__all__ = ["DISTRIBUTION", "InputError", "PluginError", "Result", "__version__", "identified_model", "load_model",
+           "load_scenario", "run"]
 
 
 def __getattr__(name: str):
@@ -15,7 +17,7 @@ def __getattr__(name: str):
         from harness.base.version import installed_version
 
         return installed_version()
-    if name in ("run", "load_model", "load_scenario", "Result", "GateRow"):
+    if name in ("run", "load_model", "load_scenario", "Result", "GateRow", "identified_model", "IdentifiedModel"):
         from harness import api
 
         return getattr(api, name)

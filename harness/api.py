@@ -32,6 +32,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from harness.base.plugins import ModelUnderTest, check_protocol
 from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
@@ -109,6 +111,48 @@ def with_models(sc: Scenario, models: dict[str, Any]) -> Scenario:
 
 def load_model(path: str | Path) -> RobotSpec:
     return load_spec(Path(path))
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifiedModel:
+    """A model a log run identified and exported (`identified_model`): `joint_names`, and
+    `inverse_dynamics(q, qd, qdd)` (arrays (N, n) in that order, SI) the joint torques it predicts: the
+    links' rigid-body torques (Pinocchio's RNEA) and each drive's law, through the transmission where
+    the model has drives (harness/model/drives.py). `spec` is the whole description."""
+
+    spec: RobotSpec
+    gravity_W: np.ndarray
+
+    @property
+    def joint_names(self) -> list[str]:
+        return self.spec.joint_names
+
+    def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        from harness.engines.pinocchio import build_model, rnea
+
+        q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+        return rnea(build_model(self.spec, self.gravity_W), q, qd, qdd).tau
+
+
+def identified_model(folder: str | Path) -> IdentifiedModel:
+    """The model a `harness run` of a measured log exported: `folder` is the run's output folder (with
+    results.json, whose scenario gives the gravity) or its `identified/` folder, read from its model
+    file (identified/robot.toml: the URDF with the drives' or joints' laws)."""
+    import json
+
+    from harness.model.export import MODEL_FILE
+
+    folder = Path(folder)
+    here = folder / "identified" if (folder / "identified").is_dir() else folder
+    model = here / MODEL_FILE
+    if not model.is_file():
+        raise InputError(model, "", "no identified model file here: a log run of a robot read from a URDF writes it "
+                                    "(identified/robot.toml)")
+    gravity = (0.0, 0.0, -9.80665)
+    results = here.parent / "results.json"
+    if results.is_file():
+        gravity = json.loads(results.read_text()).get("scenario", {}).get("gravity", gravity)
+    return IdentifiedModel(load_spec(model), np.asarray(gravity, dtype=float))
 
 
 def run(scenario: str | Path | dict | Scenario, progress=None, workers=None, models: dict[str, Any] | None = None,

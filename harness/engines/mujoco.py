@@ -29,7 +29,7 @@ import numpy as np
 
 from harness.base.series import TimeSeries
 from harness.engines.simulation import Simulation
-from harness.model import friction
+from harness.model import drives, friction
 from harness.model.mjspec import add_robot, massive_parent, new_spec
 from harness.model.quaternion import to_matrix
 from harness.model.spec import Joint, RobotSpec
@@ -247,8 +247,13 @@ class _ComputedTorque:
         for x, y in zip((self.q_d, self.qd_d, self.qdd_d), in_spec_order, strict=True):
             x[:, vadr] = y
         at_dof = np.argsort(vadr)  # the spec joint at each dof
-        self.dry = friction.Dry.of(tuple(spec.frictions[j] for j in at_dof))
-        self.armature = friction.values(spec.frictions)[at_dof, 0]
+        self.transmission = spec.transmission
+        if spec.transmission is None:  # each joint's own law, at its dof
+            self.dry = friction.Dry.of(tuple(spec.frictions[j] for j in at_dof))
+            self.armature = friction.values(spec.frictions)[at_dof, 0]
+        else:  # the motors' laws through N (harness/model/drives.py), in the spec's joint order
+            self.dry = drives.Dry(spec.frictions, spec.transmission)
+            self.armature = drives.mass(spec.frictions, spec.transmission)
         to_ctrl = np.empty(n, dtype=int)
         to_ctrl[act] = vadr  # ctrl[a] is the drive of the joint at dof to_ctrl[a]
         self.to_ctrl = None if np.array_equal(to_ctrl, np.arange(n)) else to_ctrl
@@ -264,6 +269,8 @@ class _ComputedTorque:
         self.kp, self.kd = np.full(n, w * w), np.full(n, 2.0 * w)
 
     def callback(self) -> Callable[[mujoco.MjModel, mujoco.MjData], None]:
+        if self.transmission is not None:
+            return self._through_transmission()
         """The drive as MuJoCo calls it, its arrays bound as the closure's locals (an attribute lookup
         per array at each of a run's evaluations costs 5 % of kr500_rail's simulation)."""
         q_d, qd_d, qdd_d, half, kp, kd = self.q_d, self.qd_d, self.qdd_d, self.half, self.kp, self.kd
@@ -289,6 +296,34 @@ class _ComputedTorque:
                 ctrl[:] = tau
             else:
                 np.take(tau, to_ctrl, out=ctrl)
+            if captured[1]:
+                stages[captured[0]] = tau
+                captured[0] += 1
+
+        return drive
+
+    def _through_transmission(self) -> Callable[[mujoco.MjModel, mujoco.MjData], None]:
+        """The drive of `callback` where the motors' dry friction acts through the transmission, read and
+        applied in the spec's joint order (the dofs at `vadr`); the rotors' inertia and viscous friction
+        are MuJoCo's, on the motors' tendons."""
+        q_d, qd_d, qdd_d, half, kp, kd = self.q_d, self.qd_d, self.qdd_d, self.half, self.kp, self.kd
+        qpos, qvel, ctrl, to_ctrl, vadr = self.qpos, self.qvel, self.ctrl, self.to_ctrl, self.vadr
+        qfrc_bias, qfrc_passive, qfrc_applied = self.qfrc_bias, self.qfrc_passive, self.qfrc_applied
+        e, ed, qacc_cmd, tau = self.e, self.ed, self.qacc_cmd, self.tau
+        dry, rotors, stages, captured = self.dry, self.armature, self.stages, self.captured
+        order = np.argsort(vadr)  # the spec joint at each dof
+
+        def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+            k = round(d.time / half)
+            np.multiply(np.subtract(q_d[k], qpos, e), kp, e)
+            np.multiply(np.subtract(qd_d[k], qvel, ed), kd, ed)
+            np.add(np.add(qdd_d[k], ed, qacc_cmd), e, qacc_cmd)
+            mujoco.mj_mulM(m, d, tau, qacc_cmd)
+            if dry.any:  # the rigid-body torque: the computed torque less the rotors' part, N^T I_m N q''
+                rigid = (tau + qfrc_bias)[vadr] - rotors @ qacc_cmd[vadr] if dry.needs_load else None
+                qfrc_applied[:] = -dry(qvel[vadr], rigid)[order]
+            tau[:] = tau + qfrc_bias - qfrc_passive - qfrc_applied
+            ctrl[:] = tau if to_ctrl is None else tau[to_ctrl]
             if captured[1]:
                 stages[captured[0]] = tau
                 captured[0] += 1

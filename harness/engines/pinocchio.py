@@ -6,9 +6,10 @@ Every joint frame sits at its joint point with world-aligned axes at the initial
 axis is its world axis there. Each massive body is attached to its inner joint with its mass,
 its centre of mass relative to the joint point, and its inertia about the centre of mass rotated
 into the joint frame (R_WB0 I_B R_WB0^T). A massless carriage is a joint with no body. Gravity is
-the scenario's. The joints' rotor inertia and friction (harness/model/friction.py) are added to RNEA's
-torques and the armature to CRBA's diagonal by that module's law, outside Pinocchio (its own
-armature would cover the rotor inertia only).
+the scenario's. The drives' rotor inertia and friction (harness/model/drives.py: each joint's own law,
+or each motor's through the transmission) are added to RNEA's torques and the rotors' inertia to CRBA's
+matrix by that module's law, outside Pinocchio (its own armature is diagonal, and covers the rotor
+inertia only).
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ import numpy as np
 import pinocchio as pin
 
 from harness.base.series import TimeSeries
-from harness.model import friction
+from harness.model import drives
+from harness.model.drives import Transmission
 from harness.model.friction import JointFriction
 from harness.model.spec import WORLD, RobotSpec
 
@@ -29,7 +31,8 @@ class PinocchioModel:
     model: pin.Model
     joint_ids: tuple[int, ...]  # Pinocchio joint index of each spec joint, spec order
     q_index: np.ndarray  # index into q (and v) of each spec joint
-    frictions: tuple[JointFriction, ...] = ()  # per spec joint
+    frictions: tuple[JointFriction, ...] = ()  # per spec joint, or per motor of `transmission`
+    transmission: Transmission | None = None  # the drives' (harness/model/drives.py)
 
 
 def build_model(spec: RobotSpec, gravity_W: np.ndarray) -> PinocchioModel:
@@ -53,7 +56,7 @@ def build_model(spec: RobotSpec, gravity_W: np.ndarray) -> PinocchioModel:
     model.gravity.linear = np.asarray(gravity_W, dtype=float)
     joint_ids = tuple(ids[j.child] for j in spec.joints)
     q_index = np.array([model.joints[i].idx_q for i in joint_ids])
-    return PinocchioModel(model, joint_ids, q_index, spec.frictions)
+    return PinocchioModel(model, joint_ids, q_index, spec.frictions, spec.transmission)
 
 
 def _depth_first(spec: RobotSpec) -> list:
@@ -98,7 +101,7 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> 
             M[k, j] = R @ data.f[jid].angular
     # the drives' friction and rotor inertia act between the bodies and their motors: in the
     # torques, not in the wrenches the joints transmit
-    return InverseDynamics(tau + friction.torque(pm.frictions, qd, qdd, tau), F, M)
+    return InverseDynamics(tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau), F, M)
 
 
 def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: TimeSeries) -> InverseDynamics:
@@ -118,4 +121,4 @@ def crba(pm: PinocchioModel, q: np.ndarray) -> np.ndarray:
         M = pin.crba(model, data, full)
         M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
         out[k] = M[np.ix_(pm.q_index, pm.q_index)]
-    return out + np.diag(friction.values(pm.frictions)[:, 0]) if pm.frictions else out
+    return out + drives.mass(pm.frictions, pm.transmission) if pm.frictions else out

@@ -14,6 +14,7 @@ from mujoco import rollout as mujoco_rollout
 
 from harness.base.numerics import sampled
 from harness.engines.mujoco import build_spec, controlled
+from harness.model import drives as drive_law
 from harness.model import friction
 from harness.model.spec import RobotSpec
 
@@ -52,6 +53,8 @@ def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[f
     qadr, vadr = model.jnt_qposadr[joint_ids], model.jnt_dofadr[joint_ids]
     B = len(q0)
     steps = (drives.shape[1] - 1) // 2
+    t = spec.transmission  # with one, each motor's inertia and damping are its tendon's (harness/model/mjspec.py)
+    tendons = None if t is None else [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, m) for m in t.motors]
     laws, models, forcing = {}, {}, []  # each distinct law once: its model (armature, damping) and dry friction
     for fr in frictions:
         if id(fr) not in laws:
@@ -59,8 +62,12 @@ def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[f
             m = model
             if fr != tuple(spec.frictions):
                 m = copy.copy(model)
-                m.dof_armature[vadr], m.dof_damping[vadr] = k[:, 0], k[:, 1]
-            laws[id(fr)], models[id(fr)] = (friction.Dry.of(fr), k[:, 1]), m
+                if t is None:
+                    m.dof_armature[vadr], m.dof_damping[vadr] = k[:, 0], k[:, 1]
+                else:
+                    m.tendon_armature[tendons], m.tendon_damping[tendons] = k[:, 0], k[:, 1]
+            dry = friction.Dry.of(fr) if t is None else drive_law.Dry(fr, t)
+            laws[id(fr)], models[id(fr)] = (dry, k[:, 1] if t is None else t.N.T @ np.diag(k[:, 1]) @ t.N), m
         forcing.append(laws[id(fr)])
     half, last = timestep / 2, 2 * steps
     v_at = _as_slice(vadr)
@@ -73,8 +80,13 @@ def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[f
         dry, viscous = forcing[b]
         v = qvel[v_at]
         # load-dependent friction: the drive's torque less the rest of its friction stands for the
-        # rigid-body torque (the rotor inertia's part, I_a q'', is not known before the step)
-        qfrc_applied[v_at] = drive - (dry(v, drive - dry(v, load=False) - viscous * v) if dry.needs_load else dry(v))
+        # rigid-body torque (the rotor inertia's part, I_a q'', is not known before the step); with a
+        # transmission the viscous part is N^T diag(f_v) N q' (`viscous` that matrix)
+        if dry.needs_load:
+            rest = drive - dry(v, load=False) - (viscous * v if viscous.ndim == 1 else viscous @ v)
+            qfrc_applied[v_at] = drive - dry(v, rest)
+        else:
+            qfrc_applied[v_at] = drive - dry(v)
 
     full = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, full))

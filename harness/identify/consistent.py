@@ -47,8 +47,15 @@ import numpy as np
 
 from harness.base.numerics import PARAMETER_FLOOR, column_scale, relative_residual
 from harness.identify.friction_law import Law, extra_terms
+from harness.model.drives import Transmission
 from harness.model.friction import BOUNDED_BY, IDENTIFIED_KEYS, JointFriction
-from harness.model.inertia import about_centre_of_mass, model_kind_scales, nearest_physical, pseudo_inertia
+from harness.model.inertia import (
+    MOMENT_FLOOR,
+    about_centre_of_mass,
+    model_kind_scales,
+    nearest_physical,
+    pseudo_inertia,
+)
 
 PULL = 1e-4  # weight of the pull towards the model's values, relative to the least-squares residual
 # the objective is 1 at the least-squares optimum: 1e-7 of it is far below anything the data resolve
@@ -216,27 +223,34 @@ ASYMMETRY = {key: IDENTIFIED_KEYS.index(bound) for key, bound in BOUNDED_BY.item
 
 
 def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law, ...], theta_model: np.ndarray,
-                   friction_model: np.ndarray, extra_model: np.ndarray) -> tuple[ConsistentFit,
-                                                                                 tuple[JointFriction, ...]]:
+                   friction_model: np.ndarray, extra_model: np.ndarray, transmission: Transmission | None = None
+                   ) -> tuple[ConsistentFit, tuple[JointFriction, ...]]:
     """The physically consistent fit (`fit`) of the torques tau (N, n) on the
     regressor W (N n, 14 n: every link's ten parameters, every joint's four drive terms at its law's
     velocities) and the families' columns E (N n, e, extra_terms(laws)), pulled towards the model's
     own values (theta_model (n, 10), friction_model (n, 4), extra_model (e,)) where the data cannot
-    tell; and each joint's identified friction law."""
+    tell; and each drive's identified friction law (each joint's, or with a transmission each motor's)."""
     N, n = tau.shape
     terms = extra_terms(laws)
     W_all = np.hstack([W, E])
     # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
     # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
-    rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(N, n, -1) ** 2, axis=0)).reshape(n, n, 4)
-    cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
-    rms_tau = np.sqrt(np.mean(tau**2, axis=0))
+    if transmission is None:
+        rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(N, n, -1) ** 2, axis=0)).reshape(n, n, 4)
+        cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
+        rms_tau = np.sqrt(np.mean(tau**2, axis=0))
+        extra_rms = np.sqrt(np.mean(E.reshape(N, n, -1) ** 2, axis=0))  # (n, e): each column's RMS on each joint's rows
+        extra_rms = np.array([extra_rms[k, c] for c, (k, _) in enumerate(terms)])
+    else:  # a motor's columns over every row they reach, against the torque of the joints it turns with
+        reach = transmission.N != 0  # (motors, joints)
+        cols = np.sqrt(np.sum(W[:, 10 * n:].reshape(N, n, n, 4) ** 2, axis=(0, 1)) / N)
+        rms_tau = np.sqrt(((tau**2).mean(axis=0) @ reach.T) / np.maximum(reach.sum(axis=1), 1))
+        extra_rms = np.sqrt(np.sum(E**2, axis=0) / N)
     carry = rms_tau[:, None] / np.where(cols > 0, cols, 1.0)
     friction_scale = np.maximum(np.abs(friction_model), carry)
     friction_scale = np.maximum(friction_scale, PARAMETER_FLOOR * friction_scale.max(axis=0, initial=0.0))  # a joint
     # that carries nothing has no size of its own
-    extra_rms = np.sqrt(np.mean(E.reshape(N, n, -1) ** 2, axis=0))  # (n, e): each column's RMS on each joint's rows
-    extra_scale = np.array([max(abs(extra_model[c]), rms_tau[k] / max(float(extra_rms[k, c]), 1e-300))
+    extra_scale = np.array([max(abs(extra_model[c]), rms_tau[k] / max(float(extra_rms[c]), 1e-300))
                             for c, (k, _) in enumerate(terms)])
     scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel(), extra_scale])
     result = fit(W_all, tau.reshape(-1), theta_model, friction_model, scale, tuple(terms), extra_model)
@@ -256,12 +270,18 @@ def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], 
     """Beside consistency, plausibility: per link (by its joint) the identified mass and the trace of
     the inertia about the centre of mass as ratios to the model's own; the links outside
     [1/PLAUSIBLE, PLAUSIBLE] on either; and the links on the fit's positive-definiteness margin
-    (their smallest pseudo-inertia eigenvalue within ON_MARGIN of it), which the data pushed there."""
-    ratios, outside, on_margin = {}, [], []
+    (their smallest pseudo-inertia eigenvalue within ON_MARGIN of it), which the data pushed there. A
+    link to which the model gives no inertia of its own (a point mass: its trace under MOMENT_FLOOR of
+    the model's largest) has no inertia ratio: it is listed as not judged, and why."""
+    ratios, outside, on_margin, unjudged = {}, [], [], []
+    traces0 = [float(np.trace(about_centre_of_mass(th)[2])) if th[0] > 0 else 0.0 for th in theta_model]
+    sized = MOMENT_FLOOR * max(traces0, default=0.0)
     for k, j in enumerate(joints):
         m, m0 = float(theta[k][0]), float(theta_model[k][0])
         tr = float(np.trace(about_centre_of_mass(theta[k])[2])) if m > 0 else float("nan")
-        tr0 = float(np.trace(about_centre_of_mass(theta_model[k])[2])) if m0 > 0 else float("nan")
+        tr0 = traces0[k] if traces0[k] > sized else float("nan")
+        if m0 > 0 and not traces0[k] > sized:
+            unjudged.append(j)
         with np.errstate(divide="ignore", invalid="ignore"):
             r = {"mass": m / m0 if m0 > 0 else float("nan"), "inertia_trace": tr / tr0 if tr0 > 0 else float("nan")}
         ratios[j] = r
@@ -273,4 +293,5 @@ def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], 
                           f"of mass; implausible outside [1/{PLAUSIBLE:g}, {PLAUSIBLE:g}]; on_margin: links whose "
                           f"smallest pseudo-inertia eigenvalue is within {ON_MARGIN:g} x the fit's margin",
             "band": [1 / PLAUSIBLE, PLAUSIBLE], "ratios": ratios, "implausible": outside,
-            "implausible_links": len(outside), "on_margin": on_margin, "links_on_margin": len(on_margin)}
+            "implausible_links": len(outside), "on_margin": on_margin, "links_on_margin": len(on_margin),
+            "inertia_not_judged": unjudged}

@@ -24,6 +24,8 @@ from harness.base.series import STRETCH_BREAK, TimeSeries, room
 LARGEST = 0.02  # s: the candidates span +-20 ms
 STEP = 0.0005  # s
 GAIN = 0.9  # a delay is found where reading the torque that much later leaves at most 90 % of the residual at zero
+EDGE = 1  # a best candidate this many steps or fewer from an end of the search is at its edge: the parabola
+# through it and its neighbours then leans on the end, and the curve may go on falling beyond it
 
 
 @dataclass(frozen=True)
@@ -36,7 +38,7 @@ class Delays:
     residual_at_zero: np.ndarray  # (n,)
     candidates: np.ndarray  # (K,)
     curve: np.ndarray  # (n, K)
-    at_edge: np.ndarray  # (n,) bool: the best candidate is the first or last (the delay may lie beyond)
+    at_edge: np.ndarray  # (n,) bool: the best candidate is within EDGE steps of an end (the delay may lie beyond)
 
     @property
     def found(self) -> np.ndarray:
@@ -73,8 +75,9 @@ def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LAR
             curve[j, k] = _residual(bases[j], np.interp(t[rows] + d, t, tau[:, j]))
     best = np.argmin(curve, axis=1)
     delay = candidates[best].astype(float)
-    at_edge = (best == 0) | (best == len(candidates) - 1)
-    for j in np.flatnonzero(~at_edge):  # the vertex of the parabola through the best point and its neighbours
+    at_edge = (best <= EDGE) | (best >= len(candidates) - 1 - EDGE)
+    # the vertex of the parabola through the best point and its neighbours
+    for j in np.flatnonzero((best > 0) & (best < len(candidates) - 1)):
         y0, y1, y2 = curve[j, best[j] - 1: best[j] + 2]
         denominator = y0 - 2 * y1 + y2
         if denominator > 0:

@@ -37,6 +37,7 @@ from scipy.optimize import minimize, minimize_scalar
 from harness.base.numerics import consecutive_blocks, relative_residual_of_sums
 from harness.identify.torque_id import drive_column, links_torque
 from harness.model import friction
+from harness.model.drives import Transmission
 from harness.model.friction import EXTRA_KEYS, FAMILIES, JointFriction
 
 VELOCITY_GRID = np.geomspace(1e-4, 1.0, 17)  # rad/s or m/s: v_c tried, and 0 (a sharp sign)
@@ -106,16 +107,24 @@ def extra_terms(laws: tuple[Law, ...]) -> list[tuple[int, str]]:
     return [(j, key) for j, law in enumerate(laws) for key in law.terms]
 
 
-def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray | None) -> np.ndarray:
-    """(N n, e): the columns of the families' coefficients (extra_terms), each on its joint's rows."""
+def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray | None,
+                    transmission: Transmission | None = None) -> np.ndarray:
+    """(N n, e): the columns of the families' coefficients (extra_terms), each on its joint's rows; with
+    a transmission, each motor's at its rates and load, reaching joint j times N[k, j]."""
     terms = extra_terms(laws)
     N, n = qd.shape
     out = np.zeros((N, n, len(terms)))
     if not terms:
         return out.reshape(N * n, 0)
+    if transmission is not None:
+        qd = transmission.motor_rates(qd)
+        tau_rigid = None if tau_rigid is None else transmission.motor_torques(tau_rigid)
     shapes = friction.extra_columns(tuple(law.shapes for law in laws), qd, tau_rigid)  # (N, n, 4)
     for c, (j, key) in enumerate(terms):
-        out[:, j, c] = shapes[:, j, EXTRA_KEYS.index(key)]
+        if transmission is None:
+            out[:, j, c] = shapes[:, j, EXTRA_KEYS.index(key)]
+        else:
+            out[:, :, c] = shapes[:, j, EXTRA_KEYS.index(key), None] * transmission.N[j]
     return out.reshape(N * n, len(terms))
 
 
@@ -171,8 +180,11 @@ class _Normal:
     predicts fold k's rows. Replacing joint j's columns rewrites its slot only: O(N r) per trial."""
 
     def __init__(self, G: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
-                 folds: Folds, slot: int):
+                 folds: Folds, slot: int, coupling: np.ndarray | None = None):
         N, n = tau.shape
+        # with a transmission, slot k holds motor k's columns, which reach joint j times coupling[k, j]
+        # (N of harness/model/drives.py); None: slot j is joint j's own, on its rows alone
+        self.coupling = coupling
         self.slot = slot  # friction columns a joint may have: q', s and the most terms of a law tried
         r = G.shape[1]
         self.n, self.r = n, r
@@ -187,25 +199,36 @@ class _Normal:
             g = self.G3[f].reshape(-1, r)
             self.M[k, :r, :r], self.rhs[k, :r] = g.T @ g, g.T @ tau[f].ravel()
         self.by_joint = [np.ascontiguousarray(self.G3[:, j]) for j in range(n)]  # (N, r): joint j's rows
-        self.S = np.zeros((N, n, slot))  # each joint's friction columns, on its own rows
+        self.S = np.zeros((N, n, slot))  # each joint's (or motor's) friction columns, on its own rows
+        if coupling is not None:  # what motor k's slot meets: its rows' fixed columns and torques, weighted
+            self.by_joint = [np.einsum("tjr,j->tr", self.G3, w) for w in coupling]
+            self.tau_of = tau @ coupling.T  # (N, n): sum_j N[k, j] tau_j
+            self.overlap = coupling @ coupling.T  # (n, n): sum_j N[k, j] N[l, j]
 
     def set(self, j: int, C: np.ndarray) -> None:
-        """Joint j's friction columns C (N, m <= slot); the slot's unused columns stay zero, with a unit
-        diagonal in the fitted folds' sum so that their unknowns are zero."""
+        """Joint j's (motor j's) friction columns C (N, m <= slot); the slot's unused columns stay zero,
+        with a unit diagonal in the fitted folds' sum so that their unknowns are zero."""
         r, m, slot = self.r, C.shape[1], self.slot
         at = slice(r + slot * j, r + slot * (j + 1))
         G_j = self.by_joint[j]
         self.M[:, :, at] = 0.0
         self.M[:, at, :] = 0.0
         self.rhs[:, at] = 0.0
+        tau_j = self.tau[:, j] if self.coupling is None else self.tau_of[:, j]
+        weight = 1.0 if self.coupling is None else self.overlap[j, j]
+        shared = [] if self.coupling is None else [l for l in np.flatnonzero(self.overlap[j]) if l != j]
+        lo = r + slot * j
         for k, f in enumerate(self.pieces):
             B, D = G_j[f].T @ C[f], C[f].T @ C[f]
-            lo = r + slot * j
             self.M[k, :r, lo: lo + m], self.M[k, lo: lo + m, :r] = B, B.T
-            self.M[k, lo: lo + m, lo: lo + m] = D
-            self.rhs[k, lo: lo + m] = C[f].T @ self.tau[f, j]
+            self.M[k, lo: lo + m, lo: lo + m] = D if self.coupling is None else weight * D
+            self.rhs[k, lo: lo + m] = C[f].T @ tau_j[f]
             idle = np.arange(lo + m, lo + slot)
             self.M[k, idle, idle] = 1.0 / len(self.pieces)
+            for l in shared:  # a motor that shares a joint with this one: their columns meet on its rows
+                cross = self.overlap[j, l] * (C[f].T @ self.S[f, l])
+                self.M[k, lo: lo + m, r + slot * l: r + slot * (l + 1)] = cross
+                self.M[k, r + slot * l: r + slot * (l + 1), lo: lo + m] = cross.T
         self.S[:, j, :m], self.S[:, j, m:] = C, 0.0
 
     def _solve(self, M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -233,8 +256,9 @@ class _Normal:
         sse = np.zeros(len(self.folds))
         for k, f in enumerate(self.folds):
             G = self.G3[f]
+            drive = np.einsum("njs,js->nj", self.S[f], x[k, r:].reshape(n, self.slot))
             pred = ((G.reshape(-1, r) @ x[k, :r]).reshape(G.shape[:2])
-                    + np.einsum("njs,js->nj", self.S[f], x[k, r:].reshape(n, self.slot)))
+                    + (drive if self.coupling is None else drive @ self.coupling))
             sse[k] = float(np.sum((pred - self.tau[f]) ** 2))
         return sse
 
@@ -246,13 +270,15 @@ class _Normal:
 
 def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
            qd: np.ndarray, t: np.ndarray, model: tuple[JointFriction, ...], config: FrictionLawConfig,
-           reach: float = 0.0) -> FrictionChoice:
+           reach: float = 0.0, transmission: Transmission | None = None) -> FrictionChoice:
     """Each joint's friction law, chosen within the training span. W: (N n, 10 n + 4 n) the
     regressor with friction (harness/identify/torque_id.py), `independent` the base parameters'
     columns and `link_part` which hold a link's parameters and the drive's share in each
     (BaseParameters.link_part: the rigid-body torque of a load-dependent law); tau, qd: (N, n);
     t: (N,); `reach` (s) how far a sample's conditioning reaches, the guard around each fold
-    (`blocked_folds`). Raises ValueError when the span is too short to cut."""
+    (`blocked_folds`). With a `transmission` (harness/model/drives.py) the laws are the motors': each
+    motor's columns at its own rates, reaching the joints through N, its load the motor's share of
+    the rigid-body torque, N^-T tau_R. Raises ValueError when the span is too short to cut."""
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
     tau, qd = tau[order], qd[order]
@@ -270,9 +296,16 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     shaped = {drive_column(n, j, key) for j in range(n) for key in ("viscous", "coulomb")}  # what a law shapes
     kept = np.array([k for k, c in enumerate(independent) if c not in shaped])
     G = W.reshape(N, n, -1)[order][:, :, independent[kept]]
-    normal = _Normal(G.reshape(N * n, -1), tuple(x[kept] for x in link_part), tau, folds, slot)
-    # a joint that never moves faster than the smallest v_c tried shows nothing of its friction's shape:
-    # it keeps the model's law
+    normal = _Normal(G.reshape(N * n, -1), tuple(x[kept] for x in link_part), tau, folds, slot,
+                     None if transmission is None else transmission.N)
+
+    def at_motor(x: np.ndarray) -> np.ndarray:  # a joint torque as its motors' share
+        return x if transmission is None else transmission.motor_torques(x)
+
+    if transmission is not None:
+        qd = transmission.motor_rates(qd)
+    # a joint (a motor) that never moves faster than the smallest v_c tried shows nothing of its friction's
+    # shape: it keeps the model's law
     moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]
     rigid = np.zeros((N, n))
     total = float(np.sum(tau**2))
@@ -289,7 +322,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
         normal.set(j, _columns(law, qd[:, j], rigid[:, j]))
         if "load_coulomb" in law.terms:
             for _ in range(LOAD_ITERATIONS):
-                normal.set(j, _columns(law, qd[:, j], normal.rigid_torque()[:, j]))
+                normal.set(j, _columns(law, qd[:, j], at_motor(normal.rigid_torque())[:, j]))
 
     for j in range(n):
         place(j, laws[j])
@@ -298,7 +331,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     for sweep in range(PASSES):
         first = sweep == 0  # the first pass searches v_c over the whole grid; the next, around its choice
         for j in np.flatnonzero(moving):
-            rigid = normal.rigid_torque()
+            rigid = at_motor(normal.rigid_torque())
 
             def score(law: Law, j=j) -> float:
                 place(j, law)

@@ -22,7 +22,9 @@ For a candidate z:
 z minimises the sum of squares (scipy.optimize.least_squares, trust region reflective within
 bounds: a velocity within VELOCITY_RANGE of where the pass starts, a delay within +-delay.LARGEST),
 from the model it is given (the consistent fit, its velocities and no delay, in the first pass).
-Nothing of the validation span is read.
+Nothing of the validation span is read. With drives (harness/model/drives.py) each motor's law is
+re-solved on its own torque, N^-T (tau - tau_R), at its own rates, and the torque channels' delays are
+not adjusted (a channel of a motor-side log is a motor's, mixed into the joints' torques by N).
 
 `refine` is one pass; harness/stages/refinement.py alternates passes with the consistent fit
 re-solved at their result, and keeps the candidate that predicts the training span best among those
@@ -37,11 +39,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
-from harness.base.numerics import evenly_spaced, relative_residual_of_sums, sampled
+from harness.base.numerics import evenly_spaced, relative_residual, relative_residual_of_sums, sampled
 from harness.base.series import room
 from harness.engines.rollout import PREDICTION_TIMESTEP, log_drives, rollouts
 from harness.identify import delay as channel_delay
 from harness.identify.friction_law import Law
+from harness.model.drives import Transmission
 from harness.model.friction import (
     BOUNDED_BY,
     EXTRA_KEYS,
@@ -119,6 +122,7 @@ class _Problem:
     timestep: float
     slots: tuple[tuple[int, str], ...]  # what each entry of z is: (joint, key)
     laws: tuple[Law, ...]  # each joint's law (its family's terms)
+    motor: tuple[np.ndarray, ...]  # (qd, qdd, rigid, tau) at each drive: the joints', or the motors' (N^-T)
 
 
 def _law(p: _Problem, z: np.ndarray) -> tuple[tuple[JointFriction, ...], np.ndarray]:
@@ -153,9 +157,10 @@ def _columns(qd: np.ndarray, qdd: np.ndarray, rigid: np.ndarray, v_c: float, v_s
 
 def _drive_fit(p: _Problem, k: int, velocity: dict, lag: float) -> JointFriction:
     rows = p.rows
-    A, keys = _columns(p.qd[rows, k], p.qdd[rows, k], p.rigid[rows, k], velocity["coulomb_velocity"],
+    qd, qdd, rigid, tau = p.motor
+    A, keys = _columns(qd[rows, k], qdd[rows, k], rigid[rows, k], velocity["coulomb_velocity"],
                        velocity["stribeck_velocity"], p.laws[k].terms)
-    y = _read(p.t, p.tau[:, k], rows, lag) - p.rigid[rows, k]
+    y = _read(p.t, tau[:, k], rows, lag) - rigid[rows, k]
     size = np.sqrt(np.mean(A**2, axis=0))
     size = np.where(size > 0, size, 1.0)
     lower = np.array([0.0 if key in NONNEGATIVE_KEYS else -np.inf for key in keys])
@@ -177,11 +182,20 @@ def _inner(t: np.ndarray, largest: float) -> np.ndarray:
 
 def torque_rel_error(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray, rigid: np.ndarray,
                      frictions: tuple[JointFriction, ...], laws: tuple[Law, ...], lag: np.ndarray,
-                     largest: float) -> float:
+                     largest: float, transmission: Transmission | None = None) -> float:
     """||tau_pred - tau||_F / ||tau||_F with each joint's torque read lag[j] later and predicted as the
     rigid-body torque `rigid` plus its drive's law; over the rows at least `largest` s from a
-    stretch's ends (the same rows whatever the lags)."""
+    stretch's ends (the same rows whatever the lags). With a transmission the motors' laws reach the
+    joints through N (no lags)."""
     rows = _inner(t, largest)
+    if transmission is not None:
+        qd_m, qdd_m, rigid_m = (transmission.motor_rates(qd), transmission.motor_rates(qdd),
+                                transmission.motor_torques(rigid))
+        drive = np.column_stack([_columns(qd_m[rows, k], qdd_m[rows, k], rigid_m[rows, k], f.coulomb_velocity,
+                                          f.stribeck_velocity, law.terms)[0]
+                                 @ np.array([getattr(f, key) for key in (*IDENTIFIED_KEYS, *law.terms)])
+                                 for k, (f, law) in enumerate(zip(frictions, laws, strict=True))])
+        return relative_residual(rigid[rows] + transmission.joint_torques(drive) - tau[rows], tau[rows])
     num = den = 0.0
     for k, (f, law) in enumerate(zip(frictions, laws, strict=True)):
         A, keys = _columns(qd[rows, k], qdd[rows, k], rigid[rows, k], f.coulomb_velocity, f.stribeck_velocity,
@@ -220,9 +234,12 @@ def _problem(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarra
         raise ValueError(f"no stretch of the training span is {config.horizon + 2 * largest:g} s long")
     starts = usable[evenly_spaced(len(usable), config.starts)]
     steps = round(config.horizon / timestep)
+    tm = spec.transmission
+    motor = ((qd, qdd, rigid, tau) if tm is None else
+             (tm.motor_rates(qd), tm.motor_rates(qdd), tm.motor_torques(rigid), tm.motor_torques(tau)))
     return _Problem(spec, np.asarray(gravity_W, dtype=float), t, q, qd, qdd, tau, rigid, rows, starts, steps,
                     max(1, round(config.sample / timestep)), np.maximum(np.sqrt(np.mean(qd**2, axis=0)), 1e-9),
-                    config.horizon, timestep, tuple(slots), tuple(laws))
+                    config.horizon, timestep, tuple(slots), tuple(laws), motor)
 
 
 def judge(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -233,7 +250,8 @@ def judge(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, 
     p = _problem(spec, gravity_W, t, q, qd, qdd, tau, rigid, laws, config, timestep)
     r = _residuals(p, [(tuple(spec.frictions), lag)])[0]
     return (float(np.sqrt(np.mean(r**2))),
-            torque_rel_error(t, qd, qdd, tau, rigid, tuple(spec.frictions), laws, lag, config.reach))
+            torque_rel_error(t, qd, qdd, tau, rigid, tuple(spec.frictions), laws, lag, config.reach,
+                             spec.transmission))
 
 
 def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -253,6 +271,8 @@ def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray,
             v = getattr(f, key) if key != "delay" else 0.0
             if key == "stribeck_velocity" and "stribeck" not in laws[k].terms:
                 continue
+            if key == "delay" and spec.transmission is not None:
+                continue  # a motor-side channel is mixed into the joints' torques: not adjusted
             if key == "delay":
                 slots.append((k, key))
                 x0.append(float(np.clip(lag0[k], -largest, largest))), lower.append(-largest), upper.append(largest)
@@ -299,13 +319,13 @@ def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray,
                            max_nfev=config.iterations)
     frictions, lag = _law(p, result.x)
     cost = {"start": float(np.sqrt(np.mean(r0**2))), "refined": float(np.sqrt(np.mean(fun(result.x) ** 2)))}
-    torque = {name: torque_rel_error(t, qd, qdd, tau, rigid, fr, p.laws, lg, largest)
+    torque = {name: torque_rel_error(t, qd, qdd, tau, rigid, fr, p.laws, lg, largest, spec.transmission)
               for name, fr, lg in (("start", consistent_law, lag0), ("refined", frictions, lag))}
 
     def natural(z: np.ndarray) -> np.ndarray:
         return np.array([v if key == "delay" else np.exp(v) for (_, key), v in zip(slots, z, strict=True)])
 
-    joints = spec.joint_names
+    joints = spec.drive_names
     return Refinement(tuple(slots), tuple(f"{joints[k]}.{key}" for k, key in slots), natural(x0_a),
                       natural(result.x), frictions, lag, cost, torque, len(starts), counts["rollouts"],
                       counts["rollouts"] * steps, counts["evaluations"], time.perf_counter() - started,

@@ -28,7 +28,7 @@ from harness.base.numerics import (
 from harness.engines.pinocchio import PinocchioModel
 from harness.identify.estimators import ols
 from harness.identify.lstsq import sensitivity, weakly_identifiable
-from harness.model import friction
+from harness.model import drives, friction
 from harness.model.inertia import PARAMETER_NAMES
 from harness.model.regressor import joint_torque_regressor
 from harness.model.regressor import supports as batched_supports
@@ -93,10 +93,15 @@ def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: n
         for k in range(N):
             out[:, : 10 * n, k] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[
                 np.ix_(pm.q_index, cols)]
-    if with_friction:  # joint j's four columns act on joint j's row only
+    if with_friction and pm.transmission is None:  # joint j's four columns act on joint j's row only
         shapes = friction.columns(pm.frictions, qd, qdd)  # (N, n, 4)
         for j in range(n):
             out[j, drive_columns(n, j)] = shapes[:, j].T
+    elif with_friction:  # motor k's four columns, at its rates, reach joint j times N[k, j] (harness/model/drives.py)
+        shapes = drives.columns(pm.frictions, pm.transmission, qd, qdd)  # (N, motors, 4)
+        N_kj = pm.transmission.N
+        for j, k in zip(*np.nonzero(N_kj.T), strict=True):
+            out[j, drive_columns(n, k)] = N_kj[k, j] * shapes[:, k].T
     return out
 
 
@@ -105,9 +110,12 @@ def true_parameters(pm: PinocchioModel, with_friction: bool = False) -> np.ndarr
     return np.concatenate([inertial, friction.values(pm.frictions).ravel()]) if with_friction else inertial
 
 
-def parameter_names(joints: list[str], with_friction: bool = False) -> list[str]:
+def parameter_names(joints: list[str], with_friction: bool = False, drives: list[str] | None = None) -> list[str]:
+    """Each link's ten parameters by its joint, then with friction each drive's four ([armature,
+    viscous, coulomb, offset]) by the joint or, with a transmission, the motor (`drives`) it belongs to."""
     names = [f"{j}.{p}" for j in joints for p in PARAMETER_NAMES]
-    return names + ([f"{j}.{k}" for j in joints for k in friction.IDENTIFIED_KEYS] if with_friction else [])
+    owners = joints if drives is None else drives
+    return names + ([f"{d}.{k}" for d in owners for k in friction.IDENTIFIED_KEYS] if with_friction else [])
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,7 +10,9 @@ c_L = R^T h / m and I_c,L = R^T (I_O - m [c]x^T [c]x) R, written as <inertial> w
 links merged into a body through fixed joints (a hand, a flange) lose their <inertial>: the body's
 identified values hold them all. URDF's <dynamics> takes `damping` (viscous) and `friction`
 (Coulomb); the rotor inertia, the offset and the Coulomb smoothing velocity have no URDF tag and
-are in joints.toml and the model file.
+are in joints.toml and the model file. With drives (harness/model/drives.py: motors behind the joints
+through a transmission N) no joint has friction of its own: drives.toml holds N, the motors' offsets
+and each motor's law, as a model file's `[drives]` reads them, and the URDF has no <dynamics>.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from harness.model.spec import RobotSpec
 
 URDF_FILE, JOINTS_FILE, MODEL_FILE, MJCF_FILE, README_FILE = "robot.urdf", "joints.toml", "robot.toml", "robot.xml", \
     "README.md"
+DRIVES_FILE = "drives.toml"
 
 
 def link_inertial(theta: np.ndarray, R_WL: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -88,8 +91,9 @@ def write_urdf(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFrictio
         jel = joints[jname]
         for old in jel.findall("dynamics"):
             jel.remove(old)
-        ET.SubElement(jel, "dynamics", damping=repr(float(frictions[k].viscous)),
-                      friction=repr(float(frictions[k].coulomb)))
+        if spec.transmission is None:  # with drives, the motors' laws are in drives.toml
+            ET.SubElement(jel, "dynamics", damping=repr(float(frictions[k].viscous)),
+                          friction=repr(float(frictions[k].coulomb)))
     for jname in spec.urdf_fixed:  # taken as fixed when identified: fixed in the export
         jel = joints[jname]
         jel.set("type", "fixed")
@@ -105,6 +109,21 @@ def _joints_table(frictions: tuple[JointFriction, ...], names: list[str]) -> dic
                        for jname, f in zip(names, frictions, strict=True)}}
 
 
+def drives_table(spec: RobotSpec, frictions: tuple[JointFriction, ...]) -> dict:
+    """A model file's `[drives]` (harness/model/load.py, read_drives): the motors, N whole, their
+    offsets and each motor's law."""
+    t = spec.transmission
+    return {"drives": {"motors": list(t.motors), "transmission": [[float(x) for x in row] for row in t.N],
+                       "offset": [float(x) for x in t.offset],
+                       **{m: {k: float(getattr(f, k)) for k in FRICTION_KEYS}
+                          for m, f in zip(t.motors, frictions, strict=True)}}}
+
+
+def _drive_tables(spec: RobotSpec, frictions: tuple[JointFriction, ...]) -> dict:
+    """The drives' laws as a model file states them: per joint, or with a transmission per motor."""
+    return _joints_table(frictions, spec.joint_names) if spec.transmission is None else drives_table(spec, frictions)
+
+
 def joints_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...]) -> str:
     """[joints.<name>] armature, viscous, coulomb, offset, coulomb_velocity (SI), as a model file reads
     them (written by tomli-w: every float to the last bit, any joint name quoted as TOML needs)."""
@@ -115,7 +134,7 @@ def model_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...], descriptio
     """A model file that `harness run` loads: the exported URDF and each joint's friction."""
     comment = "".join(f"# {line}\n" for line in description.splitlines())
     return comment + "\n" + tomli_w.dumps({"model": {"name": f"{spec.name}_identified"}, "urdf": {"file": URDF_FILE},
-                                           **_joints_table(frictions, spec.joint_names)})
+                                           **_drive_tables(spec, frictions)})
 
 
 def export(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, ...],
@@ -123,7 +142,8 @@ def export(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, .
     """{relative path: text} of the exported model: theta (n, 10) each joint's body, `frictions` each
     joint's whole friction law. The MJCF file and the README are added by the caller
     (harness/model/mjcf.py writes MJCF; `readme`)."""
-    files = {f"identified/{JOINTS_FILE}": joints_toml(spec, frictions)}
+    files = ({f"identified/{JOINTS_FILE}": joints_toml(spec, frictions)} if spec.transmission is None else
+             {f"identified/{DRIVES_FILE}": tomli_w.dumps(drives_table(spec, frictions))})
     if spec.urdf is not None:
         files[f"identified/{URDF_FILE}"] = write_urdf(spec, theta, frictions)
         files[f"identified/{MODEL_FILE}"] = model_toml(spec, frictions, description)
@@ -154,13 +174,17 @@ def coulomb_mapping(spec: RobotSpec, qd: np.ndarray, tau: np.ndarray,
     being MuJoCo's damping), at the velocities qd (N, n) of torques tau (N, n) (tau_rigid, the
     rigid-body torques, for a load-dependent law): the gap |f_c sign(q') - dry(q')|, its largest
     value over the largest |tau| (at a velocity reversal) and its RMS over the RMS torque."""
-    coulomb = np.array([j.friction.coulomb for j in spec.joints])
+    t = spec.transmission
+    if t is not None:  # a motor's friction, at its rates, against its torque (with drives: per motor)
+        qd, tau = t.motor_rates(qd), t.motor_torques(tau)
+        tau_rigid = None if tau_rigid is None else t.motor_torques(tau_rigid)
+    coulomb = np.array([f.coulomb for f in spec.frictions])
     gap = np.abs(coulomb * np.sign(qd) - friction.dry(spec.frictions, qd, tau_rigid))
     out = {}
-    for k, j in enumerate(spec.joints):
+    for k, name in enumerate(spec.drive_names):
         largest, rms = float(np.max(np.abs(tau[:, k]))), float(np.sqrt(np.mean(tau[:, k] ** 2)))
-        out[j.name] = {"largest": float(np.max(gap[:, k])) / largest if largest > 0 else float("nan"),
-                       "rms": float(np.sqrt(np.mean(gap[:, k] ** 2))) / rms if rms > 0 else float("nan")}
+        out[name] = {"largest": float(np.max(gap[:, k])) / largest if largest > 0 else float("nan"),
+                     "rms": float(np.sqrt(np.mean(gap[:, k] ** 2))) / rms if rms > 0 else float("nan")}
     return out
 
 
@@ -170,24 +194,43 @@ def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float
     `mjcf_refused`, why there is no MJCF file."""
     lines = [f"# {spec.name}: the identified model", "", description, "",
              "Parameters in SI units (kg, m, kg m^2, N m s/rad, N m). Files:", ""]
-    if URDF_FILE in files:
+    drives = spec.transmission is not None
+    laws = DRIVES_FILE if drives else JOINTS_FILE
+    if URDF_FILE in files and drives:
+        lines += [f"- `{URDF_FILE}`: the model's URDF with each moving link's identified `<inertial>` (in its link "
+                  "frame) and no `<dynamics>`: the friction and rotor inertia are the motors', behind the joints "
+                  f"through the transmission (`{DRIVES_FILE}`). **Read alone it loses** every drive term."]
+    elif URDF_FILE in files:
         lines += [f"- `{URDF_FILE}`: the model's URDF with each moving link's identified `<inertial>` (in its link "
                   "frame) and each joint's `<dynamics damping friction>` (viscous, Coulomb). **Read alone it loses** "
                   "the rotor inertia (armature), the Coulomb smoothing velocity (URDF's friction is a sharp sign), "
                   "the torque offset and the families' terms, which URDF has no tag for: a consumer of this file "
                   "alone predicts other torques than the identified model."]
-    lines += [f"- `{JOINTS_FILE}`: per joint `armature`, `viscous`, `coulomb`, `offset`, `coulomb_velocity`, the "
-              "friction law I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o, and the terms of the family chosen for "
-              "the joint (`viscous_asymmetry`, `coulomb_asymmetry`, `stribeck` with `stribeck_velocity`, "
-              "`load_coulomb`; zero where unused; harness/model/friction.py). Per joint the family: "
-              + ", ".join(f"`{j.name}` {j.friction.family}" for j in spec.joints) + "."]
+    if drives:
+        lines += [f"- `{DRIVES_FILE}`: a model file's `[drives]`: the motors, the transmission N (q_m = N q + offset, "
+                  "tau_joint = N^T tau_motor, a row per motor), their offsets and per motor, in motor units, "
+                  "`armature` (rotor inertia), `viscous`, `coulomb`, `offset`, `coulomb_velocity` and the family "
+                  "chosen for it (harness/model/drives.py). Per motor the family: "
+                  + ", ".join(f"`{m}` {f.family}" for m, f in zip(spec.drive_names, spec.frictions, strict=True))
+                  + ". At the joints: I_a -> N^T diag(I_a) N, a friction f(q'_m) -> N^T f(N q')."]
+    else:
+        lines += [f"- `{JOINTS_FILE}`: per joint `armature`, `viscous`, `coulomb`, `offset`, `coulomb_velocity`, the "
+                  "friction law I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o, and the terms of the family chosen for "
+                  "the joint (`viscous_asymmetry`, `coulomb_asymmetry`, `stribeck` with `stribeck_velocity`, "
+                  "`load_coulomb`; zero where unused; harness/model/friction.py). Per joint the family: "
+                  + ", ".join(f"`{j.name}` {j.friction.family}" for j in spec.joints) + "."]
     if MODEL_FILE in files:
         lines += [f"- `{MODEL_FILE}`: a model file that `harness run` loads as any other: `{URDF_FILE}` with "
-                  f"`{JOINTS_FILE}`'s values; together they are the whole identified model."]
+                  f"`{laws}`'s values; together they are the whole identified model (`harness.identified_model` "
+                  "reads it)."]
     if MJCF_FILE in files:
+        drive = ("a fixed tendon per motor over the joints it turns with (coefficients: its row of N) carrying "
+                 "its `armature`, `damping` (viscous) and `frictionloss` (Coulomb), and a motor on each tendon (gear "
+                 "1: its control is the motor's torque); no motor offsets (MJCF has no place for them)"
+                 if drives else "`armature`, `damping` (viscous), `frictionloss` (Coulomb), a motor per joint with the "
+                                "effort limit as its force range")
         lines += [f"- `{MJCF_FILE}`: MJCF for MuJoCo, every number at full precision: bodies with the identified "
-                  "inertials, `armature`, `damping` (viscous), `frictionloss` (Coulomb), joint ranges, a motor per "
-                  "joint with the effort limit as its force range. MuJoCo applies Coulomb friction as dry friction "
+                  f"inertials, joint ranges, {drive}. MuJoCo applies Coulomb friction as dry friction "
                   "(a sharp sign, solved as a constraint), not the smooth tanh law, and has no torque offset and none "
                   "of the families' terms (asymmetry, Stribeck, load). "
                   "What this changes at the training span's velocities, per joint: the RMS change over the RMS "

@@ -22,11 +22,22 @@ from harness.base.numerics import PARAMETER_FLOOR
 
 PARAMETER_NAMES = ("m", "mcx", "mcy", "mcz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")
 KINDS = ((0,), (1, 2, 3), (4, 5, 6, 7, 8, 9))  # m; m c; the inertia about O
+MOMENT_FLOOR = 1e-12  # of a model's largest principal moment: what an engine is given for a moment of zero
+# (MuJoCo refuses a moving body without one: harness/model/mjspec.py)
 
 
 def parallel_axis(mass: float, d: np.ndarray) -> np.ndarray:
     """m (|d|^2 1 - d d^T): what a mass whose centre sits at d adds to an inertia about the origin."""
     return mass * (d @ d * np.eye(3) - np.outer(d, d))
+
+
+def not_rigid(mass: float, moments: np.ndarray) -> str:
+    """Why a body of `mass` and principal `moments` (about its centre of mass) is no rigid body of
+    finite size, or "": mass not positive, a moment not positive (a point or a thin rod), or the
+    triangle inequality broken."""
+    p = np.sort(np.asarray(moments, dtype=float))
+    return ("mass not positive" if mass <= 0 else "a principal moment not positive" if p[0] <= 0
+            else "triangle inequality broken" if p[2] > (p[0] + p[1]) * (1 + 1e-12) else "")
 
 
 def union(parts: list[tuple[float, np.ndarray, np.ndarray]]) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:

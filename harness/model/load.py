@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from harness.base.tomlio import InputError, Table, read_toml
+from harness.model.drives import Transmission
 from harness.model.friction import FRICTION_KEYS, NO_FRICTION, JointFriction
-from harness.model.inertia import union
+from harness.model.inertia import MOMENT_FLOOR, not_rigid, union
 from harness.model.spec import BODY_SHAPES, JOINT_TYPES, WORLD, Body, Cylinder, Joint, RobotSpec
 from harness.model.urdf import example_robot_data_path, read_urdf
 
@@ -50,7 +51,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
     model.finish()
-    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = None
+    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = tendons = None
     fixed: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     if root.has("dh"):
@@ -89,7 +90,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
         if not mjcf_path.is_file():
             raise mt.error("file", f"MJCF file {mjcf_path} not found")
         mt.finish()
-        bodies, joints, limits, drive_limits, gravity, notes = read_mjcf(mjcf_path, mt)
+        bodies, joints, limits, drive_limits, gravity, notes, tendons = read_mjcf(mjcf_path, mt)
         joints = _joint_friction(root, joints, "the MJCF file")
         body_tables = [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies]
         joint_tables = [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints]
@@ -100,10 +101,50 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     payload = root.table("payload") if root.has("payload") else None
     if payload is not None:
         bodies = _with_payload(bodies, payload)
+    drives = root.table("drives") if root.has("drives") else None
     root.finish()
-
-    return _assemble(RobotSpec(name, description, path, tuple(bodies), tuple(joints), dh, limits, urdf_path, fixed,
+    if urdf_path or mjcf_path:
+        notes = notes + _degenerate(bodies, "the URDF" if urdf_path else "the MJCF file")
+    spec = _assemble(RobotSpec(name, description, path, tuple(bodies), tuple(joints), dh, limits, urdf_path, fixed,
                                drive_limits, gravity, mjcf_path, notes), body_tables, joint_tables)
+    if root.has("mjcf") and tendons is not None:
+        if drives is not None:
+            raise drives.error("", f"{mjcf_path} states its drives (tendons): give them there or here, not both")
+        spec = with_tendon_drives(spec, tendons, Table({}, path, "mjcf"))
+    if drives is not None:  # in the spec's joint order, root outwards
+        joints, transmission = read_drives(drives, list(spec.joints))
+        spec = dataclasses.replace(spec, joints=tuple(joints), transmission=transmission)
+    return spec
+
+
+def _degenerate(bodies: list[Body], source: str) -> tuple[str, ...]:
+    """A note per moving body that a file gives no rotational inertia about some axis (a point or a thin
+    rod, where a real link has size): what the engines and a fit make of it."""
+    return tuple(f"{b.name!r} has a principal moment of inertia of zero in {source}: MuJoCo is given "
+                 f"{MOMENT_FLOOR:g} of the model's largest moment there, and an identified inertia of it is judged "
+                 "against nothing (no size of its own in the model)" for b in bodies
+                 if not b.massless and not_rigid(b.mass, b.principal_inertia) == "a principal moment not positive")
+
+
+def with_tendon_drives(spec: RobotSpec, tendons: dict, table: Table) -> RobotSpec:
+    """The spec with the drives an MJCF file states as tendons (harness/model/mjcf.py, drive_tendons):
+    N in the spec's joint order, the motors' laws, no offsets."""
+    names = spec.joint_names
+    own = [j.name for j in spec.joints if not j.friction.none]
+    if own:
+        raise table.error("file", f"{spec.mjcf} states its drives (tendons): joint {own[0]!r} cannot have friction of "
+                                  "its own ([joints.NAME]); the drives carry it")
+    if len(tendons["motors"]) != len(names):
+        raise table.error("file", f"{spec.mjcf}: tendon {tendons['motors'][0]!r} is read as a motor's drive (a fixed "
+                                  f"tendon): {len(tendons['motors'])} drive tendons for {len(names)} joints, where "
+                                  "each joint's motion must be some motor's (N square and invertible)")
+    N = np.array([[row.get(j, 0.0) for j in names] for row in tendons["rows"]])
+    with np.errstate(divide="ignore"):
+        if not np.linalg.cond(N) < MAX_TRANSMISSION_CONDITION:
+            raise table.error("file", f"{spec.mjcf}: the drive tendons' transmission is not invertible")
+    return dataclasses.replace(spec, joints=tuple(dataclasses.replace(j, friction=f) for j, f in
+                                                  zip(spec.joints, tendons["laws"], strict=True)),
+                               transmission=Transmission(N, np.zeros(len(names)), tuple(tendons["motors"])))
 
 
 def _assemble(spec: RobotSpec, body_tables: list[Table], joint_tables: list[Table]) -> RobotSpec:
@@ -126,11 +167,12 @@ def spec_from_mjmodel(model, path: Path, name: str) -> RobotSpec:
     from harness.model.mjcf import read_model
 
     table = Table({}, path)
-    bodies, joints, limits, drive_limits, gravity, notes = read_model(model, path, table)
-    return _assemble(RobotSpec(name, "", path, tuple(bodies), tuple(joints), None, limits, None, (), drive_limits,
+    bodies, joints, limits, drive_limits, gravity, notes, tendons = read_model(model, path, table)
+    spec = _assemble(RobotSpec(name, "", path, tuple(bodies), tuple(joints), None, limits, None, (), drive_limits,
                                gravity, path, notes),
                      [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies],
                      [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints])
+    return spec if tendons is None else with_tendon_drives(spec, tendons, table)
 
 
 def _joint_friction(root: Table, joints: list[Joint], source: str) -> list[Joint]:
@@ -147,6 +189,76 @@ def _joint_friction(root: Table, joints: list[Joint], source: str) -> list[Joint
         t.finish()
     jt.finish()
     return [by_name[j.name] for j in joints]
+
+
+MAX_TRANSMISSION_CONDITION = 1e12  # a transmission whose N is worse conditioned than this is not invertible
+
+
+def read_drives(t: Table, joints: list[Joint]) -> tuple[list[Joint], Transmission]:
+    """`[drives]`: the motors behind the joints (harness/model/drives.py), in the spec's joint order
+    (root outwards, as results.json lists them; a joint's index is its column of N):
+
+        motors = ["m1", ...]              # optional: their names (default motor_1 .. motor_n)
+        gear_ratio = [32, 32, 45, -48, 45, 32]      # N's diagonal: motor k turns gear_ratio[k] times joint k
+        coupling = [{ motor = "motor_6", joint = "joint_5", ratio = 32 }]   # N's other entries
+        # or: transmission = [[...], ...]   N whole, a row per motor
+        offset = [0, 50.27, ...]          # optional: each motor's position at q = 0 (default 0)
+        # or: joint_offset = [0, -1.5708, ...]   q = N^-1 q_m + joint_offset (offset = -N joint_offset)
+        [drives.motor_6]                  # per motor, in motor units: the law of harness/model/friction.py
+        armature = 0.00964                # rotor inertia, kg m^2
+        viscous = 0.616
+        coulomb = 1.95
+
+    The joints' own friction (a URDF's <dynamics>, `[joints.NAME]`) cannot stand beside them: the
+    drives carry it."""
+    n, names = len(joints), [j.name for j in joints]
+    with_friction = [j.name for j in joints if not j.friction.none]
+    if with_friction:
+        raise t.error("", f"joint {with_friction[0]!r} has friction of its own (a URDF's <dynamics> or "
+                          "[joints.NAME]): with [drives] the motors carry it ([drives.MOTOR])")
+    motors = tuple(t.strings("motors", choices=None)) if t.has("motors") else tuple(f"motor_{k + 1}" for k in range(n))
+    if len(motors) != n or len(set(motors)) != n:
+        raise t.error("motors", f"{len(motors)} names for {n} joints: one distinct name per joint's motor")
+    if t.either("gear_ratio", "transmission", "gear_ratio (N's diagonal, with coupling) or transmission "
+                                              "(N whole)") == "gear_ratio":
+        N = np.diag(t.vector("gear_ratio", length=n))
+        for c in (t.tables("coupling") if t.has("coupling") else ()):
+            k = motors.index(c.string("motor", choices=motors))
+            j = names.index(c.string("joint", choices=tuple(names)))
+            if k == j:
+                raise c.error("joint", f"{names[j]!r} is {motors[k]!r}'s own joint: its ratio is in gear_ratio")
+            N[k, j] = c.number("ratio")
+            c.finish()
+    else:
+        if t.has("coupling"):
+            raise t.error("coupling", "with transmission (N whole), every coupling is in it")
+        N = t.rows("transmission", n)
+        if len(N) != n:
+            raise t.error("transmission", f"{len(N)} rows for {n} motors: N is {n} x {n}")
+    with np.errstate(divide="ignore"):
+        condition = np.linalg.cond(N)
+    if not condition < MAX_TRANSMISSION_CONDITION:
+        raise t.error("gear_ratio" if t.has("gear_ratio") else "transmission",
+                      f"N is not invertible (condition number {condition:.3g}): every motor must turn with the "
+                      "joints in a way the joints can be told from")
+    offset = np.zeros(n)
+    if t.has("offset") and t.has("joint_offset"):
+        raise t.error("joint_offset", "give offset (the motors') or joint_offset, not both")
+    if t.has("offset"):
+        offset = t.vector("offset", length=n)
+    elif t.has("joint_offset"):
+        offset = -N @ t.vector("joint_offset", length=n)
+    laws = []
+    for m in motors:
+        if t.has(m):
+            mt = t.table(m)
+            laws.append(read_friction(mt))
+            mt.finish()
+        else:
+            laws.append(NO_FRICTION)
+    t.finish()
+    return ([dataclasses.replace(j, friction=f) for j, f in zip(joints, laws, strict=True)],
+            Transmission(N, offset, motors))
 
 
 def _with_payload(bodies: list[Body], t: Table) -> list[Body]:

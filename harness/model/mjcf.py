@@ -13,9 +13,17 @@ limit. Gravity is the file's (`<option gravity>`, MuJoCo's default 0 0 -9.81 whe
 
 A free joint on a body of the world (a floating base) is fixed to the world at the file's pose, as
 a URDF's root link is, and said so (RobotSpec.notes, printed as a warning and kept in results.json).
+Drives (harness/model/drives.py) are read where the file states them as MuJoCo writes a coupled
+drive: one fixed tendon per motor over the joints it turns with, carrying the motor's `armature`,
+`damping` and `frictionloss`, and at most one motor actuator on it with gear g. Motor k's row of N is
+g times the tendon's coefficients (the motor turns g times the tendon's length), and its law in motor
+units is the tendon's armature and damping over g^2 and its frictionloss over |g| (what reaches the
+joints is the same). Every joint must then be on a drive tendon (N is square and invertible) and carry
+no armature, damping or frictionloss of its own; MJCF has no motor offsets (they are read as zero).
+
 Refused, with a line naming the element: ball joints, free joints below the root, a body with more
-than one joint, tendons, equality constraints (coupled joints, loops), joint stiffness (springs)
-and gravity compensation, which the harness's models do not carry.
+than one joint, tendons that are not such drives, equality constraints (coupled joints, loops), joint
+stiffness (springs) and gravity compensation, which the harness's models do not carry.
 """
 
 from __future__ import annotations
@@ -33,10 +41,11 @@ FLOATING_BASE_FIXED = "the floating base is taken as fixed to the world at the f
 
 
 def read_mjcf(path: Path, table: Table, key: str = "file"
-              ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...]]:
+              ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...], dict | None]:
     """Bodies and joints (world frame at q = 0) of an MJCF file, joint position limits by name,
-    effort limits by name ({"effort": ..}), the file's gravity (3,) and what was assumed (a
-    floating base fixed), one line each. Errors name the file and the element, under `key` of `table`."""
+    effort limits by name ({"effort": ..}), the file's gravity (3,), what was assumed (a floating base
+    fixed), one line each, and its drives (`drive_tendons`, None without). Errors name the file and
+    the element, under `key` of `table`."""
     import mujoco
 
     read_bounded(path, MAX_XML_BYTES)  # too large or unreadable: refused before MuJoCo parses it
@@ -54,7 +63,7 @@ def compiler_message(exc: BaseException) -> str:
 
 
 def read_model(model, path: Path, table: Table, key: str = "file"
-               ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...]]:
+               ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...], dict | None]:
     """`read_mjcf`'s reading of a compiled MuJoCo model (mujoco.MjModel) that came from `path`."""
     import mujoco
 
@@ -74,10 +83,10 @@ def _name(model, kind, i: int) -> str:
     return mujoco.mj_id2name(model, kind, i) or f"#{i}"
 
 
-def _read(model, mujoco, path: Path) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...]]:
+def _read(model, mujoco, path: Path
+          ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...], dict | None]:
     obj, jt = mujoco.mjtObj, mujoco.mjtJoint
-    if model.ntendon:
-        raise _Refused(f"tendon {_name(model, obj.mjOBJ_TENDON, 0)!r}: tendons are not supported")
+    drives = drive_tendons(model, mujoco) if model.ntendon else None
     if model.neq:
         raise _Refused(f"equality constraint {_name(model, obj.mjOBJ_EQUALITY, 0)!r}: equality constraints "
                        "(coupled joints, loops) are not supported")
@@ -157,7 +166,45 @@ def _read(model, mujoco, path: Path) -> tuple[list[Body], list[Joint], dict, dic
         effort = float(np.max(np.abs(model.actuator_forcerange[a])) * abs(model.actuator_gear[a, 0]))
         name = _name(model, obj.mjOBJ_JOINT, j)
         efforts[name] = {"effort": effort + efforts.get(name, {}).get("effort", 0.0)}  # actuators on one joint add
-    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes
+    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives
+
+
+def drive_tendons(model, mujoco) -> dict:
+    """The file's drives (the module's docstring): {"motors": names, "rows": per motor {joint: N[k, j]},
+    "laws": per motor its JointFriction in motor units}, refused in one line where a tendon is not a
+    drive (a spatial tendon, one that no joint moves, two motors on it, a joint of its own friction)."""
+    obj = mujoco.mjtObj
+    motors, rows, laws = [], [], []
+    gear = {}
+    for a in range(model.nu):
+        if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_TENDON:
+            k = int(model.actuator_trnid[a, 0])
+            if k in gear:
+                raise _Refused(f"tendon {_name(model, obj.mjOBJ_TENDON, k)!r}: two actuators drive it (a drive is "
+                               "one motor)")
+            gear[k] = float(model.actuator_gear[a, 0])
+    for k in range(model.ntendon):
+        name = _name(model, obj.mjOBJ_TENDON, k)
+        adr, num = int(model.tendon_adr[k]), int(model.tendon_num[k])
+        if any(model.wrap_type[adr + i] != mujoco.mjtWrap.mjWRAP_JOINT for i in range(num)):
+            raise _Refused(f"tendon {name!r}: a spatial tendon is not supported (a drive is a fixed tendon over "
+                           "joints)")
+        g = gear.get(k, 1.0)
+        if g == 0:
+            raise _Refused(f"tendon {name!r}: its motor's gear is 0")
+        rows.append({_name(model, obj.mjOBJ_JOINT, int(model.wrap_objid[adr + i])): g * float(model.wrap_prm[adr + i])
+                     for i in range(num)})
+        motors.append(name)
+        laws.append(JointFriction(armature=float(model.tendon_armature[k]) / g**2,
+                                  viscous=float(model.tendon_damping[k]) / g**2,
+                                  coulomb=float(model.tendon_frictionloss[k]) / abs(g)))
+    for j in range(model.njnt):
+        dof = model.jnt_dofadr[j]
+        if model.dof_armature[dof] or model.dof_damping[dof] or model.dof_frictionloss[dof]:
+            raise _Refused(f"tendon {motors[0]!r} is read as a motor's drive (a fixed tendon: "
+                           f"harness/model/drives.py), and joint {_name(model, obj.mjOBJ_JOINT, j)!r} has armature, "
+                           "damping or frictionloss of its own beside it: the drives carry them")
+    return {"motors": motors, "rows": rows, "laws": laws}
 
 
 # --- the robot as an MJCF file for others to simulate: the reader's counterpart ---------------------
@@ -178,22 +225,30 @@ def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "") -> str
     from harness.model.mjspec import add_robot, new_spec
 
     ms = new_spec(spec.name, gravity_W)
-    add_robot(ms, spec)
+    add_robot(ms, spec, frictionloss=True)
     for joint in spec.joints:
         j = ms.joint(joint.name)
-        j.frictionloss = joint.friction.coulomb
+        if spec.transmission is None:
+            j.frictionloss = joint.friction.coulomb
         lo, hi = (spec.limits or {}).get(joint.name, (-np.inf, np.inf))
         if np.isfinite(lo) and np.isfinite(hi):
             j.range = [lo, hi]
-        effort = (spec.drive_limits or {}).get(joint.name, {}).get("effort")
-        motor = ms.add_actuator(name=joint.name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
-                                gear=[1.0, 0, 0, 0, 0, 0])
-        if effort is not None:
-            motor.forcerange = [-effort, effort]
+        if spec.transmission is None:
+            effort = (spec.drive_limits or {}).get(joint.name, {}).get("effort")
+            motor = ms.add_actuator(name=joint.name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                                    gear=[1.0, 0, 0, 0, 0, 0])
+            if effort is not None:
+                motor.forcerange = [-effort, effort]
+    for motor in (spec.transmission.motors if spec.transmission is not None else ()):  # on its drive tendon
+        ms.add_actuator(name=motor, target=motor, trntype=mujoco.mjtTrn.mjTRN_TENDON, gear=[1.0, 0, 0, 0, 0, 0])
     ms.compile()  # what MuJoCo refuses is refused here, not by the reader of the file
     root = ET.fromstring(ms.to_xml())
     for el in root.iter():
         _exact_numbers(el, ms, root)
+    for tendon in root.iter("fixed"):  # a drive tendon's coefficients: its motor's row of N
+        k = spec.transmission.motors.index(tendon.get("name"))
+        for wrap in tendon.iter("joint"):
+            wrap.set("coef", repr(float(spec.transmission.N[k, spec.joint_names.index(wrap.get("joint"))])))
     ET.indent(root)
     head = "".join(f"<!-- {line} -->\n" for line in comment.replace("--", "- -").splitlines())
     return head + ET.tostring(root, encoding="unicode") + "\n"
@@ -205,6 +260,7 @@ _ATTRIBUTES = {"body": {"pos": "pos", "quat": "quat"},
                "joint": {"pos": "pos", "axis": "axis", "range": "range", "armature": "armature",
                          "damping": "damping", "frictionloss": "frictionloss"},
                "general": {"gear": "gear", "forcerange": "forcerange"},
+               "fixed": {"armature": "armature", "damping": "damping", "frictionloss": "frictionloss"},
                "option": {"gravity": "gravity"}}
 
 
@@ -218,6 +274,10 @@ def _exact_numbers(el, ms, root) -> None:
         source = ms.body(owner.get("name"))
     elif el.tag == "option":
         source = ms.option
+    elif el.tag == "fixed":
+        source = ms.tendon(el.get("name"))
+    elif el.tag == "joint" and el.get("name") is None:  # a tendon's wrap: its coefficient is set by the caller
+        return
     else:
         source = {"body": ms.body, "joint": ms.joint, "general": ms.actuator}[el.tag](el.get("name"))
     for attribute, field in names.items():

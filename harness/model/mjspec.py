@@ -2,7 +2,11 @@
 whose frame is the paper's body frame (O_ci, e(i)), with its mass and principal inertias stated
 explicitly; a massless carriage merged into its child (MuJoCo refuses moving bodies without mass),
 its joint placed before the child's own. A joint's rotor inertia is MuJoCo's `armature` and its viscous
-friction MuJoCo's `damping`. What the bench adds (motors, sensors, the integrator) is
+friction MuJoCo's `damping`; with a transmission (harness/model/drives.py) each motor is instead a fixed
+tendon over the joints it turns with, its coefficients motor k's row of N (the tendon's length is the
+motor's angle less its offset), carrying the motor's rotor inertia and viscous friction (MuJoCo adds
+J^T armature J to the mass matrix and J^T (-damping J q') to the passive force: N^T I_m N and
+N^T f_v N q', the law of drives.py). What the bench adds (motors, sensors, the integrator) is
 harness/engines/mujoco.py's; the MJCF file written for others, harness/model/mjcf.py's.
 
 MuJoCo refuses a moving body with a zero principal moment of inertia, which the paper's thin rods
@@ -16,10 +20,11 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from harness.model.friction import NO_FRICTION
+from harness.model.inertia import MOMENT_FLOOR
 from harness.model.spec import WORLD, Body, Joint, RobotSpec
 
 _JOINT_TYPE = {True: mujoco.mjtJoint.mjJNT_HINGE, False: mujoco.mjtJoint.mjJNT_SLIDE}
-MOMENT_FLOOR = 1e-12
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
@@ -38,8 +43,9 @@ def massive_parent(spec: RobotSpec, body: Body) -> tuple[str, list[Joint]]:
     return parent, chain
 
 
-def add_robot(ms: mujoco.MjSpec, spec: RobotSpec) -> dict[str, mujoco.MjsBody]:
-    """The robot's bodies, joints and inertials added to `ms`: its bodies by name."""
+def add_robot(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False) -> dict[str, mujoco.MjsBody]:
+    """The robot's bodies, joints and inertials added to `ms`, and its drives' tendons (`add_drives`,
+    with their Coulomb friction as `frictionloss` where asked): its bodies by name."""
     elements = {WORLD: ms.worldbody}
     frames = {WORLD: (np.eye(3), np.zeros(3))}
     floor = MOMENT_FLOOR * max(float(np.max(b.principal_inertia)) for b in spec.massive_bodies)
@@ -53,8 +59,9 @@ def add_robot(ms: mujoco.MjSpec, spec: RobotSpec) -> dict[str, mujoco.MjsBody]:
             # rotor inertia enters MuJoCo's mass matrix, viscous friction its passive force -f_v q';
             # Coulomb friction and offset are applied by `simulate` (MuJoCo's frictionloss is a
             # constraint solved with regularisation, not the smooth law of harness/model/friction.py)
+            own = joint.friction if spec.transmission is None else NO_FRICTION  # else the motors' tendons
             el.add_joint(name=joint.name, type=_JOINT_TYPE[joint.revolute], pos=body.arm_B(joint.p_W0),
-                         axis=R_WB.T @ joint.axis_W0, armature=joint.friction.armature, damping=joint.friction.viscous)
+                         axis=R_WB.T @ joint.axis_W0, armature=own.armature, damping=own.viscous)
         el.explicitinertial = True
         el.mass, el.ipos, el.iquat = body.mass, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
         el.inertia = np.maximum(body.principal_inertia, floor)
@@ -62,7 +69,26 @@ def add_robot(ms: mujoco.MjSpec, spec: RobotSpec) -> dict[str, mujoco.MjsBody]:
             half = body.cylinder.length / 2
             el.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[body.cylinder.radius, 0, 0],
                         fromto=[-half, 0, 0, half, 0, 0], contype=0, conaffinity=0)
+    if spec.transmission is not None:
+        add_drives(ms, spec, frictionloss)
     return elements
+
+
+def add_drives(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False) -> list[mujoco.MjsTendon]:
+    """A fixed tendon per motor of the spec's transmission, named after the motor, over the joints in
+    its row of N with N's entries as coefficients, carrying the motor's rotor inertia (`armature`) and
+    viscous friction (`damping`), and with `frictionloss` its Coulomb friction (MuJoCo's dry friction,
+    a sharp sign: for a file others simulate, not for the bench, which applies the smooth law itself)."""
+    t = spec.transmission
+    tendons = []
+    for k, (motor, law) in enumerate(zip(t.motors, spec.frictions, strict=True)):
+        tendon = ms.add_tendon(name=motor, armature=law.armature, damping=law.viscous,
+                               frictionloss=law.coulomb if frictionloss else 0.0)
+        for j, joint in enumerate(spec.joints):
+            if t.N[k, j] != 0.0:
+                tendon.wrap_joint(joint.name, float(t.N[k, j]))
+        tendons.append(tendon)
+    return tendons
 
 
 def new_spec(name: str, gravity_W: np.ndarray) -> mujoco.MjSpec:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.model.drives import Transmission
 from harness.model.friction import NO_FRICTION, JointFriction
 
 WORLD = "world"
@@ -98,6 +99,8 @@ class RobotSpec:
     gravity_W: np.ndarray | None = None  # (3,) m/s^2 where the description states it (an MJCF's <option>)
     mjcf: Path | None = None  # the MJCF it was read from, if any
     notes: tuple[str, ...] = ()  # what reading it assumed, one line each (a floating base fixed to the world)
+    transmission: Transmission | None = None  # the drives' N and offsets (harness/model/drives.py); None: each
+    # joint driven on its own through a ratio already folded into its friction and rotor inertia
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -116,8 +119,14 @@ class RobotSpec:
 
     @property
     def frictions(self) -> tuple[JointFriction, ...]:
-        """Each joint's friction and rotor inertia, in the spec's joint order."""
+        """Each drive's law, in the spec's joint order: joint k's own, or with a transmission motor k's
+        (in motor units; motor k is row k of N: harness/model/drives.py)."""
         return tuple(j.friction for j in self.joints)
+
+    @property
+    def drive_names(self) -> list[str]:
+        """Who each of `frictions` belongs to: the joints, or the transmission's motors."""
+        return list(self.transmission.motors) if self.transmission is not None else self.joint_names
 
     def with_frictions(self, frictions: tuple[JointFriction, ...]) -> RobotSpec:
         """The same robot with each joint's friction law replaced, in joint order."""

@@ -35,6 +35,7 @@ import numpy as np
 
 from harness.base.numerics import relative_error
 from harness.base.tomlio import InputError
+from harness.model.inertia import not_rigid
 from harness.model.spec import RobotSpec
 
 STATES = 100
@@ -265,16 +266,8 @@ def _massless_with_inertia(path: Path) -> list[str]:
 
 
 def _invalid_bodies(spec: RobotSpec) -> list[str]:
-    out = []
-    for b in spec.bodies:
-        if b.massless:
-            continue
-        p = np.sort(b.principal_inertia)
-        why = ("mass not positive" if b.mass <= 0 else "a principal moment not positive" if p[0] <= 0
-               else "triangle inequality broken" if p[2] > (p[0] + p[1]) * (1 + 1e-12) else "")
-        if why:
-            out.append(f"{b.name}: {why}")
-    return out
+    return [f"{b.name}: {why}" for b in spec.bodies
+            if not b.massless and (why := not_rigid(b.mass, b.principal_inertia))]
 
 
 def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:

@@ -133,7 +133,7 @@ def from_log(scenario: DataScenario, timed: _Timed) -> Sourced:
     timed("reading and conditioning the log", None)
     split = load(scenario.data, scenario.robot)
     validation = {} if split.validation is None else {VALIDATION_SPAN: split.validation}
-    return Sourced(None, split.training, validation, split.whole, load_payload(scenario.data, scenario.robot))
+    return Sourced(None, split.training, validation, split.whole, load_payload(split.source, scenario.robot))
 
 
 def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,

@@ -243,6 +243,9 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     gravity = _gravity(gravity, robot)
     dt = root.table("data")
     source = read_source(dt, path, len(robot.joints))
+    if source.side == "motor" and robot.transmission is None:
+        raise dt.error("side", f'"motor": the log is mapped to the joints through the model\'s drives, and '
+                               f"{robot.source} states none ([drives])")
     check_columns(source, robot, dt)
     if source.payload is not None and source.payload.body not in {b.name for b in robot.massive_bodies}:
         raise dt.error("payload.body", f"no body {source.payload.body!r} with mass in {robot.name!r}")

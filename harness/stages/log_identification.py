@@ -152,7 +152,8 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
         _, qd, _, tau = training.joint_data(joints)
         try:
             choice = friction_law.choose(W, model.base.independent, model.link_part, tau, qd, training.t,
-                                         robot.frictions, config, training.meta.get("reach_s", 0.0))
+                                         robot.frictions, config, training.meta.get("reach_s", 0.0),
+                                         robot.transmission)
         except ValueError as exc:
             note = f"friction law not chosen, the model's kept: {exc}"
     laws = choice.laws if choice is not None else tuple(Law.of(f) for f in robot.frictions)
@@ -186,7 +187,7 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
         rigid = (W[:, : 10 * n] @ model.theta.ravel()).reshape(tau.shape)
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws.laws)])
     beta_model = np.concatenate([model.base.of(model.x_model), extra_model])
-    E = extra_regressor(laws.laws, qd, rigid)
+    E = extra_regressor(laws.laws, qd, rigid, robot.transmission)
     W_ls = np.hstack([W[:, model.base.independent], E])
     ls = with_structure(fit_base(W_ls, tau, beta_model), model.base)
     repeated, note = None, None
@@ -224,7 +225,7 @@ def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], 
         W = fitted.W if name == "training" else regressor(pm_identified, q, qd, qdd, with_friction=True)
         W_base = W[:, model.base.independent]
         rigid_ls = links_torque(W_base, fitted.ls.beta[:r], model.link_part).reshape(tau.shape)
-        W_span = np.hstack([W_base, extra_regressor(laws, qd, rigid_ls)])
+        W_span = np.hstack([W_base, extra_regressor(laws, qd, rigid_ls, sc.robot.transmission)])
         out.states[name], out.measured[name], out.t[name] = (q, qd, qdd), tau, series.t
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
                                  "consistent": rnea(pm_identified, q, qd, qdd).tau,
@@ -281,7 +282,8 @@ class LogIdentification:
     harness/stages/log_results.py)."""
 
     joints: list[str]
-    names: list[str]  # all parameters: 10 per link, then 4 per joint
+    drives: list[str]  # who each drive law belongs to: the joints, or the transmission's motors
+    names: list[str]  # all parameters: 10 per link, then 4 per drive
     model: LogModel
     delayed: Delayed
     constants: Constants
@@ -298,7 +300,7 @@ class LogIdentification:
     @property
     def extra_names(self) -> list[str]:
         """The families' coefficients after the base parameters."""
-        return [f"{self.joints[k]}.{key}" for k, key in extra_terms(self.laws.laws)]
+        return [f"{self.drives[k]}.{key}" for k, key in extra_terms(self.laws.laws)]
 
     @property
     def files(self) -> dict[str, str]:
@@ -326,7 +328,8 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     ctx.progress("physically consistent parameters (semidefinite program)", None)
     tau = scaled.training.joint_data(joints)[3]
     fit, frictions = consistent.fit_with_laws(fitted.W, fitted.E, tau, laws.laws, model.theta,
-                                              friction_values(robot.frictions), fitted.extra_model)
+                                              friction_values(robot.frictions), fitted.extra_model,
+                                              robot.transmission)
     identified = identified_spec(robot, fit.theta, frictions)
     spans = {"training": scaled.training, **({"validation": scaled.validation} if scaled.validation else {})}
     judged = judge(sc, model, joints, spans, fitted, laws.laws, identified)
@@ -338,7 +341,8 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
                            judged.t[span], q, qd, judged.measured[span], span, joints)
     exported = export_model(sc, robot, identified, frictions, fit.theta, scaled.training, fitted.W)
     plausible = consistent.plausibility(fit.theta, model.theta, joints, fit.margin)
-    li = LogIdentification(joints, parameter_names(joints, True), model, delayed, scaled, laws, fitted, fit,
+    li = LogIdentification(joints, robot.drive_names, parameter_names(joints, True, robot.drive_names), model,
+                           delayed, scaled, laws, fitted, fit,
                            frictions, plausible, judged, predicted, exported)
     li.warnings.extend(warnings(li, sc.data.delay))
     return li
@@ -352,6 +356,9 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
                    f"or under 1/{consistent.PLAUSIBLE:g} of, its own): " + ", ".join(
                        f"{j} (mass x{p['ratios'][j]['mass']:.3g}, inertia x{p['ratios'][j]['inertia_trace']:.3g})"
                        for j in p["implausible"]))
+    if p["inertia_not_judged"]:
+        out.append("the model gives no inertia of their own to " + ", ".join(p["inertia_not_judged"])
+                   + " (a point mass): their identified inertia is judged against nothing (plausibility.ratios)")
     if p["on_margin"]:
         out.append(f"{len(p['on_margin'])} link(s) on the fit's positive-definiteness margin (the data push them past "
                    f"physical): {', '.join(p['on_margin'])}")

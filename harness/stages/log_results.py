@@ -47,7 +47,7 @@ def serialise(li, ctx, config) -> dict:
         "repeatability": _repeat_section(li),
         "plausibility": li.plausible,
         "warnings": li.warnings,
-        "consistent": _consistent_section(li),
+        "consistent": _consistent_section(li, ctx),
         "export": sorted(li.exported.files),
         "export_mjcf_friction": {
             "definition": "what robot.xml's frictionloss (MuJoCo's dry friction, a sharp sign) and its missing "
@@ -103,7 +103,7 @@ def _repeat_section(li) -> dict | None:
                               for k in range(repeated.beta.shape[1])]}
 
 
-def _consistent_section(li) -> dict:
+def _consistent_section(li, ctx) -> dict:
     fit = li.fit
     links = {}
     for k, j in enumerate(li.joints):
@@ -119,7 +119,9 @@ def _consistent_section(li) -> dict:
         "training_rel_residual": fit.relative_residual,
         "inconsistent_links": sum(not v["consistent"] for v in links.values()),
         "links": links,
-        "friction": {j: {"family": f.family, **f.as_dict()} for j, f in zip(li.joints, li.frictions, strict=True)},
+        "friction": {j: {"family": f.family, **f.as_dict()} for j, f in zip(li.drives, li.frictions, strict=True)},
+        **({"transmission": ctx.scenario.robot.transmission.describe()}
+           if ctx.scenario.robot.transmission is not None else {}),
     }
 
 
@@ -141,8 +143,8 @@ def _law_section(li) -> dict:
                   "family's terms: asymmetric f_va |q'| + f_ca |s|, Stribeck f_s s exp(-(q'/v_s)^2), load f_l "
                   "|tau_R| s (harness/model/friction.py)",
            "chosen": li.laws.choice is not None,
-           "families": {j: law.family for j, law in zip(li.joints, li.laws.laws, strict=True)},
-           "coulomb_velocity": {j: f.coulomb_velocity for j, f in zip(li.joints, li.frictions, strict=True)}}
+           "families": {j: law.family for j, law in zip(li.drives, li.laws.laws, strict=True)},
+           "coulomb_velocity": {j: f.coulomb_velocity for j, f in zip(li.drives, li.frictions, strict=True)}}
     c = li.laws.choice
     if c is None:
         out["definition"] = "The model's own law per joint ([friction_law] choose = false, or see warnings)"
@@ -159,7 +161,7 @@ def _law_section(li) -> dict:
         "folds": c.folds,
         "guard_s": c.guard_s,
         "held_out_rel_error": {"model's law": c.model_error, "chosen": c.chosen_error},
-        "per_joint": {j: c.scores[k] for k, j in enumerate(li.joints)},
+        "per_joint": {j: c.scores[k] for k, j in enumerate(li.drives)},
     }
     return out
 

@@ -42,7 +42,13 @@ def check(raw: TimeSeries, robot: RobotSpec, source: DataSource | None = None) -
     steps, warnings = [], []
     if source is not None and not source.units_given:
         warnings.append("no units stated ([data] units): taken as rad, rad/s and N m (m, m/s and N for a slide)")
-    held = np.r_[False, np.all(raw.q[1:] == raw.q[:-1], axis=1)]
+    # a logger's sample and hold repeats the whole row; a quantised encoder repeats a position while
+    # the torques move on, and that is data
+    same_q = np.all(raw.q[1:] == raw.q[:-1], axis=1)
+    whole = same_q & np.all(raw.tau[1:] == raw.tau[:-1], axis=1)
+    if raw.qd is not None:
+        whole &= np.all(raw.qd[1:] == raw.qd[:-1], axis=1)
+    held = np.r_[False, whole]
     same_time = np.r_[False, t[1:] == t[:-1]]
     drop = held | same_time
     keep = ~drop
@@ -55,7 +61,7 @@ def check(raw: TimeSeries, robot: RobotSpec, source: DataSource | None = None) -
     if len(tk) < 10:
         dropped = int(drop.sum())
         raise InputError(path, "t", f"{len(tk)} distinct sample{'' if len(tk) == 1 else 's'} in {len(raw.t)} rows, "
-                                    "at least 10 needed" + (f" ({dropped} rows repeat the time or the positions of "
+                                    "at least 10 needed" + (f" ({dropped} rows repeat the time, or the whole row, of "
                                                             "the row before them, and are dropped)" if dropped else ""))
     kept = raw.span(keep)  # the rows kept: checked here, conditioned after
     check_velocities(kept, robot, source)
@@ -68,12 +74,13 @@ def check(raw: TimeSeries, robot: RobotSpec, source: DataSource | None = None) -
     gaps = dt > GAP_FACTOR * median
     jitter = float(np.std(dt) / median)
     steps.append({"step": "checks", "rows": len(raw.t), "repeated_rows_dropped": int(held.sum()),
+                  "repeated_positions_kept": int(np.sum(same_q & ~whole)),
                   "equal_times_dropped": int((same_time & ~held).sum()), "median_step_s": median,
                   "min_step_s": float(dt.min()), "max_step_s": float(dt.max()), "jitter": jitter,
                   "gaps": int(gaps.sum()), "gap_definition": f"a step over {GAP_FACTOR:g} x the median"})
     if held.any():
-        warnings.append(f"{int(held.sum())} rows repeat the previous row's positions exactly (sample and hold): "
-                        "dropped")
+        warnings.append(f"{int(held.sum())} rows repeat the previous row whole (positions"
+                        f"{', velocities' if raw.qd is not None else ''} and torques: sample and hold): dropped")
     split_over = split_step(source, median) if source is not None else GAP_SPLIT * median
     bridged = gaps & (dt <= split_over)
     if bridged.any():

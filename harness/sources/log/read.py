@@ -29,14 +29,27 @@ def raw_series(path: Path, sha256: str, t: np.ndarray, q: np.ndarray, qd: np.nda
     return TimeSeries(t, joints, q, qd, None, tau, meta={"file": Path(path), "sha256": sha256})
 
 
+TORQUE_FILE_COLUMNS = ("tau",)  # what a separate torque file (`torque_file`) holds; `file` holds the rest
+
+
+def _kinds(source: DataSource, path: Path) -> tuple[str, ...]:
+    """The quantities the CSV at `path` holds: all, or with a torque file its part."""
+    if source.torque_file is None:
+        return ("t", "q", "qd", "tau")
+    return TORQUE_FILE_COLUMNS if path == source.torque_file else ("t", "q", "qd")
+
+
 def _check_header(path: Path, header: list[str], source: DataSource, robot: RobotSpec) -> None:
-    for names in column_names(source, robot).values():
+    kinds = _kinds(source, path)
+    for kind, names in column_names(source, robot).items():
+        if kind not in kinds:
+            continue
         for name in names:
             if name not in header:
                 raise InputError(path, name, f"column missing (the log has {', '.join(map(str, header[:12]))}"
                                              f"{' ...' if len(header) > 12 else ''})")
     n = len(robot.joints)
-    for k in ("q", "qd", "tau"):
+    for k in (k for k in ("q", "qd", "tau") if k in kinds):
         if k in source.columns and isinstance(source.columns[k], str) and "{j}" in source.columns[k]:
             extra = source.columns[k].format(j=n + 1, name="")
             if extra in header:
@@ -77,7 +90,7 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
             if path is not None:
                 check_bag(path, source.topic)
         return
-    for path in (source.file, source.validation_file, source.payload and source.payload.file):
+    for path in (source.file, source.torque_file, source.validation_file, source.payload and source.payload.file):
         if path is not None:
             _check_header(path, list(_read_frame(path, nrows=0, content=_first_line(path)).columns), source, robot)
 
@@ -98,36 +111,79 @@ def _first_line(path: Path) -> bytes:
 
 
 def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> TimeSeries:
-    """The log's columns for the robot's joints; every refusal names the file and the column."""
-    import pandas as pd
+    """The log's columns for the robot's joints, in SI units and at the joints (a motor-side log mapped
+    through the model's drives: `at_joints`), its `window` kept; every refusal names the file and the
+    column. `file`: another log of the scenario's layout (a validation or payload log)."""
     path = file or source.file
     if source.topic is not None:
         from harness.sources.bag import digest, read_bag
 
         t, q, qd, tau = read_bag(path, source.topic, robot.joint_names)
         q, qd, tau = to_si(source, robot, q, qd, tau)
-        return raw_series(path, digest(path), t, q, qd, tau, tuple(robot.joint_names))
-    content = read_bounded(path, MAX_DATA_BYTES)  # read once: parsed and hashed
+        return _windowed(source, raw_series(path, digest(path), t, *at_joints(source, robot, q, qd, tau),
+                                            tuple(robot.joint_names)))
+    names = column_names(source, robot)
+    frames = [(path, *_csv(path, source, robot))]
+    if source.torque_file is not None and file is None:  # the torques in a file of their own, row by row
+        frames.append((source.torque_file, *_csv(source.torque_file, source, robot)))
+    columns = {kind: np.column_stack([_column(p, df, c) for c in names[kind]])
+               for p, df, _ in frames for kind in _kinds(source, p) if kind in names}
+    if len(frames) > 1 and len(frames[0][1]) != len(frames[1][1]):
+        raise InputError(source.torque_file, "", f"{len(frames[1][1])} rows, where {path.name} has "
+                                                 f"{len(frames[0][1])}: the two files are read row by row")
+    rows = len(frames[0][1])
+    t = columns["t"][:, 0] if "t" in columns else np.arange(rows) / source.sample_rate
+    digest = hashlib.sha256(b"".join(content for _, _, content in frames)).hexdigest()
+    q, qd, tau = to_si(source, robot, columns["q"], columns.get("qd"), columns["tau"])
+    series = raw_series(path, digest, t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names))
+    return _windowed(source, series)
+
+
+def _csv(path: Path, source: DataSource, robot: RobotSpec):
+    """A CSV of the log, read once (parsed and hashed): its table, checked against the columns the
+    scenario names in it, and its bytes."""
+    content = read_bounded(path, MAX_DATA_BYTES)
     df = _read_frame(path, content=content)
     if df.empty:
         raise InputError(path, "", "the log has no rows")
     _check_header(path, list(df.columns), source, robot)
+    return df, content
 
-    def column(name: str) -> np.ndarray:
-        x = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(x))
-        if len(bad):
-            raise InputError(path, name, f"row {bad[0] + 2} is {_cell(df[name].iloc[bad[0]])}, not a finite number "
-                                         f"({len(bad)} such row{'s' if len(bad) > 1 else ''})")
-        return x
 
-    names = column_names(source, robot)
-    t = column(names["t"][0])
-    q, tau = (np.column_stack([column(c) for c in names[k]]) for k in ("q", "tau"))
-    qd = np.column_stack([column(c) for c in names["qd"]]) if "qd" in names else None
-    digest = hashlib.sha256(content).hexdigest()
-    q, qd, tau = to_si(source, robot, q, qd, tau)
-    return raw_series(path, digest, t, q, qd, tau, tuple(robot.joint_names))
+def _column(path: Path, df, name: str) -> np.ndarray:
+    import pandas as pd
+
+    x = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float)
+    bad = np.flatnonzero(~np.isfinite(x))
+    if len(bad):
+        raise InputError(path, name, f"row {bad[0] + 2} is {_cell(df[name].iloc[bad[0]])}, not a finite number "
+                                     f"({len(bad)} such row{'s' if len(bad) > 1 else ''})")
+    return x
+
+
+def at_joints(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,
+              tau: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """A motor-side log's motor positions, velocities and torques (`side = "motor"`) at the joints,
+    through the model's transmission (harness/model/drives.py): q = N^-1 (q_m - offset),
+    q' = N^-1 q'_m, tau = N^T tau_m. A joint-side log as it is."""
+    if source.side != "motor":
+        return q, qd, tau
+    t = robot.transmission
+    return t.joint_positions(q), None if qd is None else t.joint_rates(qd), t.joint_torques(tau)
+
+
+def _windowed(source: DataSource, series: TimeSeries) -> TimeSeries:
+    """The rows inside the scenario's `window` ([t0, t1] s), said in `meta`."""
+    if source.window is None:
+        return series
+    t0, t1 = source.window
+    keep = (series.t >= t0) & (series.t <= t1)
+    if keep.sum() < 10:
+        raise InputError(series.meta["file"], "window", f"[{t0:g}, {t1:g}] s keeps {int(keep.sum())} rows of a log "
+                                                       f"from {series.t[0]:g} to {series.t[-1]:g} s")
+    kept = series.span(keep)
+    kept.meta["window"] = {"t_start": t0, "t_end": t1, "rows": int(keep.sum()), "rows_before": len(series.t)}
+    return kept
 
 
 def _cell(value) -> str:

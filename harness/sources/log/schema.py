@@ -58,6 +58,11 @@ class DataSource:
     payload: KnownPayload | None = None  # a second log with a known load: the torque constants identified
     identify_constants: bool = False  # currents: each joint's torque constant identified (up to one scale alone)
     repeat: int | None = None  # the fit repeated on this many disjoint segments of the training span
+    torque_file: Path | None = None  # the torques (or currents) in a file of their own, row by row with `file`'s
+    sample_rate: float | None = None  # Hz: a log without a time column, its rows 1 / sample_rate apart
+    side: str = "joint"  # "motor": positions and torques at the motors, mapped through the model's drives
+    window: tuple[float, float] | None = None  # s: the part of the log kept (the motion), by time
+    decimate_given: bool = True  # False: `decimate` is the default, and a cutoff chosen by the data may set it
 
     def describe(self) -> dict:
         return {"file": str(self.file),
@@ -73,7 +78,9 @@ class DataSource:
                 "identify_torque_constants": self.identify_constants, "repeat_segments": self.repeat,
                 "payload_log": None if self.payload is None else {
                     "file": str(self.payload.file), "body": self.payload.body, "mass": self.payload.mass,
-                    "com": [float(x) for x in self.payload.com_W], "inertia": [float(x) for x in self.payload.inertia]}}
+                    "com": [float(x) for x in self.payload.com_W], "inertia": [float(x) for x in self.payload.inertia]},
+                "torque_file": str(self.torque_file) if self.torque_file else None, "sample_rate_hz": self.sample_rate,
+                "side": self.side, "window_s": list(self.window) if self.window else None}
 
 
 
@@ -93,28 +100,8 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
     else:
         file = _file(t, "file", scenario_file)
         ct = t.table("columns")
-        columns = {"t": ct.string("t")}
-    for k in ("q", "qd", "tau"):
-        if ct is None or (k == "qd" and not ct.has("qd")):
-            continue
-        if isinstance(ct.data.get(k), list):
-            names = ct.strings(k, choices=None)
-            if joints is not None and len(names) != joints:
-                raise ct.error(k, f"{len(names)} columns for a model of {joints} joints (one per joint, in the "
-                                  "model's joint order)")
-            columns[k] = names
-            continue
-        v = ct.string(k)
-        if "{j}" not in v and "{name}" not in v:
-            raise ct.error(k, f"a per-joint column needs {{j}} (1..n in the model's joint order) or {{name}} (the "
-                              f"joint's name), or a list of the columns in joint order, got {v!r}")
-        try:
-            v.format(j=1, name="joint")
-        except (KeyError, IndexError, ValueError):
-            raise ct.error(k, f"{v!r}: only {{j}} and {{name}} may stand in braces") from None
-        columns[k] = v
-    if ct is not None:
-        ct.finish()
+        columns = _columns(ct, joints)
+    torque_file, sample_rate, side, window = _layout(t, ct, scenario_file, topic)
     units, units_given = dict(SI), t.has("units")
     if units_given:
         ut = t.table("units")
@@ -123,7 +110,11 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
                 units[k] = ut.string(k, choices=choices)
         ut.finish()
     constant = ratio = None
-    if units["tau"] == "current":
+    if units["tau"] == "current" and side == "motor":  # each motor's current times its constant: its torque
+        if t.has("gear_ratio"):
+            raise t.error("gear_ratio", "with side = \"motor\" the model's drives hold the ratios ([drives])")
+        constant = _per_joint(t, "torque_constant", joints)
+    elif units["tau"] == "current":
         constant, ratio = (_per_joint(t, key, joints) for key in ("torque_constant", "gear_ratio"))
     elif t.has("torque_constant") or t.has("gear_ratio"):
         raise t.error("torque_constant" if t.has("torque_constant") else "gear_ratio",
@@ -136,6 +127,8 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
     delay = t.string("delay", default="estimate", choices=DELAY_CHOICES)
     payload = None
     if t.has("payload"):
+        if t.has("torque_file"):
+            raise t.error("payload", "a payload log beside a torque file is not supported: one file per log")
         pt = t.table("payload")
         payload = KnownPayload(_file(pt, "file", scenario_file, bag=topic is not None), pt.string("body"),
                                pt.number("mass", positive=True), pt.vector("com"), pt.vector("inertia", length=6))
@@ -153,6 +146,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
         raise t.error("filter_order", f"{order}: at most {MAX_FILTER_ORDER} (a steeper Butterworth rings longer "
                                       "after every edge of the data without a useful gain in the band)")
     rate = t.number("rate", positive=True) if t.has("rate") else None
+    decimate_given = t.has("decimate")
     decimate = t.integer("decimate", default=1, minimum=1)
     trim = t.number("trim", nonnegative=True) if t.has("trim") else None
     v_from = v_file = None
@@ -164,10 +158,71 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
                 raise vt.error("from", f"{v_from:g} is outside the log: a fraction of its duration in (0, 1)")
         else:
             v_file = _file(vt, "file", scenario_file, bag=topic is not None)
+            if t.has("torque_file"):
+                raise vt.error("file", "with torque_file, the validation span is a part of the log: validation = "
+                                       "{ from = ... }")
         vt.finish()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
-                      ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat)
+                      ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
+                      sample_rate, side, window, decimate_given)
+
+
+SIDES = ("joint", "motor")
+
+
+def _layout(t: Table, ct: Table | None, scenario_file: Path, topic: str | None
+            ) -> tuple[Path | None, float | None, str, tuple[float, float] | None]:
+    """How the log is laid out: `torque_file` (the torques in a file of their own, row by row with
+    `file`), `sample_rate` (Hz, where the log has no time column), `side` ("joint", or "motor": q and tau
+    of the motors, mapped through the model's drives) and `window` ([t0, t1] s, the part kept)."""
+    torque_file = None
+    if t.has("torque_file"):
+        if topic is not None:
+            raise t.error("torque_file", "a bag's messages carry their efforts: no torque file to give")
+        torque_file = _file(t, "torque_file", scenario_file)
+    sample_rate = t.number("sample_rate", positive=True) if t.has("sample_rate") else None
+    if ct is not None and ct.has("t") == (sample_rate is not None):
+        raise (t.error("sample_rate", "the log has a time column (columns.t): its times are read, not made")
+               if sample_rate is not None else
+               ct.error("t", "missing: name the time column, or give sample_rate (Hz) for a log without one"))
+    if topic is not None and sample_rate is not None:
+        raise t.error("sample_rate", "a bag's messages carry their times")
+    side = t.string("side", default="joint", choices=SIDES)
+    window = None
+    if t.has("window"):
+        w = t.vector("window", length=2)
+        if not 0.0 <= w[0] < w[1]:
+            raise t.error("window", f"[{w[0]:g}, {w[1]:g}] s is no part of a log: [start, end] with 0 <= start < end")
+        window = (float(w[0]), float(w[1]))
+    return torque_file, sample_rate, side, window
+
+
+def _columns(ct: Table, joints: int | None) -> dict[str, str | tuple[str, ...]]:
+    """`columns`: t (where the log has a time column), q, qd (optional) and tau, each a template with
+    {j} or {name}, or a list of column names in the model's joint order."""
+    columns: dict[str, str | tuple[str, ...]] = {"t": ct.string("t")} if ct.has("t") else {}
+    for k in ("q", "qd", "tau"):
+        if k == "qd" and not ct.has("qd"):
+            continue
+        if isinstance(ct.data.get(k), list):
+            names = ct.strings(k, choices=None)
+            if joints is not None and len(names) != joints:
+                raise ct.error(k, f"{len(names)} columns for a model of {joints} joints (one per joint, in the "
+                                  "model's joint order)")
+            columns[k] = names
+            continue
+        v = ct.string(k)
+        if "{j}" not in v and "{name}" not in v:
+            raise ct.error(k, f"a per-joint column needs {{j}} (1..n in the model's joint order) or {{name}} (the "
+                              f"joint's name), or a list of the columns in joint order, got {v!r}")
+        try:
+            v.format(j=1, name="joint")
+        except (KeyError, IndexError, ValueError):
+            raise ct.error(k, f"{v!r}: only {{j}} and {{name}} may stand in braces") from None
+        columns[k] = v
+    ct.finish()
+    return columns
 
 
 def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:

@@ -12,6 +12,7 @@ import numpy as np
 from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
+from harness.sources.log import defaults
 from harness.sources.log.checks import check
 from harness.sources.log.condition import condition, conditioned
 from harness.sources.log.read import read_raw
@@ -28,12 +29,13 @@ class Split:
     judging reads (the last part by time, another file, or none); `guard_band_s`, the seconds between
     the two (None where the validation span is another file); `whole`, the spans one after the other
     as written to data.csv, its `meta` the conditioning record (the training span's steps, the whole
-    file's checks, the stretches and the split)."""
+    file's checks, the stretches, the split and the defaults the data decided)."""
 
     training: TimeSeries
     validation: TimeSeries | None
     guard_band_s: float | None
     whole: TimeSeries
+    source: DataSource  # the scenario's [data] with what the data decided (harness/sources/log/defaults.py)
 
     def __post_init__(self):
         """The one check that the spans are disjoint: each is conditioned from rows on its side of the
@@ -52,21 +54,27 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     raw = read_raw(source, robot)
     checked = check(raw, robot, source)
     kept, rate = checked.kept, checked.rate(source)
+    source, chosen = defaults.resolve(source, kept, rate)
     longest = split_step(source, checked.median_step)
     pieces = segments(kept.t, longest)
     notes: list[str] = []
+    if chosen is not None:
+        notes.append(f"no cutoff given, and the positions carry noise (the motion within "
+                     f"{max(chosen['motion_band_hz']):.3g} Hz): a {chosen['cutoff_hz']:.3g} Hz low-pass chosen"
+                     + ("" if source.decimate_given else f", decimate {chosen['decimate']}")
+                     + " (data.conditioning.defaults)")
     if len(pieces) > 1:
         notes.append(f"{len(pieces) - 1} gap(s) over {longest:.3g} s (largest {float(np.max(np.diff(kept.t))):.3g} "
                      f"s): the log is conditioned in {len(pieces)} stretches, nothing filtered across a gap")
     record = segment_record(kept.t, pieces, source, checked.median_step)
     if source.validation_from is None:
         train = conditioned(kept, pieces, source, robot, rate, checked, "log", notes)
-        train.meta["segments"] = record
+        train.meta["segments"], train.meta["defaults"] = record, chosen
         train.meta["warnings"] = train.meta["warnings"] + notes
         val = None
         if source.validation_file is not None:
             val = condition(read_raw(source, robot, source.validation_file), source, robot)
-        return Split(train, val, None, train)
+        return Split(train, val, None, train, source)
     t_split = kept.t[0] + source.validation_from * (kept.t[-1] - kept.t[0])
     before = kept.t < t_split
     if before.sum() < MIN_SPAN_ROWS or (~before).sum() < MIN_SPAN_ROWS:
@@ -79,7 +87,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     guard = float(val.t[0] - train.t[-1])
     conditioning = dict(train.meta)
     conditioning["warnings"] = conditioning["warnings"] + notes
-    conditioning["segments"] = record
+    conditioning["segments"], conditioning["defaults"] = record, chosen
     conditioning["validation"] = {
         "from_fraction": source.validation_from, "t_split": float(t_split),
         "training_samples": len(train.t), "validation_samples": len(val.t),
@@ -89,7 +97,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
         "validation": {"t_start": val.meta["t_start"], "t_end": val.meta["t_end"]}}
     joined = (np.concatenate([getattr(train, k), getattr(val, k)]) for k in ("q", "qd", "qdd", "tau"))
     whole = TimeSeries(np.concatenate([train.t, val.t]), train.joints, *joined, meta=conditioning)
-    return Split(train, val, guard, whole)
+    return Split(train, val, guard, whole, source)
 
 
 def load_payload(source: DataSource, robot: RobotSpec) -> TimeSeries | None:

@@ -94,6 +94,9 @@ def check_positions(raw: TimeSeries, robot: RobotSpec, source: DataSource | None
         if largest >= UNIT_FACTOR * reach:
             hint = ('a log in degrees read as radians? give units = { q = "deg", qd = "deg/s" }' if unit == "rad"
                     else "check the unit and the column")
+            if robot.transmission is not None and (source is None or source.side == "joint"):
+                hint = ('motor angles read as joint angles? side = "motor" maps them through the model\'s drives; '
+                        f"or {hint}")
             raise InputError(raw.meta["file"], "units.q", f"joint {joint.name!r} reaches {largest:.4g} rad (as {unit} "
                                                           f"read), {largest / reach:.3g} times its limit {reach:.4g} "
                                                           f"rad: {hint}, or limits_check = false")

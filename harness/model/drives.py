@@ -1,0 +1,140 @@
+"""Drives: the motors behind the joints and the transmission between them, as a lab measures an arm.
+
+A motor k turns with a linear combination of the joints (a gear, a belt, a coupled wrist):
+
+    q_m = N q + o,        q'_m = N q',        q''_m = N q''              (N invertible, n x n)
+
+and, by virtual work (tau_J . q' = tau_m . q'_m for every q'), the torques the motors apply reach the
+joints as
+
+    tau_J = N^T tau_m.
+
+N's entries are the gear ratios, of either sign, and the couplings (the Staubli TX40's motor 6 turns
+with q5 + q6: N[6, 5] = N[6, 6] = 32). Each motor has its own drive law (harness/model/friction.py: rotor
+inertia I_m, viscous and Coulomb friction, an offset and a family's terms), in motor units, acting on
+its own motion: the motor must supply tau_m = N^-T tau_R + f_m(q'_m, q''_m), so the joints carry
+
+    tau_J = tau_R + N^T f_m(N q', N q'', N^-T tau_R):
+
+a rotor inertia reflects as N^T diag(I_m) N (off the diagonal where N couples), a friction acts on N q'.
+A diagonal N reduces to one term per joint; where a model states no drives, the joints' own laws are
+the motors' (N the identity: every figure as it was). `Transmission` is N and o; the drive law through
+it is written once here (`torque`, `columns`, `mass`), and every engine and fit takes it from here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from harness.model import friction
+from harness.model.friction import JointFriction
+
+
+@dataclass(frozen=True, eq=False)
+class Transmission:
+    """q_m = N q + offset; tau_J = N^T tau_m. Rows: motors (named `motors`), columns: the spec's joints."""
+
+    N: np.ndarray  # (n, n) invertible
+    offset: np.ndarray  # (n,) each motor's position at q = 0 (rad, or m of a linear motor)
+    motors: tuple[str, ...]
+    N_inv: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "N_inv", np.linalg.inv(self.N))
+
+    @property
+    def diagonal(self) -> bool:
+        return bool(np.all(self.N == np.diag(np.diag(self.N))))
+
+    @property
+    def coupled(self) -> list[tuple[int, list[int]]]:
+        """The motors that turn with more than one joint, each with its joints (indices)."""
+        return [(k, [int(j) for j in np.flatnonzero(row)]) for k, row in enumerate(self.N) if np.count_nonzero(row) > 1]
+
+    def motor_positions(self, q: np.ndarray) -> np.ndarray:
+        """(..., n) joint positions -> motor positions, N q + offset."""
+        return q @ self.N.T + self.offset
+
+    def joint_positions(self, q_m: np.ndarray) -> np.ndarray:
+        """(..., n) motor positions -> joint positions, N^-1 (q_m - offset)."""
+        return (q_m - self.offset) @ self.N_inv.T
+
+    def motor_rates(self, qd: np.ndarray) -> np.ndarray:
+        """(..., n) joint velocities (or accelerations) -> the motors', N q'."""
+        return qd @ self.N.T
+
+    def joint_rates(self, qd_m: np.ndarray) -> np.ndarray:
+        """(..., n) motor velocities (or accelerations) -> the joints', N^-1 q'_m."""
+        return qd_m @ self.N_inv.T
+
+    def joint_torques(self, tau_m: np.ndarray) -> np.ndarray:
+        """(..., n) motor torques -> what they apply at the joints, N^T tau_m."""
+        return tau_m @ self.N
+
+    def motor_torques(self, tau: np.ndarray) -> np.ndarray:
+        """(..., n) joint torques -> the motor torques that apply them, N^-T tau."""
+        return tau @ self.N_inv
+
+    def describe(self) -> dict:
+        return {"motors": list(self.motors), "N": self.N.tolist(), "offset": self.offset.tolist(),
+                "coupled": {self.motors[k]: joints for k, joints in self.coupled}}
+
+
+def torque(frictions: tuple[JointFriction, ...], transmission: Transmission | None, qd: np.ndarray,
+           qdd: np.ndarray, tau_rigid: np.ndarray | None = None) -> np.ndarray:
+    """(N, n) at the joints: the drives' law (one per motor, `frictions`) through the transmission,
+    N^T f_m(N q', N q'', N^-T tau_R); the joints' own laws where there is no transmission."""
+    if transmission is None:
+        return friction.torque(frictions, qd, qdd, tau_rigid)
+    t = transmission
+    rigid_m = None if tau_rigid is None else t.motor_torques(tau_rigid)
+    return t.joint_torques(friction.torque(frictions, t.motor_rates(qd), t.motor_rates(qdd), rigid_m))
+
+
+def through(transmission: Transmission | None, motor_columns: np.ndarray) -> np.ndarray:
+    """(N, n_joints, n_motors, c): columns of each motor's coefficients on its own motor torque
+    (N, n_motors, c) as they reach the joints: motor k's reach joint j times N[k, j]."""
+    if transmission is None:
+        N, n, c = motor_columns.shape
+        out = np.zeros((N, n, n, c))
+        out[:, np.arange(n), np.arange(n)] = motor_columns
+        return out
+    return np.einsum("kj,tka->tjka", transmission.N, motor_columns)
+
+
+def columns(frictions: tuple[JointFriction, ...], transmission: Transmission | None, qd: np.ndarray,
+            qdd: np.ndarray) -> np.ndarray:
+    """(N, n_motors, 4): each motor's regressor of its [armature, viscous, coulomb, offset] on its own
+    torque, [q''_m, q'_m, s(q'_m), 1] at the motor's rates (`through` takes them to the joints)."""
+    if transmission is None:
+        return friction.columns(frictions, qd, qdd)
+    return friction.columns(frictions, transmission.motor_rates(qd), transmission.motor_rates(qdd))
+
+
+def mass(frictions: tuple[JointFriction, ...], transmission: Transmission | None) -> np.ndarray:
+    """(n, n): what the rotors add to the joint-space mass matrix, N^T diag(I_m) N (diag(I_a) without a
+    transmission)."""
+    armature = friction.values(frictions)[:, 0]
+    if transmission is None:
+        return np.diag(armature)
+    return transmission.N.T @ np.diag(armature) @ transmission.N
+
+
+class Dry:
+    """What an engine applies as a force beside its own armature and damping, through the transmission:
+    N^T dry_m(N q', N^-T tau_R) (harness/model/friction.py, Dry: Coulomb, offset and the families'
+    terms of each motor). Built once per model, called at every step of a simulation."""
+
+    def __init__(self, frictions: tuple[JointFriction, ...], transmission: Transmission | None):
+        self.law = friction.Dry.of(frictions)
+        self.transmission = transmission
+        self.any, self.needs_load = self.law.any, self.law.needs_load
+
+    def __call__(self, qd: np.ndarray, tau_rigid: np.ndarray | None = None, load: bool = True) -> np.ndarray:
+        t = self.transmission
+        if t is None:
+            return self.law(qd, tau_rigid, load)
+        rigid_m = None if tau_rigid is None else t.motor_torques(tau_rigid)
+        return t.joint_torques(self.law(t.motor_rates(qd), rigid_m, load))

@@ -1,0 +1,276 @@
+"""Drives (harness/model/drives.py): motors behind the joints through a transmission N, as a lab measures
+an arm. Each claim is checked against physics or an independent computation:
+- the transmission's maps are inverse to each other and conserve power (virtual work), to round-off;
+- a diagonal N is each joint's own law reflected through its ratio (I r^2, f_v r^2, f_c |r|, f_o r,
+  v_c / |r|): the same torques and mass matrix to 1e-12;
+- a coupled drive in MuJoCo (a fixed tendon carrying the rotor's inertia and damping, the dry friction
+  applied through N) and the law of drives.py in Pinocchio agree to 1e-9 of each joint's load (measured
+  ~1e-13), and MuJoCo's mass matrix is CRBA's plus N^T diag(I_m) N to 1e-12;
+- the MJCF the harness writes reloads as the same drives, and MuJoCo's own inverse dynamics of it agrees;
+- a log of the motors (positions and torques in two files, no time column) reads as the joint-side log
+  of the same motion, to round-off of the maps;
+- a position repeated while the torques move is data; a whole row repeated is a logger's hold.
+The arm: the example's two-link arm with motor 2 turning with 20 q1 - 30 q2 (coupled, of either sign)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from harness.api import load_scenario
+from harness.cli import main
+from harness.engines.pinocchio import build_model, crba, rnea
+from harness.model.drives import Transmission
+from harness.model.load import load_spec
+from harness.sources.bench import record
+from tests.conftest import ROOT
+
+URDF = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"
+N = np.array([[50.0, 0.0], [20.0, -30.0]])
+OFFSET = [0.5, -2.0]
+MOTORS = {"motor_1": dict(armature=2.1e-5, viscous=3.3e-4, coulomb=0.012, offset=0.002, coulomb_velocity=0.9),
+          "motor_2": dict(armature=3.7e-5, viscous=1.9e-4, coulomb=0.021, offset=-0.003, coulomb_velocity=1.3)}
+G = np.array([0.0, 0.0, -9.81])
+
+
+def _drives_model(folder, motors=MOTORS, name="coupled") -> str:
+    (folder / f"{name}.toml").write_text(
+        f'[model]\nname = "{name}"\n[urdf]\nfile = "{URDF}"\n[drives]\ntransmission = {N.tolist()}\n'
+        f"offset = {OFFSET}\n" + "".join(f"[drives.{m}]\n" + "".join(f"{k} = {v!r}\n" for k, v in law.items())
+                                        for m, law in motors.items()))
+    return f"{name}.toml"
+
+
+def _states(count=200, seed=4):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-2, 2, (count, 2)), rng.uniform(-3, 3, (count, 2)), rng.uniform(-20, 20, (count, 2))
+
+
+def test_a_transmission_is_inverted_exactly_and_conserves_power():
+    rng = np.random.default_rng(1)
+    t = Transmission(rng.normal(size=(4, 4)) * 40, rng.normal(size=4), tuple("abcd"))
+    q, qd, tau_m = rng.normal(size=(3, 50, 4))
+    np.testing.assert_allclose(t.joint_positions(t.motor_positions(q)), q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(t.motor_torques(t.joint_torques(tau_m)), tau_m, rtol=1e-12, atol=1e-12)
+    power_joints = np.sum(t.joint_torques(tau_m) * qd, axis=1)
+    np.testing.assert_allclose(power_joints, np.sum(tau_m * t.motor_rates(qd), axis=1), rtol=1e-12)
+
+
+def test_a_diagonal_transmission_is_each_joints_law_reflected_through_its_ratio(tmp_path):
+    """Motor k with ratio r (of either sign) and law (I, f_v, f_c, f_o, v_c) is, at its joint, I r^2,
+    f_v r^2, f_c |r| with v_c / |r|, and f_o r: the torques and mass matrices agree to 1e-12."""
+    r = [50.0, -30.0]
+    (tmp_path / "diag.toml").write_text(
+        f'[model]\nname = "diag"\n[urdf]\nfile = "{URDF}"\n[drives]\ngear_ratio = {r}\n'
+        + "".join(f"[drives.{m}]\n" + "".join(f"{k} = {v!r}\n" for k, v in law.items()) for m, law in MOTORS.items()))
+    laws = list(MOTORS.values())
+    (tmp_path / "joints.toml").write_text(f'[model]\nname = "joints"\n[urdf]\nfile = "{URDF}"\n' + "".join(
+        f"[joints.{j}]\narmature = {law['armature'] * rk**2!r}\nviscous = {law['viscous'] * rk**2!r}\n"
+        f"coulomb = {law['coulomb'] * abs(rk)!r}\ncoulomb_velocity = {law['coulomb_velocity'] / abs(rk)!r}\n"
+        f"offset = {law['offset'] * rk!r}\n" for j, law, rk in zip(("shoulder", "elbow"), laws, r, strict=True)))
+    a, b = (build_model(load_spec(tmp_path / f), G) for f in ("diag.toml", "joints.toml"))
+    q, qd, qdd = _states()
+    ta, tb = rnea(a, q, qd, qdd).tau, rnea(b, q, qd, qdd).tau
+    np.testing.assert_allclose(ta, tb, rtol=0, atol=1e-12 * np.max(np.abs(tb)))
+    np.testing.assert_allclose(crba(a, q), crba(b, q), rtol=1e-12, atol=0)
+
+
+@pytest.fixture(scope="module")
+def coupled_bench(tmp_path_factory):
+    """The coupled arm recorded by the bench (3 s at 500 Hz, both joints on sinusoids), written as a log
+    of the joints (joints.csv: t, q, tau) and as the motors' log a lab publishes (pos.csv: q_m = N q + o,
+    cur.csv: N^-T tau, no time column), with a scenario of each (joints.toml, motors.toml)."""
+    folder = tmp_path_factory.mktemp("coupled")
+    model = _drives_model(folder)
+    (folder / "bench.toml").write_text(
+        f'[scenario]\nmodel = "{model}"\nduration = 3.0\noutput_steps = 1500\n'
+        '[motion.shoulder]\ntype = "sinusoids"\noffset = -0.3\nsin = [[0.9, 2.1], [0.3, 5.3]]\n'
+        '[motion.elbow]\ntype = "sinusoids"\nsin = [[1.0, 3.0], [0.2, 6.7]]\n'
+        '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
+    sc = load_scenario(folder / "bench.toml")
+    rec = record(sc)
+    t = sc.robot.transmission
+    pd.DataFrame({"t": rec.t, **{f"q{k + 1}": rec.q[:, k] for k in range(2)},
+                  **{f"tau{k + 1}": rec.tau[:, k] for k in range(2)}}).to_csv(folder / "joints.csv", index=False,
+                                                                             float_format="%.17g")
+    q_m, tau_m = t.motor_positions(rec.q), t.motor_torques(rec.tau)
+    pd.DataFrame({f"M{k + 1}": q_m[:, k] for k in range(2)}).to_csv(folder / "pos.csv", index=False,
+                                                                    float_format="%.17g")
+    pd.DataFrame({f"M{k + 1}": tau_m[:, k] for k in range(2)}).to_csv(folder / "cur.csv", index=False,
+                                                                      float_format="%.17g")
+    _log_scenario(folder, 'file = "joints.csv"\ncolumns = { t = "t", q = "q{j}", tau = "tau{j}" }\n', "joints")
+    _log_scenario(folder, 'file = "pos.csv"\ntorque_file = "cur.csv"\ncolumns = { q = "M{j}", tau = "M{j}" }\n'
+                          f'sample_rate = {float(1 / (rec.t[1] - rec.t[0]))!r}\nside = "motor"\n', "motors")
+    return folder, sc
+
+
+def test_a_coupled_drive_in_mujoco_is_the_law_of_drives_in_pinocchio(coupled_bench):
+    """The bench's torques (MuJoCo: tendons and the dry friction through N) against Pinocchio's RNEA with
+    drives.torque, every step, to 1e-9 of each joint's load; MuJoCo's mass matrix with the tendons'
+    armature against CRBA plus N^T diag(I_m) N at every 100th row, to 1e-12 of its largest entry."""
+    import mujoco
+
+    import harness
+    from harness.engines.mujoco import build_model as build_mujoco
+
+    folder, sc = coupled_bench
+    result = harness.run(folder / "bench.toml")
+    assert result.passed, result.results["torques"]["pinocchio_vs_mujoco"]
+    rec = result.recording
+    m = build_mujoco(sc.robot, sc.gravity_W, sc.simulation)
+    d = mujoco.MjData(m)
+    pm = build_model(sc.robot, sc.gravity_W)
+    for k in range(0, len(rec.t), 100):
+        d.qpos[:] = rec.q[k]
+        mujoco.mj_forward(m, d)
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, M)
+        expected = crba(pm, rec.q[k:k + 1])[0]
+        np.testing.assert_allclose(M, expected, rtol=0, atol=1e-12 * np.max(np.abs(expected)))
+
+
+def test_the_drives_written_as_mjcf_reload_as_the_same_drives_and_mujoco_agrees(tmp_path):
+    """write_mjcf: a fixed tendon per motor (N's row as coefficients, the rotor's armature and damping,
+    its Coulomb friction as frictionloss) and a motor on it. Read back through the harness, the same
+    transmission and laws (v_c aside: MJCF's dry friction is a sign; MJCF has no torque offset), RNEA's
+    torques to 1e-12; MuJoCo's mj_inverse of the file (its frictionloss left out, as MuJoCo solves it as a
+    constraint) is RNEA's without the Coulomb and offset terms, to 1e-9 of the largest torque."""
+    import mujoco
+
+    from harness.model.mjcf import write_mjcf
+
+    sharp = {m: {**law, "coulomb_velocity": 0.0, "offset": 0.0} for m, law in MOTORS.items()}
+    spec = load_spec(tmp_path / _drives_model(tmp_path, sharp))
+    (tmp_path / "robot.xml").write_text(write_mjcf(spec, G))
+    (tmp_path / "reloaded.toml").write_text('[mjcf]\nfile = "robot.xml"\n')
+    back = load_spec(tmp_path / "reloaded.toml")
+    np.testing.assert_array_equal(back.transmission.N, spec.transmission.N)
+    for a, b in zip(spec.frictions, back.frictions, strict=True):
+        assert (a.armature, a.viscous, a.coulomb) == pytest.approx((b.armature, b.viscous, b.coulomb), rel=1e-15)
+    q, qd, qdd = _states(50)
+    np.testing.assert_allclose(rnea(build_model(back, G), q, qd, qdd).tau, rnea(build_model(spec, G), q, qd, qdd).tau,
+                               rtol=0, atol=1e-12 * 50)
+    no_coulomb = spec.with_frictions(tuple(dataclasses_replace(f, coulomb=0.0) for f in spec.frictions))
+    expected = rnea(build_model(no_coulomb, G), q, qd, qdd).tau
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "robot.xml"))
+    model.tendon_frictionloss[:] = 0.0
+    data = mujoco.MjData(model)
+    got = np.empty_like(expected)
+    for k in range(len(q)):
+        data.qpos[:], data.qvel[:], data.qacc[:] = q[k], qd[k], qdd[k]
+        mujoco.mj_inverse(model, data)
+        got[k] = data.qfrc_inverse
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
+
+
+def dataclasses_replace(obj, **changes):
+    import dataclasses
+
+    return dataclasses.replace(obj, **changes)
+
+
+def _log_scenario(folder, data: str, name: str = "s") -> None:
+    (folder / f"{name}.toml").write_text(
+        f'[scenario]\nmodel = "coupled.toml"\n[data]\n{data}units = {{ q = "rad", tau = "N m" }}\ncutoff = 20.0\n'
+        'validation = { from = 0.7 }\n'
+        '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 0.05\n')
+
+
+def test_a_log_of_the_motors_in_two_files_without_a_time_column_is_the_joints_log(coupled_bench):
+    """The bench's recording written twice: at the joints (t, q, tau), and at the motors as a lab
+    publishes it (positions q_m = N q + o in one file, torques N^-T tau in another, no time column:
+    `sample_rate`). Read, checked, conditioned and split, the two training spans agree to 1e-9 of each
+    quantity's size (the maps' round-off, then the same conditioning)."""
+    folder, _ = coupled_bench
+    from harness.sources.log import load
+
+    a, b = (load((s := load_scenario(folder / f"{name}.toml")).data, s.robot) for name in ("joints", "motors"))
+    for k in ("t", "q", "qd", "qdd", "tau"):
+        x, y = getattr(a.training, k), getattr(b.training, k)
+        np.testing.assert_allclose(y, x, rtol=0, atol=1e-9 * np.max(np.abs(x)), err_msg=k)
+
+
+def test_a_position_repeated_while_the_torques_move_is_data_and_a_whole_row_repeated_is_a_hold(coupled_bench,
+                                                                                               tmp_path):
+    """A quantised encoder repeats a position while the torques move on: that row is kept; a logger
+    that holds its last sample repeats the whole row: that row is dropped, and said."""
+    from harness.sources.log.checks import check
+    from harness.sources.log.read import read_raw
+
+    folder, _ = coupled_bench
+    df = pd.read_csv(folder / "joints.csv")
+    folder = tmp_path
+    (folder / "coupled.toml").write_text((coupled_bench[0] / "coupled.toml").read_text())
+    _log_scenario(folder, 'file = "joints.csv"\ncolumns = { t = "t", q = "q{j}", tau = "tau{j}" }\n', "joints")
+    df.loc[200:204, ["q1", "q2"]] = df.loc[199, ["q1", "q2"]].to_numpy()  # positions held, torques moving
+    df.loc[400:402, df.columns[1:]] = df.loc[399, df.columns[1:]].to_numpy()  # the whole row held
+    df.to_csv(folder / "joints.csv", index=False, float_format="%.17g")
+    s = load_scenario(folder / "joints.toml")
+    c = check(read_raw(s.data, s.robot), s.robot, s.data)
+    assert c.record["repeated_rows_dropped"] == 3 and c.record["repeated_positions_kept"] == 5
+    assert any("sample and hold" in w for w in c.warnings)
+
+
+@pytest.mark.parametrize("edit, key, words", [
+    ('side = "motor"', "data.side", "states none ([drives])"),
+    ("sample_rate = 500.0", "data.sample_rate", "time column"),
+])
+def test_a_bad_motor_side_log_table_is_refused_in_one_line(coupled_bench, tmp_path, capsys, edit, key, words):
+    folder, _ = coupled_bench
+    (tmp_path / "plain.toml").write_text(f'[model]\nname = "plain"\n[urdf]\nfile = "{URDF}"\n')
+    model = "plain.toml" if "side" in edit else str(folder / "coupled.toml")
+    (tmp_path / "s.toml").write_text(
+        f'[scenario]\nmodel = "{model}"\n[data]\nfile = "{folder / "joints.csv"}"\n'
+        f'columns = {{ t = "t", q = "q{{j}}", tau = "tau{{j}}" }}\n{edit}\n'
+        '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 0.05\n')
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and key in err and words in err and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("drives, words", [
+    ("gear_ratio = [50, 0]", "not invertible"),
+    ('gear_ratio = [50, 30]\ncoupling = [{ motor = "motor_2", joint = "elbow", ratio = 3 }]', "own joint"),
+    ("transmission = [[1, 2], [2, 4]]", "not invertible"),
+    ("gear_ratio = [50, 30]\nmotors = [\"a\"]", "one distinct name"),
+])
+def test_a_bad_drives_table_is_refused_in_one_line_naming_the_key(tmp_path, capsys, drives, words):
+    (tmp_path / "m.toml").write_text(f'[model]\nname = "m"\n[urdf]\nfile = "{URDF}"\n[drives]\n{drives}\n')
+    from harness.base.tomlio import InputError
+
+    with pytest.raises(InputError) as e:
+        load_spec(tmp_path / "m.toml")
+    assert "drives" in e.value.one_line() and words in e.value.one_line()
+
+
+def test_joint_friction_beside_drives_is_refused(tmp_path):
+    from harness.base.tomlio import InputError
+
+    (tmp_path / "m.toml").write_text(f'[model]\nname = "m"\n[urdf]\nfile = "{URDF}"\n[joints.elbow]\nviscous = 1.0\n'
+                                     '[drives]\ngear_ratio = [50, 30]\n')
+    with pytest.raises(InputError, match="the motors carry it"):
+        load_spec(tmp_path / "m.toml")
+
+
+def test_the_identified_model_of_a_motor_side_log_predicts_what_the_run_judged(coupled_bench):
+    """harness.identified_model(the run's folder): `joint_names` and `inverse_dynamics`, the exported
+    model with its coupled drives, predicts at the validation span's states the torques the run's
+    report plots for the consistent fit, to 1e-9 of the largest."""
+    import harness
+
+    folder, _ = coupled_bench
+    assert main(["run", str(folder / "motors.toml"), "--out", str(folder / "out"), "--quiet"]) == 0
+    results = json.loads((folder / "out" / "results.json").read_text())
+    series = results["log_identification"]["series"]
+    data = pd.read_csv(folder / "out" / "data.csv")
+    rows = np.searchsorted(data["t"].to_numpy(), series["t"])
+    model = harness.identified_model(folder / "out")
+    assert model.joint_names == ["shoulder", "elbow"] and model.spec.transmission is not None
+    states = [data[[f"{k}_{j}" for j in model.joint_names]].to_numpy()[rows] for k in ("q", "qd", "qdd")]
+    predicted = model.inverse_dynamics(*states)
+    judged = np.column_stack([series["consistent"][j] for j in model.joint_names])
+    np.testing.assert_allclose(predicted, judged, rtol=0, atol=1e-9 * np.max(np.abs(judged)))
+    assert (folder / "out" / "identified" / "drives.toml").is_file()
