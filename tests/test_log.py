@@ -45,15 +45,22 @@ def panda(tmp_path_factory):
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_the_log_is_read_as_its_readme_describes_it(panda):
-    """The file's sha256, and the sample-and-hold rows counted independently with pandas."""
+    """The file's sha256, and the repeated rows counted independently with pandas: of the README's 1,255
+    rows whose positions repeat the row before, those that repeat it whole (positions, velocities and
+    torques: a logger's hold) are dropped, the others kept as data."""
     _, r = panda
     c = r["data"]["conditioning"]
     assert c["sha256"] == hashlib.sha256(LOG.read_bytes()).hexdigest()
     df = pd.read_csv(LOG)
     q = df[[f"q{j}" for j in range(1, 8)]].to_numpy()
-    held = int(np.sum(np.all(q[1:] == q[:-1], axis=1)))
-    assert held == 1255  # the README's count
-    assert c["steps"][0]["repeated_rows_dropped"] == held
+    row = df[[f"{k}{j}" for k in ("q", "qd", "tau") for j in range(1, 8)]].to_numpy()
+    same_q = np.all(q[1:] == q[:-1], axis=1)
+    whole = np.all(row[1:] == row[:-1], axis=1)
+    assert int(same_q.sum()) == 1255  # the README's count
+    checks = next(s for s in c["steps"] if s["step"] == "checks")
+    assert checks["repeated_rows_dropped"] == int(whole.sum())
+    assert checks["repeated_positions_kept"] == int((same_q & ~whole).sum()) > 0
+    assert c["steps"][0] == {"step": "read", "files": [str(LOG)], "time": "column 't'", "side": "joint"}
     assert c["validation"]["from_fraction"] == 0.7
 
 
@@ -234,7 +241,8 @@ def test_a_log_without_velocities_validated_on_another_file(tmp_path):
         '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 0.026\n')
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     r = json.loads((tmp_path / "out" / "results.json").read_text())
-    assert r["data"]["conditioning"]["steps"][3]["velocities"] == "differentiated"
+    differentiate = next(s for s in r["data"]["conditioning"]["steps"] if s["step"] == "differentiate")
+    assert differentiate["velocities"] == "differentiated"
     assert r["log_identification"]["spans"]["validation"]["t_start"] > 12.0
 
 

@@ -123,6 +123,74 @@ def test_the_arm_comes_back_from_its_own_log(arm_runs):
     assert li["friction_law"]["chosen"] and li["friction_law"]["guard_s"] == pytest.approx(0.2)
 
 
+def _positions_log(arm_log, name: str, step: float | None, spike: bool = False) -> load_scenario:
+    """folder/name/: the arm's log with positions and torques only and no cutoff given; its positions
+    read through an encoder of `step` rad (None: exact), and with `spike` one position of the validation
+    span 0.05 rad off."""
+    df = pd.read_csv(arm_log / "log.csv")[["t", "q1", "q2", "tau1", "tau2"]]
+    if step is not None:
+        df[["q1", "q2"]] = np.round(df[["q1", "q2"]].to_numpy() / step) * step
+    if spike:
+        df.loc[int(0.85 * len(df)), "q1"] += 0.05
+    folder = arm_log / name
+    folder.mkdir(exist_ok=True)
+    df.to_csv(folder / "log.csv", index=False, float_format="%.17g")
+    (folder / "arm.toml").write_text((arm_log / "arm.toml").read_text())
+    (folder / "s.toml").write_text(
+        '[scenario]\nmodel = "arm.toml"\n[data]\nfile = "log.csv"\ncolumns = { t = "t", q = "q{j}", tau = "tau{j}" }'
+        '\nunits = { q = "rad", tau = "N m" }\nvalidation = { from = 0.7 }\n' + GATE)
+    return load_scenario(folder / "s.toml")
+
+
+def _white_quantisation_cutoff(q: np.ndarray, step: float, rate: float, qdd_power: float, f_from: float) -> float:
+    """The cut-off at which a quantiser's error, as white noise of its own variance, differentiated twice
+    (|H(f)|^2 = (2 sin(pi f / fs))^4 fs^4, one-sided density 2 var / fs), carries between f_from and the
+    cut-off 1e-4 of the motion's acceleration power: the default's rule written out."""
+    var = np.var(np.round(q / step) * step - q)
+    f = np.linspace(f_from, rate / 2, 200_001)
+    density = 2 * var / rate * rate**4 * 16 * np.sin(np.pi * f / rate) ** 4
+    passed = np.concatenate([[0.0], np.cumsum((density[1:] + density[:-1]) / 2 * np.diff(f))])
+    return float(f[np.searchsorted(passed, 1e-4 * qdd_power)])
+
+
+def test_a_quantised_encoder_gets_the_highest_cutoff_its_noise_allows_and_exact_positions_none(arm_log):
+    """Where no cutoff is given, positions read through a 2e-4 rad encoder step are filtered where the
+    accelerations' noise let through reaches 1 % of the motion's (RMS): on each joint, the quantiser's
+    error taken as white noise of its own variance, differentiated twice, and the motion's acceleration
+    power from the log's exact velocities, both over the training span, give that cut-off independently;
+    the data's is within -5 % and +15 % of it (a quantiser's error is whitest when the joint moves many
+    steps a sample: at the reversals it is correlated and quieter at high frequency, so the measured
+    cut-off sits at or above the white one; 15 % in a cut-off is a factor 2 in noise power). The lowest
+    joint's decides, and it is said; the exact positions of the same motion are left unfiltered."""
+    quantised = _positions_log(arm_log, "encoder", 2e-4)
+    split = load(quantised.data, quantised.robot)
+    chosen = split.whole.meta["defaults"]
+    df = pd.read_csv(arm_log / "log.csv")
+    training = df["t"].to_numpy() < 0.7 * df["t"].iloc[-1]
+    for j, found in enumerate(chosen["noise_cutoff_hz"]):
+        qdd = np.gradient(df[f"qd{j + 1}"].to_numpy()[training], 1 / 500.0)
+        white = _white_quantisation_cutoff(df[f"q{j + 1}"].to_numpy()[training], 2e-4, 500.0, np.var(qdd),
+                                           10 * chosen["motion_band_hz"][j])
+        assert 0.95 * white <= found <= 1.15 * white, (j, found, white)
+    assert split.source.cutoff == chosen["cutoff_hz"] == min(chosen["noise_cutoff_hz"])
+    assert any("low-pass chosen" in w for w in split.whole.meta["warnings"])
+    exact = _positions_log(arm_log, "exact", None)
+    plain = load(exact.data, exact.robot)
+    assert plain.whole.meta["defaults"] is None and plain.source.cutoff is None
+
+
+def test_what_the_data_decide_they_decide_from_the_training_rows(arm_log):
+    """The default cutoff is chosen from the training span alone: a 0.05 rad spike in a position of the
+    validation span (a spectrum read whole would widen the band) leaves the cutoff and the training
+    span bit for bit as they were."""
+    a, b = (_positions_log(arm_log, name, 2e-4, spike) for name, spike in (("clean", False), ("spiked", True)))
+    sa, sb = load(a.data, a.robot), load(b.data, b.robot)
+    assert sa.source.cutoff == sb.source.cutoff is not None
+    for k in ("t", "q", "qd", "qdd", "tau"):
+        assert np.array_equal(getattr(sa.training, k), getattr(sb.training, k)), k
+    assert not np.array_equal(sa.validation.q, sb.validation.q)
+
+
 def test_a_lagging_channel_is_found_late_by_its_delay_with_the_sign_of_the_lag():
     """A channel that lags by d reads tau(t - d): on a regressor column f(t) of incommensurate
     sinusoids, the delay found is +d (the parabola through the grid's best point to a tenth of its

@@ -168,6 +168,51 @@ def test_a_gate_under_a_skipped_result_is_skipped_and_any_other_missing_metric_i
     assert not rows[1]["passed"] and not passed  # a gate that is not skipped still judges
 
 
+def test_a_gate_under_a_failed_result_fails_with_what_the_method_raised():
+    results = {"identification_methods": {"m": {"plugin": "p", "failed": "fit raised RuntimeError: singular"}}}
+    gate = Gate("a", "identification_methods.m.validation_rel_error", 0.5)
+    assert unknown_metrics([gate], results) == []  # known: the method ran and failed
+    rows, passed = check([gate], results)
+    assert not passed and not rows[0]["passed"] and rows[0]["value"] is None
+    assert rows[0]["reason"] == "failed: fit raised RuntimeError: singular"
+
+
+RAISES = """
+def make(robot):
+    return Raises(list(robot.joint_names))
+
+
+class Raises:
+    def __init__(self, joint_names):
+        self.joint_names = joint_names
+
+    def fit(self, q, qd, qdd, tau, t):
+        raise RuntimeError("the normal equations are singular")
+"""
+
+
+@pytest.mark.slow  # a few seconds: a whole pipeline
+def test_a_method_whose_fit_raises_is_its_row_failed_and_the_run_is_still_judged_and_written(tmp_path, capsys):
+    """An exception inside a method's fit is that method's result, not the run's end: its row says
+    what it raised, its gate fails (exit 1, not 3), the harness's own fit is judged and exported, and
+    the terminal says it once."""
+    (tmp_path / "raises.py").write_text(RAISES)
+    scenario = _scenario_with(tmp_path, '[[identification]]\nname = "raises"\npython = "raises:make"\n'
+                                        '[[gates]]\nmetric = "identification_methods.raises.validation_rel_error"\n'
+                                        'limit = 1\n[[gates]]\nmetric = "log_identification.validation_rel_error.'
+                                        'consistent"\nlimit = 0.05\n')
+    status = main(["run", str(scenario), "--out", str(tmp_path / "out"), "--quiet"])
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    row = results["identification_methods"]["raises"]
+    assert status == 1 and row["plugin"] == "raises:make" and row["seconds"] >= 0
+    assert row["failed"] == "fit raised RuntimeError: the normal equations are singular"
+    failing = [g for g in results["gates"] if not g["passed"]]
+    assert [g["metric"] for g in failing] == ["identification_methods.raises.validation_rel_error"]
+    assert (tmp_path / "out" / "identified" / "robot.toml").is_file()
+    assert "the normal equations are singular" in (tmp_path / "out" / "report.html").read_text()
+    assert capsys.readouterr().err.count("identification method raises failed") == 1
+
+
 def _scenario_with(tmp_path, extra: str):
     text = SCENARIO.read_text().replace('"../', f'"{SCENARIO.parent.parent}/')
     text = text[: text.index("[[identification]]")] + extra

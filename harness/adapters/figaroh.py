@@ -99,7 +99,7 @@ class Figaroh:
             problem = self.fg.build_problem(W, self.stacked(tau), names, joints, prior=prior, qr_tol=self.qr_tolerance)
             record = self.fg.solve_direct_effort_fit(problem, solver="cvxopt")
             if not record.accepted:
-                raise RuntimeError(f"FIGAROH's physical fit was not accepted ({record.status})")
+                raise RuntimeError(f"FIGAROH's physical fit was not accepted: {_why_rejected(record)}")
             x = np.array([self.standard[k] for k in names], dtype=float)
             x[[names.index(k) for k in problem.params_std]] = record.theta
             return Fitted(self, x, "all parameters by FIGAROH's physical fit (pseudo-inertia LMI per link); rotor "
@@ -113,6 +113,21 @@ class Figaroh:
         x[[names.index(k) for k in (qr.get_M_labels()[1] or active)]] = self.fg.redistribute_min_norm(M, phi_base)
         return Fitted(self, x, "parameters: FIGAROH's minimum-norm split of its base parameters (not a physical "
                                "claim); columns it eliminated keep the model's values")
+
+
+def _why_rejected(record) -> str:
+    """Why FIGAROH refused its own physical fit, from its SolveRecord (figaroh 1.0: solver_status,
+    exception, the links failing its pseudo-inertia test, the relative base residual)."""
+    failing = [name for name, f in (record.feasibility or {}).items() if not f.get("ok", True)]
+    parts = [f"solver status {record.solver_status}"]
+    if record.exception:
+        parts.append(f"exception {str(record.exception).splitlines()[0]}")
+    if failing:
+        parts.append(f"links failing its physical test: {', '.join(failing)}")
+    residual = (record.base_residual or {}).get("relative")
+    if residual is not None:
+        parts.append(f"relative base residual {residual:.3g}")
+    return "; ".join(parts)
 
 
 class Fitted:

@@ -86,6 +86,12 @@ class PluginError(Exception):
         return type(self), (self.plugin, self.message)
 
 
+class PluginRaised(PluginError):
+    """The plugin's own code raised an exception (not SystemExit, not KeyboardInterrupt) while it ran:
+    bad input like any PluginError, unless the caller can make it a result of its own (an identification
+    method on a log whose fit raises becomes its row: harness/stages/log_methods.py)."""
+
+
 class ToolUnavailable(PluginError):
     """Raised by a method's factory when the tool it wraps is not installed (an optional extra, e.g.
     `pip install 'harness[figaroh]'`). The method is skipped, with this message on the terminal, in
@@ -153,7 +159,9 @@ def guard(plugin: str, what: str) -> Iterator[None]:
     except SystemExit as exc:
         raise PluginError(plugin, f"{_doing(what)} SystemExit: sys.exit({exc.code!r}) (a plugin cannot end "
                                   "the run)") from None
-    except BaseException as exc:  # a plugin may raise anything
+    except Exception as exc:  # a plugin may raise anything
+        raise PluginRaised(plugin, f"{_doing(what)} {_exception(exc)}") from None
+    except BaseException as exc:
         raise PluginError(plugin, f"{_doing(what)} {_exception(exc)}") from None
 
 

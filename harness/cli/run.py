@@ -112,8 +112,11 @@ def _run_each(args: argparse.Namespace, scenarios: list, reading: list[float], w
             result = run(scenario, progress, workers)
         progress("writing the report", None)
         results = result.results
+        failed = [f"identification method {name} failed: {m['failed']}"
+                  for name, m in results.get("identification_methods", {}).items()
+                  if isinstance(m, dict) and isinstance(m.get("failed"), str)]
         for warning in (results.get("data", {}).get("conditioning", {}).get("warnings", [])
-                        + results.get("log_identification", {}).get("warnings", [])):
+                        + results.get("log_identification", {}).get("warnings", []) + failed):
             print(f"harness: warning: {scenario.name}: {warning}", file=sys.stderr)  # once per run, not per row
         results["run"]["timings"] = {"starting Python and importing the engines and libraries": imported,
                                      "reading the scenario, its model and plugins": read,

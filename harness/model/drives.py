@@ -77,9 +77,10 @@ class Transmission:
         """(..., n) joint torques -> the motor torques that apply them, N^-T tau."""
         return tau @ self.N_inv
 
-    def describe(self) -> dict:
+    def describe(self, joints: tuple[str, ...] | list[str]) -> dict:
+        """N, the offsets and the coupled motors with the names of their joints (the spec's, in order)."""
         return {"motors": list(self.motors), "N": self.N.tolist(), "offset": self.offset.tolist(),
-                "coupled": {self.motors[k]: joints for k, joints in self.coupled}}
+                "coupled": {self.motors[k]: [joints[j] for j in js] for k, js in self.coupled}}
 
 
 def torque(frictions: tuple[JointFriction, ...], transmission: Transmission | None, qd: np.ndarray,

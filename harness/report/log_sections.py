@@ -16,9 +16,18 @@ def data(r: dict, log) -> str:
     d = r["data"]
     c = d["conditioning"]
     src = r["scenario"]["data"]
+    def value(v) -> str:
+        if isinstance(v, float):
+            return num(v)
+        if isinstance(v, list | tuple):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "(" + "; ".join(f"{k.replace('_', ' ')} {value(x)}" for k, x in v.items()) + ")"
+        return str(v)
+
     def described(step: dict) -> str:
-        return ", ".join(f"{k.replace('_', ' ')} {num(v) if isinstance(v, float) else v}"
-                         for k, v in step.items() if k != "step" and v not in ({}, None))
+        return ", ".join(f"{k.replace('_', ' ')} {value(v)}" for k, v in step.items()
+                         if k != "step" and v not in ({}, None))
 
     steps = "".join(f"<li><b>{esc(step['step'])}</b>: {esc(described(step))}</li>" for step in c["steps"])
     warnings = "".join(f'<p class="warn">{esc(w)}</p>' for w in c["warnings"])
@@ -215,9 +224,10 @@ def log_methods(r: dict) -> str:
               "physical validity", "friction and rotor inertia", "seconds", "notes"]
     rows = []
     for name, m in rows_in.items():
-        if m.get("skipped"):
-            rows.append([esc(name), code(m["plugin"]), Markup("<i>skipped</i>"), *([DASH] * (len(header) - 4)),
-                         esc(m["skipped"])])
+        if m.get("skipped") or m.get("failed"):
+            word = "skipped" if m.get("skipped") else "failed"
+            rows.append([esc(name), code(m["plugin"]), Markup(f"<i>{word}</i>"), *([DASH] * (len(header) - 4)),
+                         esc(m[word])])
             continue
         b = m.get("base_parameters")
         friction = m.get("friction")

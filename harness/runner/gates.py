@@ -17,7 +17,9 @@ Gates fail closed: a metric that is null, not a number, or not finite fails its 
 that names no result at all is bad input (a misspelt path must not pass or fail quietly). The one
 exception is a metric under a result that says it was skipped (`{"skipped": "why"}`: an
 identification method whose tool is not installed): its gate is reported as skipped, with the
-reason, and counted apart; it neither passes nor fails the run.
+reason, and counted apart; it neither passes nor fails the run. A metric under a result that says it
+failed (`{"failed": "why"}`: an identification method on a log whose fit raised) fails its gate, with
+the reason.
 """
 
 from __future__ import annotations
@@ -70,12 +72,12 @@ def lookup(results: dict, metric: str, missing=None):
     return node
 
 
-def skipped_by(results: dict, metric: str) -> str | None:
-    """Why the result a metric lies under was skipped (`{"skipped": "why"}` on its path), or None."""
+def _said_on_path(results: dict, metric: str, key: str) -> str | None:
+    """The reason a result on the metric's path gives under `key` ({"skipped": "why"}), or None."""
     node = results
     for part in metric.split("."):
-        if isinstance(node, dict) and isinstance(node.get("skipped"), str):
-            return node["skipped"]
+        if isinstance(node, dict) and isinstance(node.get(key), str):
+            return node[key]
         if isinstance(node, dict) and part in node:
             node = node[part]
         else:
@@ -83,10 +85,22 @@ def skipped_by(results: dict, metric: str) -> str | None:
     return None
 
 
+def skipped_by(results: dict, metric: str) -> str | None:
+    """Why the result a metric lies under was skipped (`{"skipped": "why"}` on its path), or None."""
+    return _said_on_path(results, metric, "skipped")
+
+
+def failed_by(results: dict, metric: str) -> str | None:
+    """Why the result a metric lies under failed (`{"failed": "why"}` on its path: an identification
+    method whose fit raised), or None."""
+    return _said_on_path(results, metric, "failed")
+
+
 def unknown_metrics(gates, results: dict) -> list[int]:
-    """Indices of the gates whose metric names no result (one under a skipped result is known)."""
+    """Indices of the gates whose metric names no result (one under a skipped or failed result is known)."""
     return [i for i, g in enumerate(gates)
-            if lookup(results, g.metric, MISSING) is MISSING and skipped_by(results, g.metric) is None]
+            if lookup(results, g.metric, MISSING) is MISSING and skipped_by(results, g.metric) is None
+            and failed_by(results, g.metric) is None]
 
 
 def verdict(gates, results: dict, source) -> dict:
@@ -111,8 +125,11 @@ def check(gates: tuple[Gate, ...] | list[Gate], results: dict) -> tuple[list[dic
                          "where": ""})
             continue
         value = lookup(results, g.metric)
+        failed = failed_by(results, g.metric)
         number = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-        if not number:
+        if failed is not None:
+            passed, reason, value = False, f"failed: {failed}", None
+        elif not number:
             passed, reason = False, "no value (nothing was evaluated)" if value is None else \
                 f"not a finite number: {value!r}"
             value = None

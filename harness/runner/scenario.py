@@ -246,6 +246,11 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     if source.side == "motor" and robot.transmission is None:
         raise dt.error("side", f'"motor": the log is mapped to the joints through the model\'s drives, and '
                                f"{robot.source} states none ([drives])")
+    if source.side == "motor" and source.identify_constants and not robot.transmission.diagonal:
+        raise dt.error("payload" if source.payload is not None else "identify_torque_constants",
+                       "the torque constants are identified joint by joint, and a coupled motor "
+                       f"({', '.join(robot.transmission.motors[k] for k, _ in robot.transmission.coupled)}) "
+                       "drives more than one joint: give each motor's torque_constant")
     check_columns(source, robot, dt)
     if source.payload is not None and source.payload.body not in {b.name for b in robot.massive_bodies}:
         raise dt.error("payload.body", f"no body {source.payload.body!r} with mass in {robot.name!r}")

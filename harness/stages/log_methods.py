@@ -15,7 +15,10 @@ consistent fit:
   coefficients;
 - the friction and rotor inertia it identifies, its own notes (what it cannot do or assumed), and the
   seconds of its fit.
-A method whose tool is not installed is listed as skipped, with the reason.
+A method whose tool is not installed is listed as skipped, with the reason; one whose fit raises an
+exception is its row, failed, with what it raised (its gates fail: harness/runner/gates.py), and every
+other result and the export are written. A method that ends the process or calls sys.exit is bad input,
+as everywhere.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.base.numerics import parameter_scale, relative_error
-from harness.base.plugins import PluginError, Stage, guard, inverse_dynamics
+from harness.base.plugins import PluginError, PluginRaised, Stage, guard, inverse_dynamics
 from harness.identify.consistent import consistency
 from harness.model.friction import IDENTIFIED_KEYS, NONNEGATIVE_KEYS
 from harness.stages.metrics import torque_errors
@@ -50,9 +53,22 @@ class LogMethod:
 
 
 @dataclass(frozen=True, eq=False)
+class FailedMethod:
+    """A method whose fit raised: its row says what, and its gates fail."""
+
+    name: str
+    plugin: str
+    reason: str
+    seconds: float
+
+    def serialise(self) -> dict:
+        return {"plugin": self.plugin, "failed": self.reason, "seconds": self.seconds}
+
+
+@dataclass(frozen=True, eq=False)
 class LogMethods:
     joints: list[str]
-    methods: tuple[LogMethod | SkippedMethod, ...]  # the harness's own two first
+    methods: tuple[LogMethod | SkippedMethod | FailedMethod, ...]  # the harness's own two first
     measured: dict[str, np.ndarray]  # span -> (N, n) the torques the fits read
     truth: dict[str, np.ndarray]  # span -> the truth's torques at the same states (a bench log)
 
@@ -61,7 +77,7 @@ class LogMethods:
         first (`harness_least_squares`, `harness_consistent`, names no plugin may take)."""
         out = {}
         for m in self.methods:
-            if isinstance(m, SkippedMethod):
+            if isinstance(m, SkippedMethod | FailedMethod):
                 out[m.name] = m.serialise()
             elif m.plugin == BUILT_IN:
                 out[m.name] = {"plugin": m.plugin, **self._row(ctx, m)}
@@ -123,7 +139,7 @@ def _rollouts(plugin: str, fitted) -> int | None:
         return None if count is None else int(count)
 
 
-def _judge(ctx, entry, li) -> LogMethod | SkippedMethod:
+def _judge(ctx, entry, li) -> LogMethod | SkippedMethod | FailedMethod:
     if entry.skipped is not None:
         return SkippedMethod.of(entry)
     joints = ctx.scenario.robot.joint_names
@@ -131,8 +147,11 @@ def _judge(ctx, entry, li) -> LogMethod | SkippedMethod:
     ctx.progress(f"identification method {entry.name}", None)
     start = time.perf_counter()
     judged = li.judged
-    fitted = fit_method(plugin, entry.instance, joints, *judged.states["training"], judged.measured["training"],
-                        judged.t["training"])
+    try:
+        fitted = fit_method(plugin, entry.instance, joints, *judged.states["training"], judged.measured["training"],
+                            judged.t["training"])
+    except PluginRaised as exc:
+        return FailedMethod(entry.name, plugin, exc.message, time.perf_counter() - start)
     seconds = time.perf_counter() - start
     predictions = {span: inverse_dynamics(plugin, "inverse_dynamics of the fitted model", fitted, joints, *states)
                    for span, states in judged.states.items()}

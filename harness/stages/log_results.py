@@ -120,7 +120,7 @@ def _consistent_section(li, ctx) -> dict:
         "inconsistent_links": sum(not v["consistent"] for v in links.values()),
         "links": links,
         "friction": {j: {"family": f.family, **f.as_dict()} for j, f in zip(li.drives, li.frictions, strict=True)},
-        **({"transmission": ctx.scenario.robot.transmission.describe()}
+        **({"transmission": ctx.scenario.robot.transmission.describe(ctx.scenario.robot.joint_names)}
            if ctx.scenario.robot.transmission is not None else {}),
     }
 

@@ -32,7 +32,7 @@ def smooth(kept: TimeSeries, source: DataSource, robot: RobotSpec, rate: float, 
     from scipy.signal import butter, sosfiltfilt
 
     path, tk, raw = kept.meta["file"], kept.t, kept
-    steps, warnings = [checks], list(check_warnings)
+    steps, warnings = [*([raw.meta["read"]] if "read" in raw.meta else []), checks], list(check_warnings)
     # 2. uniform grid
     grid = tk[0] + np.arange(int(np.floor((tk[-1] - tk[0]) * rate)) + 1) / rate
 

@@ -2,24 +2,35 @@
 noise (a quantised encoder, a noisy sensor), and the decimation that goes with it.
 
 Differentiating positions twice multiplies their noise by (2 pi f)^2 per derivative: a quantised encoder
-at 5 kHz, differentiated unfiltered, gives accelerations of noise. The motion of an arm lives in a few
-hertz; its noise is spread to the Nyquist frequency, all along the log. On the uniform grid of the
-checked log, per joint:
-- the motion's band f_m, the frequency below which BAND_ENERGY of the velocity's energy lies (Welch's
-  spectrum of the positions' first differences, scipy.signal.welch);
+at 5 kHz, differentiated unfiltered, gives accelerations of noise. Too low a cut-off is as wrong: the
+torques are filtered with the positions, and a torque that turns sharply (Coulomb friction changing sign
+with the velocity) smeared over 1 / f_c no longer matches the model at the filtered states (a bench arm
+whose joints move below 1 Hz, with a Coulomb law over 0.02 rad/s: 6.7 % off its truth's torques held
+out at a 3 Hz cut-off, 2.4 % at 20 Hz, 0.7 % at 50 Hz). So the cut-off is the highest the positions'
+noise allows. On the uniform grid of the checked log (the training span's rows), per joint, from Welch's
+spectra (scipy.signal.welch) of the positions' first and second differences:
+- the motion's band f_m, the frequency below which BAND_ENERGY of the velocity's energy lies;
 - the noise's level: the median of |the velocity high-passed at NOISE_BAND x f_m| over the velocity's
   RMS. A median, so that a single kink (a gap bridged by interpolation) does not count: noise is there
   at every sample (a bench log of exact positions: 2e-10 to 9e-10, with a 50 ms gap bridged the same;
-  the Staubli TX40's quantised encoders: 0.009 to 0.013).
-Where some joint's level exceeds NOISY and no cut-off is given, the cut-off is CUTOFF_FACTOR x the
-largest f_m and, where no decimation is given either, the filtered grid keeps about SAMPLES_PER_CUTOFF
-samples per second per hertz of cut-off (decimate = rate // (SAMPLES_PER_CUTOFF x cut-off)). Positions
-without noise are left unfiltered, as before. Either way the choice is recorded and said.
+  the Staubli TX40's quantised encoders: 0.009 to 0.013);
+- the noise's cut-off: the highest frequency f_c at which the acceleration's energy between NOISE_BAND x
+  f_m and f_c (noise: the motion has none there) stays within ACCELERATION_NOISE^2 of the acceleration's
+  energy below NOISE_BAND x f_m (the motion's), i.e. a filter at f_c lets through accelerations of noise
+  of at most ACCELERATION_NOISE of the motion's RMS (measured, not modelled: the spectrum is read where
+  it lies).
+Where some joint's level exceeds NOISY and no cut-off is given, the cut-off is the lowest joint's noise
+cut-off, at least CUTOFF_FACTOR x the largest f_m and at most MAX_CUTOFF of the grid's rate (the TX40
+over its motion: 15 Hz; its whole run: 30 Hz; the bench arm above read through a 16-bit motor encoder:
+49 Hz) and, where no decimation is given either, the filtered grid keeps about SAMPLES_PER_CUTOFF samples
+per second per hertz of cut-off (decimate = rate // (SAMPLES_PER_CUTOFF x cut-off)). Positions without
+noise are left unfiltered, as before. Either way the choice is recorded and said.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,22 +40,33 @@ from harness.base.series import TimeSeries
 BAND_ENERGY = 0.99  # the motion's band holds this share of the velocity's energy
 NOISE_BAND = 10.0  # beyond this many times the motion's band, a velocity's energy is noise
 NOISY = 1e-4  # a joint whose high-passed velocity's median is over this share of its RMS carries noise
-CUTOFF_FACTOR = 3.0  # the default cut-off: this many times the motion's band
+ACCELERATION_NOISE = 0.01  # the default cut-off lets through accelerations of noise of this share of the motion's
+CUTOFF_FACTOR = 3.0  # the default cut-off is at least this many times the motion's band
+MAX_CUTOFF = 0.4  # and at most this share of the grid's rate
 SAMPLES_PER_CUTOFF = 20.0  # the default decimation keeps this many samples per second per hertz of cut-off
 WELCH_SECONDS = 4.0  # Welch's segments
 
 
-def motion_band(kept: TimeSeries, rate: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per joint (the motion's band f_m in Hz, the noise's level: the module's docstring), on the log's
-    rows resampled to `rate`."""
+@dataclass(frozen=True)
+class Spectra:
+    """Per joint, what the positions say of their motion and their noise (the module's docstring)."""
+
+    band: np.ndarray  # (n,) Hz, the motion's band f_m
+    level: np.ndarray  # (n,) the noise's level
+    noise_cutoff: np.ndarray  # (n,) Hz, the highest cut-off the noise allows (the grid's Nyquist if none)
+
+
+def spectra(kept: TimeSeries, rate: float) -> Spectra:
+    """The module's docstring, on the log's rows resampled to `rate`."""
     from scipy.signal import butter, sosfiltfilt, welch
 
     grid = kept.t[0] + np.arange(int(np.floor((kept.t[-1] - kept.t[0]) * rate)) + 1) / rate
     v = np.diff(sampled(kept.t, kept.q, grid), axis=0) * rate
     n = kept.q.shape[1]
     if len(v) < 64:
-        return np.zeros(n), np.zeros(n)
-    f, P = welch(v, fs=rate, nperseg=min(len(v), int(WELCH_SECONDS * rate)), detrend="linear", axis=0)
+        return Spectra(np.zeros(n), np.zeros(n), np.full(n, rate / 2))
+    segment = min(len(v) - 1, int(WELCH_SECONDS * rate))
+    f, P = welch(v, fs=rate, nperseg=segment, detrend="linear", axis=0)
     total = np.maximum(P.sum(axis=0), np.finfo(float).tiny)
     band = f[np.minimum(np.argmax(np.cumsum(P, axis=0) / total >= BAND_ENERGY, axis=0), len(f) - 1)]
     level = np.zeros(n)
@@ -52,26 +74,36 @@ def motion_band(kept: TimeSeries, rate: float) -> tuple[np.ndarray, np.ndarray]:
     for j in np.flatnonzero((band > 0) & (NOISE_BAND * band < 0.45 * rate) & (rms > 0)):
         sos = butter(4, NOISE_BAND * band[j], btype="highpass", fs=rate, output="sos")
         level[j] = np.median(np.abs(sosfiltfilt(sos, v[:, j]))) / rms[j]
-    return band, level
+    _, Pa = welch(np.diff(v, axis=0) * rate, fs=rate, nperseg=segment, detrend="linear", axis=0)
+    motion = f[:, None] <= NOISE_BAND * band
+    allowed = ACCELERATION_NOISE**2 * np.sum(np.where(motion, Pa, 0.0), axis=0)
+    passed = np.cumsum(np.where(motion, 0.0, Pa), axis=0)  # the noise a cut-off at f lets through
+    noise_cutoff = np.array([f[passed[:, j] <= allowed[j]].max() for j in range(n)])
+    return Spectra(band, level, noise_cutoff)
 
 
 def resolve(source, kept: TimeSeries, rate: float):
     """The scenario's `[data]` with the conditioning the data decide (the module's docstring), and the
-    record of the choice (None where the scenario's own stands)."""
+    record of the choice (None where the scenario's own stands). `kept`: the rows it may read (a log
+    split by time: the training span's alone)."""
     if source.cutoff is not None:
         return source, None
-    band, noise = motion_band(kept, rate)
-    if not np.any(noise > NOISY):
+    s = spectra(kept, rate)
+    if not np.any(s.level > NOISY):
         return source, None
-    cutoff = float(min(CUTOFF_FACTOR * np.max(band), 0.4 * rate))
+    cutoff = float(min(max(np.min(s.noise_cutoff), CUTOFF_FACTOR * np.max(s.band)), MAX_CUTOFF * rate))
     decimate = source.decimate if source.decimate_given else max(1, int(rate // (SAMPLES_PER_CUTOFF * cutoff)))
     record = {"cutoff_hz": cutoff, "decimate": decimate,
-              "definition": f"no cutoff given, and the positions carry noise: the median of the velocity high-passed "
-                            f"at {NOISE_BAND:g} x the motion's band (where {BAND_ENERGY:.0%} of its energy lies) is "
-                            f"over {NOISY:g} of its RMS on some joint; the cutoff is {CUTOFF_FACTOR:g} x the largest "
-                            "band"
+              "definition": f"no cutoff given, and the positions carry noise (the median of the velocity high-passed "
+                            f"at {NOISE_BAND:g} x the motion's band, where {BAND_ENERGY:.0%} of its energy lies, is "
+                            f"over {NOISY:g} of its RMS on some joint): the cutoff is the highest at which, on every "
+                            f"joint, the accelerations' energy beyond {NOISE_BAND:g} x the band let through stays "
+                            f"within ({ACCELERATION_NOISE:g})^2 of the motion's, at least {CUTOFF_FACTOR:g} x the "
+                            f"largest band and at most {MAX_CUTOFF:g} x the rate"
                             + ("" if source.decimate_given else
-                               f", the grid kept at about {SAMPLES_PER_CUTOFF:g} samples per second per hertz of "
+                               f"; the grid kept at about {SAMPLES_PER_CUTOFF:g} samples per second per hertz of "
                                "cutoff"),
-              "motion_band_hz": [float(b) for b in band], "noise_level": [float(x) for x in noise]}
+              "motion_band_hz": [float(b) for b in s.band], "noise_level": [float(x) for x in s.level],
+              "noise_cutoff_hz": [float(x) for x in s.noise_cutoff],
+              "read_from": {"t_start": float(kept.t[0]), "t_end": float(kept.t[-1])}}
     return dataclasses.replace(source, cutoff=cutoff, decimate=decimate), record

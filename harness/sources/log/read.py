@@ -120,8 +120,9 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
 
         t, q, qd, tau = read_bag(path, source.topic, robot.joint_names)
         q, qd, tau = to_si(source, robot, q, qd, tau)
-        return _windowed(source, raw_series(path, digest(path), t, *at_joints(source, robot, q, qd, tau),
-                                            tuple(robot.joint_names)))
+        series = raw_series(path, digest(path), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names))
+        series.meta["read"] = _read_record(source, robot, [path], f"the bag's stamps (topic {source.topic})")
+        return _windowed(source, series)
     names = column_names(source, robot)
     frames = [(path, *_csv(path, source, robot))]
     if source.torque_file is not None and file is None:  # the torques in a file of their own, row by row
@@ -136,7 +137,20 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     digest = hashlib.sha256(b"".join(content for _, _, content in frames)).hexdigest()
     q, qd, tau = to_si(source, robot, columns["q"], columns.get("qd"), columns["tau"])
     series = raw_series(path, digest, t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names))
+    series.meta["read"] = _read_record(source, robot, [p for p, _, _ in frames],
+                                       f"column {names['t'][0]!r}" if "t" in columns
+                                       else f"row k at k / {source.sample_rate:g} s (sample_rate)")
     return _windowed(source, series)
+
+
+def _read_record(source: DataSource, robot: RobotSpec, files: list[Path], time: str) -> dict:
+    """The conditioning's first step: what was read, where its time came from, and at which side of the
+    drives it was measured (a motor-side log mapped to the joints through the model's transmission)."""
+    record = {"step": "read", "files": [str(f) for f in files], "time": time, "side": source.side}
+    if source.side == "motor":
+        record["to_joints"] = {"rule": "q = N^-1 (q_m - offset), q' = N^-1 q'_m, tau = N^T tau_m",
+                               **robot.transmission.describe(robot.joint_names)}
+    return record
 
 
 def _csv(path: Path, source: DataSource, robot: RobotSpec):
@@ -182,7 +196,8 @@ def _windowed(source: DataSource, series: TimeSeries) -> TimeSeries:
         raise InputError(series.meta["file"], "window", f"[{t0:g}, {t1:g}] s keeps {int(keep.sum())} rows of a log "
                                                        f"from {series.t[0]:g} to {series.t[-1]:g} s")
     kept = series.span(keep)
-    kept.meta["window"] = {"t_start": t0, "t_end": t1, "rows": int(keep.sum()), "rows_before": len(series.t)}
+    kept.meta["read"] = {**series.meta["read"], "window": {"t_start": t0, "t_end": t1, "rows": int(keep.sum()),
+                                                           "rows_before": len(series.t)}}
     return kept
 
 

@@ -54,7 +54,10 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     raw = read_raw(source, robot)
     checked = check(raw, robot, source)
     kept, rate = checked.kept, checked.rate(source)
-    source, chosen = defaults.resolve(source, kept, rate)
+    t_split = None if source.validation_from is None else \
+        kept.t[0] + source.validation_from * (kept.t[-1] - kept.t[0])
+    # what the data decide, they decide from the training rows alone
+    source, chosen = defaults.resolve(source, kept if t_split is None else kept.span(kept.t < t_split), rate)
     longest = split_step(source, checked.median_step)
     pieces = segments(kept.t, longest)
     notes: list[str] = []
@@ -75,7 +78,6 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
         if source.validation_file is not None:
             val = condition(read_raw(source, robot, source.validation_file), source, robot)
         return Split(train, val, None, train, source)
-    t_split = kept.t[0] + source.validation_from * (kept.t[-1] - kept.t[0])
     before = kept.t < t_split
     if before.sum() < MIN_SPAN_ROWS or (~before).sum() < MIN_SPAN_ROWS:
         raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few rows "

@@ -26,14 +26,16 @@ TIME_UNITS = ((1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanosecond
 def to_si(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,
           tau: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """The log's q, q', tau in SI units: degrees of revolute joints to radians; motor currents to
-    joint torques, tau = i k_t N (torque constant k_t in N m/A on the motor side, gear ratio N)."""
+    joint torques, tau = i k_t r (torque constant k_t in N m/A on the motor side, gear ratio r), or on a
+    motor-side log (`side = "motor"`) to motor torques i k_t, which the model's drives take to the joints."""
     revolute = np.array([j.revolute for j in robot.joints])
     if source.units["q"] == "deg":
         q = np.where(revolute, np.radians(q), q)
     if qd is not None and source.units["qd"] == "deg/s":
         qd = np.where(revolute, np.radians(qd), qd)
     if source.units["tau"] == "current":
-        tau = tau * np.asarray(source.torque_constant) * np.asarray(source.gear_ratio)
+        ratio = 1.0 if source.side == "motor" else np.asarray(source.gear_ratio)
+        tau = tau * np.asarray(source.torque_constant) * ratio
     return q, qd, tau
 
 
