@@ -14,6 +14,7 @@ import pytest
 from harness.base.tomlio import InputError
 from harness.cli import main
 from harness.runner.audit import TOLERANCE, audit, resolve
+from tests.conftest import ROOT
 from tests.test_mjcf import ARM
 
 FIGURES = ("torques_vs_pinocchio", "mass_matrix_vs_pinocchio", "torques_vs_mujoco", "torques_urdf_vs_mjcf")
@@ -114,3 +115,36 @@ def test_every_robot_read_is_identified_from_its_own_bench_log(tmp_path, name):
     got = identify_from_bench(name, resolve([name])[name], tmp_path)
     e = got["validation_rel_error"]
     assert max(e["least squares"], e["consistent"]) <= IDENTIFY_TOLERANCE, got
+
+
+def test_a_model_file_with_coupled_drives_is_audited_with_them_and_a_misapplied_law_is_caught(tmp_path,
+                                                                                             monkeypatch):
+    """A model file around a URDF with a coupled transmission and every motor's law (tests/test_drives.py's
+    arm): its rigid bodies against Pinocchio's parser and MuJoCo, and its torques with the drives,
+    MuJoCo's bench (the motors' tendons, the dry terms through N) against Pinocchio's RNEA with the law,
+    all within 1e-9. The dry terms applied 1 % too strong on MuJoCo's side are caught."""
+    from harness.model import drives
+    from tests.test_drives import _drives_model
+
+    path = tmp_path / _drives_model(tmp_path)
+    assert resolve([str(path)]) == {"coupled": path}
+    row = audit("coupled", path)
+    assert row.verdict == "agrees", row.reason
+    assert row.drives_vs_pinocchio <= TOLERANCE and row.torques_vs_pinocchio <= TOLERANCE
+    dry = drives.Dry.__call__
+    monkeypatch.setattr(drives.Dry, "__call__", lambda self, *a, **k: 1.01 * dry(self, *a, **k))
+    row = audit("coupled", path)
+    assert row.verdict == "disagrees" and "torques with the drives" in row.reason
+    assert row.torques_vs_pinocchio <= TOLERANCE  # the rigid bodies still agree
+
+
+def test_a_model_file_that_fixes_joints_of_its_urdf_is_not_compared_with_the_urdfs_parse():
+    from harness.runner.audit import _read
+
+    path = next(iter(resolve([str(ROOT / "harness" / "data" / "models" / "panda_arm.toml")]).values()))
+    spec, described = _read(path)
+    assert spec.urdf_fixed and described == spec.urdf
+    row = audit("panda_arm", path)
+    assert row.verdict == "agrees" and row.torques_vs_pinocchio is None
+    assert any("fixes joints its URDF moves" in note for note in row.notes)
+    assert row.drives_vs_pinocchio <= TOLERANCE  # its joints' damping, MuJoCo against Pinocchio

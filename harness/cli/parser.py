@@ -104,8 +104,9 @@ def parser() -> argparse.ArgumentParser:
                     "DIR/audit.json (a row per robot) and DIR/audit.html. Exit status 1 when a robot that was read "
                     "disagrees beyond 1e-9; a robot the harness refuses is a row, not a failure.")
     audit.add_argument("robots", metavar="ROBOT|FILE", nargs="*",
-                       help="a URDF or MJCF file, or a robot of example-robot-data by name (default: every robot of "
-                            "the installed example-robot-data)")
+                       help="a URDF or MJCF file, a model file (.toml: with its drives or friction, also checked "
+                            "with them), or a robot of example-robot-data by name (default: every robot of the "
+                            "installed example-robot-data)")
     audit.add_argument("--out", metavar="DIR", type=Path, default=None, help="default: reports/audit")
     audit.add_argument("--identify", action="store_true",
                        help="also identify each robot from a log of its own bench recording (4 s at 250 Hz, the "

@@ -24,16 +24,19 @@ def render_audit(document: dict) -> str:
         base = DASH if r["base_parameters"] is None else f"{r['base_parameters']} / {'-' if rank is None else rank}"
         rows.append([esc(r["robot"]), verdict, DASH if r["dof"] is None else str(r["dof"]), esc(r["root"] or "-"),
                      num(r["torques_vs_pinocchio"]), num(r["mass_matrix_vs_pinocchio"]), num(r["torques_vs_mujoco"]),
+                     num(r.get("drives_vs_pinocchio")),
                      num(r["torques_urdf_vs_mjcf"]) if r["torques_urdf_vs_mjcf"] is not None else esc(r["mjcf"] or "-"),
                      esc(base), esc("; ".join(r["invalid_bodies"]) or "-"), _identified(r.get("identified")),
                      esc(r["reason"] or "")])
     head = (f"<p>{t['robots']} robots: {t['read']} read, {t['agree']} agree, {t['disagree']} disagree, {t['refused']} "
             f"refused by the harness's reader; MuJoCo's MJCF conversion read back for {t['mjcf_read']}. A robot agrees "
             f"when each figure is within {t['tolerance']:g}: the largest error over each joint's largest |torque| "
-            "(the mass matrix: over its largest entry) at 100 random states within the limits, rigid bodies only; "
+            "(the mass matrix: over its largest entry) at 100 random states within the limits, rigid bodies only, "
+            "and with the model file's drives or friction (MuJoCo's bench against Pinocchio's RNEA with their law); "
             "base parameters: the harness's structural count / the rank of Pinocchio's own regressor. "
             f"{t['seconds']:.1f} s.</p>")
     body = head + table(["robot", "verdict", "dof", "root", "torques vs Pinocchio's parser", "mass matrix",
-                         "torques vs MuJoCo", "URDF vs MuJoCo's MJCF", "base parameters", "bodies not physical",
+                         "torques vs MuJoCo", "with drives, MuJoCo vs Pinocchio", "URDF vs MuJoCo's MJCF",
+                         "base parameters", "bodies not physical",
                          "identified from its bench log (held out)", "why"], rows)
     return page("harness audit", "Robot descriptions audited", body)

@@ -1,7 +1,8 @@
 """`harness audit`: a collection of robot descriptions read as the harness reads them, and each read
 model checked against readers and engines that share none of its code.
 
-Per robot (a URDF, an MJCF file, or a robot of example-robot-data by name):
+Per robot (a URDF, an MJCF file, a model file (.toml) around one, or a robot of example-robot-data by
+name):
 - read or refused: the harness's own reader (harness/model/load.py), and the one line why;
 - degrees of freedom, and whether the root was fixed (a URDF's root link is the ground; an MJCF
   file's free joint is fixed to the world, said so);
@@ -16,7 +17,13 @@ Per robot (a URDF, an MJCF file, or a robot of example-robot-data by name):
   six digits, which would bound the parity at 1e-6. A URDF MuJoCo's compiler refuses is said so;
 - physical validity of every moving body: mass > 0, principal moments > 0, triangle inequality;
 - the structural base-parameter count (harness/identify/torque_id.py) beside the rank of Pinocchio's
-  own joint-torque regressor, of the model its parser builds, stacked over RANK_STATES random states.
+  own joint-torque regressor, of the model its parser builds, stacked over RANK_STATES random states;
+- with drives or joint friction in the model file (`[drives]`, `[joints.NAME]`, a URDF's <dynamics>):
+  the torques with them, MuJoCo's inverse dynamics of the bench's model (rotor inertia and viscous
+  friction on each joint, or on each motor's tendon through N) plus the dry terms the bench applies,
+  against Pinocchio's RNEA with the drives' law, at the same states.
+A model file that fixes joints of its URDF (`fixed`) is not compared with Pinocchio's parse of the URDF,
+in which they move (said in its notes).
 
 Errors are relative to each joint's largest |torque| over the states (the mass matrix: to its largest
 entry over the states). A read robot agrees when every figure is within TOLERANCE and the two base
@@ -62,6 +69,7 @@ class AuditRow:
     torques_vs_mujoco: float | None = None
     mjcf: str | None = None  # "read", or why MuJoCo's conversion or its reading failed
     torques_urdf_vs_mjcf: float | None = None
+    drives_vs_pinocchio: float | None = None  # torques with the drives' law, MuJoCo's bench against Pinocchio
     bodies: int | None = None
     invalid_bodies: list[str] = field(default_factory=list)
     base_parameters: int | None = None
@@ -100,8 +108,8 @@ def resolve(arguments: list[str]) -> dict[str, Path]:
     for a in arguments:
         path = Path(a)
         if path.is_file():
-            if path.suffix.lower() not in (".urdf", ".xml"):
-                raise InputError(path, "", "neither a URDF (.urdf) nor an MJCF file (.xml)")
+            if path.suffix.lower() not in (".urdf", ".xml", ".toml"):
+                raise InputError(path, "", "neither a URDF (.urdf), an MJCF file (.xml) nor a model file (.toml)")
             out[path.stem] = path
         elif a in known:
             out[a] = known[a]
@@ -110,13 +118,56 @@ def resolve(arguments: list[str]) -> dict[str, Path]:
     return out
 
 
+def _against_pinocchios_parser(row: AuditRow, spec: RobotSpec, described: Path | None, states, ours: np.ndarray,
+                               M: np.ndarray) -> list[str]:
+    """The harness's torques and mass matrix against Pinocchio's own parse of the file, and its
+    regressor's rank, into `row`; what disagrees or could not be compared, as problems."""
+    if _not_the_files(spec, described):
+        row.notes.append(f"not compared with Pinocchio's parser: {_not_the_files(spec, described)}")
+        return []
+    try:
+        with _CapturedStderr() as said:
+            pin_model = _Pinocchio(described, spec)
+        row.notes += [f"Pinocchio's parser said: {line}" for line in said.lines]
+        theirs, M_pin = pin_model.torques_and_mass(*states)
+        row.torques_vs_pinocchio = _largest(ours, theirs)
+        row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
+        row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
+    except Exception as exc:  # Pinocchio's parser refusing the file is a finding, not a crash
+        return [f"Pinocchio's parser: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"]
+    return []
+
+
+def _not_the_files(spec: RobotSpec, described: Path | None) -> str:
+    """Why the robot is not the file that describes it (then neither Pinocchio's parse of the file nor
+    MuJoCo's conversion of it is compared), or ""."""
+    if described is None:
+        return "the model file reads no URDF or MJCF"
+    if spec.urdf_fixed:
+        return f"the model file fixes joints its URDF moves ({', '.join(spec.urdf_fixed[:3])})"
+    return ""
+
+
+def _read(path: Path) -> tuple[RobotSpec, Path | None]:
+    """The robot as the harness reads it, and the URDF or MJCF file that describes it (a model file's,
+    None for a model file of the harness's own tree)."""
+    from harness.model.load import load_spec, spec_from_data
+
+    if path.suffix.lower() == ".toml":
+        spec = load_spec(path)
+        return spec, spec.urdf or spec.mjcf
+    kind = "mjcf" if path.suffix.lower() == ".xml" else "urdf"
+    return spec_from_data({kind: {"file": str(path.resolve())}}, path), path
+
+
 def _rigid(spec: RobotSpec) -> RobotSpec:
-    """The spec without its drives' friction and rotor inertia: the rigid bodies alone."""
+    """The spec without its drives and their friction and rotor inertia: the rigid bodies alone."""
     import dataclasses
 
     from harness.model.friction import NO_FRICTION
 
-    return dataclasses.replace(spec, joints=tuple(dataclasses.replace(j, friction=NO_FRICTION) for j in spec.joints))
+    return dataclasses.replace(spec, joints=tuple(dataclasses.replace(j, friction=NO_FRICTION) for j in spec.joints),
+                               transmission=None)
 
 
 def _states(spec: RobotSpec, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -215,9 +266,13 @@ class _Pinocchio:
 
 
 def _mujoco_torques(spec: RobotSpec, q, qd, qdd) -> np.ndarray:
+    """MuJoCo's inverse dynamics of the bench's model of `spec` (rotor inertia and viscous friction on the
+    joints, or on the motors' tendons), plus the dry terms the bench applies beside them (Coulomb,
+    offset and the families' terms, through N: harness/model/drives.py, Dry)."""
     import mujoco
 
     from harness.engines.mujoco import build_spec
+    from harness.model.drives import Dry
 
     model = build_spec(spec, GRAVITY_W).compile()
     data = mujoco.MjData(model)
@@ -227,7 +282,13 @@ def _mujoco_torques(spec: RobotSpec, q, qd, qdd) -> np.ndarray:
         data.qpos[cols], data.qvel[cols], data.qacc[cols] = q[k], qd[k], qdd[k]
         mujoco.mj_inverse(model, data)
         tau[k] = data.qfrc_inverse[cols]
-    return tau
+    dry = Dry(spec.frictions, spec.transmission)
+    if not dry.any:
+        return tau
+    if not dry.needs_load:
+        return tau + dry(qd)
+    # the load law reads the rigid bodies' torque: MuJoCo's own, its model without the drives
+    return tau + dry(qd, _mujoco_torques(_rigid(spec), q, qd, qdd))
 
 
 def _mujoco_conversion(path: Path, name: str) -> RobotSpec:
@@ -277,18 +338,17 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
 
     from harness.engines.pinocchio import build_model, crba, rnea
     from harness.identify.torque_id import structural_base
-    from harness.model.load import spec_from_data
     from harness.model.mjcf import FLOATING_BASE_FIXED
 
     t0 = time.perf_counter()
     row = AuditRow(name, str(path), "refused")
-    is_mjcf = path.suffix.lower() == ".xml"
     try:
-        spec = spec_from_data({"mjcf" if is_mjcf else "urdf": {"file": str(path.resolve())}}, path)
+        spec, described = _read(path)
     except InputError as exc:
         row.reason = exc.message.removeprefix(f"{path.resolve()}: ")
         row.seconds = time.perf_counter() - t0
         return row
+    is_mjcf = described is not None and described.suffix.lower() == ".xml"
     row.notes = list(spec.notes)
     row.dof = len(spec.joints)
     floating = any(note.endswith(FLOATING_BASE_FIXED) for note in spec.notes)  # an MJCF's free joint, held
@@ -306,23 +366,19 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
     ours, M = rnea(pm, q, qd, qdd).tau, crba(pm, q)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        try:
-            with _CapturedStderr() as said:
-                pin_model = _Pinocchio(path, spec)
-            row.notes += [f"Pinocchio's parser said: {line}" for line in said.lines]
-            theirs, M_pin = pin_model.torques_and_mass(q, qd, qdd)
-            row.torques_vs_pinocchio = _largest(ours, theirs)
-            row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
-            row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
-        except Exception as exc:  # Pinocchio's parser refusing the file is a finding, not a crash
-            problems.append(f"Pinocchio's parser: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}")
+        problems += _against_pinocchios_parser(row, spec, described, (q, qd, qdd), ours, M)
         row.torques_vs_mujoco = _largest(_mujoco_torques(rigid, q, qd, qdd), ours)
+        if spec.transmission is not None or any(not f.none for f in spec.frictions):
+            with_drives = rnea(build_model(spec, GRAVITY_W), q, qd, qdd).tau
+            row.drives_vs_pinocchio = _largest(_mujoco_torques(spec, q, qd, qdd), with_drives)
         if is_mjcf:
             row.mjcf = "the file itself"
+        elif _not_the_files(spec, described):
+            row.mjcf = f"not converted: {_not_the_files(spec, described)}"
         else:
             try:
                 with _CapturedStderr() as said:
-                    converted = _mujoco_conversion(path, name)
+                    converted = _mujoco_conversion(described, name)
                 row.notes += [f"MuJoCo's URDF import said: {line}" for line in said.lines]
                 converted = _rigid(converted)
                 if sorted(converted.joint_names) != sorted(spec.joint_names):
@@ -339,11 +395,12 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
     for label, value in (("torques against Pinocchio", row.torques_vs_pinocchio),
                          ("mass matrix against Pinocchio", row.mass_matrix_vs_pinocchio),
                          ("torques against MuJoCo", row.torques_vs_mujoco),
+                         ("torques with the drives, MuJoCo against Pinocchio", row.drives_vs_pinocchio),
                          ("torques URDF against MJCF", row.torques_urdf_vs_mjcf)):
         if value is not None and not value <= TOLERANCE:
             problems.append(f"{label} {value:.2g}")
     if row.torques_urdf_vs_mjcf is not None and not row.torques_urdf_vs_mjcf <= TOLERANCE:
-        dropped = _massless_with_inertia(path)
+        dropped = _massless_with_inertia(described)
         if dropped:
             problems[-1] += (f" (MuJoCo's URDF import drops the rotational inertia of {len(dropped)} link(s) of zero "
                              f"mass, {', '.join(dropped[:3])}, which the harness and Pinocchio's parser keep)")
@@ -394,14 +451,17 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
 
     t0 = time.perf_counter()
     folder.mkdir(parents=True, exist_ok=True)
-    kind = "mjcf" if path.suffix.lower() == ".xml" else "urdf"
     import tomli_w
 
-    (folder / "model.toml").write_text(tomli_w.dumps({"model": {"name": name.replace("/", "_")},
-                                                      kind: {"file": str(path.resolve())}}))
     from harness.model.load import load_spec
 
-    spec = load_spec(folder / "model.toml")
+    model_file = path.resolve()  # a model file as it is; a URDF or MJCF through one written here
+    if path.suffix.lower() != ".toml":
+        model_file = folder / "model.toml"
+        model_file.write_text(tomli_w.dumps({"model": {"name": name.replace("/", "_")},
+                                             "mjcf" if path.suffix.lower() == ".xml" else "urdf":
+                                             {"file": str(path.resolve())}}))
+    spec = load_spec(model_file)
     lo, hi = position_bounds(spec.joint_names, [j.revolute for j in spec.joints], spec.limits)
     rng = np.random.default_rng(0)
     motion = {}
@@ -415,12 +475,13 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
         return [{"metric": metric, "limit": 1.0}]
 
     (folder / "bench.toml").write_text(tomli_w.dumps({
-        "scenario": {"model": "model.toml", "duration": BENCH_SECONDS, "output_steps": int(BENCH_SECONDS * BENCH_RATE)},
+        "scenario": {"model": str(model_file), "duration": BENCH_SECONDS,
+                     "output_steps": int(BENCH_SECONDS * BENCH_RATE)},
         "simulation": {"integrator": "RK4", "timestep": 0.0005}, "motion": motion,
         "gates": gate("torques.pinocchio_vs_mujoco.max_rel_error")}))
     write_log(record(load_scenario(folder / "bench.toml")), spec.joint_names, folder / "log.csv")
     (folder / "log.toml").write_text(tomli_w.dumps({
-        "scenario": {"model": "model.toml"},
+        "scenario": {"model": str(model_file)},
         "data": {"file": "log.csv", "columns": {"t": "t", "q": "q{j}", "qd": "qd{j}", "tau": "tau{j}"},
                  "validation": {"from": 0.7}},
         "friction_law": {"choose": False},
