@@ -380,6 +380,28 @@ def test_a_users_method_swept_on_dask_gives_the_same_file(tmp_path):
     assert _sweep_json(tmp_path / "here") == _sweep_json(tmp_path / "dask")
 
 
+def test_init_from_a_urdf_whose_model_file_states_coupled_drives_passes_with_them(tmp_path):
+    """`harness init --urdf` with the TX40's URDF, then its coupled drives and every motor's law written
+    into the project's model file (harness/data/models/tx40.toml's transmission): the bench carries
+    them (MuJoCo's tendons, Pinocchio's law), the placeholder model takes them as the harness reads
+    them and its method fits what they leave, so every gate of the project passes: the torques at the
+    motion's and at random states, the mass matrix, the base parameters and the validation."""
+    import tomllib
+
+    models = DATA / "models"
+    urdf = models / tomllib.loads((models / "tx40.toml").read_text())["urdf"]["file"]
+    assert main(["init", str(tmp_path / "p"), "--urdf", str(urdf.resolve())]) == 0
+    folder = tmp_path / "p"
+    drives = (models / "tx40.toml").read_text().split("[drives]", 1)[1]
+    drives = drives.replace("coulomb_velocity = 0.64", "armature = 3.5e-4\nviscous = 7.9e-3\ncoulomb = 0.22\n"
+                            "offset = 0.012\ncoulomb_velocity = 0.64")
+    (folder / "robot.toml").write_text((folder / "robot.toml").read_text() + "\n[drives]" + drives)
+    assert main(["run", str(folder / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    results = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert results["model"]["transmission"]["coupled"] == {"motor_6": ["joint_5", "joint_6"]}
+    assert len(results["gates"]) == 6 and all(g["passed"] for g in results["gates"])
+
+
 def test_init_from_a_urdf_moves_every_joint_within_its_limits_and_passes(tmp_path, capsys):
     """A robot nobody here wrote a scenario for (UR5 of example-robot-data, as shipped): every joint moves
     within its position and velocity limits, and the placeholder model and the method pass out of the box."""

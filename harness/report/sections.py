@@ -119,8 +119,20 @@ def model(r: dict) -> str:
         + table(["body", "shape", "l [m]", "R [m]", "rho [kg/m^3]", "m [kg]", "J11 [kg m^2]", "J22", "J33"], rows)
         + "<h3>Joints (world frame, initial pose)</h3>"
         + table(["joint", "type", "inner body", "outer body", "point [m]", "axis", "drive (friction, rotor)"],
-                joints),
+                joints)
+        + _drives(m.get("transmission")),
     )
+
+
+def _drives(tr: dict | None) -> str:
+    """The model's drives: each motor's row of N (q_m = N q + offset), its offset and its law."""
+    if tr is None:
+        return ""
+    rows = [[esc(motor), esc(np.round(row, 6).tolist()), num(offset),
+             esc(", ".join(f"{k} {v:g}" for k, v in tr["laws"][motor].items() if v))]
+            for motor, row, offset in zip(tr["motors"], tr["N"], tr["offset"], strict=True)]
+    return ("<h3>Drives (q_m = N q + offset; each motor's law in motor units, reaching the joints as N^T tau_m)</h3>"
+            + table(["motor", "row of N", "offset [rad]", "law (friction, rotor)"], rows))
 
 
 def motion(r: dict, rec: TimeSeries) -> str:

@@ -81,11 +81,17 @@ def model_section(spec: RobotSpec) -> dict:
                        density=b.cylinder.density)
         row.update(com=floats(b.p_W_com0), e1=floats(b.R_WB0[:, 0]), e2=floats(b.R_WB0[:, 1]))
         bodies.append(row)
+    drives = spec.transmission
     joints = [{"name": j.name, "type": j.type, "parent": j.parent, "child": j.child,
                "point": floats(j.p_W0), "axis": floats(j.axis_W0),
-               **({"friction": j.friction.as_dict()} if not j.friction.none else {})} for j in spec.joints]
-    return {"name": spec.name, "file": str(spec.source), "description": spec.description,
-            "bodies": bodies, "joints": joints}
+               **({"friction": j.friction.as_dict()} if not j.friction.none and drives is None else {})}
+              for j in spec.joints]
+    out = {"name": spec.name, "file": str(spec.source), "description": spec.description,
+           "bodies": bodies, "joints": joints}
+    if drives is not None:  # each motor's law, in motor units, reaching the joints through N
+        out["transmission"] = {**drives.describe(spec.joint_names),
+                               "laws": {m: f.as_dict() for m, f in zip(drives.motors, spec.frictions, strict=True)}}
+    return out
 
 
 def recording_section(rec: TimeSeries) -> dict:

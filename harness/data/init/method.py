@@ -6,11 +6,32 @@
 # `covariance` (10 n, 10 n) of those parameters, it also reports intervals and their coverage.
 # Here: ordinary least squares on Pinocchio's joint-torque regressor of the URDF, with each joint's
 # viscous and Coulomb friction (URDF's <dynamics damping friction>): any robot of revolute,
-# continuous and prismatic joints.
+# continuous and prismatic joints. Where your model file states drives ([drives]: motors behind the
+# joints through a transmission N), their law is taken as known and the rest is fitted.
+
+
+class Drives:
+    """Your model file's drives as the harness reads them (harness/model/drives.py): each motor's law
+    reaching the joints through N (tau = N^T f_m(N q', N q'')), and the rotors' mass matrix
+    N^T diag(I_m) N. `of(robot)` is None for a robot without drives."""
+
+    def __init__(self, robot):
+        from harness.model import drives
+
+        self.robot, self.law = robot, drives
+        self.mass = drives.mass(robot.frictions, robot.transmission)
+
+    @classmethod
+    def of(cls, robot):
+        return None if getattr(robot, "transmission", None) is None else cls(robot)
+
+    def torque(self, qd, qdd, tau_rigid):
+        return self.law.torque(self.robot.frictions, self.robot.transmission, qd, qdd, tau_rigid)
 
 
 class LeastSquares:
-    def __init__(self, urdf, gravity_W):
+    def __init__(self, urdf, gravity_W, drives=None):
+        self.drives = drives  # known: the fit is of what they leave
         pin = self.pin = _pinocchio()
         self.model, self.data, self.joint_names = urdf_model(urdf, gravity_W)
         # theta_W = A theta_J: each body's parameters from its joint frame to world axes at q = 0
@@ -33,6 +54,8 @@ class LeastSquares:
         return np.hstack([W, F.reshape(N * n, 2 * n)])
 
     def fit(self, q, qd, qdd, tau):
+        if self.drives is not None:  # (a load-dependent law, which reads the rigid bodies' torque, is not known here)
+            tau = tau - self.drives.torque(qd, qdd, None)
         W, y = self.regressor(q, qd, qdd), tau.reshape(-1)
         theta, *_ = np.linalg.lstsq(W, y, rcond=None)  # the minimum-norm solution: exact on the base parameters
         dof = max(len(y) - np.linalg.matrix_rank(W), 1)
@@ -49,7 +72,9 @@ class Fitted:
         self.covariance = cov_W
 
     def inverse_dynamics(self, q, qd, qdd):
-        return (self.method.regressor(q, qd, qdd) @ self.theta).reshape(q.shape)
+        tau = (self.method.regressor(q, qd, qdd) @ self.theta).reshape(q.shape)
+        drives = self.method.drives
+        return tau if drives is None else tau + drives.torque(qd, qdd, None)
 
 
 def _pinocchio():
@@ -87,4 +112,4 @@ def _rotate_parameters(R, theta):
 
 
 def make_method(robot, gravity_W, parameters):
-    return LeastSquares(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W)
+    return LeastSquares(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W, Drives.of(robot))

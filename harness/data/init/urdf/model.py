@@ -4,9 +4,9 @@ Both are plugins, named in scenario.toml (`python = "my_robot:make_model"`). The
 each factory with the robot description (a harness.model.spec.RobotSpec), the scenario's gravity
 `gravity_W` (world components, m/s^2) and `parameters` (the extra keys of the scenario's table).
 
-The model under test below is a placeholder: Pinocchio's RNEA and CRBA on your URDF, which agree
-with the references by construction. Replace UrdfModel with your own model, and LeastSquares with
-your method (or keep it: it is generic).
+The model under test below is a placeholder: Pinocchio's RNEA and CRBA on your URDF (with the drives
+your model file states, as the harness reads them), which agree with the references by construction.
+Replace UrdfModel with your own model, and LeastSquares with your method (or keep it: it is generic).
 """
 
 from pathlib import Path
@@ -22,13 +22,16 @@ import numpy as np
 
 
 class UrdfModel:
-    def __init__(self, urdf, gravity_W):
+    def __init__(self, urdf, gravity_W, drives=None):
         self.pin = _pinocchio()
         self.model, self.data, self.joint_names = urdf_model(urdf, gravity_W)
+        self.drives = drives  # your model file's drives (Drives, below), or None
 
     def inverse_dynamics(self, q, qd, qdd):
         tau = np.array([self.pin.rnea(self.model, self.data, a, b, c)
                         for a, b, c in zip(configuration(self.model, q), qd, qdd, strict=True)])
+        if self.drives is not None:
+            return tau + self.drives.torque(qd, qdd, tau)
         return tau + self.model.damping * qd + self.model.friction * np.sign(qd)  # the URDF's <dynamics>
 
     def mass_matrix(self, q):
@@ -36,10 +39,10 @@ class UrdfModel:
         for a in configuration(self.model, q):
             M = self.pin.crba(self.model, self.data, a)
             out.append(np.triu(M) + np.triu(M, 1).T)  # CRBA fills the upper triangle
-        return np.array(out)
+        return np.array(out) + (0.0 if self.drives is None else self.drives.mass)
 
 
 def make_model(robot, gravity_W, parameters):
-    return UrdfModel(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W)
+    return UrdfModel(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W, Drives.of(robot))
 
 
