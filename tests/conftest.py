@@ -179,3 +179,17 @@ def numbers_of(tree) -> list[float]:
     if isinstance(tree, list):
         return [x for v in tree for x in numbers_of(v)]
     return [float(tree)] if isinstance(tree, int | float) and not isinstance(tree, bool) else []
+
+
+TWO_LINK_MOTION = ('[motion.shoulder]\ntype = "sinusoids"\noffset = -0.3\nsin = [[0.9, 2.1], [0.3, 5.3]]\n'
+                   '[motion.elbow]\ntype = "sinusoids"\nsin = [[1.0, 3.0], [0.2, 6.7]]\n')
+
+
+def two_link_bench(folder: Path, model: str, duration: float, output_steps: int) -> Scenario:
+    """folder/bench.toml: the example two-link arm's `model` (examples/two_link_arm's URDF with drives of
+    the test's own) on two sinusoids a joint, MuJoCo against Pinocchio as its gate; loaded."""
+    (folder / "bench.toml").write_text(
+        f'[scenario]\nmodel = "{model}"\nduration = {duration!r}\noutput_steps = {output_steps}\n' + TWO_LINK_MOTION
+        + '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
+    return load_scenario(folder / "bench.toml")
+

@@ -26,7 +26,7 @@ from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.drives import Transmission
 from harness.model.load import load_spec
 from harness.sources.bench import record
-from tests.conftest import ROOT
+from tests.conftest import ROOT, two_link_bench
 
 URDF = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"
 N = np.array([[50.0, 0.0], [20.0, -30.0]])
@@ -84,13 +84,7 @@ def coupled_bench(tmp_path_factory):
     of the joints (joints.csv: t, q, tau) and as the motors' log a lab publishes (pos.csv: q_m = N q + o,
     cur.csv: N^-T tau, no time column), with a scenario of each (joints.toml, motors.toml)."""
     folder = tmp_path_factory.mktemp("coupled")
-    model = _drives_model(folder)
-    (folder / "bench.toml").write_text(
-        f'[scenario]\nmodel = "{model}"\nduration = 3.0\noutput_steps = 1500\n'
-        '[motion.shoulder]\ntype = "sinusoids"\noffset = -0.3\nsin = [[0.9, 2.1], [0.3, 5.3]]\n'
-        '[motion.elbow]\ntype = "sinusoids"\nsin = [[1.0, 3.0], [0.2, 6.7]]\n'
-        '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
-    sc = load_scenario(folder / "bench.toml")
+    sc = two_link_bench(folder, _drives_model(folder), 3.0, 1500)
     rec = record(sc)
     t = sc.robot.transmission
     pd.DataFrame({"t": rec.t, **{f"q{k + 1}": rec.q[:, k] for k in range(2)},

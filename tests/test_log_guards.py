@@ -29,7 +29,7 @@ from harness.runner.gates import Gate, check
 from harness.sources.bench import record, write_log
 from harness.sources.log import load
 from harness.sources.log.segments import guard_band
-from tests.conftest import ROOT, numbers_of
+from tests.conftest import ROOT, numbers_of, two_link_bench
 
 URDF = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"
 DRIVES = {"shoulder": dict(armature=0.031, viscous=0.42, coulomb=0.63, offset=0.05, coulomb_velocity=0.021),
@@ -49,12 +49,7 @@ def arm_log(tmp_path_factory):
     scenario that identifies the arm from it, filtered at 15 Hz, validated on its last 30 %."""
     folder = tmp_path_factory.mktemp("arm")
     model = _model(folder)
-    (folder / "bench.toml").write_text(
-        f'[scenario]\nmodel = "{model}"\nduration = 6.0\noutput_steps = 3000\n'
-        '[motion.shoulder]\ntype = "sinusoids"\noffset = -0.3\nsin = [[0.9, 2.1], [0.3, 5.3]]\n'
-        '[motion.elbow]\ntype = "sinusoids"\nsin = [[1.0, 3.0], [0.2, 6.7]]\n'
-        '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
-    bench = load_scenario(folder / "bench.toml")
+    bench = two_link_bench(folder, model, 6.0, 3000)
     write_log(record(bench), bench.robot.joint_names, folder / "log.csv")
     (folder / "s.toml").write_text(
         f'[scenario]\nmodel = "{model}"\n[data]\nfile = "log.csv"\n'
