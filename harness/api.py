@@ -134,14 +134,19 @@ class IdentifiedModel:
         return rnea(build_model(self.spec, self.gravity_W), q, qd, qdd).tau
 
 
-def identified_model(folder: str | Path) -> IdentifiedModel:
+def identified_model(folder: str | Path, fit: str = "consistent"):
     """The model a `harness run` of a measured log exported: `folder` is the run's output folder (with
     results.json, whose scenario gives the gravity) or its `identified/` folder, read from its model
-    file (identified/robot.toml: the URDF with the drives' or joints' laws)."""
+    file (identified/robot.toml: the URDF with the drives' or joints' laws). `fit = "least squares"`:
+    the least-squares fit of the base parameters (identified/least_squares.toml, evaluated with that
+    model file's kinematics and laws; harness/identify/ls_model.py), with the same `joint_names` and
+    `inverse_dynamics`."""
     import json
 
-    from harness.model.export import MODEL_FILE
+    from harness.model.export import LEAST_SQUARES_FILE, MODEL_FILE
 
+    if fit not in ("consistent", "least squares"):
+        raise ValueError(f"fit must be 'consistent' or 'least squares', not {fit!r}")
     folder = Path(folder)
     here = folder / "identified" if (folder / "identified").is_dir() else folder
     model = here / MODEL_FILE
@@ -152,7 +157,15 @@ def identified_model(folder: str | Path) -> IdentifiedModel:
     results = here.parent / "results.json"
     if results.is_file():
         gravity = json.loads(results.read_text()).get("scenario", {}).get("gravity", gravity)
-    return IdentifiedModel(load_spec(model), np.asarray(gravity, dtype=float))
+    if fit == "consistent":
+        return IdentifiedModel(load_spec(model), np.asarray(gravity, dtype=float))
+    from harness.identify.ls_model import LeastSquaresFit, LeastSquaresModel
+
+    path = here / LEAST_SQUARES_FILE
+    if not path.is_file():
+        raise InputError(path, "", "no least-squares fit here: a log run writes it (identified/least_squares.toml)")
+    ls = LeastSquaresFit.read(path)
+    return LeastSquaresModel(ls, load_spec(here / ls.model), np.asarray(gravity, dtype=float))
 
 
 def run(scenario: str | Path | dict | Scenario, progress=None, workers=None, models: dict[str, Any] | None = None,

@@ -1,11 +1,11 @@
 """What `harness init DIR` writes: a small project for a robot of the user's (harness/data/init/).
 
-Without a URDF, the two-link arm with a closed-form model; with one, that URDF, a motion of every
-joint within its limits (two sinusoids of incommensurate frequencies about the middle of its
-range, together at most a third of the way to the limits and at half its velocity limit, other
-frequencies for each joint and for the validation trajectory), and a placeholder model (Pinocchio
-on the URDF). Both get the
-same identification method (least squares on Pinocchio's regressor), pytest file and CI job.
+Without a robot file, the two-link arm with a closed-form model; with one (a URDF or an MJCF file,
+told apart by their root element), that file, a motion of every joint within its limits (two
+sinusoids of incommensurate frequencies about the middle of its range, together at most a third of
+the way to the limits and at half its velocity limit, other frequencies for each joint and for the
+validation trajectory), and a placeholder model (Pinocchio on the file: its URDF or its MJCF
+parser). Both get the same identification method (least squares on Pinocchio's regressor), pytest file and CI job.
 """
 
 from __future__ import annotations
@@ -32,37 +32,59 @@ VELOCITY_FRACTION = 0.5  # of its velocity limit
 DEFAULT_HALF_RANGE = {True: np.pi, False: 0.5}  # revolute (rad), prismatic (m): a joint without limits
 
 
-def project(urdf: Path | None = None) -> dict[str, str]:
-    """{file name: text} of the project."""
+FORMATS = {"robot": ("urdf", "robot.urdf", "URDF"), "mujoco": ("mjcf", "robot.xml", "MJCF")}  # by root element
+
+
+def robot_format(path: Path, flag: str) -> tuple[str, str, str]:
+    """(model file key, the project's file name, the format's name) of a robot file, told by its root
+    element (<robot>: URDF, <mujoco>: MJCF), whatever its name or the flag that gave it."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(read_bounded(path, MAX_XML_BYTES)).tag
+    except ET.ParseError as exc:
+        raise InputError(path, flag, f"not XML ({exc}): a URDF or an MJCF file is") from None
+    if root not in FORMATS:
+        raise InputError(path, flag, f"its root element is <{root}>: a URDF's is <robot>, an MJCF file's <mujoco>")
+    return FORMATS[root]
+
+
+def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str]:
+    """{file name: text} of the project; `robot` a URDF or an MJCF file (`flag`: the option that named it)."""
     from harness.base.version import DISTRIBUTION
 
     files = {f.name: f.read_text() for f in sorted((TEMPLATE / "project").iterdir())}
     method = (TEMPLATE / "method.py").read_text()
-    if urdf is None:
+    if robot is None:
         arm = TEMPLATE / "two_link_arm"
         files.update({f.name: f.read_text() for f in sorted(arm.iterdir()) if f.name != "model.py"})
         files["my_robot.py"] = (arm / "model.py").read_text() + method
     else:
-        files["robot.urdf"] = read_bounded(urdf, MAX_XML_BYTES).decode("utf-8", errors="replace")
-        files["scenario.toml"], files["validation.toml"] = scenarios(_joints(urdf))
-        files["my_robot.py"] = (TEMPLATE / "urdf" / "model.py").read_text() + method
+        key, name, kind = robot_format(robot, flag)
+        files[name] = read_bounded(robot, MAX_XML_BYTES).decode("utf-8", errors="replace")
+        head = f"# The robot the harness simulates (MuJoCo) and takes as the truth (Pinocchio): your {kind} file.\n"
+        files["robot.toml"] = head + tomli_w.dumps({"model": {"name": "my_robot",
+                                                              "description": f"My robot, from its {kind} file"},
+                                                    key: {"file": name}})
+        files["scenario.toml"], files["validation.toml"] = scenarios(_joints(robot, key, flag))
+        files["my_robot.py"] = ((TEMPLATE / "urdf" / "model.py").read_text() + method).replace(
+            'ROBOT_FILE = "robot.urdf"', f'ROBOT_FILE = "{name}"')
     files["ci-job.yml"] = files["ci-job.yml"].replace("HARNESS_DISTRIBUTION", DISTRIBUTION)
     return dict(sorted(files.items()))
 
 
-def _joints(urdf: Path) -> list[tuple[str, float, float, float | None]]:
-    """(name, middle, half range, velocity limit) of every joint of the URDF, read as the harness reads
-    it; a URDF it refuses is refused here, naming the file."""
+def _joints(robot: Path, key: str, flag: str) -> list[tuple[str, float, float, float | None]]:
+    """(name, middle, half range, velocity limit) of every joint of the robot file (`key`: urdf or
+    mjcf), read as the harness reads it; a file it refuses is refused here, naming the file."""
     from harness.model.load import load_spec
 
-    path = Path(urdf).resolve()
+    path = Path(robot).resolve()
     with tempfile.TemporaryDirectory() as tmp:
-        (Path(tmp) / "robot.toml").write_text(tomli_w.dumps({"model": {"name": "my_robot"},
-                                                             "urdf": {"file": str(path)}}))
+        (Path(tmp) / "robot.toml").write_text(tomli_w.dumps({"model": {"name": "my_robot"}, key: {"file": str(path)}}))
         try:
             spec = load_spec(Path(tmp) / "robot.toml")
         except InputError as exc:
-            raise InputError(urdf, "--urdf", exc.message.removeprefix(f"{path}: ")) from None
+            raise InputError(robot, flag, exc.message.removeprefix(f"{path}: ")) from None
     out = []
     for j in spec.joints:
         lo, hi = (spec.limits or {}).get(j.name, (-np.inf, np.inf))
@@ -97,6 +119,7 @@ def scenarios(joints: list[tuple[str, float, float, float | None]]) -> tuple[str
     validation = {"scenario": {"description": "Validation trajectory for my robot", **head},
                   "motion": motion(0.8, 0.25, 0.1),
                   "gates": [{"metric": "torques.pinocchio_vs_mujoco.max_rel_error", "limit": 1e-9}]}
-    note = ("# Written by `harness init --urdf`: every joint moves about the middle of its range, at most a third of\n"
-            "# the way to its limits and at half its velocity limit. Change the motions to the ones your robot runs.\n")
+    note = ("# Written by `harness init` from your robot file: every joint moves about the middle of its range, at\n"
+            "# most a third of the way to its limits and at half its velocity limit. Change the motions to the ones\n"
+            "# your robot runs.\n")
     return note + tomli_w.dumps(main), note + tomli_w.dumps(validation)

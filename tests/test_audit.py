@@ -73,6 +73,21 @@ def test_an_mjcf_file_is_audited_against_pinocchios_mjcf_parser(tmp_path):
     assert row.torques_vs_pinocchio <= TOLERANCE and row.mass_matrix_vs_pinocchio <= TOLERANCE
 
 
+def test_an_engines_refusal_is_given_whole_on_one_line(tmp_path):
+    """MJCF's <frame> (MuJoCo compiles it; Pinocchio's MJCF parser does not know it): the audit's row
+    gives Pinocchio's reason. An engine's message of many lines (Pinocchio's "From file: ... in
+    function: ... reason: ...") is kept whole, its lines joined on one line."""
+    from harness.base.tomlio import in_one_line
+
+    (tmp_path / "framed.xml").write_text('<mujoco><worldbody><frame pos="0 0 1"><body name="a"><joint type="hinge"/>'
+                                         '<geom size=".1"/></body></frame></worldbody></mujoco>')
+    row = audit("framed", tmp_path / "framed.xml")
+    assert row.verdict == "disagrees" and row.reason == "Pinocchio's parser: No such node (body)"
+    pretty = "From file: /src/parsers/mjcf/mjcf-graph.cpp\nin function: parseJoint\nat line: 312\nreason: no range\n"
+    assert in_one_line(pretty) == ("From file: /src/parsers/mjcf/mjcf-graph.cpp; in function: parseJoint; "
+                                   "at line: 312; reason: no range")
+
+
 @pytest.mark.parametrize("argument, message", [("no_such_robot", "no robot of that name"),
                                                ("README.md", "neither a URDF")])
 def test_an_unknown_robot_is_refused_in_one_line(tmp_path, capsys, argument, message):

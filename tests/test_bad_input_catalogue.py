@@ -42,6 +42,7 @@ SCENARIO_EDITS = {name: edit for name, (edit, _) in BAD_SCENARIOS.items()} | {
     "gate limit as text": _append('\n[[gates]]\nmetric = "recording.rows"\nlimit = "small"\n'),
     "gate metric empty": _append('\n[[gates]]\nmetric = ""\nlimit = 1\n'),
     "gate set missing": _sub('"gates/engines.toml"', '"gates/nothing.toml"'),
+    "built-in gate set unknown": _sub('"gates/engines.toml"', '"harness:nothing"'),
     "old model_under_test key": _sub('model = "../models/kr500.toml"',
                                      'model = "../models/kr500.toml"\nmodel_under_test = "../models/kr500.toml"'),
     "plugin module missing": _sub('plugin = "graph_theory_2021"', 'python = "no_such_module:make"'),

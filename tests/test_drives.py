@@ -252,7 +252,9 @@ def test_joint_friction_beside_drives_is_refused(tmp_path):
 def test_the_identified_model_of_a_motor_side_log_predicts_what_the_run_judged(coupled_bench):
     """harness.identified_model(the run's folder): `joint_names` and `inverse_dynamics`, the exported
     model with its coupled drives, predicts at the validation span's states the torques the run's
-    report plots for the consistent fit, to 1e-9 of the largest."""
+    report plots for the consistent fit, to 1e-9 of the largest; and so does its least-squares fit
+    (`fit="least squares"`, identified/least_squares.toml: the parameters results.json gives, to the
+    last bit, on the regressor's columns it names)."""
     import harness
 
     folder, _ = coupled_bench
@@ -268,6 +270,12 @@ def test_the_identified_model_of_a_motor_side_log_predicts_what_the_run_judged(c
     judged = np.column_stack([series["consistent"][j] for j in model.joint_names])
     np.testing.assert_allclose(predicted, judged, rtol=0, atol=1e-9 * np.max(np.abs(judged)))
     assert (folder / "out" / "identified" / "drives.toml").is_file()
+    ls = harness.identified_model(folder / "out", fit="least squares")  # identified/least_squares.toml
+    judged = np.column_stack([series["least squares"][j] for j in ls.joint_names])
+    np.testing.assert_allclose(ls.inverse_dynamics(*states), judged, rtol=0, atol=1e-9 * np.max(np.abs(judged)))
+    base = results["log_identification"]["least_squares"]["base"]
+    assert [p["expression"] for p in base] == ls.fit.expressions
+    assert [p["identified"] for p in base] == ls.fit.beta.tolist()  # every float to the last bit
 
 
 # --- a coupled wrist on a bench with truth ------------------------------------------------------------

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness.api import load_scenario
+from harness.api import identified_model, load_scenario
 from harness.cli import main
 from harness.model.load import load_spec
 from tests.conftest import KINOVA_JOINTS, SCENARIOS, bench_log, kinova_bench, kinova_files, kinova_model, log_scenario
@@ -117,6 +117,15 @@ def test_a_load_dependent_joint_is_told_from_the_others_and_its_coefficient_foun
         assert got[key] == pytest.approx(getattr(truth, key), rel=tolerance), key
     if true_rotors:
         assert li["validation_rel_error"]["least squares"] < 1e-4
+    # the exported least-squares fit (identified/least_squares.toml), its load column on the rigid-body
+    # torque of its own base parameters, predicts what the run judged, to 1e-9 of the largest torque
+    ls = identified_model(tmp_path / "out", fit="least squares")
+    assert "shoulder_lift_joint.load_coulomb" in ls.fit.families
+    data, series = pd.read_csv(tmp_path / "out" / "data.csv"), li["series"]
+    rows = np.searchsorted(data["t"].to_numpy(), series["t"])
+    states = [data[[f"{k}_{j}" for j in ls.joint_names]].to_numpy()[rows] for k in ("q", "qd", "qdd")]
+    judged = np.column_stack([series["least squares"][j] for j in ls.joint_names])
+    np.testing.assert_allclose(ls.inverse_dynamics(*states), judged, rtol=0, atol=1e-9 * np.max(np.abs(judged)))
 
 
 @pytest.mark.slow  # a 20 s log of a six-joint arm through the whole pipeline, twice

@@ -201,6 +201,23 @@ def test_a_lagging_channel_is_found_late_by_its_delay_with_the_sign_of_the_lag()
         assert lags.found[0]
 
 
+def test_a_delay_estimated_but_not_found_is_said_with_its_estimate():
+    """Of three channels: one found at 4 ms (said once, as behind the encoders, when only estimated),
+    one whose best candidate sits at the search's edge (-19.5 ms: said, with the edge named), and one
+    whose 3 ms estimate does not beat zero delay clearly (said, not corrected); a clean channel at
+    0.2 ms not found is not worth a line."""
+    from harness.stages.log_identification import delay_warnings
+
+    lags = delay.Delays(np.array([0.004, -0.0195, 0.003, 0.0002]), np.array([0.1, 0.5, 0.95, 1.0]),
+                        np.array([1.0, 0.6, 1.0, 1.0]), np.array([-0.02, 0.02]), np.zeros((4, 2)),
+                        np.array([False, True, False, False]))
+    said = delay_warnings(lags, ["a", "b", "c", "d"], "estimate")
+    assert len(said) == 2 and said[0].endswith("a 4 ms")
+    assert "estimated but not found" in said[1] and said[1].endswith("b -19.5 ms (at the edge), c 3 ms")
+    assert delay_warnings(lags, ["a", "b", "c", "d"], "correct") == [said[1]]
+    assert delay_warnings(None, ["a"], "estimate") == []
+
+
 def test_a_found_delay_is_corrected_by_reading_the_channel_that_much_later():
     """On a ramp the correction is exact: a channel lagging by d reads a (t - d); read d later it is a t,
     to round-off, and the rows whose later reading would pass the end are dropped."""

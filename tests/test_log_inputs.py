@@ -390,6 +390,41 @@ def test_a_ros_bag_gives_the_fit_of_the_same_log_as_csv(si_log, late_csv, tmp_pa
     assert results["scenario"]["data"]["bag_topic"] == "/joint_states"
 
 
+@pytest.mark.slow  # a whole pipeline
+def test_a_bags_own_joint_names_are_mapped_to_the_models_by_joint_map(si_log, late_csv, tmp_path):
+    """The log as a driver that names its joints "a1".."a6" writes it, read with `[data] joint_map`: the
+    same fit, bit for bit, as the CSV of the same samples; the map is in results.json."""
+    df = si_log[1]
+    joints = load_scenario(SCENARIOS / "ur5_friction.toml").robot.joint_names
+    names = [f"a{k + 1}" for k in range(6)]
+
+    def block(prefix: str) -> np.ndarray:
+        return np.column_stack([df[f"{prefix}{k + 1}"] for k in range(6)])
+
+    _write_bag(tmp_path / "run", "sqlite3", df["t"].to_numpy() + 100.0, names, block("q"), block("qd"), block("tau"))
+    mapping = ", ".join(f'{a} = "{j}"' for a, j in zip(names, joints, strict=True))
+    (tmp_path / "s.toml").write_text(f'[scenario]\nmodel = "{MODEL}"\n[data]\nbag = "run"\ntopic = "/joint_states"\n'
+                                     f'joint_map = {{ {mapping} }}\nvalidation = {{ from = 0.7 }}\n'
+                                     + GATE + MODELS_LAW)
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert _base(results).tolist() == _base(late_csv).tolist()
+    assert results["scenario"]["data"]["joint_map"] == dict(zip(names, joints, strict=True))
+
+
+@pytest.mark.parametrize("mapping, words", [
+    ('{ a1 = "nowhere" }', "not a joint of the model"),
+    ('{ a1 = "elbow_joint", a2 = "elbow_joint" }', "more than one"),
+    ('{ elbow_joint = "wrist_1_joint" }', "gives no name in the log"),
+    ('{ a1 = 3 }', "expected a string"),
+])
+def test_a_bad_joint_map_is_refused_in_one_line_naming_the_key(si_log, tmp_path, capsys, mapping, words):
+    si_log[1].head(50).to_csv(tmp_path / "log.csv", index=False)
+    status, _ = _run(tmp_path, f"joint_map = {mapping}\n")
+    err = capsys.readouterr().err.strip()
+    assert status == 2 and "joint_map" in err and words in err and "\n" not in err, err
+
+
 def test_a_bag_without_the_topic_or_a_joint_is_refused_in_one_line(si_log, tmp_path, capsys):
     df = si_log[1].head(50)
     joints = load_scenario(SCENARIOS / "ur5_friction.toml").robot.joint_names

@@ -26,6 +26,19 @@ def test_every_scenario_loads_and_declares_gates(path):
     assert load_scenario(path).gates, "a scenario without gates checks nothing"
 
 
+def test_a_built_in_gate_set_is_named_from_any_folder(tmp_path):
+    """kr500_rail copied alone into an empty folder, its gate sets named as built-ins ("harness:engines")
+    instead of by path: the same gates as the package's own scenario, in the same order."""
+    from harness.runner.scenario import load_scenario
+
+    text = (SCENARIOS / "kr500_rail.toml").read_text()
+    old = 'gate_sets = ["gates/engines.toml", "gates/graph_theory_2021.toml"]'
+    assert old in text
+    (tmp_path / "s.toml").write_text(text.replace(old, 'gate_sets = ["harness:engines", "harness:graph_theory_2021"]')
+                                     .replace('"../models/kr500.toml"', f'"{MODELS / "kr500.toml"}"'))
+    assert load_scenario(tmp_path / "s.toml").gates == load_scenario(SCENARIOS / "kr500_rail.toml").gates
+
+
 def test_gates_fail_closed():
     results = {"a": {"b": 1e-12, "nan": float("nan"), "text": "x", "null": None}}
     rows, passed = check(

@@ -420,14 +420,38 @@ def test_init_from_a_urdf_moves_every_joint_within_its_limits_and_passes(tmp_pat
     assert "nothing.urdf" in capsys.readouterr().err and not (tmp_path / "q").exists()
 
 
-def test_the_plugin_file_init_writes_passes_the_linter(tmp_path):
-    """my_robot.py is composed of pieces (harness/data/init/): the whole, for both kinds of project."""
-    from harness.model.urdf import example_robot_data_path
+@pytest.mark.parametrize("flag", ["--mjcf", "--urdf", "--robot"])
+def test_init_from_an_mjcf_file_passes_with_its_armature_damping_and_frictionloss(tmp_path, capsys, flag):
+    """An MJCF arm written as MJCF files are (tests/test_mjcf.py's: defaults, degrees, a joint `ref`, a
+    slide, armature, damping, frictionloss, a geared motor, gravity of its own), started with any of the
+    three flags (the format told by the root element): the project's model file reads the MJCF, the
+    placeholder model is Pinocchio's MJCF parser, the method takes the armature as known, and all six
+    gates pass. A file that is neither is refused in one line naming it and the flag."""
+    from tests.test_mjcf import ARM
 
-    for name, urdf in (("arm", None), ("ur5", example_robot_data_path("ur5"))):
+    (tmp_path / "arm.xml").write_text(ARM)
+    assert main(["init", str(tmp_path / "p"), flag, str(tmp_path / "arm.xml")]) == 0
+    folder = tmp_path / "p"
+    assert (folder / "robot.xml").read_text() == ARM and "[mjcf]" in (folder / "robot.toml").read_text()
+    assert main(["run", str(folder / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    results = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert len(results["gates"]) == 6 and all(g["passed"] for g in results["gates"])
+    (tmp_path / "other.xml").write_text("<sdf version='1.6'/>")
+    assert main(["init", str(tmp_path / "q"), flag, str(tmp_path / "other.xml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "other.xml" in err and flag in err and "<sdf>" in err and "\n" not in err and not (tmp_path / "q").exists()
+
+
+def test_the_plugin_file_init_writes_passes_the_linter(tmp_path):
+    """my_robot.py is composed of pieces (harness/data/init/): the whole, for every kind of project."""
+    from harness.model.urdf import example_robot_data_path
+    from tests.test_mjcf import ARM
+
+    (tmp_path / "arm.xml").write_text(ARM)
+    for name, robot in (("arm", None), ("ur5", example_robot_data_path("ur5")), ("mjcf", tmp_path / "arm.xml")):
         folder = tmp_path / name
         folder.mkdir()
-        (folder / "my_robot.py").write_text(project(urdf)["my_robot.py"])
+        (folder / "my_robot.py").write_text(project(robot)["my_robot.py"])
     done = subprocess.run([str(Path(sys.executable).parent / "ruff"), "check", "--no-cache", "--isolated",
                            "--select", "E,F,W,B", "--line-length", "120", str(tmp_path)],
                           capture_output=True, text=True, timeout=60)

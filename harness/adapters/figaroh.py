@@ -28,6 +28,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from harness.base.plugins import PluginError, ToolUnavailable
+from harness.base.tomlio import in_one_line
 from harness.engines.pinocchio import build_model
 
 FITS = ("least_squares", "physical")
@@ -121,7 +122,7 @@ def _why_rejected(record) -> str:
     failing = [name for name, f in (record.feasibility or {}).items() if not f.get("ok", True)]
     parts = [f"solver status {record.solver_status}"]
     if record.exception:
-        parts.append(f"exception {str(record.exception).splitlines()[0]}")
+        parts.append(f"exception {in_one_line(str(record.exception))}")
     if failing:
         parts.append(f"links failing its physical test: {', '.join(failing)}")
     residual = (record.base_residual or {}).get("relative")

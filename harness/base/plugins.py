@@ -55,6 +55,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from harness.base.tomlio import in_one_line
+
 MODEL_GROUP = "harness.models"
 METHOD_GROUP = "harness.identification"
 STUDY_GROUP = "harness.studies"
@@ -100,7 +102,7 @@ class ToolUnavailable(PluginError):
 
 
 def _exception(exc: BaseException) -> str:
-    return f"{type(exc).__name__}: {exc}".strip().splitlines()[0]
+    return in_one_line(f"{type(exc).__name__}: {exc}")
 
 
 # Set by the harness's own SIGINT and SIGTERM handlers (user_interrupts): a KeyboardInterrupt that

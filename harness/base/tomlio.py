@@ -45,6 +45,12 @@ MAX_XML_BYTES = 64 * MiB  # a URDF: the largest published ones are a few MiB
 MAX_DATA_BYTES = 2048 * MiB  # a log, a recording or a results.json: 900,000 samples of a 7-joint arm take 0.5 GiB
 
 
+def in_one_line(text: str) -> str:
+    """A message of many lines (an engine's: "From file: ...\nin function: ...\nreason: ...") whole,
+    on one line: its lines stripped and joined by "; "."""
+    return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
+
+
 def read_bounded(path: Path | str, limit: int) -> bytes:
     """A file's bytes, refused (InputError naming the file) beyond `limit` bytes or when unreadable."""
     try:

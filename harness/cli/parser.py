@@ -122,12 +122,15 @@ def parser() -> argparse.ArgumentParser:
                     "file), a plugin module with a model under test and an identification method to make yours, a "
                     "scenario with gates and a validation trajectory, a pytest file using the harness_run fixture, "
                     "and a CI job that uploads the JUnit file. Out of the box `harness run scenario.toml` and "
-                    "`python -m pytest` pass in DIR; with --urdf, for your robot.")
+                    "`python -m pytest` pass in DIR; with --urdf or --mjcf, for your robot.")
     init.add_argument("dir", metavar="DIR", type=Path)
-    init.add_argument("--urdf", metavar="FILE", type=Path, default=None,
-                      help="your robot's URDF: copied in, every joint given a motion within its limits, and a "
-                           "placeholder model (Pinocchio on the URDF) to replace with yours (default: a two-link arm "
-                           "with a closed-form model)")
+    robot = init.add_mutually_exclusive_group()
+    for flag, kind in (("--urdf", "URDF"), ("--mjcf", "MJCF file"), ("--robot", "URDF or MJCF file")):
+        robot.add_argument(flag, metavar="FILE", type=Path, default=None, dest=flag.removeprefix("--"),
+                           help=f"your robot's {kind}: copied in, every joint given a motion within its limits, and a "
+                                "placeholder model (Pinocchio on the file) to replace with yours (default: a two-link "
+                                "arm with a closed-form model); any of --urdf, --mjcf and --robot takes either format, "
+                                "told by its root element")
     return parser
 
 

@@ -80,7 +80,8 @@ def cmd_init(args: argparse.Namespace) -> int:
     out: Path = args.dir
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise InputError(out, "DIR", "exists and is not an empty folder: init writes a new project")
-    files = project(args.urdf)
+    flag = next((f for f in ("urdf", "mjcf", "robot") if getattr(args, f, None) is not None), None)
+    files = project(getattr(args, flag) if flag else None, f"--{flag}")
     try:
         write_atomically(out, {name: (lambda p, text=text: p.write_text(text)) for name, text in files.items()})
     except OSError as exc:

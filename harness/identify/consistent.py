@@ -46,6 +46,7 @@ import cvxpy as cp
 import numpy as np
 
 from harness.base.numerics import PARAMETER_FLOOR, column_scale, relative_residual
+from harness.base.tomlio import in_one_line
 from harness.identify.friction_law import Law, extra_terms
 from harness.model.drives import Transmission
 from harness.model.friction import BOUNDED_BY, IDENTIFIED_KEYS, JointFriction
@@ -170,7 +171,7 @@ def fit(W: np.ndarray, tau: np.ndarray, theta_model: np.ndarray, friction_model:
             except (KeyboardInterrupt, SystemExit):
                 raise
             except BaseException as exc:  # a solver's own failure, a Rust panic of Clarabel's included
-                attempts.append(f"{solver}: failed ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})")
+                attempts.append(f"{solver}: failed ({in_one_line(str(exc)) or type(exc).__name__})")
                 continue
         attempts.append(f"{solver}: {problem.status}")
         if z.value is None or not np.all(np.isfinite(z.value)) or problem.status not in cp.settings.SOLUTION_PRESENT:

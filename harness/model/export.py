@@ -33,6 +33,7 @@ from harness.model.spec import RobotSpec
 URDF_FILE, JOINTS_FILE, MODEL_FILE, MJCF_FILE, README_FILE = "robot.urdf", "joints.toml", "robot.toml", "robot.xml", \
     "README.md"
 DRIVES_FILE = "drives.toml"
+LEAST_SQUARES_FILE = "least_squares.toml"  # the least-squares fit (harness/identify/ls_model.py)
 
 
 def link_inertial(theta: np.ndarray, R_WL: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -223,6 +224,12 @@ def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float
         lines += [f"- `{MODEL_FILE}`: a model file that `harness run` loads as any other: `{URDF_FILE}` with "
                   f"`{laws}`'s values; together they are the whole identified model (`harness.identified_model` "
                   "reads it)."]
+    if LEAST_SQUARES_FILE in files:
+        lines += [f"- `{LEAST_SQUARES_FILE}`: the least-squares fit the run judged beside this one: each base "
+                  "parameter's value, standard deviation and the combination of physical parameters it stands for, "
+                  "with the regressor columns it multiplies (evaluated with "
+                  f"`{MODEL_FILE}`'s kinematics and laws; `harness.identified_model(folder, fit=\"least squares\")`). "
+                  "It is not a physical model: it predicts the torques, not a simulation."]
     if MJCF_FILE in files:
         drive = ("a fixed tendon per motor over the joints it turns with (coefficients: its row of N) carrying "
                  "its `armature`, `damping` (viscous) and `frictionloss` (Coulomb), and a motor on each tendon (gear "

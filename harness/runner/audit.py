@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.base.numerics import relative_error
-from harness.base.tomlio import InputError
+from harness.base.tomlio import InputError, in_one_line
 from harness.model.inertia import not_rigid
 from harness.model.spec import RobotSpec
 
@@ -134,7 +134,7 @@ def _against_pinocchios_parser(row: AuditRow, spec: RobotSpec, described: Path |
         row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
         row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
     except Exception as exc:  # Pinocchio's parser refusing the file is a finding, not a crash
-        return [f"Pinocchio's parser: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"]
+        return [f"Pinocchio's parser: {in_one_line(str(exc)) or type(exc).__name__}"]
     return []
 
 

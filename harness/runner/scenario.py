@@ -144,6 +144,27 @@ def _relative_file(t: Table, key: str, rel: str, base: Path) -> Path:
     return path
 
 
+BUILTIN_GATES = "harness:"  # a gate set named "harness:NAME" is the package's scenarios/gates/NAME.toml
+
+
+def _gate_set_files(s: Table, path: Path) -> list[Path]:
+    """`[scenario] gate_sets`: files relative to the scenario, or built-in sets by name ("harness:engines")."""
+    from harness.base.builtin import DATA
+
+    out = []
+    for rel in s.strings("gate_sets", choices=None) if s.has("gate_sets") else ():
+        if not rel.startswith(BUILTIN_GATES):
+            out.append(_relative_file(s, "gate_sets", rel, path))
+            continue
+        folder = DATA / "scenarios" / "gates"
+        found = folder / f"{rel.removeprefix(BUILTIN_GATES)}.toml"
+        if not found.is_file():
+            names = ", ".join(f'"{BUILTIN_GATES}{f.stem}"' for f in sorted(folder.glob("*.toml")))
+            raise s.error("gate_sets", f"no built-in gate set {rel!r} (there are {names})")
+        out.append(found)
+    return out
+
+
 _LOADING: list[Path] = []  # the scenarios being loaded, outermost first: a cycle is refused
 
 
@@ -234,15 +255,14 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     description = s.string("description", default="")
     model_rel = s.string("model")
     gravity = s.vector("gravity") if s.has("gravity") else None  # default: the model's, else standard gravity
-    gate_files = [_relative_file(s, "gate_sets", rel, path)
-                  for rel in (s.strings("gate_sets", choices=None) if s.has("gate_sets") else ())]
+    gate_files = _gate_set_files(s, path)
     s.finish()
     robot = load_spec(_relative_file(s, "model", model_rel, path))
     if not robot.joints:
         raise s.error("model", f"model {robot.name!r} has no moving joint: nothing to simulate or identify")
     gravity = _gravity(gravity, robot)
     dt = root.table("data")
-    source = read_source(dt, path, len(robot.joints))
+    source = read_source(dt, path, len(robot.joints), robot.joint_names)
     if source.side == "motor" and robot.transmission is None:
         raise dt.error("side", f'"motor": the log is mapped to the joints through the model\'s drives, and '
                                f"{robot.source} states none ([drives])")
@@ -305,8 +325,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         sample_times = np.arange(output_steps + 1) * output_dt
     else:
         sample_times = s.vector("sample_times", length=None, default=[])
-    gate_files = [_relative_file(s, "gate_sets", rel, path)
-                  for rel in (s.strings("gate_sets", choices=None) if s.has("gate_sets") else ())]
+    gate_files = _gate_set_files(s, path)
     s.finish()
 
     robot = load_spec(_relative_file(s, "model", model_rel, path))

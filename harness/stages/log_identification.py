@@ -34,10 +34,12 @@ from harness.base.series import TimeSeries
 from harness.engines.pinocchio import PinocchioModel, build_model, rnea
 from harness.identify import consistent, delay, friction_law, scale
 from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
+from harness.identify.ls_model import LEAST_SQUARES_FILE, LeastSquaresFit, extra_terms_names
 from harness.identify.repeat import Repeatability, repeat
 from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
+    describe_base,
     fit_base,
     links_torque,
     parameter_names,
@@ -46,7 +48,7 @@ from harness.identify.torque_id import (
     true_parameters,
     with_structure,
 )
-from harness.model.export import MJCF_FILE, README_FILE, coulomb_mapping, export, identified_spec, readme
+from harness.model.export import MJCF_FILE, MODEL_FILE, README_FILE, coulomb_mapping, export, identified_spec, readme
 from harness.model.friction import FAMILIES, JointFriction
 from harness.model.friction import values as friction_values
 from harness.model.mjcf import compiler_message, write_mjcf
@@ -253,12 +255,16 @@ class Exported:
 
 
 def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], theta: np.ndarray,
-                 training: TimeSeries, W: np.ndarray) -> Exported:
+                 training: TimeSeries, W: np.ndarray, ls: LeastSquaresFit) -> Exported:
     n = len(robot.joints)
     _, qd, _, tau = training.joint_data(robot.joint_names)
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
     files = export(robot, theta, frictions, description)
+    files[f"identified/{LEAST_SQUARES_FILE}"] = ls.to_toml(
+        f"{robot.name}: the least-squares fit of its base parameters from {sc.data.file.name} by harness (scenario "
+        f"{sc.name}).\nFormat: docs/reference.md, 'The least-squares fit'; harness.identified_model(folder, "
+        "fit=\"least squares\") evaluates it.")
     mapping = coulomb_mapping(identified, qd, tau, (W[:, : 10 * n] @ theta.ravel()).reshape(tau.shape))
     worst = max(mapping, key=lambda j: mapping[j]["rms"])
     refused = None
@@ -274,6 +280,16 @@ def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], th
     files[f"identified/{README_FILE}"] = readme(identified, [Path(f).name for f in files] + [README_FILE], mapping,
                                                 description, refused)
     return Exported(files, mapping, refused)
+
+
+def least_squares_fit(model: LogModel, fitted: LeastSquares, names: list[str], laws: tuple[Law, ...],
+                      drives: list[str]) -> LeastSquaresFit:
+    """Step 8's least-squares file: the fit, its columns and what each parameter stands for."""
+    base, r = model.base, len(model.base.independent)
+    families = extra_terms_names(laws, drives)
+    link, share = model.link_part
+    return LeastSquaresFit(MODEL_FILE, base.independent, [describe_base(names, base, k) for k in range(r)] + families,
+                           fitted.ls.beta, np.asarray(fitted.ls.std, dtype=float), link, share, families)
 
 
 @dataclass(frozen=True, eq=False)
@@ -339,9 +355,11 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     predicted = prediction(sc.gravity_W, {"consistent": identified, "model as given": robot,
                                           **({"truth": sc.truth} if sc.truth else {})},
                            judged.t[span], q, qd, judged.measured[span], span, joints)
-    exported = export_model(sc, robot, identified, frictions, fit.theta, scaled.training, fitted.W)
+    names = parameter_names(joints, True, robot.drive_names)
+    exported = export_model(sc, robot, identified, frictions, fit.theta, scaled.training, fitted.W,
+                            least_squares_fit(model, fitted, names, laws.laws, robot.drive_names))
     plausible = consistent.plausibility(fit.theta, model.theta, joints, fit.margin)
-    li = LogIdentification(joints, robot.drive_names, parameter_names(joints, True, robot.drive_names), model,
+    li = LogIdentification(joints, robot.drive_names, names, model,
                            delayed, scaled, laws, fitted, fit,
                            frictions, plausible, judged, predicted, exported)
     li.warnings.extend(warnings(li, sc.data.delay))
@@ -362,10 +380,7 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
     if p["on_margin"]:
         out.append(f"{len(p['on_margin'])} link(s) on the fit's positive-definiteness margin (the data push them past "
                    f"physical): {', '.join(p['on_margin'])}")
-    lagging = [] if lags is None else [k for k in np.flatnonzero(lags.found) if abs(lags.delay[k]) > LAG_WARNING]
-    if lagging and mode == "estimate":
-        out.append("torque channels behind the encoders (estimated, not corrected; [data] delay = \"correct\" "
-                   "shifts them): " + ", ".join(f"{li.joints[k]} {lags.delay[k] * 1e3:.2g} ms" for k in lagging))
+    out += delay_warnings(lags, li.joints, mode)
     out += [note for note in (li.delayed.note, li.laws.note, li.fitted.note) if note]
     repeated = li.fitted.repeated
     moved = [] if repeated is None else list(np.flatnonzero(~repeated.overlap))
@@ -378,6 +393,26 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
     if li.fit.fallback:
         out.append(f"the consistent fit fell back ({consistent.FALLBACKS[li.fit.fallback]}): "
                    + "; ".join(li.fit.attempts))
+    return out
+
+
+def delay_warnings(lags: delay.Delays | None, joints: list[str], mode: str) -> list[str]:
+    """What the terminal is told of the delays: those found beyond LAG_WARNING and left uncorrected, and
+    those estimated but not found (at the search's edge, or beyond LAG_WARNING without the fit being
+    clearly better for them), each with its estimate."""
+    if lags is None:
+        return []
+    out = []
+    lagging = [k for k in np.flatnonzero(lags.found) if abs(lags.delay[k]) > LAG_WARNING]
+    if lagging and mode == "estimate":
+        out.append("torque channels behind the encoders (estimated, not corrected; [data] delay = \"correct\" "
+                   "shifts them): " + ", ".join(f"{joints[k]} {lags.delay[k] * 1e3:.2g} ms" for k in lagging))
+    unsure = [k for k in np.flatnonzero(~lags.found) if lags.at_edge[k] or abs(lags.delay[k]) > LAG_WARNING]
+    if unsure:
+        out.append("torque channels' delays estimated but not found (at the search's edge, or the fit not clearly "
+                   "better for them), not corrected: " + ", ".join(
+                       f"{joints[k]} {lags.delay[k] * 1e3:.3g} ms{' (at the edge)' if lags.at_edge[k] else ''}"
+                       for k in unsure))
     return out
 
 

@@ -4,10 +4,11 @@
 # joint the child body's [m, m c, I_xx, I_xy, I_yy, I_xz, I_yz, I_zz] about the joint point in
 # world axes at q = 0, the harness compares its base parameters with the robot's; with
 # `covariance` (10 n, 10 n) of those parameters, it also reports intervals and their coverage.
-# Here: ordinary least squares on Pinocchio's joint-torque regressor of the URDF, with each joint's
-# viscous and Coulomb friction (URDF's <dynamics damping friction>): any robot of revolute,
-# continuous and prismatic joints. Where your model file states drives ([drives]: motors behind the
-# joints through a transmission N), their law is taken as known and the rest is fitted.
+# Here: ordinary least squares on Pinocchio's joint-torque regressor of the robot file, with each
+# joint's viscous and Coulomb friction (URDF's <dynamics damping friction>, MJCF's damping and
+# frictionloss): any robot of revolute, continuous and prismatic joints. A joint's armature (MJCF) is
+# taken as known, as are the drives where your model file states them ([drives]: motors behind the
+# joints through a transmission N); the rest is fitted.
 
 
 class Drives:
@@ -30,10 +31,11 @@ class Drives:
 
 
 class LeastSquares:
-    def __init__(self, urdf, gravity_W, drives=None):
+    def __init__(self, path, gravity_W, drives=None):
         self.drives = drives  # known: the fit is of what they leave
         pin = self.pin = _pinocchio()
-        self.model, self.data, self.joint_names = urdf_model(urdf, gravity_W)
+        self.model, self.data, self.joint_names = robot_model(path, gravity_W)
+        self.armature = np.array(self.model.armature)  # known: the regressor holds the links alone
         # theta_W = A theta_J: each body's parameters from its joint frame to world axes at q = 0
         pin.forwardKinematics(self.model, self.data, pin.neutral(self.model))
         n = self.model.njoints - 1
@@ -53,9 +55,14 @@ class LeastSquares:
         F[:, j, j], F[:, j, n + j] = qd, np.sign(qd)
         return np.hstack([W, F.reshape(N * n, 2 * n)])
 
+    def known(self, qd, qdd):
+        """The torques the method does not fit: the joints' armature and the drives' law (a
+        load-dependent law, which reads the rigid bodies' torque, is not known here)."""
+        tau = self.armature * qdd
+        return tau if self.drives is None else tau + self.drives.torque(qd, qdd, None)
+
     def fit(self, q, qd, qdd, tau):
-        if self.drives is not None:  # (a load-dependent law, which reads the rigid bodies' torque, is not known here)
-            tau = tau - self.drives.torque(qd, qdd, None)
+        tau = tau - self.known(qd, qdd)
         W, y = self.regressor(q, qd, qdd), tau.reshape(-1)
         theta, *_ = np.linalg.lstsq(W, y, rcond=None)  # the minimum-norm solution: exact on the base parameters
         dof = max(len(y) - np.linalg.matrix_rank(W), 1)
@@ -72,9 +79,7 @@ class Fitted:
         self.covariance = cov_W
 
     def inverse_dynamics(self, q, qd, qdd):
-        tau = (self.method.regressor(q, qd, qdd) @ self.theta).reshape(q.shape)
-        drives = self.method.drives
-        return tau if drives is None else tau + drives.torque(qd, qdd, None)
+        return (self.method.regressor(q, qd, qdd) @ self.theta).reshape(q.shape) + self.method.known(qd, qdd)
 
 
 def _pinocchio():
@@ -83,10 +88,14 @@ def _pinocchio():
     return pinocchio
 
 
-def urdf_model(urdf, gravity_W):
-    """Pinocchio's model of the URDF (fixed base) with the scenario's gravity, its data, and its joints'
-    names in its order."""
-    model = _pinocchio().buildModelFromUrdf(str(urdf))
+def robot_model(path, gravity_W):
+    """Pinocchio's model of the robot file (fixed base; a URDF, or an MJCF file: told by the root
+    element) with the scenario's gravity, its data, and its joints' names in its order."""
+    import xml.etree.ElementTree as ET
+
+    pin = _pinocchio()
+    mjcf = ET.parse(path).getroot().tag == "mujoco"
+    model = pin.buildModelFromMJCF(str(path)) if mjcf else pin.buildModelFromUrdf(str(path))
     model.gravity.linear = np.asarray(gravity_W, dtype=float)
     return model, model.createData(), list(model.names)[1:]
 
@@ -112,4 +121,4 @@ def _rotate_parameters(R, theta):
 
 
 def make_method(robot, gravity_W, parameters):
-    return LeastSquares(Path(__file__).parent / parameters.get("urdf", "robot.urdf"), gravity_W, Drives.of(robot))
+    return LeastSquares(Path(__file__).parent / parameters.get("robot_file", ROBOT_FILE), gravity_W, Drives.of(robot))

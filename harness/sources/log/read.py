@@ -118,7 +118,7 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     if source.topic is not None:
         from harness.sources.bag import digest, read_bag
 
-        t, q, qd, tau = read_bag(path, source.topic, robot.joint_names)
+        t, q, qd, tau = read_bag(path, source.topic, source.log_names(robot.joint_names))
         q, qd, tau = to_si(source, robot, q, qd, tau)
         series = raw_series(path, digest(path), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names))
         series.meta["read"] = _read_record(source, robot, [path], f"the bag's stamps (topic {source.topic})")

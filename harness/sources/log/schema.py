@@ -63,6 +63,13 @@ class DataSource:
     side: str = "joint"  # "motor": positions and torques at the motors, mapped through the model's drives
     window: tuple[float, float] | None = None  # s: the part of the log kept (the motion), by time
     decimate_given: bool = True  # False: `decimate` is the default, and a cutoff chosen by the data may set it
+    joint_map: dict[str, str] = field(default_factory=dict)  # the log's name of a joint -> the model's
+
+    def log_names(self, joints: list[str]) -> list[str]:
+        """The log's name of each of the model's `joints` (`joint_map` read backwards; a joint it does
+        not name keeps its own)."""
+        back = {model: log for log, model in self.joint_map.items()}
+        return [back.get(j, j) for j in joints]
 
     def describe(self) -> dict:
         return {"file": str(self.file),
@@ -80,14 +87,18 @@ class DataSource:
                     "file": str(self.payload.file), "body": self.payload.body, "mass": self.payload.mass,
                     "com": [float(x) for x in self.payload.com_W], "inertia": [float(x) for x in self.payload.inertia]},
                 "torque_file": str(self.torque_file) if self.torque_file else None, "sample_rate_hz": self.sample_rate,
-                "side": self.side, "window_s": list(self.window) if self.window else None}
+                "side": self.side, "window_s": list(self.window) if self.window else None,
+                "joint_map": dict(self.joint_map)}
 
 
 
-def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> DataSource:
+def read_source(t: Table, scenario_file: Path, joints: int | None = None,
+                joint_names: list[str] | None = None) -> DataSource:
     """The `[data]` table, validated (the file must exist and be inside reach of the scenario);
-    `joints`, the model's number of joints, checks explicit column lists and per-joint constants."""
+    `joints`, the model's number of joints, checks explicit column lists and per-joint constants;
+    `joint_names`, the model's joints, the values of `joint_map`."""
     topic = None
+    joint_map = _joint_map(t, joint_names) if t.has("joint_map") else {}
     if t.either("file", "bag", "file (a CSV log) or bag (a ROS bag: a rosbag2 folder or a ROS 1 .bag file)") == "bag":
         file = (scenario_file.parent / t.string("bag")).resolve()
         if not file.exists():
@@ -165,7 +176,26 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None) -> Dat
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
                       ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
-                      sample_rate, side, window, decimate_given)
+                      sample_rate, side, window, decimate_given, joint_map)
+
+
+def _joint_map(t: Table, joint_names: list[str] | None) -> dict[str, str]:
+    """`joint_map = { "log name" = "model name", ... }`: each value one of the model's joints, once."""
+    mt = t.table("joint_map")
+    out = {log: mt.string(log) for log in list(mt.data)}
+    mt.finish()
+    for log, model in out.items():
+        if joint_names is not None and model not in joint_names:
+            raise t.error("joint_map", f"{log!r} is mapped to {model!r}, which is not a joint of the model "
+                                       f"({', '.join(joint_names)})")
+    twice = sorted({m for m in out.values() if list(out.values()).count(m) > 1})
+    if twice:
+        raise t.error("joint_map", f"{twice[0]!r} is the image of more than one of the log's names")
+    unmapped = [j for j in joint_names or () if j in out and out[j] != j and j not in out.values()]
+    if unmapped:  # the log's name of another joint, and the model's joint of that name left to find its own
+        raise t.error("joint_map", f"{unmapped[0]!r} is the log's name of {out[unmapped[0]]!r} and a joint of the "
+                                   "model the map gives no name in the log")
+    return out
 
 
 SIDES = ("joint", "motor")
@@ -247,7 +277,7 @@ def _file(t: Table, key: str, scenario_file: Path, bag: bool = False) -> Path:
 
 def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
     """The log's column of each quantity and joint: {j} is 1..n in the model's joint order, {name}
-    the joint's name."""
+    the joint's name in the log (`joint_map`)."""
     return {k: [v] if k == "t" else list(v) if isinstance(v, tuple) else
-            [v.format(j=j + 1, name=name) for j, name in enumerate(robot.joint_names)]
+            [v.format(j=j + 1, name=name) for j, name in enumerate(source.log_names(robot.joint_names))]
             for k, v in source.columns.items()}

@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+ROBOT_FILE = "robot.urdf"  # the robot the identification method below reads (a URDF or an MJCF file)
+
 # ------------------------------------------------------------------------------------------------
 # The model under test: an object with `joint_names` and `inverse_dynamics(q, qd, qdd) -> tau`,
 # arrays (N, n) in SI units, columns in the order of `joint_names`; optionally `mass_matrix(q)`,
