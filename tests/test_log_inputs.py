@@ -208,6 +208,35 @@ def test_motor_currents_with_their_constants_give_the_fit_of_the_torques(si_log,
     np.testing.assert_allclose(_base(results), _base(reference), rtol=1e-9, atol=1e-9 * np.abs(_base(reference)).max())
 
 
+@pytest.mark.parametrize("case, edit, joint, words", [
+    ("currents read as torques", lambda tau, j: tau / ([0.1, 0.12, 0.09, 0.05, 0.05, 0.04][j] * 100), "all joints",
+     "motor currents read as torques"),
+    ("mN m read as N m", lambda tau, j: 1000 * tau, "all joints", "N mm or mN m read as N m"),
+    ("the elbow's sign flipped", lambda tau, j: -tau if j == 2 else tau, "elbow_joint", "opposite sign"),
+])
+def test_a_log_read_wrongly_fails_the_start_gate_with_its_likely_cause(si_log, tmp_path, capsys, case, edit, joint,
+                                                                      words):
+    """The bench log as a newcomer reads it wrongly: motor currents (k_t 0.04-0.12 N m/A, gear 100) read
+    as torques, torques in mN m read as N m, one joint's sign the other way. The model as given differs
+    from each by a factor beyond log_judge.START_FACTOR (3) or a sign: the gate every log scenario has
+    fails (exit 1) and the terminal and the gate's row name the joint and the likely cause. Read right,
+    the same log has no finding (its factor within 2 % of 1: the model is the truth; measured 1.0)."""
+    df = si_log[1].copy()
+    for j in range(6):
+        df[f"tau{j + 1}"] = edit(df[f"tau{j + 1}"].to_numpy(), j)
+    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    status, results = _run(tmp_path, "")
+    assert status == 1, case
+    row = next(g for g in results["gates"] if g["metric"] == "log_identification.start.findings")
+    assert not row["passed"] and joint in row["where"] and words in row["where"]
+    err = capsys.readouterr().err
+    assert f"differ at {joint}" in err and words in err
+    si_log[1].to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    status, results = _run(tmp_path, "", out="right")
+    start = results["log_identification"]["start"]
+    assert status == 0 and start["findings"] == 0 and abs(start["factor"] - 1) <= 0.02
+
+
 def test_currents_without_their_constants_are_refused(si_log, tmp_path, capsys):
     si_log[1].to_csv(tmp_path / "log.csv", index=False)
     status, _ = _run(tmp_path, 'units = { tau = "current" }\n')

@@ -144,7 +144,8 @@ def check(gates: tuple[Gate, ...] | list[Gate], results: dict) -> tuple[list[dic
 def where(results: dict, metric: str) -> str:
     """Where a metric's worst case lies, read from the keys a stage writes beside it: for a metric
     `X_error` (or `X`), `X_parameter` (a base parameter, as the combination it stands for),
-    `X_joint`, `X_entry` (of a matrix), `X_state` (a random state's index) and `X_t` (seconds), e.g.
+    `X_joint`, `X_entry` (of a matrix), `X_state` (a random state's index), `X_t` (seconds) and
+    `X_likely` (the likely cause of a finding), e.g.
     `max_rel_joint` and `max_rel_t` beside `max_rel_error` give "elbow at t = 1.23 s". Empty where
     the stage wrote none."""
     head, _, leaf = metric.rpartition(".")
@@ -152,7 +153,7 @@ def where(results: dict, metric: str) -> str:
     if not isinstance(node, dict):
         return ""
     stem = leaf.removesuffix("_error")
-    found = {k: node.get(f"{stem}_{k}") for k in ("parameter", "joint", "entry", "state", "t")}
+    found = {k: node.get(f"{stem}_{k}") for k in ("parameter", "joint", "entry", "state", "t", "likely")}
     parts = []
     if isinstance(found["parameter"], str):
         parts.append(f"parameter {found['parameter']}")
@@ -164,6 +165,8 @@ def where(results: dict, metric: str) -> str:
         parts.append(f"at random state {found['state']}")
     if isinstance(found["t"], int | float) and not isinstance(found["t"], bool) and math.isfinite(found["t"]):
         parts.append(f"at t = {found['t']:.4g} s")
+    if isinstance(found["likely"], str) and found["likely"]:
+        parts.append(f"(likely {found['likely']})")
     return " ".join(parts)
 
 

@@ -144,6 +144,7 @@ def _relative_file(t: Table, key: str, rel: str, base: Path) -> Path:
     return path
 
 
+START_GATE = Gate("start", "log_identification.start.findings", 0)  # every log scenario's (stages/log_judge.py)
 BUILTIN_GATES = "harness:"  # a gate set named "harness:NAME" is the package's scenarios/gates/NAME.toml
 
 
@@ -280,6 +281,8 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
         if truth.joint_names != robot.joint_names:
             raise dt.error("truth", f"model {truth.name!r} has other joints than {robot.name!r}")
     gates = _read_all_gates(root, gate_files)
+    if START_GATE.metric not in {g.metric for g in gates}:  # every log is read against its model: a scenario's own
+        gates += (START_GATE,)  # gate on the metric replaces it
     for table in ("motion", "simulation", "measurement", "model_under_test", "studies", "torque_identification",
                   "excitation"):
         if root.has(table):

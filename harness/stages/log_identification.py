@@ -16,6 +16,8 @@ ones reading the training span alone:
 6. judge: both fits, and the model as it was given (its own friction), predict the torques of each
    span: per joint RMS and relative error, and over all joints ||tau_pred - tau||_F / ||tau||_F (the
    figure published identifications quote); against the truth's too, on a bench log;
+   The model as given is held against the torques as read (`start`): a factor or a sign between them
+   is a reading mistake, said with its likely cause and failing the gate every log scenario has;
 7. predict: each model forward-simulated from measured states under the measured torques
    (harness/stages/log_judge.py);
 8. export: the consistent model as URDF, MJCF, joints.toml and a model file (harness/model/export.py).
@@ -53,7 +55,7 @@ from harness.model.friction import FAMILIES, JointFriction
 from harness.model.friction import values as friction_values
 from harness.model.mjcf import compiler_message, write_mjcf
 from harness.stages.context import VALIDATION_SPAN
-from harness.stages.log_judge import prediction
+from harness.stages.log_judge import Start, prediction, start
 from harness.stages.log_results import serialise
 
 LAG_WARNING = 0.001  # s: an estimated delay beyond 1 ms, left uncorrected, is said on the terminal
@@ -311,6 +313,7 @@ class LogIdentification:
     judged: Judged
     prediction: dict  # results.json's `prediction` (log_judge.prediction)
     exported: Exported
+    start: Start  # the model as given against the log as read (log_judge.start)
     warnings: list[str] = field(default_factory=list)  # what the terminal is told
 
     @property
@@ -349,6 +352,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     identified = identified_spec(robot, fit.theta, frictions)
     spans = {"training": scaled.training, **({"validation": scaled.validation} if scaled.validation else {})}
     judged = judge(sc, model, joints, spans, fitted, laws.laws, identified)
+    started = start(judged.predictions["training"]["model as given"], delayed.training.joint_data(joints)[3], joints)
     ctx.progress("the models forward-simulated under the measured torques", None)
     span = "validation" if "validation" in spans else "training"
     q, qd, _ = judged.states[span]
@@ -361,7 +365,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     plausible = consistent.plausibility(fit.theta, model.theta, joints, fit.margin)
     li = LogIdentification(joints, robot.drive_names, names, model,
                            delayed, scaled, laws, fitted, fit,
-                           frictions, plausible, judged, predicted, exported)
+                           frictions, plausible, judged, predicted, exported, started)
     li.warnings.extend(warnings(li, sc.data.delay))
     return li
 
@@ -369,6 +373,8 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
 def warnings(li: LogIdentification, mode: str) -> list[str]:
     """What the terminal is told of a log run, once."""
     out, p, lags = [], li.plausible, li.delayed.lags
+    out += [f"the model as given and the log as read differ at {f['joint']} by a {f['finding']}: likely {f['likely']}"
+            for f in li.start.findings]
     if p["implausible"]:
         out.append(f"identified links far from the model's (mass or inertia beyond {consistent.PLAUSIBLE:g} times, "
                    f"or under 1/{consistent.PLAUSIBLE:g} of, its own): " + ", ".join(

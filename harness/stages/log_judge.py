@@ -1,8 +1,11 @@
 """Judging a model on a measured log, shared by the log's stages (harness/stages/log_identification.py,
 harness/stages/refinement.py): forward simulation from measured states under the measured torques
-(`prediction`: how far each model drifts at each horizon)."""
+(`prediction`: how far each model drifts at each horizon), and the model as given against the log as
+read (`start`: a log whose torques are off the model's by a factor or a sign was read wrongly)."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,3 +58,71 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
                 "diverged": diverged}
         out["models"][name] = per
     return out
+
+
+START_FACTOR = 3.0  # the model as given and the log as read differ by more than this factor: a reading mistake
+# (a motor current is the joint torque over k_t N, tens to hundreds of times smaller; a unit's prefix is 1000),
+# where a model from CAD data with its friction missing is off by tens of percent
+SHAPED = 0.5  # a joint's torques and the model's torques there have a cosine of at least this: the model has
+# the log's shape at that joint, so the factor between them is the reading's (a wrist the model gives no friction
+# has not: its factor says nothing)
+
+
+@dataclass(frozen=True)
+class Start:
+    """The model as given against the log as read on the training span: the least-squares factor
+    s = <tau_model, tau_log> / <tau_model, tau_model> over all joints and per joint, and per joint the
+    cosine of the two; the findings (a factor outside [1 / START_FACTOR, START_FACTOR] or a sign flipped,
+    over all joints or at a joint whose cosine is at least SHAPED in magnitude), each with its likely cause."""
+
+    factor: float
+    per_joint: dict[str, dict[str, float]]  # joint -> {"factor", "cosine"}
+    findings: list[dict[str, str]]  # {"joint" (or "all joints"), "finding", "likely"}
+
+    def as_dict(self) -> dict:
+        first = self.findings[0] if self.findings else {}
+        return {"definition": "the model as given against the torques as read, on the training span: the least-squares "
+                              "factor s = <tau_model, tau_log> / <tau_model, tau_model> over all joints and per joint "
+                              "(tau_log = s tau_model at best), and per joint the cosine of the two; a finding is a "
+                              f"factor beyond {START_FACTOR:g} either way or a sign flipped, over all joints or at a "
+                              f"joint where the cosine is at least {SHAPED:g} in magnitude",
+                "factor": finite_or_null(self.factor), "per_joint": self.per_joint,
+                "findings": len(self.findings), "findings_joint": first.get("joint", ""),
+                "findings_likely": first.get("likely", ""), "list": self.findings}
+
+
+def _likely(s: float) -> str:
+    if s < 0:
+        return ("the log's torques have the opposite sign of the model's: a sign convention (a reaction torque "
+                "logged), or a joint axis the other way in the model")
+    if s < 1:
+        return ("the log's torques are far smaller than the model's: motor currents read as torques (give units = "
+                "{ tau = \"current\" } with torque_constant and gear_ratio), a motor-side torque before its gear, or "
+                "a unit too large (kN m?)")
+    return ("the log's torques are far larger than the model's: a unit too small (N mm or mN m read as N m?), or a "
+            "model too light (its masses in the wrong unit, or bodies missing)")
+
+
+def start(model: np.ndarray, log: np.ndarray, joints: list[str]) -> Start:
+    """`model` (N, n) the model as given's torques at the log's states, `log` (N, n) the torques as read."""
+    def factor(m: np.ndarray, y: np.ndarray) -> float:
+        mm = float(np.sum(m * m))
+        return float(np.sum(m * y)) / mm if mm > 0 else float("nan")
+
+    def off(s: float) -> bool:
+        return s < 0 or not (1 / START_FACTOR <= s <= START_FACTOR)
+
+    overall = factor(model, log)
+    findings, per_joint = [], {}
+    if np.isfinite(overall) and off(overall):
+        findings.append({"joint": "all joints", "finding": f"factor {overall:.3g}", "likely": _likely(overall)})
+    for k, j in enumerate(joints):
+        m, y = model[:, k], log[:, k]
+        s = factor(m, y)
+        norms = float(np.linalg.norm(m) * np.linalg.norm(y))
+        cosine = float(m @ y) / norms if norms > 0 else float("nan")
+        per_joint[j] = {"factor": finite_or_null(s), "cosine": finite_or_null(cosine)}
+        if np.isfinite(s) and abs(cosine) >= SHAPED and off(s) and (s < 0 or not findings):
+            findings.append({"joint": j, "finding": f"factor {s:.3g} (cosine {cosine:.2f})", "likely": _likely(s)})
+    return Start(overall, per_joint, findings)
+

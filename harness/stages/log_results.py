@@ -35,6 +35,7 @@ def serialise(li, ctx, config) -> dict:
         "spans": {span: {"samples": len(t), "t_start": float(t[0]), "t_end": float(t[-1])}
                   for span, t in li.judged.t.items()},
         "errors": errors,
+        "start": li.start.as_dict(),
         "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()},
         "validation_floor": None if floor is None else {"definition": FLOOR_DEFINITION, "rel_error": floor},
         "consistent_costs": {span: e["consistent"]["rel_error"] - e["least squares"]["rel_error"]
