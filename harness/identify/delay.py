@@ -6,9 +6,10 @@ is fitted by least squares on the joint's own rows of the regressor, W_j(q, q', 
 same columns as the identification: every link's ten parameters and every joint's friction and
 rotor inertia); the delay is the d whose fit leaves the smallest residual. The residual is taken on
 the same rows for every candidate (those at least the largest candidate from either end), on a grid
-of STEP, then refined by a parabola through the best grid point and its neighbours. Linear
-interpolation reads tau_meas between samples: on a filtered log it is smooth at the grid's scale;
-nothing is read across a gap.
+of whole samples near STEP (`grid_step`: a candidate between samples would smooth the channel's
+noise and win for that), then refined by a parabola through the best grid point and its neighbours.
+Linear interpolation reads tau_meas between samples when a delay is corrected; nothing is read
+across a gap.
 """
 
 from __future__ import annotations
@@ -58,10 +59,24 @@ def _residual(U: np.ndarray, y: np.ndarray) -> float:
     return relative_residual(y - U @ (U.T @ y), y)
 
 
+def grid_step(t: np.ndarray, step: float = STEP) -> float:
+    """The candidates' spacing: a whole number of the log's median sample steps, the one nearest `step`
+    (at least one). A candidate between two samples would read the channel by interpolation, which
+    averages its noise (at half a step, white noise by 1 / sqrt(2)): its residual would fall by the
+    noise it smooths, and a log without any delay would seem to lag by a fraction of a sample."""
+    dt = float(np.median(np.diff(t)))
+    return max(1, round(step / dt)) * dt
+
+
 def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LARGEST, step: float = STEP) -> Delays:
     """t (N,) s, uniform within each stretch of a log cut at its gaps; tau (N, n); W (N, n, p) the
-    regressor's rows by joint. The rows used are those at least `largest` from a stretch's ends."""
-    candidates = np.arange(-largest, largest + step / 2, step)
+    regressor's rows by joint. The rows used are those at least `largest` from a stretch's ends. The
+    candidates lie on whole samples (`grid_step`); the delay between them is the vertex of the parabola
+    through the best candidate's squared residual and its neighbours' (a lag's residual is quadratic in
+    the delay's error near its minimum), and its residual the parabola's at the vertex."""
+    h = grid_step(t, step)
+    candidates = np.arange(-np.floor(largest / h + 1e-9), np.floor(largest / h + 1e-9) + 1) * h
+    largest = float(candidates[-1])
     back, ahead = room(t)
     rows = (back >= largest) & (ahead >= largest)
     if rows.sum() < 2 * W.shape[2]:
@@ -75,14 +90,15 @@ def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LAR
             curve[j, k] = _residual(bases[j], np.interp(t[rows] + d, t, tau[:, j]))
     best = np.argmin(curve, axis=1)
     delay = candidates[best].astype(float)
+    residual = curve[np.arange(n), best].copy()
     at_edge = (best <= EDGE) | (best >= len(candidates) - 1 - EDGE)
-    # the vertex of the parabola through the best point and its neighbours
+    # the vertex of the parabola through the best point and its neighbours, in squared residual
     for j in np.flatnonzero((best > 0) & (best < len(candidates) - 1)):
-        y0, y1, y2 = curve[j, best[j] - 1: best[j] + 2]
+        y0, y1, y2 = curve[j, best[j] - 1: best[j] + 2] ** 2
         denominator = y0 - 2 * y1 + y2
         if denominator > 0:
-            delay[j] += 0.5 * step * (y0 - y2) / denominator
-    residual = np.array([_residual(bases[j], np.interp(t[rows] + delay[j], t, tau[:, j])) for j in range(n)])
+            delay[j] += 0.5 * h * (y0 - y2) / denominator
+            residual[j] = np.sqrt(max(y1 - (y0 - y2) ** 2 / (8 * denominator), 0.0))
     zero = curve[:, np.argmin(np.abs(candidates))]
     return Delays(delay, residual, zero, candidates, curve, at_edge)
 

@@ -66,6 +66,8 @@ def log_identification(r: dict, log) -> str:
     if floor:
         headline += (f"<p>The model class's floor on the validation span: {num(floor['rel_error'])}, "
                      f"{esc(floor['definition'])}.</p>")
+    if li.get("validation_cannot_see"):
+        headline += f"<p><strong>What this figure cannot see</strong>: {esc(li['validation_cannot_see'])}.</p>"
     extra = ""
     lags = li.get("delays") or {}
     if lags.get("estimated"):
@@ -85,9 +87,12 @@ def log_identification(r: dict, log) -> str:
     constants = li.get("torque_constants")
     if constants:
         extra += ("<h3>Torque constants (motor currents)</h3>"
-                  f"<p>{esc(constants['definition'])}; the scale fixed by the {esc(constants['fixed_by'])}.</p>"
-                  + table(["joint", "nominal [N m/A]", "factor", "identified [N m/A]", "factor's std"],
-                          [[esc(j), num(v["nominal"]), num(v["factor"]), num(v["identified"]), num(v["factor_std"])]
+                  f"<p>{esc(constants['definition'])}. The common scale is fixed by "
+                  f"{esc(constants['common_scale']['fixed_by'])}.</p>"
+                  + table(["joint", "nominal [N m/A]", "factor", "identified [N m/A]", "95 % interval [N m/A]",
+                           "factor's std"],
+                          [[esc(j), num(v["nominal"]), num(v["factor"]), num(v["identified"]),
+                            f"{num(v['ci95'][0])} to {num(v['ci95'][1])}", num(v["factor_std"])]
                            for j, v in constants["per_joint"].items()]))
     joints = list(li["errors"][span][models[0]]["per_joint"])
     per_joint = table(["joint", *(f"{m}: RMS [N m] / relative" for m in models)],

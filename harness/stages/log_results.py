@@ -19,6 +19,12 @@ FLOOR_DEFINITION = (
 SERIES_POINTS = 600  # samples per curve kept in results.json for the report's validation plot
 
 
+CURRENTS_BLIND = ("a torque constant's error: the validation span's torques are its currents times the same constants "
+                  "(nominal, or identified on the training span), so a constant 10 % off scales the measured and the "
+                  "fitted torques alike and leaves this figure unchanged; a log with a known payload ([data.payload]) "
+                  "fixes the constants against known torques (docs/identification.md, 'Motor currents')")
+
+
 def serialise(li, ctx, config) -> dict:
     """results.json's `log_identification`: the fits, their errors per span, the consistent model and the export."""
     errors = {span: _span_errors(li, span) for span in li.judged.predictions}
@@ -37,6 +43,7 @@ def serialise(li, ctx, config) -> dict:
         "errors": errors,
         "start": li.start.as_dict(),
         "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()},
+        **({"validation_cannot_see": CURRENTS_BLIND} if ctx.scenario.data.units["tau"] == "current" else {}),
         "validation_floor": None if floor is None else {"definition": FLOOR_DEFINITION, "rel_error": floor},
         "consistent_costs": {span: e["consistent"]["rel_error"] - e["least squares"]["rel_error"]
                              for span, e in errors.items()},
@@ -186,12 +193,25 @@ def _delay_section(d, mode: str, joints: list[str]) -> dict:
 def _constants_section(constants, source, joints: list[str]) -> dict | None:
     if constants is None:
         return None
+    c = constants
+    scale = ({"fixed_by": "the known payload's torques ([data.payload])"} if c.fixed_by == "payload" else {
+        "fixed_by": "the model's own base parameters: the median ratio of the model's to the fit's (the currents fix "
+                    "the constants only up to one common scale; every constant is as right as the model's parameters "
+                    "are on the median, which a log of currents alone cannot check: a log with a known payload, "
+                    "[data.payload], can)",
+        "value": c.scale, "rel_std": c.scale_std})
     return {"definition": "per joint, the torque it carries over the torque its currents give with the nominal "
-                          "constant (harness/identify/scale.py); identified = factor x nominal",
-            "fixed_by": constants.fixed_by, "relative_residual": constants.relative_residual,
-            "per_joint": {j: {"nominal": source.torque_constant[k], "factor": float(constants.factor[k]),
-                              "identified": float(constants.factor[k] * source.torque_constant[k]),
-                              "factor_std": None if constants.std is None else float(constants.std[k])}
+                          "constant (harness/identify/scale.py); identified = factor x nominal; ci95 its 95 % interval "
+                          "(a wild bootstrap over `blocks` contiguous blocks of each log, the fit linearised at its "
+                          "solution, the common scale recomputed on each of `resamples` draws), for this log's motion "
+                          "and its noise; read from the training span with every found delay corrected (delays), and "
+                          "as right as the scale's source",
+            "fixed_by": c.fixed_by, "common_scale": scale, "relative_residual": c.relative_residual,
+            "resamples": c.resamples, "blocks": c.blocks,
+            "per_joint": {j: {"nominal": source.torque_constant[k], "factor": float(c.factor[k]),
+                              "identified": float(c.factor[k] * source.torque_constant[k]),
+                              "factor_std": finite_or_null(float(c.std[k])),
+                              "ci95": [finite_or_null(float(v * source.torque_constant[k])) for v in c.ci95[k]]}
                           for k, j in enumerate(joints)}}
 
 
