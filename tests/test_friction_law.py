@@ -248,6 +248,32 @@ def test_a_search_that_cannot_be_made_keeps_the_models_law_and_says_so(short_log
     assert set(law["coulomb_velocity"].values()) == {0.02}
 
 
+@pytest.fixture(scope="module")
+def eight_seconds(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("eight")
+    bench_log(load_scenario(SCENARIOS / "ur5_friction.toml"), folder, 8.0, 1600)
+    return folder
+
+
+@pytest.mark.slow  # an 8 s bench log through the whole pipeline, twice
+@pytest.mark.parametrize("declared", [0.02, 0.2])
+def test_a_declared_smoothing_velocity_stands_unless_the_data_beat_it_clearly(eight_seconds, declared):
+    """The bench's UR5 (v_c 0.02 rad/s on every joint, 8 s at 200 Hz), identified on a model that
+    declares the true 0.02: every joint keeps it (results.json: `declared.kept`); declaring 0.2
+    instead, the data beat it by more than friction_law.DECLARED_GAIN (2 %) and one standard error on
+    every joint and choose within 30 % of 0.02."""
+    folder = eight_seconds
+    text = MODEL.read_text().replace("coulomb_velocity = 0.02", f"coulomb_velocity = {declared}")
+    (folder / "declares.toml").write_text(text)
+    log_scenario(folder, "declares.toml", GATE)
+    assert main(["run", str(folder / "s.toml"), "--out", str(folder / "declares"), "--quiet"]) == 0
+    law = json.loads((folder / "declares" / "results.json").read_text())["log_identification"]["friction_law"]
+    for j, v_c in law["coulomb_velocity"].items():
+        said = law["per_joint"][j]["declared"]
+        assert said["coulomb_velocity"] == declared and said["kept"] == (declared == 0.02), (j, said)
+        assert v_c == declared if declared == 0.02 else abs(v_c / 0.02 - 1) <= 0.3, (j, v_c)
+
+
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 def test_a_model_whose_joint_joins_two_families_has_its_law_searched_from_there(short_log, capsys):
     """A model declaring Stribeck and asymmetric terms on one joint (three terms, more than any single

@@ -15,8 +15,14 @@ masses and pseudo-inertias but not the rotor inertia or friction. The fitted mod
     name = "figaroh"
     plugin = "figaroh"          # pip install 'harness[figaroh]'
     fit = "least_squares"       # or "physical"
-    zero_tolerance = 0.001      # FIGAROH's: a column whose squared norm is below this is dropped
-    qr_tolerance = 1e-6         # FIGAROH's rank threshold of its QR
+    zero_tolerance = 0.001      # a column whose squared norm is below this is dropped (BaseIdentification's)
+    qr_tolerance = 1e-8         # the rank threshold of its QR
+
+Where a tolerance is not given, FIGAROH's own default is used, read from the installed FIGAROH: the
+QR's is its QRDecomposer's (`figaroh.tools.qrdecomposition.TOL_QR`, 1e-8 in 1.0.2), the physical
+fit's its `build_problem`'s `qr_tol` (1e-6 in 1.0.2), the column elimination's BaseIdentification's
+`zero_tolerance` (0.001; the function alone defaults to 1e-6). FIGAROH 1.0.2's BaseIdentification
+itself ranks its QR at 1e-6 (a fallback inside its code, not a parameter).
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ FITS = ("least_squares", "physical")
 # the harness's [armature, viscous, coulomb, offset]
 EXTRA = (("fv", 1), ("fs", 2), ("Ia", 0), ("off", 3))
 OPTIONS = ("fit", "zero_tolerance", "qr_tolerance")
+ZERO_TOLERANCE = 1e-3  # FIGAROH's BaseIdentification's `zero_tolerance` (a keyword default of its, 1.0.2)
 
 
 def _figaroh():
@@ -45,7 +52,7 @@ def _figaroh():
             warnings.simplefilter("ignore")
             from figaroh.identification.parameter import add_standard_additional_parameters, get_standard_parameters
             from figaroh.identification.physical_fit import build_problem, solve_direct_effort_fit
-            from figaroh.tools.qrdecomposition import QRDecomposer, redistribute_min_norm
+            from figaroh.tools.qrdecomposition import TOL_QR, QRDecomposer, redistribute_min_norm
             from figaroh.tools.regressor import build_regressor_basic, build_regressor_reduced, get_index_eliminate
     except ImportError as exc:
         raise ToolUnavailable("figaroh", f"FIGAROH is not installed ({exc}); pip install 'harness[figaroh]'") from None
@@ -53,7 +60,7 @@ def _figaroh():
     return SimpleNamespace(**{f.__name__: f for f in (
         add_standard_additional_parameters, get_standard_parameters, build_problem, solve_direct_effort_fit,
         redistribute_min_norm, build_regressor_basic, build_regressor_reduced, get_index_eliminate)},
-        QRDecomposer=QRDecomposer)
+        QRDecomposer=QRDecomposer, TOL_QR=float(TOL_QR))
 
 
 class Figaroh:
@@ -66,9 +73,10 @@ class Figaroh:
         self.fit_kind = parameters.get("fit", "least_squares")
         if self.fit_kind not in FITS:
             raise PluginError("figaroh", f"fit = {self.fit_kind!r}: one of {', '.join(FITS)}")
-        self.zero_tolerance = float(parameters.get("zero_tolerance", 1e-3))
-        self.qr_tolerance = float(parameters.get("qr_tolerance", 1e-6))
         self.fg = _figaroh()
+        self.zero_tolerance = float(parameters.get("zero_tolerance", ZERO_TOLERANCE))
+        self.qr_tolerance = float(parameters.get("qr_tolerance", self.fg.TOL_QR))
+        self.physical_qr = {"qr_tol": self.qr_tolerance} if "qr_tolerance" in parameters else {}
         self.pm = build_model(robot, gravity_W)
         self.joint_names = list(robot.joint_names)
         model = self.pm.model
@@ -97,7 +105,7 @@ class Figaroh:
         if self.fit_kind == "physical":
             prior = np.array([self.standard[k] for k in names])
             joints = [self.pm.model.names[j] for j in range(1, self.pm.model.njoints)]
-            problem = self.fg.build_problem(W, self.stacked(tau), names, joints, prior=prior, qr_tol=self.qr_tolerance)
+            problem = self.fg.build_problem(W, self.stacked(tau), names, joints, prior=prior, **self.physical_qr)
             record = self.fg.solve_direct_effort_fit(problem, solver="cvxopt")
             if not record.accepted:
                 raise RuntimeError(f"FIGAROH's physical fit was not accepted: {_why_rejected(record)}")

@@ -21,6 +21,7 @@ default modifier leaves the inertia's frame undefined, which MuJoCo 4.0's compil
     name = "sysid"
     plugin = "mujoco_sysid"     # pip install 'harness[sysid]'
     chunks = 20                 # rollouts per evaluation, spread evenly over the training span
+                                # (default: as many as tile it, its length over chunk_seconds)
     chunk_seconds = 0.1         # each from a measured state
     timestep = 0.002            # s, semi-implicit Euler (damping implicit)
     iterations = 25             # Gauss-Newton iterations
@@ -46,7 +47,8 @@ from harness.model import friction
 from harness.model.friction import JointFriction
 from harness.model.load import spec_from_mjmodel
 
-OPTIONS = {"chunks": (int, 20), "chunk_seconds": (float, 0.1), "timestep": (float, 0.002), "iterations": (int, 25)}
+OPTIONS = {"chunks": (int, None), "chunk_seconds": (float, 0.1), "timestep": (float, 0.002), "iterations": (int, 25)}
+# chunks None: as many as tile the training span (its length over chunk_seconds, rounded up)
 MASS_FACTOR = 5.0  # a link's mass within this factor of the model's
 STRETCH_FACTOR = 10.0  # its principal moments' scales within this factor
 SHEAR = 1.0  # its pseudo-inertia's shear terms within this of the model's
@@ -99,6 +101,9 @@ class Sysid:
             raise PluginError("mujoco_sysid", f"unknown option(s) {', '.join(unknown)} (known: {', '.join(OPTIONS)})")
         self.options = {}
         for key, (kind, default) in OPTIONS.items():
+            if key not in parameters and default is None:
+                self.options[key] = None
+                continue
             value = kind(parameters.get(key, default))
             if not value > 0:
                 raise PluginError("mujoco_sysid", f"{key} = {value!r}: must be positive")
@@ -138,7 +143,10 @@ class Sysid:
                              "chunk is shorter than a sample")
         # each chunk starts at a measured sample (its initial state is read, not interpolated)
         last = int(np.searchsorted(t, t[-1] - times[-1], side="right")) - 1
-        starts = t[np.unique(np.linspace(0, last, o["chunks"]).astype(int))]
+        span = float(t[-1] - t[0])
+        count = o["chunks"] or int(np.ceil(span / times[-1] - 1e-9))  # by default the chunks tile the span
+        starts = t[np.unique(np.linspace(0, last, count).astype(int))]
+        covered = min(len(starts) * times[-1], span) / span  # of the span, the chunks' union at most
 
         def at(x: np.ndarray, when: np.ndarray) -> np.ndarray:  # the log between its samples: linear
             return sampled(t, x, when)
@@ -174,8 +182,10 @@ class Sysid:
                                         offset=float(found[f"{j}_offset"].value[0]))  # v_c = 0: a sharp sign
                           for j in self.joint_names)
         spec = spec.with_frictions(frictions)
-        notes = (f"multiple shooting: {len(starts)} rollouts of {steps} samples ({o['chunk_seconds']:g} s) from "
-                 f"measured states, {o['iterations']} Gauss-Newton iterations from the model as given; "
+        notes = (f"multiple shooting: {len(starts)} rollouts of {steps} samples ({times[-1]:g} s) from "
+                 f"measured states, {len(starts) * times[-1]:g} s of the {span:g} s training span "
+                 f"({100 * covered:.0f} % covered{'' if o['chunks'] else ', the default: the chunks tile it'}), "
+                 f"{o['iterations']} Gauss-Newton iterations from the model as given; "
                  f"{evaluations[0]} parameter vectors rolled out in {seconds:.1f} s",
                  "dry friction as MuJoCo's frictionloss (a sharp sign), not a smooth Coulomb law")
         return Fitted(spec, self.gravity_W, notes, evaluations[0] * len(starts))

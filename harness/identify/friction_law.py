@@ -24,7 +24,8 @@ Joint by joint (two passes, so that each choice sees the others'), every family 
 The family chosen is the simplest whose held-out error is within one standard error of the best
 family's (the one-standard-error rule of cross-validation, Hastie, Tibshirani and Friedman, The
 Elements of Statistical Learning, 2nd ed., section 7.10): a richer law must earn its terms by more than
-the scatter of the parts' errors.
+the scatter of the parts' errors. A smoothing velocity the model declares stands unless the data's
+beats it by more than DECLARED_GAIN of the held-out error and one standard error (`_declared`).
 """
 
 from __future__ import annotations
@@ -48,6 +49,8 @@ REFINE_EVALUATIONS = 60  # trials of the joint (v_c, v_s) refinement
 LOAD_ITERATIONS = 3  # fixed-point steps of a load-dependent law's rigid-body torque
 MIN_FOLD = 50  # samples each part of the training span needs
 MAX_UNKNOWNS = 250  # base parameters and friction slots beyond which the choice is not tried (the Panda: 83)
+DECLARED_GAIN = 0.02  # a model's declared v_c gives way only to one whose held-out error is 2 % lower (and more
+# than one standard error over the parts): a declaration is information the data must clearly beat
 
 
 @dataclass(frozen=True)
@@ -287,6 +290,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     step = float(np.median(np.diff(t[order]))) if N > 1 else 0.0
     folds = blocked_folds(N, config.folds, int(np.ceil(reach / step - 1e-9)) if reach > 0 and step > 0 else 0)
     laws = [Law.of(f) for f in model]  # the model's own, where the search starts
+    declared = [f.coulomb_velocity for f in model]  # a model's smoothing velocity (0: none declared)
     # a joint's slot: q', s and the most terms of a law it may be given (a model's own may join families)
     slot = 2 + max(len(t) for t in [*(FAMILIES[f] for f in config.families), *(law.terms for law in laws)])
     unknowns = len(independent) + (slot - 2) * n
@@ -352,10 +356,13 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
                     found[family] = _refine_both(score, *found[family])  # v_c and v_s trade: refined together
             chosen = _simplest(found, normal, place, j, total)
             laws[j] = found[chosen][0]
-            place(j, laws[j])
             scores[j] = {f: {"held_out_rel_error": e, "coulomb_velocity": law.coulomb_velocity,
                              **({"stribeck_velocity": law.stribeck_velocity} if f == "stribeck" else {})}
                          for f, (law, e) in found.items()}
+            if declared[j] > 0:  # the model's own v_c stands unless the data's beats it clearly
+                laws[j], scores[j]["declared"] = _declared(laws[j], found[chosen][1], declared[j], score, normal,
+                                                           place, j, total)
+            place(j, laws[j])
     chosen_error = relative_residual_of_sums(normal.held_out_sse().sum(), total)
     tau_rigid = np.empty_like(tau)
     tau_rigid[order] = normal.rigid_torque()
@@ -373,6 +380,21 @@ def _simplest(found: dict, normal: _Normal, place, j: int, total: float) -> str:
     S = float(parts.sum())
     se = np.sqrt(len(parts)) * float(np.std(parts, ddof=1)) / (2 * np.sqrt(S * total)) if S > 0 else 0.0
     return next(f for f in found if found[f][1] <= found[best][1] + se)
+
+
+def _declared(law: Law, error: float, v_declared: float, score, normal: _Normal, place, j: int,
+              total: float) -> tuple[Law, dict]:
+    """The chosen `law` (held-out `error`) against the same law at the model's declared v_c: the
+    declared velocity stands unless the chosen one's held-out error is lower by more than DECLARED_GAIN
+    of it and by more than one standard error over the parts (as `_simplest`)."""
+    kept = replace(law, coulomb_velocity=v_declared)
+    at_declared = score(kept)
+    parts = normal.held_out_sse()
+    S = float(parts.sum())
+    se = np.sqrt(len(parts)) * float(np.std(parts, ddof=1)) / (2 * np.sqrt(S * total)) if S > 0 else 0.0
+    beaten = error < at_declared - max(se, DECLARED_GAIN * at_declared)
+    return (law if beaten else kept), {"coulomb_velocity": v_declared, "held_out_rel_error": at_declared,
+                                       "kept": not beaten}
 
 
 def _refine_both(score, law: Law, error: float) -> tuple[Law, float]:

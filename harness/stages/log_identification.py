@@ -110,7 +110,9 @@ def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
     if mode == "none":
         return Delayed(None, None, training, validation, W)
     try:
-        lags = delay.estimate(training.t, training.joint_data(joints)[3], W.reshape(len(training.t), len(joints), -1))
+        filtered = any(step.get("step") == "low-pass" for step in training.meta.get("steps", ()))
+        lags = delay.estimate(training.t, training.joint_data(joints)[3], W.reshape(len(training.t), len(joints), -1),
+                              filtered=filtered)
     except ValueError as exc:
         return Delayed(None, f"delays not estimated: {exc}", training, validation, W)
     if mode != "correct":
