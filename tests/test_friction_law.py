@@ -165,11 +165,59 @@ def test_a_model_that_declares_no_smoothing_velocity_predicts_as_well_as_one_tha
     assert np.allclose(chosen["undeclared"], 0.01, rtol=0.05), chosen
 
 
+@pytest.mark.slow  # a 20 s log of a six-joint arm through the whole pipeline, three times
+def test_on_a_filtered_log_the_smoothing_velocity_is_the_robots_not_the_filters(tmp_path):
+    """The Kinova bench of the test above, its positions quantised to 2e-4 rad and no velocities given:
+    the conditioning chooses a low-pass (5.5 Hz), which spreads each Coulomb turn of the measured
+    torques over its impulse response. The friction columns are filtered as the torques were
+    (harness/identify/filtered.py): with the true v_c declared the exported model predicts a fresh
+    trajectory within 0.15 % (measured 0.044 %; with the model's law as given, choose = false, the
+    same), and with none declared within 0.3 % (measured 0.20 %), every chosen v_c within 50 % of 0.01
+    (measured 0.0088 to 0.0138). Compared tanh of the filtered velocity with the filtered torques,
+    the fit chose 0.017 to 0.044 and missed by 1.7 %."""
+    from harness.engines.pinocchio import build_model, rnea
+    from harness.sources.bench import record
+
+    kinova_files(tmp_path)
+    kinova_model(tmp_path, "truth", "exact.urdf", 0.01)
+    kinova_model(tmp_path, "declared", "shipped.urdf", 0.01)
+    kinova_model(tmp_path, "undeclared", "shipped.urdf", None)
+    bench_log(kinova_bench(tmp_path, "bench", "truth.toml", 20.0, 1), tmp_path, 20.0, 5000)
+    df = pd.read_csv(tmp_path / "log.csv")
+    noise = np.random.default_rng(5)
+    for c in (c for c in df.columns if c.startswith("tau")):
+        df[c] += 0.01 * np.sqrt(np.mean(df[c] ** 2)) * noise.standard_normal(len(df))
+    for c in (c for c in df.columns if c.startswith("q") and not c.startswith("qd")):
+        df[c] = np.round(df[c] / 2e-4) * 2e-4
+    df[[c for c in df.columns if not c.startswith("qd")]].to_csv(tmp_path / "log.csv", index=False,
+                                                                 float_format="%.17g")
+    fresh_scenario = kinova_bench(tmp_path, "fresh", "truth.toml", 5.0, 2)
+    fresh = record(fresh_scenario)
+    c = [fresh.joint_index(j) for j in KINOVA_JOINTS]
+    errors, chosen = {}, {}
+    for name, model, law in (("declared", "declared", ""), ("undeclared", "undeclared", ""),
+                             ("kept", "declared", "[friction_law]\nchoose = false\n")):
+        (tmp_path / "s.toml").write_text(f'[scenario]\nmodel = "{model}.toml"\n[data]\nfile = "log.csv"\n'
+                                         'columns = { t = "t", q = "q{j}", tau = "tau{j}" }\n'
+                                         'units = { q = "rad", tau = "N m" }\nvalidation = { from = 0.7 }\n'
+                                         + GATE + law)
+        assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / name), "--quiet"]) == 0
+        results = json.loads((tmp_path / name / "results.json").read_text())
+        assert results["data"]["conditioning"]["defaults"]["cutoff_hz"] < 10
+        spec = load_spec(tmp_path / name / "identified" / "robot.toml")
+        tau = rnea(build_model(spec, fresh_scenario.gravity_W), fresh.q[:, c], fresh.qd[:, c], fresh.qdd[:, c]).tau
+        errors[name] = float(np.linalg.norm(tau - fresh.tau[:, c]) / np.linalg.norm(fresh.tau[:, c]))
+        chosen[name] = [f.coulomb_velocity for f in spec.frictions]
+    assert errors["declared"] <= 1.5e-3 and errors["kept"] <= 1.5e-3 and errors["undeclared"] <= 3e-3, errors
+    assert np.allclose(chosen["declared"], 0.01) and np.allclose(chosen["undeclared"], 0.01, rtol=0.5), chosen
+
+
 @pytest.mark.slow  # a bench log through the whole pipeline
 def test_a_joint_that_never_moves_keeps_the_models_law(tmp_path):
     """ur5_friction with its wrist 3 locked: nothing in the log shows that joint's friction, so it keeps
-    the model's law (v_c 0.02, no family, no scores), while every other joint's v_c is chosen (within
-    2 % of the true 0.02: measured 1 %)."""
+    the model's law (v_c 0.02, no family, no scores), while every other joint's law is searched: the
+    model's declared v_c (the true 0.02) stands, or one the data prefer by more than the 2 % a
+    declaration asks lies within 5 % of it (measured: four joints keep 0.02, wrist 2 takes 0.0205)."""
     text = (SCENARIOS / "ur5_friction.toml").read_text()
     text = (text[: text.index("[motion.wrist_3_joint]")] + '[motion.wrist_3_joint]\ntype = "locked"\n\n'
             + text[text.index("# Gates beyond"):])
@@ -183,7 +231,8 @@ def test_a_joint_that_never_moves_keeps_the_models_law(tmp_path):
     assert law["per_joint"]["wrist_3_joint"] == {} and law["coulomb_velocity"]["wrist_3_joint"] == 0.02
     assert law["families"]["wrist_3_joint"] == "viscous_coulomb"
     others = [v for j, v in law["coulomb_velocity"].items() if j != "wrist_3_joint"]
-    assert np.allclose(others, 0.02, rtol=0.02), law["coulomb_velocity"]
+    assert np.allclose(others, 0.02, rtol=0.05), law["coulomb_velocity"]
+    assert all("declared" in law["per_joint"][j] for j in law["per_joint"] if j != "wrist_3_joint")
 
 
 def test_every_engine_simulates_every_family_alike(tmp_path):

@@ -36,6 +36,7 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from harness.base.numerics import consecutive_blocks, relative_residual_of_sums
+from harness.identify import filtered
 from harness.identify.torque_id import drive_column, links_torque
 from harness.model import friction
 from harness.model.drives import Transmission
@@ -111,9 +112,10 @@ def extra_terms(laws: tuple[Law, ...]) -> list[tuple[int, str]]:
 
 
 def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray | None,
-                    transmission: Transmission | None = None) -> np.ndarray:
+                    transmission: Transmission | None = None, columns=None, t: np.ndarray | None = None) -> np.ndarray:
     """(N n, e): the columns of the families' coefficients (extra_terms), each on its joint's rows; with
-    a transmission, each motor's at its rates and load, reaching joint j times N[k, j]."""
+    a transmission, each motor's at its rates and load, reaching joint j times N[k, j]. With a filtered
+    span's `columns` (at its times `t`), each shape filtered as the torques were (harness/identify/filtered.py)."""
     terms = extra_terms(laws)
     N, n = qd.shape
     out = np.zeros((N, n, len(terms)))
@@ -122,7 +124,10 @@ def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray
     if transmission is not None:
         qd = transmission.motor_rates(qd)
         tau_rigid = None if tau_rigid is None else transmission.motor_torques(tau_rigid)
-    shapes = friction.extra_columns(tuple(law.shapes for law in laws), qd, tau_rigid)  # (N, n, 4)
+    if columns is not None:
+        shapes = filtered.extra_shapes(columns, t, laws, transmission, tau_rigid)
+    else:
+        shapes = friction.extra_columns(tuple(law.shapes for law in laws), qd, tau_rigid)  # (N, n, 4)
     for c, (j, key) in enumerate(terms):
         if transmission is None:
             out[:, j, c] = shapes[:, j, EXTRA_KEYS.index(key)]
@@ -273,7 +278,7 @@ class _Normal:
 
 def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
            qd: np.ndarray, t: np.ndarray, model: tuple[JointFriction, ...], config: FrictionLawConfig,
-           reach: float = 0.0, transmission: Transmission | None = None) -> FrictionChoice:
+           reach: float = 0.0, transmission: Transmission | None = None, columns=None) -> FrictionChoice:
     """Each joint's friction law, chosen within the training span. W: (N n, 10 n + 4 n) the
     regressor with friction (harness/identify/torque_id.py), `independent` the base parameters'
     columns and `link_part` which hold a link's parameters and the drive's share in each
@@ -281,7 +286,9 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     t: (N,); `reach` (s) how far a sample's conditioning reaches, the guard around each fold
     (`blocked_folds`). With a `transmission` (harness/model/drives.py) the laws are the motors': each
     motor's columns at its own rates, reaching the joints through N, its load the motor's share of
-    the rigid-body torque, N^-T tau_R. Raises ValueError when the span is too short to cut."""
+    the rigid-body torque, N^-T tau_R. With a filtered span's `columns` (FilteredColumns), each law's
+    nonlinear columns are filtered as the torques were (harness/identify/filtered.py). Raises ValueError
+    when the span is too short to cut."""
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
     tau, qd = tau[order], qd[order]
@@ -308,6 +315,10 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
 
     if transmission is not None:
         qd = transmission.motor_rates(qd)
+    # on a filtered log a Stribeck bump narrower in time than the filter resolves (1 / (2 pi f_c)) shows only
+    # its area: its velocity v_s is kept above the velocity each drive sweeps in that time (median |q''_m|)
+    v_s_floor = np.zeros(n) if columns is None else (
+        np.median(np.abs(np.gradient(qd, t[order], axis=0)), axis=0) / (2 * np.pi * columns.cutoff_hz))
     # a joint (a motor) that never moves faster than the smallest v_c tried shows nothing of its friction's
     # shape: it keeps the model's law
     moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]
@@ -323,10 +334,24 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
         point need not be the bilinear fit's least-squares minimum; on the bench of
         tests/test_friction_law.py, Levenberg-Marquardt on the whole bilinear fit moved f_l by 1e-4 of
         itself, and the alternation is kept."""
-        normal.set(j, _columns(law, qd[:, j], rigid[:, j]))
+        normal.set(j, columns_of(j, law, rigid[:, j]))
         if "load_coulomb" in law.terms:
             for _ in range(LOAD_ITERATIONS):
-                normal.set(j, _columns(law, qd[:, j], at_motor(normal.rigid_torque())[:, j]))
+                normal.set(j, columns_of(j, law, at_motor(normal.rigid_torque())[:, j]))
+
+    shaped: dict = {}  # (joint, v_c, v_s) -> its filtered shapes: a law is tried more than once
+
+    def columns_of(j: int, law: Law, rigid_j: np.ndarray) -> np.ndarray:
+        if columns is None:
+            return _columns(law, qd[:, j], rigid_j)
+        key = (j, law.coulomb_velocity, law.stribeck_velocity)
+        if key not in shaped:
+            shaped[key] = filtered.drive_shapes(columns, t[order], law, j, transmission)
+        f = shaped[key]
+        extra = np.column_stack([f[:, 1 + EXTRA_KEYS.index(k)] for k in law.terms]) if law.terms else f[:, :0]
+        if "load_coulomb" in law.terms:
+            extra[:, list(law.terms).index("load_coulomb")] *= np.abs(rigid_j)
+        return np.column_stack([qd[:, j], f[:, 0], extra])
 
     for j in range(n):
         place(j, laws[j])
@@ -344,16 +369,21 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
             found = {"viscous_coulomb": _search(score, Law("viscous_coulomb"), "coulomb_velocity",
                                                 _grid(None if first else laws[j].coulomb_velocity))}
             v_c = found["viscous_coulomb"][0].coulomb_velocity  # the richer families searched around it
+            stribeck_grid = STRIBECK_GRID[STRIBECK_GRID >= v_s_floor[j]]
             for family in (f for f in FAMILIES if f in config.families and f != "viscous_coulomb"):
+                if family == "stribeck" and not len(stribeck_grid):
+                    continue  # every v_s tried is below what the filter resolves
                 law = Law(family, v_c)
                 if family == "stribeck":  # v_s at this v_c (over its grid, or around its last choice), then v_c
                     again = not first and laws[j].family == "stribeck"
                     start = replace(laws[j], coulomb_velocity=v_c) if again else law
+                    around = _around(laws[j].stribeck_velocity, STRIBECK_GRID, 1)
+                    around = around[around >= v_s_floor[j]]
                     law, _ = _search(score, start, "stribeck_velocity",
-                                     _around(laws[j].stribeck_velocity, STRIBECK_GRID, 1) if again else STRIBECK_GRID)
+                                     around if again and len(around) else stribeck_grid, floor=v_s_floor[j])
                 found[family] = _search(score, law, "coulomb_velocity", _grid(v_c))
                 if family == "stribeck" and found[family][1] < found["viscous_coulomb"][1]:
-                    found[family] = _refine_both(score, *found[family])  # v_c and v_s trade: refined together
+                    found[family] = _refine_both(score, *found[family], v_s_floor[j])  # v_c and v_s trade
             chosen = _simplest(found, normal, place, j, total)
             laws[j] = found[chosen][0]
             scores[j] = {f: {"held_out_rel_error": e, "coulomb_velocity": law.coulomb_velocity,
@@ -397,7 +427,7 @@ def _declared(law: Law, error: float, v_declared: float, score, normal: _Normal,
                                        "kept": not beaten}
 
 
-def _refine_both(score, law: Law, error: float) -> tuple[Law, float]:
+def _refine_both(score, law: Law, error: float, v_s_floor: float = 0.0) -> tuple[Law, float]:
     """A Stribeck law's v_c and v_s refined together (Nelder-Mead in log v, from the coordinate
     searches' point; its simplex a quarter of a grid step wide): the two shapes overlap, and one
     velocity at a time stalls in the valley between them."""
@@ -405,7 +435,8 @@ def _refine_both(score, law: Law, error: float) -> tuple[Law, float]:
         return law, error
 
     def at(x: np.ndarray) -> Law:
-        return replace(law, coulomb_velocity=float(np.exp(x[0])), stribeck_velocity=float(np.exp(x[1])))
+        return replace(law, coulomb_velocity=float(np.exp(x[0])),
+                       stribeck_velocity=max(float(np.exp(x[1])), v_s_floor))
 
     x0 = np.log([law.coulomb_velocity, law.stribeck_velocity])
     step = np.log(VELOCITY_GRID[1] / VELOCITY_GRID[0]) / 4
@@ -430,7 +461,7 @@ def _around(v: float, grid: np.ndarray, steps: int) -> np.ndarray:
     return v * (grid[1] / grid[0]) ** np.arange(-steps, steps + 1.0)
 
 
-def _search(score, law: Law, key: str, grid: np.ndarray) -> tuple[Law, float]:
+def _search(score, law: Law, key: str, grid: np.ndarray, floor: float = 0.0) -> tuple[Law, float]:
     """The best velocity `key` (coulomb_velocity or stribeck_velocity) for `law` over `grid`, then,
     where the best is not a sharp sign, refined between its neighbours in log v by a bounded scalar
     search (Brent's, to REFINE_TOL): on a log that the law fits closely the held-out error is sharp
@@ -439,7 +470,7 @@ def _search(score, law: Law, key: str, grid: np.ndarray) -> tuple[Law, float]:
     i = int(np.argmin(values))
     best_v, best = float(grid[i]), values[i]
     if best_v > 0:
-        lo = grid[i - 1] if i > 0 and grid[i - 1] > 0 else best_v / 2
+        lo = grid[i - 1] if i > 0 and grid[i - 1] > 0 else max(best_v / 2, floor) if floor < best_v else best_v
         hi = grid[i + 1] if i < len(grid) - 1 else best_v * 2
         found = minimize_scalar(lambda x: score(replace(law, **{key: float(np.exp(x))})),
                                 bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": REFINE_TOL})

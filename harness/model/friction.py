@@ -86,7 +86,8 @@ def columns(frictions: tuple[JointFriction, ...], qd: np.ndarray, qdd: np.ndarra
     return np.stack([qdd, qd, coulomb_shape(qd, v), np.ones_like(qd)], axis=-1)
 
 
-def _extra(qd: np.ndarray, s: np.ndarray, stribeck_velocity: np.ndarray, tau_rigid: np.ndarray | None) -> np.ndarray:
+def extra_shapes(qd: np.ndarray, s: np.ndarray, stribeck_velocity: np.ndarray,
+                 tau_rigid: np.ndarray | None) -> np.ndarray:
     """(..., n, 4): the shapes of EXTRA_KEYS at velocities qd with Coulomb shape s."""
     v_s = stribeck_velocity
     with np.errstate(divide="ignore", over="ignore", under="ignore", invalid="ignore"):
@@ -100,7 +101,7 @@ def extra_columns(frictions: tuple[JointFriction, ...], qd: np.ndarray,
     """(N, n, 4): per joint the regressor of EXTRA_KEYS: |q'|, |s|, s exp(-(q'/v_s)^2) (zero where
     v_s = 0) and |tau_R| s (zero where tau_rigid, (N, n), is not given)."""
     v = np.array([f.coulomb_velocity for f in frictions])
-    return _extra(qd, coulomb_shape(qd, v), np.array([f.stribeck_velocity for f in frictions]), tau_rigid)
+    return extra_shapes(qd, coulomb_shape(qd, v), np.array([f.stribeck_velocity for f in frictions]), tau_rigid)
 
 
 def extra_values(frictions: tuple[JointFriction, ...]) -> np.ndarray:
@@ -168,7 +169,7 @@ class Dry:
                 _needs_load(self.frictions, tau_rigid)
             else:
                 tau_rigid = None
-            out = out + np.einsum("...ja,ja->...j", _extra(qd, s, self.stribeck_velocity, tau_rigid), self.extra)
+            out = out + np.einsum("...ja,ja->...j", extra_shapes(qd, s, self.stribeck_velocity, tau_rigid), self.extra)
         return out
 
 

@@ -34,7 +34,7 @@ from harness.base.numerics import relative_residual
 from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
 from harness.engines.pinocchio import PinocchioModel, build_model, rnea
-from harness.identify import consistent, delay, friction_law, scale
+from harness.identify import consistent, delay, filtered, friction_law, scale
 from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
 from harness.identify.ls_model import LEAST_SQUARES_FILE, LeastSquaresFit, extra_terms_names
 from harness.identify.repeat import Repeatability, repeat
@@ -42,6 +42,7 @@ from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
     describe_base,
+    drive_column,
     fit_base,
     links_torque,
     parameter_names,
@@ -54,6 +55,7 @@ from harness.model.export import MJCF_FILE, MODEL_FILE, README_FILE, coulomb_map
 from harness.model.friction import FAMILIES, JointFriction
 from harness.model.friction import values as friction_values
 from harness.model.mjcf import compiler_message, write_mjcf
+from harness.sources.log.condition import FULL_RATE
 from harness.stages.context import VALIDATION_SPAN
 from harness.stages.log_judge import Start, prediction, start
 from harness.stages.log_results import serialise
@@ -157,6 +159,13 @@ class LawChoice:
     note: str | None
 
 
+def filtered_columns(series: TimeSeries):
+    """The span's FilteredColumns where it was low-pass filtered (and it covers the span's rows), else
+    None: the friction columns then are filtered as its torques were (harness/identify/filtered.py)."""
+    columns = series.meta.get(FULL_RATE)
+    return columns if columns is not None and columns.covers(series.t) else None
+
+
 def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: list[str], training: TimeSeries,
                   W: np.ndarray) -> LawChoice:
     choice, note = None, None
@@ -165,7 +174,7 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
         try:
             choice = friction_law.choose(W, model.base.independent, model.link_part, tau, qd, training.t,
                                          robot.frictions, config, training.meta.get("reach_s", 0.0),
-                                         robot.transmission)
+                                         robot.transmission, filtered_columns(training))
         except ValueError as exc:
             note = f"friction law not chosen, the model's kept: {exc}"
     laws = choice.laws if choice is not None else tuple(Law.of(f) for f in robot.frictions)
@@ -197,9 +206,13 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
         rigid = laws.choice.tau_rigid
     else:
         rigid = (W[:, : 10 * n] @ model.theta.ravel()).reshape(tau.shape)
+    columns = filtered_columns(training)
+    if columns is not None:  # the Coulomb columns filtered as the torques were
+        W = filtered.with_filtered_coulomb(W, columns, training.t, laws.laws, robot.transmission,
+                                           lambda k: drive_column(n, k, "coulomb"))
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws.laws)])
     beta_model = np.concatenate([model.base.of(model.x_model), extra_model])
-    E = extra_regressor(laws.laws, qd, rigid, robot.transmission)
+    E = extra_regressor(laws.laws, qd, rigid, robot.transmission, columns, training.t)
     W_ls = np.hstack([W[:, model.base.independent], E])
     ls = with_structure(fit_base(W_ls, tau, beta_model), model.base)
     repeated, note = None, None
@@ -237,7 +250,8 @@ def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], 
         W = fitted.W if name == "training" else regressor(pm_identified, q, qd, qdd, with_friction=True)
         W_base = W[:, model.base.independent]
         rigid_ls = links_torque(W_base, fitted.ls.beta[:r], model.link_part).reshape(tau.shape)
-        W_span = np.hstack([W_base, extra_regressor(laws, qd, rigid_ls, sc.robot.transmission)])
+        columns = filtered_columns(series) if name == "training" else None  # as the fit read it
+        W_span = np.hstack([W_base, extra_regressor(laws, qd, rigid_ls, sc.robot.transmission, columns, series.t)])
         out.states[name], out.measured[name], out.t[name] = (q, qd, qdd), tau, series.t
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
                                  "consistent": rnea(pm_identified, q, qd, qdd).tau,

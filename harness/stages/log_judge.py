@@ -97,8 +97,8 @@ def _likely(s: float) -> str:
                 "logged), or a joint axis the other way in the model")
     if s < 1:
         return ("the log's torques are far smaller than the model's: motor currents read as torques (give units = "
-                "{ tau = \"current\" } with torque_constant and gear_ratio), a motor-side torque before its gear, or "
-                "a unit too large (kN m?)")
+                "{ tau = \"current\" } with torque_constant and gear_ratio), a motor-side torque before its gear, "
+                "a unit too large (kN m?), or a model far heavier than the robot")
     return ("the log's torques are far larger than the model's: a unit too small (N mm or mN m read as N m?), or a "
             "model too light (its masses in the wrong unit, or bodies missing)")
 

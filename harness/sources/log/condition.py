@@ -1,8 +1,15 @@
 """Steps 2-6 of the conditioning (harness/sources/log/__init__.py), each stretch of a checked log on
 its own: resampling to a uniform grid, a zero-phase low-pass, derivatives, the guard band trimmed at
-both ends, decimation."""
+both ends, decimation.
+
+A filtered log keeps, beside its rows, what a fit needs to filter a nonlinear column of the
+velocities as the torques were filtered (`FilteredColumns`, in `meta[FULL_RATE]`): the measured
+torque of a Coulomb turn is the filtered tanh(q'/v_c), not tanh of the filtered q', and a fit that
+compares the one with the other chooses a smeared turn (a larger v_c) the robot does not have."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -13,6 +20,41 @@ from harness.model.spec import RobotSpec
 from harness.sources.log.checks import Checked, check
 from harness.sources.log.schema import DataSource
 from harness.sources.log.segments import guard_band, segments, split_step
+
+FULL_RATE = "_full_rate"  # meta key of a filtered span's FilteredColumns (never written to results.json)
+
+
+@dataclass(frozen=True, eq=False)
+class FilteredColumns:
+    """A filtered span's velocities at the grid's full rate, stretch by stretch, with the filter and
+    the rows kept: `filtered(fn, t)` is fn of the velocities, (M, n) -> (M, k), computed at the full
+    rate, filtered by the same zero-phase low-pass as the torques (scipy.signal.sosfiltfilt) and read
+    at the rows kept whose times are `t` (the span's, or a part of them: a span read later by a
+    delay's correction), (len(t), k)."""
+
+    sos: np.ndarray
+    stretches: tuple[tuple[np.ndarray, np.ndarray], ...]  # per stretch: q' (M, n) at the full rate, rows kept
+    t: np.ndarray  # the kept rows' times, every stretch's in order
+    cutoff_hz: float = float("inf")  # the low-pass's: what it resolves in time, 1 / (2 pi cutoff_hz)
+
+    def covers(self, t: np.ndarray) -> bool:
+        return bool(len(t) and np.all(np.isin(t, self.t)))
+
+    def filtered(self, fn, t: np.ndarray) -> np.ndarray:
+        from scipy.signal import sosfiltfilt
+
+        out = np.concatenate([sosfiltfilt(self.sos, fn(qd), axis=0)[rows] for qd, rows in self.stretches])
+        return out[np.isin(self.t, t)]
+
+    @staticmethod
+    def joined(parts: list[FilteredColumns]) -> FilteredColumns:
+        return FilteredColumns(parts[0].sos, tuple(s for p in parts for s in p.stretches),
+                               np.concatenate([p.t for p in parts]), parts[0].cutoff_hz)
+
+
+def without_full_rate(meta: dict) -> dict:
+    """The conditioning record as results.json writes it: the meta without its FilteredColumns."""
+    return {k: v for k, v in meta.items() if k != FULL_RATE}
 
 
 def condition(raw: TimeSeries, source: DataSource, robot: RobotSpec) -> TimeSeries:
@@ -86,6 +128,8 @@ def smooth(kept: TimeSeries, source: DataSource, robot: RobotSpec, rate: float, 
     conditioning = {"file": str(path), "sha256": raw.meta["sha256"], "steps": steps, "warnings": warnings,
                     "reach_s": trim,  # how far a sample's conditioning reaches: the guard between any two parts
                     "t_start": float(grid[rows[0]]), "t_end": float(grid[rows[-1]])}
+    if source.cutoff is not None:
+        conditioning[FULL_RATE] = FilteredColumns(sos, ((qd, rows),), grid[rows], float(source.cutoff))
     return TimeSeries(grid[rows], tuple(robot.joint_names), q[rows], qd[rows], qdd[rows], tau[rows], meta=conditioning)
 
 
@@ -118,5 +162,7 @@ def conditioned(kept: TimeSeries, pieces: list[np.ndarray], source: DataSource, 
     t, q, qd, qdd, tau = joined
     conditioning = dict(logs[0].meta)
     conditioning["t_end"] = logs[-1].meta["t_end"]
+    if all(FULL_RATE in g.meta for g in logs):
+        conditioning[FULL_RATE] = FilteredColumns.joined([g.meta[FULL_RATE] for g in logs])
     return TimeSeries(t, logs[0].joints, q, qd, qdd, tau, meta=conditioning)
 

@@ -5,6 +5,7 @@ band between them is the trim at the end of the one and the start of the other).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,7 +15,7 @@ from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
 from harness.sources.log import defaults
 from harness.sources.log.checks import check
-from harness.sources.log.condition import condition, conditioned
+from harness.sources.log.condition import condition, conditioned, without_full_rate
 from harness.sources.log.read import read_raw
 from harness.sources.log.schema import DataSource
 from harness.sources.log.segments import segment_record, segments, split_step
@@ -77,7 +78,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
         val = None
         if source.validation_file is not None:
             val = condition(read_raw(source, robot, source.validation_file), source, robot)
-        return Split(train, val, None, train, source)
+        return Split(train, val, None, dataclasses.replace(train, meta=without_full_rate(train.meta)), source)
     before = kept.t < t_split
     if before.sum() < MIN_SPAN_ROWS or (~before).sum() < MIN_SPAN_ROWS:
         raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few rows "
@@ -87,7 +88,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     train, val = (conditioned(kept, spans[name], source, robot, rate, checked, f"{name} span", notes)
                   for name in ("training", "validation"))
     guard = float(val.t[0] - train.t[-1])
-    conditioning = dict(train.meta)
+    conditioning = without_full_rate(train.meta)
     conditioning["warnings"] = conditioning["warnings"] + notes
     conditioning["segments"], conditioning["defaults"] = record, chosen
     conditioning["validation"] = {

@@ -1,0 +1,91 @@
+"""The friction columns of a filtered log, filtered as its torques were.
+
+A conditioned log's torques went through a zero-phase low-pass (harness/sources/log/condition.py):
+the Coulomb term it measures is F[f_c tanh(q'/v_c)], the filter of the turn, where the regressor
+evaluates f_c tanh(F[q']/v_c), the turn of the filtered velocity. The motion's band lies far below
+the cut-off, so F[q'] = q' there and the linear columns (q'', q', 1) and the links' columns agree with
+the filtered torques; the turn does not: it happens within |q'| < v_c, in a few milliseconds, and the
+filter spreads it over its impulse response. A fit that compares the two picks a wider turn, a v_c
+larger than the robot's (0.017 to 0.044 rad/s for a true 0.01 on a Kinova bench filtered at 5.5 Hz).
+Here each nonlinear column of the velocities (the Coulomb shape s, and the families' |q'|, |s|,
+s exp(-(q'/v_s)^2)) is computed at the log's full rate and filtered by the same filter before the
+rows are kept: the same operation on both sides of tau = W theta (Gautier's parallel filtering). A
+load-dependent column |tau_R| s takes the filtered s times tau_R at the kept rows (tau_R is the
+links' torque, within the motion's band).
+
+`columns` is the span's harness.sources.log.condition.FilteredColumns (duck-typed: `covers(t)`,
+`filtered(fn, t)`); None (an unfiltered log, or a span it does not cover) leaves every column as it is.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.model import friction
+from harness.model.drives import Transmission
+
+
+def _rates(transmission: Transmission | None):
+    return (lambda qd: qd) if transmission is None else transmission.motor_rates
+
+
+def coulomb(columns, t: np.ndarray, laws, transmission: Transmission | None) -> np.ndarray:
+    """(N, m): each drive's Coulomb shape s(q'_m) with its law's v_c, filtered (m drives: the joints, or
+    the transmission's motors)."""
+    v = np.array([law.coulomb_velocity for law in laws])
+    rates = _rates(transmission)
+    return columns.filtered(lambda qd: friction.coulomb_shape(rates(qd), v), t)
+
+
+def with_filtered_coulomb(W: np.ndarray, columns, t: np.ndarray, laws, transmission: Transmission | None,
+                          coulomb_column) -> np.ndarray:
+    """The regressor with friction W (N n, p) with each drive's Coulomb column filtered
+    (`coulomb_column(k)`: drive k's column index); with a transmission, motor k's reaches joint j times
+    N[k, j] (harness/model/drives.py)."""
+    N = len(t)
+    n = W.shape[0] // N
+    S = coulomb(columns, t, laws, transmission)
+    W3 = W.reshape(N, n, -1).copy()
+    for k in range(S.shape[1]):
+        c = coulomb_column(k)
+        if transmission is None:
+            W3[:, k, c] = S[:, k]
+        else:
+            W3[:, :, c] = S[:, k, None] * transmission.N[k][None, :]
+    return W3.reshape(W.shape)
+
+
+def extra_shapes(columns, t: np.ndarray, laws, transmission: Transmission | None,
+                 tau_rigid: np.ndarray | None) -> np.ndarray:
+    """(N, m, 4): friction.extra_columns of every drive's law, each filtered (the load column as the
+    module says), tau_rigid (N, m) the drives' share of the links' torque or None."""
+    v = np.array([law.coulomb_velocity for law in laws])
+    v_s = np.array([law.stribeck_velocity for law in laws])
+    rates = _rates(transmission)
+
+    def shapes(qd: np.ndarray) -> np.ndarray:
+        qd = rates(qd)
+        s = friction.coulomb_shape(qd, v)
+        unit = friction.extra_shapes(qd, s, v_s, np.ones_like(s))  # (M, m, 4), the load column s itself
+        return unit.reshape(len(qd), -1)
+
+    out = columns.filtered(shapes, t).reshape(len(t), len(laws), 4)
+    load = friction.EXTRA_KEYS.index("load_coulomb")
+    out[:, :, load] = 0.0 if tau_rigid is None else np.abs(tau_rigid) * out[:, :, load]
+    return out
+
+
+def drive_shapes(columns, t: np.ndarray, law, k: int, transmission: Transmission | None) -> np.ndarray:
+    """(N, 5): drive k's Coulomb shape s under `law` and its four family shapes (EXTRA_KEYS; the load
+    column s itself, to be multiplied by |tau_R|), each filtered: what the friction law's search tries
+    for one drive (harness/identify/friction_law.py)."""
+    rates = _rates(transmission)
+    v, v_s = np.array([law.coulomb_velocity]), np.array([law.stribeck_velocity])
+
+    def shapes(qd: np.ndarray) -> np.ndarray:
+        qd_k = rates(qd)[:, k: k + 1]
+        s = friction.coulomb_shape(qd_k, v)
+        return np.hstack([s, friction.extra_shapes(qd_k, s, v_s, np.ones_like(s))[:, 0]])
+
+    return columns.filtered(shapes, t)
+
