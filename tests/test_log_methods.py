@@ -229,7 +229,8 @@ def _scenario_with(tmp_path, extra: str):
      "identification.name", "harness's own fit"),
     ('[[identification]]\nname = "m"\nplugin = "figaroh"\n'
      '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1\n',
-     "identification.name", "judged by no gate"),
+     "identification.name", "judged by no gate, so it would pass whatever it computes: add [[gates]] on "
+                            "identification_methods.m.validation_rel_error"),
 ])
 def test_a_method_on_a_log_is_refused_in_one_line_naming_the_key(tmp_path, extra, key, words):
     with pytest.raises(InputError) as err:
@@ -284,6 +285,22 @@ def test_figaroh_least_squares_is_the_least_squares_of_its_own_model(bench_run):
         qs, qds, qdds, taus = log.joint_data(joints)
         pred = (columns(qs, qds, qdds) @ x).reshape(taus.shape)
         assert row[f"{span}_rel_error"] == pytest.approx(np.linalg.norm(pred - taus) / np.linalg.norm(taus), rel=1e-6)
+
+
+def test_figaroh_runs_at_its_own_tolerances_unless_told_otherwise():
+    """Where the scenario gives none, the QR's rank threshold is FIGAROH's own (its QRDecomposer's
+    TOL_QR, read from the installed FIGAROH) and the physical fit is left at build_problem's default;
+    a tolerance given is used for both."""
+    pytest.importorskip("figaroh", reason="FIGAROH is not installed (pip install 'harness[figaroh]')")
+    from figaroh.tools.qrdecomposition import TOL_QR
+
+    from harness.adapters.figaroh import Figaroh
+
+    sc = load_scenario(SCENARIO)
+    own = Figaroh(sc.robot, sc.gravity_W, {})
+    assert own.qr_tolerance == TOL_QR and own.physical_qr == {}
+    told = Figaroh(sc.robot, sc.gravity_W, {"qr_tolerance": 1e-5})
+    assert told.qr_tolerance == 1e-5 and told.physical_qr == {"qr_tol": 1e-5}
 
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
@@ -343,6 +360,12 @@ def test_mujoco_sysid_improves_on_the_model_as_given_and_states_its_limits(bench
     assert row["physical"]["inconsistent_links"] == 0
     assert any("sharp sign" in note for note in row["notes"])
     assert any("rolled out in" in note for note in row["notes"]) and row["seconds"] > 0
+    # by default the rollouts tile the training span: its length over chunk_seconds (0.1 s), rounded up
+    span = results["log_identification"]["spans"]["training"]
+    seconds = span["t_end"] - span["t_start"]
+    shooting = next(note for note in row["notes"] if note.startswith("multiple shooting"))
+    assert shooting.startswith(f"multiple shooting: {int(np.ceil(seconds / 0.1 - 1e-9))} rollouts of ")
+    assert "(100 % covered, the default: the chunks tile it)" in shooting
 
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess

@@ -295,7 +295,7 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
         if t.has("validation"):
             raise t.error("validation", "a method on a log is judged on the log's validation span ([data] validation)")
         methods.append(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod))
-    _check_names(path, "identification", methods, gates)
+    _check_names(path, "identification", methods, gates, on_log=True)
     if methods and source.units["tau"] == "current" and source.identify_constants:
         raise root.error("identification", "the methods are given joint torques, and this log's currents become "
                                            "torques only in the harness's own fit (identify_torque_constants)")
@@ -448,18 +448,23 @@ def _read_studies(root: Table, scenario: Scenario, path: Path) -> list:
 RESERVED_NAMES = ("mujoco", "pinocchio", "harness_least_squares", "harness_consistent")
 
 
-def _check_names(path: Path, kind: str, entries, gates: tuple[Gate, ...]) -> None:
+def _check_names(path: Path, kind: str, entries, gates: tuple[Gate, ...], on_log: bool = False) -> None:
     """Each plugin's name used once, naming no reference engine, and judged by a gate."""
     names = [e.name for e in entries]
     for i, n in enumerate(names):
         if n in names[:i] or n in RESERVED_NAMES:
             raise InputError(path, f"{kind}.name", f"{n!r} is used twice, or names a reference engine or the "
                                                    "harness's own fit")
-        unjudged(path, kind, n, gates)
+        unjudged(path, kind, n, gates, on_log)
 
 
-def judging_metrics(kind: str, name: str) -> tuple[str, ...]:
-    """The metrics a gate can judge a model under test or an identification method by."""
+def judging_metrics(kind: str, name: str, on_log: bool = False) -> tuple[str, ...]:
+    """The metrics a gate can judge a model under test or an identification method by (`on_log`: a
+    method on a measured log, judged on its validation span)."""
+    if on_log:
+        return (f"identification_methods.{name}.validation_rel_error",
+                f"identification_methods.{name}.physical.inconsistent_links",
+                f"identification_methods.{name}.truth.validation_rel_error (a bench log with its truth)")
     if kind == "model_under_test":
         return (f"torques.{name}_vs_mujoco.max_rel_error", f"torques.{name}_vs_pinocchio.max_rel_error",
                 f"torques.{name}_random_vs_pinocchio.max_rel_error",
@@ -479,12 +484,13 @@ def judged(kind: str, name: str, gates: tuple[Gate, ...]) -> bool:
     return any(g.metric.startswith(p) for g in gates for p in prefixes)
 
 
-def unjudged(path: Path, kind: str, name: str, gates: tuple[Gate, ...]) -> None:
+def unjudged(path: Path, kind: str, name: str, gates: tuple[Gate, ...], on_log: bool = False) -> None:
     """A model under test or identification method that no gate judges would pass whatever it
     computes: refused, naming the metrics a gate could use."""
     if not judged(kind, name, gates):
+        metrics = ", ".join(judging_metrics(kind, name, on_log))
         raise InputError(path, f"{kind}.name", f"{name!r} is judged by no gate, so it would pass whatever it "
-                                               f"computes: add [[gates]] on {', '.join(judging_metrics(kind, name))}")
+                                               f"computes: add [[gates]] on {metrics}")
 
 
 def _read_all_gates(root: Table, gate_files: list[Path]) -> tuple[Gate, ...]:
