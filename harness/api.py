@@ -37,6 +37,7 @@ import numpy as np
 from harness.base.plugins import ModelUnderTest, check_protocol
 from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
+from harness.identify.ls_model import ExportedModel
 from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate
@@ -114,7 +115,7 @@ def load_model(path: str | Path) -> RobotSpec:
 
 
 @dataclass(frozen=True, eq=False)
-class IdentifiedModel:
+class IdentifiedModel(ExportedModel):
     """A model a log run identified and exported (`identified_model`): `joint_names`, and
     `inverse_dynamics(q, qd, qdd)` (arrays (N, n) in that order, SI) the joint torques it predicts: the
     links' rigid-body torques (Pinocchio's RNEA) and each drive's law, through the transmission where
@@ -123,15 +124,10 @@ class IdentifiedModel:
     spec: RobotSpec
     gravity_W: np.ndarray
 
-    @property
-    def joint_names(self) -> list[str]:
-        return self.spec.joint_names
-
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         from harness.engines.pinocchio import build_model, rnea
 
-        q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-        return rnea(build_model(self.spec, self.gravity_W), q, qd, qdd).tau
+        return rnea(build_model(self.spec, self.gravity_W), *self.states(q, qd, qdd)).tau
 
 
 def identified_model(folder: str | Path, fit: str = "consistent"):

@@ -128,6 +128,26 @@ def test_a_load_dependent_joint_is_told_from_the_others_and_its_coefficient_foun
     np.testing.assert_allclose(ls.inverse_dynamics(*states), judged, rtol=0, atol=1e-9 * np.max(np.abs(judged)))
 
 
+def _kinova_log(folder, quantum: float | None = None) -> None:
+    """folder/log.csv: a 20 s bench log of the Kinova (models truth.toml, v_c 0.01; declared.toml and
+    undeclared.toml beside it) with white noise of 1 % of each joint's RMS torque; with `quantum`, its
+    positions rounded to it and no velocities."""
+    kinova_files(folder)
+    kinova_model(folder, "truth", "exact.urdf", 0.01)
+    kinova_model(folder, "declared", "shipped.urdf", 0.01)
+    kinova_model(folder, "undeclared", "shipped.urdf", None)
+    bench_log(kinova_bench(folder, "bench", "truth.toml", 20.0, 1), folder, 20.0, 5000)
+    df = pd.read_csv(folder / "log.csv")
+    noise = np.random.default_rng(5)
+    for c in (c for c in df.columns if c.startswith("tau")):
+        df[c] += 0.01 * np.sqrt(np.mean(df[c] ** 2)) * noise.standard_normal(len(df))
+    if quantum is not None:
+        for c in (c for c in df.columns if c.startswith("q") and not c.startswith("qd")):
+            df[c] = np.round(df[c] / quantum) * quantum
+        df = df[[c for c in df.columns if not c.startswith("qd")]]
+    df.to_csv(folder / "log.csv", index=False, float_format="%.17g")
+
+
 @pytest.mark.slow  # a 20 s log of a six-joint arm through the whole pipeline, twice
 def test_a_model_that_declares_no_smoothing_velocity_predicts_as_well_as_one_that_declares_the_true_one(tmp_path):
     """A 20 s bench log of the Kinova Jaco2 (v_c = 0.01 rad/s on every joint) with white noise of 1 %
@@ -139,16 +159,7 @@ def test_a_model_that_declares_no_smoothing_velocity_predicts_as_well_as_one_tha
     from harness.engines.pinocchio import build_model, rnea
     from harness.sources.bench import record
 
-    kinova_files(tmp_path)
-    kinova_model(tmp_path, "truth", "exact.urdf", 0.01)
-    kinova_model(tmp_path, "declared", "shipped.urdf", 0.01)
-    kinova_model(tmp_path, "undeclared", "shipped.urdf", None)
-    bench_log(kinova_bench(tmp_path, "bench", "truth.toml", 20.0, 1), tmp_path, 20.0, 5000)
-    df = pd.read_csv(tmp_path / "log.csv")
-    noise = np.random.default_rng(5)
-    for c in (c for c in df.columns if c.startswith("tau")):
-        df[c] += 0.01 * np.sqrt(np.mean(df[c] ** 2)) * noise.standard_normal(len(df))
-    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    _kinova_log(tmp_path)
     fresh_scenario = kinova_bench(tmp_path, "fresh", "truth.toml", 5.0, 2)
     fresh = record(fresh_scenario)
     c = [fresh.joint_index(j) for j in KINOVA_JOINTS]
@@ -178,19 +189,7 @@ def test_on_a_filtered_log_the_smoothing_velocity_is_the_robots_not_the_filters(
     from harness.engines.pinocchio import build_model, rnea
     from harness.sources.bench import record
 
-    kinova_files(tmp_path)
-    kinova_model(tmp_path, "truth", "exact.urdf", 0.01)
-    kinova_model(tmp_path, "declared", "shipped.urdf", 0.01)
-    kinova_model(tmp_path, "undeclared", "shipped.urdf", None)
-    bench_log(kinova_bench(tmp_path, "bench", "truth.toml", 20.0, 1), tmp_path, 20.0, 5000)
-    df = pd.read_csv(tmp_path / "log.csv")
-    noise = np.random.default_rng(5)
-    for c in (c for c in df.columns if c.startswith("tau")):
-        df[c] += 0.01 * np.sqrt(np.mean(df[c] ** 2)) * noise.standard_normal(len(df))
-    for c in (c for c in df.columns if c.startswith("q") and not c.startswith("qd")):
-        df[c] = np.round(df[c] / 2e-4) * 2e-4
-    df[[c for c in df.columns if not c.startswith("qd")]].to_csv(tmp_path / "log.csv", index=False,
-                                                                 float_format="%.17g")
+    _kinova_log(tmp_path, quantum=2e-4)
     fresh_scenario = kinova_bench(tmp_path, "fresh", "truth.toml", 5.0, 2)
     fresh = record(fresh_scenario)
     c = [fresh.joint_index(j) for j in KINOVA_JOINTS]

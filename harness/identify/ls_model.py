@@ -16,11 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import tomli_w
 
-from harness.model.export import LEAST_SQUARES_FILE
-
-__all__ = ["LEAST_SQUARES_FILE", "LeastSquaresFit", "LeastSquaresModel", "extra_terms_names"]
 FORMAT = 1
 
 
@@ -38,6 +34,8 @@ class LeastSquaresFit:
     families: list[str]  # (e,) "drive.term", in extra_terms order
 
     def to_toml(self, description: str) -> str:
+        import tomli_w
+
         r = len(self.columns)
         comment = "".join(f"# {line}\n" for line in description.splitlines())
         return comment + "\n" + tomli_w.dumps({"least_squares": {
@@ -68,8 +66,24 @@ class LeastSquaresFit:
                    [str(p["family"]) for p in extra])
 
 
+class ExportedModel:
+    """What an exported model gives a user's code: `joint_names` (its `spec`'s) and the states an
+    `inverse_dynamics(q, qd, qdd)` reads, as float arrays (N, n) (harness.api.IdentifiedModel, and
+    LeastSquaresModel below)."""
+
+    spec: object
+
+    @property
+    def joint_names(self) -> list[str]:
+        return self.spec.joint_names
+
+    @staticmethod
+    def states(q, qd, qdd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return tuple(np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+
+
 @dataclass(frozen=True, eq=False)
-class LeastSquaresModel:
+class LeastSquaresModel(ExportedModel):
     """The least-squares fit with the model it is evaluated with: `joint_names`, and
     `inverse_dynamics(q, qd, qdd)` ((N, n) each, SI, the model's joint order) its torques."""
 
@@ -77,16 +91,12 @@ class LeastSquaresModel:
     spec: object  # RobotSpec: the model file `fit.model`
     gravity_W: np.ndarray
 
-    @property
-    def joint_names(self) -> list[str]:
-        return self.spec.joint_names
-
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         from harness.engines.pinocchio import build_model
         from harness.identify.friction_law import Law, extra_regressor
         from harness.identify.torque_id import regressor
 
-        q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+        q, qd, qdd = self.states(q, qd, qdd)
         f = self.fit
         r = len(f.columns)
         Y = regressor(build_model(self.spec, self.gravity_W), q, qd, qdd, with_friction=True)[:, f.columns]

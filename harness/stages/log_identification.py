@@ -36,7 +36,7 @@ from harness.base.series import TimeSeries
 from harness.engines.pinocchio import PinocchioModel, build_model, rnea
 from harness.identify import consistent, delay, filtered, friction_law, scale
 from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
-from harness.identify.ls_model import LEAST_SQUARES_FILE, LeastSquaresFit, extra_terms_names
+from harness.identify.ls_model import LeastSquaresFit, extra_terms_names
 from harness.identify.repeat import Repeatability, repeat
 from harness.identify.torque_id import (
     BaseFit,
@@ -51,7 +51,16 @@ from harness.identify.torque_id import (
     true_parameters,
     with_structure,
 )
-from harness.model.export import MJCF_FILE, MODEL_FILE, README_FILE, coulomb_mapping, export, identified_spec, readme
+from harness.model.export import (
+    LEAST_SQUARES_FILE,
+    MJCF_FILE,
+    MODEL_FILE,
+    README_FILE,
+    coulomb_mapping,
+    export,
+    identified_spec,
+    readme,
+)
 from harness.model.friction import FAMILIES, JointFriction
 from harness.model.friction import values as friction_values
 from harness.model.mjcf import compiler_message, write_mjcf
