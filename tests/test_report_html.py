@@ -47,3 +47,15 @@ def test_a_scenarios_own_text_is_escaped_once_in_its_report(fast_run, tmp_path):
 def test_a_sweep_page_has_nothing_escaped_twice(tmp_path):
     assert main(["sweep", "kr500_noise", "--trials", "3", "--out", str(tmp_path / "sweep")]) == 0
     assert not DOUBLE.findall((tmp_path / "sweep" / "sweep.html").read_text())
+
+
+def test_the_report_says_where_the_time_went_stage_by_stage_with_its_share(fast_run):
+    """The how-the-run-was-made section lists every stage of run.timings with its seconds and its
+    share of their sum; the shares add up to 100 % (to their rounding, 0.05 point a row)."""
+    import re
+
+    results = json.loads((fast_run / "results.json").read_text())
+    timings = results["run"]["timings"]
+    page = (fast_run / "report.html").read_text()
+    shares = [float(x) for x in re.findall(r"<td>([0-9.]+) %</td>", page[page.index('id="how"'):])]
+    assert len(shares) == len(timings) and abs(sum(shares) - 100) <= 0.05 * len(shares), shares

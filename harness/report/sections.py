@@ -379,7 +379,9 @@ def method_sweep(r: dict) -> str:
 def how(r: dict) -> str:
     run = r["run"]
     timings = run.get("timings") or {}
-    stages = table(["stage", "seconds"], [[esc(k), f"{v:.2f}"] for k, v in timings.items()]) if timings else ""
+    total = sum(timings.values())
+    stages = table(["stage", "seconds", "share"], [[esc(k), f"{v:.2f}", f"{100 * v / total:.1f} %" if total else ""]
+                                                  for k, v in timings.items()]) if timings else ""
     versions = table(["package", "version"], [[esc(k), esc(v)] for k, v in run["versions"].items()])
     if "data" in r:
         source = "From the measured log of the section above, conditioned as stated there."
