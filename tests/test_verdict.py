@@ -442,6 +442,20 @@ def test_init_from_an_mjcf_file_passes_with_its_armature_damping_and_frictionlos
     assert "other.xml" in err and flag in err and "<sdf>" in err and "\n" not in err and not (tmp_path / "q").exists()
 
 
+def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_does(tmp_path):
+    """The same arm on a free joint: the harness fixes the base where the file puts it, and so does the
+    placeholder (Pinocchio's MJCF parser builds the free joint; it is locked at its neutral pose), so
+    the project passes all six gates."""
+    from tests.test_mjcf import ARM
+
+    base = '<body name="base" pos="0 0 0.1">'
+    (tmp_path / "arm.xml").write_text(ARM.replace(base, base + '<freejoint name="float"/>'))
+    assert main(["init", str(tmp_path / "p"), "--mjcf", str(tmp_path / "arm.xml")]) == 0
+    assert main(["run", str(tmp_path / "p" / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    results = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert len(results["gates"]) == 6 and all(g["passed"] for g in results["gates"])
+
+
 def test_the_plugin_file_init_writes_passes_the_linter(tmp_path):
     """my_robot.py is composed of pieces (harness/data/init/): the whole, for every kind of project."""
     from harness.model.urdf import example_robot_data_path
