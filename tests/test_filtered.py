@@ -69,3 +69,30 @@ def test_filtered_coulomb_columns_find_the_robots_turn_where_the_filtered_veloci
     parallel = best(lambda v: filtered.coulomb(columns, t[rows], (Law(coulomb_velocity=v),), None))
     plain = best(lambda v: np.tanh(qd_f[rows] / v))
     assert abs(parallel / 0.01 - 1) <= 0.05 and plain >= 1.5 * 0.01, (parallel, plain)
+
+
+@pytest.mark.slow  # two searches of six joints' laws, about 5 s
+def test_the_law_search_with_a_filter_that_passes_everything_is_the_search_without_one():
+    """friction_law.choose on a 1.5 s bench recording of ur5_friction (families allowed), once with the
+    friction columns read through a pass-all filter at the full rate (every sample kept) and once
+    computed directly: the same law for every joint and the same held-out errors, to round-off."""
+    import dataclasses
+
+    from harness.api import load_scenario
+    from harness.identify.friction_law import FrictionLawConfig, choose
+    from harness.identify.torque_id import regressor
+    from harness.sources.bench import record
+    from harness.stages.log_identification import log_model
+    from tests.conftest import SCENARIOS
+
+    sc = load_scenario(SCENARIOS / "ur5_friction.toml")
+    rec = record(dataclasses.replace(sc, duration=1.5, output_steps=300))
+    joints = sc.robot.joint_names
+    q, qd, qdd, tau = rec.joint_data(joints)
+    model = log_model(sc.robot, sc.gravity_W)
+    W = regressor(model.pm, q, qd, qdd, with_friction=True)
+    passing = FilteredColumns(PASS_ALL, ((qd, np.arange(len(qd))),), rec.t, 1e9)
+    found = [choose(W, model.base.independent, model.link_part, tau, qd, rec.t, sc.robot.frictions,
+                    FrictionLawConfig(), 0.0, None, columns) for columns in (None, passing)]
+    assert found[0].laws == found[1].laws
+    assert found[1].chosen_error == pytest.approx(found[0].chosen_error, rel=1e-9)

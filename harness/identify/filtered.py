@@ -75,17 +75,18 @@ def extra_shapes(columns, t: np.ndarray, laws, transmission: Transmission | None
     return out
 
 
-def drive_shapes(columns, t: np.ndarray, law, k: int, transmission: Transmission | None) -> np.ndarray:
-    """(N, 5): drive k's Coulomb shape s under `law` and its four family shapes (EXTRA_KEYS; the load
-    column s itself, to be multiplied by |tau_R|), each filtered: what the friction law's search tries
-    for one drive (harness/identify/friction_law.py)."""
+def drive_term(columns, t: np.ndarray, law, k: int, transmission: Transmission | None, term: str) -> np.ndarray:
+    """(N,): one column of drive k's law, filtered: its Coulomb shape s (`term` "coulomb") or one of its
+    family's shapes (EXTRA_KEYS; the load column s itself, to be multiplied by |tau_R|). The friction
+    law's search (harness/identify/friction_law.py) asks for the columns a law needs, one at a time."""
     rates = _rates(transmission)
     v, v_s = np.array([law.coulomb_velocity]), np.array([law.stribeck_velocity])
 
-    def shapes(qd: np.ndarray) -> np.ndarray:
+    def column(qd: np.ndarray) -> np.ndarray:
         qd_k = rates(qd)[:, k: k + 1]
         s = friction.coulomb_shape(qd_k, v)
-        return np.hstack([s, friction.extra_shapes(qd_k, s, v_s, np.ones_like(s))[:, 0]])
+        if term == "coulomb" or term == "load_coulomb":
+            return s
+        return friction.extra_shapes(qd_k, s, v_s, None)[:, 0, friction.EXTRA_KEYS.index(term)][:, None]
 
-    return columns.filtered(shapes, t)
-
+    return columns.filtered(column, t)[:, 0]

@@ -339,19 +339,21 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
             for _ in range(LOAD_ITERATIONS):
                 normal.set(j, columns_of(j, law, at_motor(normal.rigid_torque())[:, j]))
 
-    shaped: dict = {}  # (joint, v_c, v_s) -> its filtered shapes: a law is tried more than once
+    shaped: dict = {}  # (joint, term, the velocities it turns over) -> its filtered column: laws share them
+
+    def term_of(j: int, law: Law, term: str) -> np.ndarray:
+        key = (j, "coulomb" if term == "load_coulomb" else term,
+               *(() if term == "viscous_asymmetry" else (law.coulomb_velocity,)),
+               *((law.stribeck_velocity,) if term == "stribeck" else ()))
+        if key not in shaped:
+            shaped[key] = filtered.drive_term(columns, t[order], law, j, transmission, key[1])
+        return shaped[key]
 
     def columns_of(j: int, law: Law, rigid_j: np.ndarray) -> np.ndarray:
         if columns is None:
             return _columns(law, qd[:, j], rigid_j)
-        key = (j, law.coulomb_velocity, law.stribeck_velocity)
-        if key not in shaped:
-            shaped[key] = filtered.drive_shapes(columns, t[order], law, j, transmission)
-        f = shaped[key]
-        extra = np.column_stack([f[:, 1 + EXTRA_KEYS.index(k)] for k in law.terms]) if law.terms else f[:, :0]
-        if "load_coulomb" in law.terms:
-            extra[:, list(law.terms).index("load_coulomb")] *= np.abs(rigid_j)
-        return np.column_stack([qd[:, j], f[:, 0], extra])
+        extra = [term_of(j, law, k) * (np.abs(rigid_j) if k == "load_coulomb" else 1.0) for k in law.terms]
+        return np.column_stack([qd[:, j], term_of(j, law, "coulomb"), *extra])
 
     for j in range(n):
         place(j, laws[j])
