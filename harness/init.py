@@ -35,13 +35,14 @@ DEFAULT_HALF_RANGE = {True: np.pi, False: 0.5}  # revolute (rad), prismatic (m):
 FORMATS = {"robot": ("urdf", "robot.urdf", "URDF"), "mujoco": ("mjcf", "robot.xml", "MJCF")}  # by root element
 
 
-def robot_format(path: Path, flag: str) -> tuple[str, str, str]:
-    """(model file key, the project's file name, the format's name) of a robot file, told by its root
-    element (<robot>: URDF, <mujoco>: MJCF), whatever its name or the flag that gave it."""
+def robot_format(path: Path, content: bytes, flag: str) -> tuple[str, str, str]:
+    """(model file key, the project's file name, the format's name) of a robot file (`content` its
+    bytes), told by its root element (<robot>: URDF, <mujoco>: MJCF), whatever its name or the flag that
+    gave it."""
     import xml.etree.ElementTree as ET
 
     try:
-        root = ET.fromstring(read_bounded(path, MAX_XML_BYTES)).tag
+        root = ET.fromstring(content).tag
     except ET.ParseError as exc:
         raise InputError(path, flag, f"not XML ({exc}): a URDF or an MJCF file is") from None
     if root not in FORMATS:
@@ -60,8 +61,9 @@ def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str]:
         files.update({f.name: f.read_text() for f in sorted(arm.iterdir()) if f.name != "model.py"})
         files["my_robot.py"] = (arm / "model.py").read_text() + method
     else:
-        key, name, kind = robot_format(robot, flag)
-        files[name] = read_bounded(robot, MAX_XML_BYTES).decode("utf-8", errors="replace")
+        content = read_bounded(robot, MAX_XML_BYTES)
+        key, name, kind = robot_format(robot, content, flag)
+        files[name] = content.decode("utf-8", errors="replace")
         head = f"# The robot the harness simulates (MuJoCo) and takes as the truth (Pinocchio): your {kind} file.\n"
         files["robot.toml"] = head + tomli_w.dumps({"model": {"name": "my_robot",
                                                               "description": f"My robot, from its {kind} file"},

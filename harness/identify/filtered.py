@@ -55,26 +55,6 @@ def with_filtered_coulomb(W: np.ndarray, columns, t: np.ndarray, laws, transmiss
     return W3.reshape(W.shape)
 
 
-def extra_shapes(columns, t: np.ndarray, laws, transmission: Transmission | None,
-                 tau_rigid: np.ndarray | None) -> np.ndarray:
-    """(N, m, 4): friction.extra_columns of every drive's law, each filtered (the load column as the
-    module says), tau_rigid (N, m) the drives' share of the links' torque or None."""
-    v = np.array([law.coulomb_velocity for law in laws])
-    v_s = np.array([law.stribeck_velocity for law in laws])
-    rates = _rates(transmission)
-
-    def shapes(qd: np.ndarray) -> np.ndarray:
-        qd = rates(qd)
-        s = friction.coulomb_shape(qd, v)
-        unit = friction.extra_shapes(qd, s, v_s, np.ones_like(s))  # (M, m, 4), the load column s itself
-        return unit.reshape(len(qd), -1)
-
-    out = columns.filtered(shapes, t).reshape(len(t), len(laws), 4)
-    load = friction.EXTRA_KEYS.index("load_coulomb")
-    out[:, :, load] = 0.0 if tau_rigid is None else np.abs(tau_rigid) * out[:, :, load]
-    return out
-
-
 def drive_term(columns, t: np.ndarray, law, k: int, transmission: Transmission | None, term: str) -> np.ndarray:
     """(N,): one column of drive k's law, filtered: its Coulomb shape s (`term` "coulomb") or one of its
     family's shapes (EXTRA_KEYS; the load column s itself, to be multiplied by |tau_R|). The friction

@@ -124,15 +124,22 @@ def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray
     if transmission is not None:
         qd = transmission.motor_rates(qd)
         tau_rigid = None if tau_rigid is None else transmission.motor_torques(tau_rigid)
-    if columns is not None:
-        shapes = filtered.extra_shapes(columns, t, laws, transmission, tau_rigid)
-    else:
+    if columns is None:
         shapes = friction.extra_columns(tuple(law.shapes for law in laws), qd, tau_rigid)  # (N, n, 4)
+
+    def shape(j: int, key: str) -> np.ndarray:  # drive j's column of `key`, filtered where the span was
+        if columns is None:
+            return shapes[:, j, EXTRA_KEYS.index(key)]
+        if key == "load_coulomb" and tau_rigid is None:
+            return np.zeros(N)
+        column = filtered.drive_term(columns, t, laws[j], j, transmission, key)
+        return np.abs(tau_rigid[:, j]) * column if key == "load_coulomb" else column
+
     for c, (j, key) in enumerate(terms):
         if transmission is None:
-            out[:, j, c] = shapes[:, j, EXTRA_KEYS.index(key)]
+            out[:, j, c] = shape(j, key)
         else:
-            out[:, :, c] = shapes[:, j, EXTRA_KEYS.index(key), None] * transmission.N[j]
+            out[:, :, c] = shape(j, key)[:, None] * transmission.N[j]
     return out.reshape(N * n, len(terms))
 
 
@@ -304,8 +311,8 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     if unknowns > MAX_UNKNOWNS:
         raise ValueError(f"{unknowns} unknowns with every joint's friction slot: over {MAX_UNKNOWNS}, the search "
                          f"(about {300 * n} trials of {config.folds} factorisations each) would take too long")
-    shaped = {drive_column(n, j, key) for j in range(n) for key in ("viscous", "coulomb")}  # what a law shapes
-    kept = np.array([k for k, c in enumerate(independent) if c not in shaped])
+    law_shaped = {drive_column(n, j, key) for j in range(n) for key in ("viscous", "coulomb")}  # a law's columns
+    kept = np.array([k for k, c in enumerate(independent) if c not in law_shaped])
     G = W.reshape(N, n, -1)[order][:, :, independent[kept]]
     normal = _Normal(G.reshape(N * n, -1), tuple(x[kept] for x in link_part), tau, folds, slot,
                      None if transmission is None else transmission.N)
@@ -315,10 +322,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
 
     if transmission is not None:
         qd = transmission.motor_rates(qd)
-    # on a filtered log a Stribeck bump narrower in time than the filter resolves (1 / (2 pi f_c)) shows only
-    # its area: its velocity v_s is kept above the velocity each drive sweeps in that time (median |q''_m|)
-    v_s_floor = np.zeros(n) if columns is None else (
-        np.median(np.abs(np.gradient(qd, t[order], axis=0)), axis=0) / (2 * np.pi * columns.cutoff_hz))
+    columns_of = _LawColumns(qd, t[order], transmission, columns)
     # a joint (a motor) that never moves faster than the smallest v_c tried shows nothing of its friction's
     # shape: it keeps the model's law
     moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]
@@ -339,22 +343,6 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
             for _ in range(LOAD_ITERATIONS):
                 normal.set(j, columns_of(j, law, at_motor(normal.rigid_torque())[:, j]))
 
-    shaped: dict = {}  # (joint, term, the velocities it turns over) -> its filtered column: laws share them
-
-    def term_of(j: int, law: Law, term: str) -> np.ndarray:
-        key = (j, "coulomb" if term == "load_coulomb" else term,
-               *(() if term == "viscous_asymmetry" else (law.coulomb_velocity,)),
-               *((law.stribeck_velocity,) if term == "stribeck" else ()))
-        if key not in shaped:
-            shaped[key] = filtered.drive_term(columns, t[order], law, j, transmission, key[1])
-        return shaped[key]
-
-    def columns_of(j: int, law: Law, rigid_j: np.ndarray) -> np.ndarray:
-        if columns is None:
-            return _columns(law, qd[:, j], rigid_j)
-        extra = [term_of(j, law, k) * (np.abs(rigid_j) if k == "load_coulomb" else 1.0) for k in law.terms]
-        return np.column_stack([qd[:, j], term_of(j, law, "coulomb"), *extra])
-
     for j in range(n):
         place(j, laws[j])
     model_error = relative_residual_of_sums(normal.held_out_sse().sum(), total)
@@ -368,24 +356,7 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
                 place(j, law)
                 return relative_residual_of_sums(normal.held_out_sse().sum(), total)
 
-            found = {"viscous_coulomb": _search(score, Law("viscous_coulomb"), "coulomb_velocity",
-                                                _grid(None if first else laws[j].coulomb_velocity))}
-            v_c = found["viscous_coulomb"][0].coulomb_velocity  # the richer families searched around it
-            stribeck_grid = STRIBECK_GRID[STRIBECK_GRID >= v_s_floor[j]]
-            for family in (f for f in FAMILIES if f in config.families and f != "viscous_coulomb"):
-                if family == "stribeck" and not len(stribeck_grid):
-                    continue  # every v_s tried is below what the filter resolves
-                law = Law(family, v_c)
-                if family == "stribeck":  # v_s at this v_c (over its grid, or around its last choice), then v_c
-                    again = not first and laws[j].family == "stribeck"
-                    start = replace(laws[j], coulomb_velocity=v_c) if again else law
-                    around = _around(laws[j].stribeck_velocity, STRIBECK_GRID, 1)
-                    around = around[around >= v_s_floor[j]]
-                    law, _ = _search(score, start, "stribeck_velocity",
-                                     around if again and len(around) else stribeck_grid, floor=v_s_floor[j])
-                found[family] = _search(score, law, "coulomb_velocity", _grid(v_c))
-                if family == "stribeck" and found[family][1] < found["viscous_coulomb"][1]:
-                    found[family] = _refine_both(score, *found[family], v_s_floor[j])  # v_c and v_s trade
+            found = _families(score, laws[j], first, config.families, columns_of.v_s_floor[j])
             chosen = _simplest(found, normal, place, j, total)
             laws[j] = found[chosen][0]
             scores[j] = {f: {"held_out_rel_error": e, "coulomb_velocity": law.coulomb_velocity,
@@ -400,6 +371,61 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
     tau_rigid[order] = normal.rigid_torque()
     return FrictionChoice(tuple(laws), tuple(scores), model_error, chosen_error, config.folds, tau_rigid,
                           folds.guard * step)
+
+
+class _LawColumns:
+    """A joint's (a motor's) friction columns under a law, at the velocities qd (N, n; the motors' with a
+    transmission) in time order `t`: q', s and the law's family terms (`_columns`), or with a filtered
+    span's `columns` (FilteredColumns) each nonlinear one filtered as the torques were
+    (harness/identify/filtered.py), made once per joint, term and velocity and shared by the laws that
+    use it. `v_s_floor` (n,): on a filtered log a Stribeck bump narrower in time than the filter
+    resolves (1 / (2 pi f_c)) shows only its area; its v_s is kept above the velocity each drive sweeps
+    in that time (median |q''|); 0 on an unfiltered log."""
+
+    def __init__(self, qd: np.ndarray, t: np.ndarray, transmission: Transmission | None, columns):
+        self.qd, self.t, self.transmission, self.columns = qd, t, transmission, columns
+        self.made: dict = {}  # (joint, term, the velocities it turns over) -> its filtered column
+        self.v_s_floor = np.zeros(qd.shape[1]) if columns is None else (
+            np.median(np.abs(np.gradient(qd, t, axis=0)), axis=0) / (2 * np.pi * columns.cutoff_hz))
+
+    def term(self, j: int, law: Law, term: str) -> np.ndarray:
+        key = (j, "coulomb" if term == "load_coulomb" else term,
+               *(() if term == "viscous_asymmetry" else (law.coulomb_velocity,)),
+               *((law.stribeck_velocity,) if term == "stribeck" else ()))
+        if key not in self.made:
+            self.made[key] = filtered.drive_term(self.columns, self.t, law, j, self.transmission, key[1])
+        return self.made[key]
+
+    def __call__(self, j: int, law: Law, rigid_j: np.ndarray) -> np.ndarray:
+        if self.columns is None:
+            return _columns(law, self.qd[:, j], rigid_j)
+        extra = [self.term(j, law, k) * (np.abs(rigid_j) if k == "load_coulomb" else 1.0) for k in law.terms]
+        return np.column_stack([self.qd[:, j], self.term(j, law, "coulomb"), *extra])
+
+
+def _families(score, last: Law, first: bool, families: tuple[str, ...], v_s_floor: float) -> dict:
+    """One joint's search: {family: (its best law, its held-out error)}, v_c of the plain law over the
+    whole grid (`first`) or around `last`, the joint's law so far; each richer family around that v_c;
+    Stribeck's v_s over its grid (or around its last choice), no lower than `v_s_floor`, then v_c."""
+    found = {"viscous_coulomb": _search(score, Law("viscous_coulomb"), "coulomb_velocity",
+                                        _grid(None if first else last.coulomb_velocity))}
+    v_c = found["viscous_coulomb"][0].coulomb_velocity  # the richer families searched around it
+    stribeck_grid = STRIBECK_GRID[STRIBECK_GRID >= v_s_floor]
+    for family in (f for f in FAMILIES if f in families and f != "viscous_coulomb"):
+        if family == "stribeck" and not len(stribeck_grid):
+            continue  # every v_s tried is below what the filter resolves
+        law = Law(family, v_c)
+        if family == "stribeck":  # v_s at this v_c (over its grid, or around its last choice), then v_c
+            again = not first and last.family == "stribeck"
+            start = replace(last, coulomb_velocity=v_c) if again else law
+            around = _around(last.stribeck_velocity, STRIBECK_GRID, 1)
+            around = around[around >= v_s_floor]
+            law, _ = _search(score, start, "stribeck_velocity", around if again and len(around) else stribeck_grid,
+                             floor=v_s_floor)
+        found[family] = _search(score, law, "coulomb_velocity", _grid(v_c))
+        if family == "stribeck" and found[family][1] < found["viscous_coulomb"][1]:
+            found[family] = _refine_both(score, *found[family], v_s_floor)  # v_c and v_s trade: refined together
+    return found
 
 
 def _simplest(found: dict, normal: _Normal, place, j: int, total: float) -> str:

@@ -121,7 +121,7 @@ def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
     if mode == "none":
         return Delayed(None, None, training, validation, W)
     try:
-        filtered = any(step.get("step") == "low-pass" for step in training.meta.get("steps", ()))
+        filtered = FULL_RATE in training.meta  # a low-passed span keeps its full rate (sources/log/condition.py)
         lags = delay.estimate(training.t, training.joint_data(joints)[3], W.reshape(len(training.t), len(joints), -1),
                               filtered=filtered)
     except ValueError as exc:
@@ -350,7 +350,7 @@ class LogIdentification:
     @property
     def extra_names(self) -> list[str]:
         """The families' coefficients after the base parameters."""
-        return [f"{self.drives[k]}.{key}" for k, key in extra_terms(self.laws.laws)]
+        return extra_terms_names(self.laws.laws, self.drives)
 
     @property
     def files(self) -> dict[str, str]:
