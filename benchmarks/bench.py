@@ -485,31 +485,81 @@ def sweeps(figures: dict) -> None:
     figures["sweep_dask_over_jobs2_median_of_turns"] = float(np.median(figures["sweep_dask_over_jobs2_turns"]))
 
 
+LOG_RUNS = {"panda": "panda_gaz2019", "tx40": "tx40"}  # plain_lstsq.py's robot -> the built-in scenario
+
+
 def log_runs(figures: dict, rounds: int = 3) -> None:
-    """`harness run panda_gaz2019` as shipped against a plain least-squares script on the same log
-    (benchmarks/plain_lstsq.py: read, condition, regressor, least squares, held-out error), each in a
-    fresh process, in turns, best of `rounds` (after a run that writes the bytecode cache); the run's
-    stages from its best run, and both held-out figures."""
+    """`harness run panda_gaz2019` and `harness run tx40` as shipped, each against a plain least-squares
+    script on the same log (benchmarks/plain_lstsq.py: read, condition, regressor, least squares,
+    held-out error), each in a fresh process, in turns, best of `rounds` (after a run that writes the
+    bytecode cache); the run's stages from its best run, both held-out figures, and the peak resident
+    memory of each (the largest of its turns)."""
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        harness_run("panda_gaz2019", tmp / "warm")
-        best, plain, stages, said = np.inf, np.inf, {}, ""
-        for k in range(rounds):
-            seconds, timings = harness_run("panda_gaz2019", tmp / f"panda_{k}")
-            if seconds < best:
-                best, stages = seconds, timings
-            t0 = time.perf_counter()
-            done = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "plain_lstsq.py")], cwd=ROOT, check=True,
-                                  capture_output=True, text=True, env=AS_INSTALLED)
-            plain, said = min(plain, time.perf_counter() - t0), done.stdout.strip()
-        held_out = json.loads((tmp / "panda_0" / "results.json").read_text())["log_identification"][
-            "validation_rel_error"]
-    figures["log_run_panda_s"] = best
-    figures["log_run_panda_stages_s"] = stages
-    figures["log_run_panda_held_out"] = held_out
-    figures["log_run_panda_plain_lstsq_s"] = plain
-    figures["log_run_panda_plain_lstsq_said"] = said
-    figures["log_run_panda_over_plain_lstsq"] = best / plain
+        for robot, scenario in LOG_RUNS.items():
+            harness_run(scenario, tmp / f"{robot}_warm")
+            best, plain, stages, said, peak, plain_peak = np.inf, np.inf, {}, "", 0, 0
+            for k in range(rounds):
+                seconds, timings, rss = harness_run_measured(scenario, tmp / f"{robot}_{k}")
+                peak = max(peak, rss)
+                if seconds < best:
+                    best, stages = seconds, timings
+                seconds, said, rss = _timed([sys.executable, str(ROOT / "benchmarks" / "plain_lstsq.py"), robot])
+                plain, plain_peak = min(plain, seconds), max(plain_peak, rss)
+            held_out = json.loads((tmp / f"{robot}_0" / "results.json").read_text())["log_identification"][
+                "validation_rel_error"]
+            figures[f"log_run_{robot}_s"] = best
+            figures[f"log_run_{robot}_stages_s"] = stages
+            figures[f"log_run_{robot}_held_out"] = held_out
+            figures[f"log_run_{robot}_peak_rss_mib"] = peak
+            figures[f"log_run_{robot}_plain_lstsq_s"] = plain
+            figures[f"log_run_{robot}_plain_lstsq_said"] = said
+            figures[f"log_run_{robot}_plain_lstsq_peak_rss_mib"] = plain_peak
+            figures[f"log_run_{robot}_over_plain_lstsq"] = best / plain
+
+
+def _timed(command: list[str]) -> tuple[float, str, float]:
+    """A command in a fresh process: its wall seconds, its output, and its peak resident memory (MiB,
+    the kernel's maximum resident set size of the process)."""
+    t0 = time.perf_counter()
+    child = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                             env=AS_INSTALLED)
+    out = child.stdout.read()
+    _, status, usage = os.wait4(child.pid, 0)
+    seconds = time.perf_counter() - t0
+    child.returncode = os.waitstatus_to_exitcode(status)
+    if child.returncode:
+        raise subprocess.CalledProcessError(child.returncode, command, out)
+    return seconds, out.strip(), usage.ru_maxrss / 1024
+
+
+def harness_run_measured(scenario: Path | str, out: Path) -> tuple[float, dict, float]:
+    """`harness run` in a fresh process: its wall seconds, its stages' (`run.timings`) and its peak
+    resident memory (MiB)."""
+    seconds, _, peak = _timed([str(Path(sys.executable).with_name("harness")), "run", str(scenario), "--out",
+                               str(out), "--quiet"])
+    return seconds, json.loads((out / "results.json").read_text())["run"]["timings"], peak
+
+
+def long_log_run(figures: dict, hours: float) -> None:
+    """`harness run` of `hours` of a 7-joint arm at 1 kHz (benchmarks/long_log.py: panda_gaz2019's
+    conditioning and split, without FIGAROH and the refinement) in a fresh process: seconds, stages and
+    peak resident memory (`log_run_<hours>h_*`)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import long_log
+
+    with tempfile.TemporaryDirectory() as tmp:
+        scenario = long_log.write(Path(tmp), hours)
+        rows = int(hours * 3600 * long_log.RATE)
+        seconds, timings, peak = harness_run_measured(scenario, Path(tmp) / "out")
+    key = f"log_run_{hours:g}h"
+    figures[f"{key}_rows"] = rows
+    figures[f"{key}_s"] = seconds
+    figures[f"{key}_stages_s"] = timings
+    figures[f"{key}_peak_rss_mib"] = peak
+    print(f"harness run of {hours:g} h at 1 kHz ({rows} rows, 7 joints): {seconds:.1f} s, peak {peak:.0f} MiB")
+    for k, v in timings.items():
+        print(f"    {k:<80} {v:6.2f} s")
 
 
 def main() -> None:
@@ -577,14 +627,18 @@ def main() -> None:
 
 
 def print_log_runs(figures: dict) -> None:
-    held = figures["log_run_panda_held_out"]
-    print(f"harness run panda_gaz2019, fresh process: {figures['log_run_panda_s']:.2f} s (held out: least squares "
-          f"{100 * held['least squares']:.2f} %, consistent {100 * held['consistent']:.2f} %); a plain least-squares "
-          f"script {figures['log_run_panda_plain_lstsq_s']:.2f} s ({figures['log_run_panda_plain_lstsq_said']}): "
-          f"{figures['log_run_panda_over_plain_lstsq']:.1f} x")
-    total = sum(figures["log_run_panda_stages_s"].values())
-    for k, v in figures["log_run_panda_stages_s"].items():
-        print(f"    {k:<80} {v:6.2f} s {100 * v / total:5.1f} %")
+    for robot, scenario in LOG_RUNS.items():
+        held = figures[f"log_run_{robot}_held_out"]
+        print(f"harness run {scenario}, fresh process: {figures[f'log_run_{robot}_s']:.2f} s, peak "
+              f"{figures[f'log_run_{robot}_peak_rss_mib']:.0f} MiB (held out: least squares "
+              f"{100 * held['least squares']:.2f} %, consistent {100 * held['consistent']:.2f} %); a plain "
+              f"least-squares script {figures[f'log_run_{robot}_plain_lstsq_s']:.2f} s, peak "
+              f"{figures[f'log_run_{robot}_plain_lstsq_peak_rss_mib']:.0f} MiB "
+              f"({figures[f'log_run_{robot}_plain_lstsq_said']}): {figures[f'log_run_{robot}_over_plain_lstsq']:.1f} x")
+        stages = figures[f"log_run_{robot}_stages_s"]
+        total = sum(stages.values())
+        for k, v in stages.items():
+            print(f"    {k:<80} {v:6.2f} s {100 * v / total:5.1f} %")
 
 
 def _machine() -> str:
@@ -601,6 +655,8 @@ if __name__ == "__main__":
         long_identification()
     elif "--long-baseline" in sys.argv:
         long_baseline()
+    elif "--long-log" in sys.argv:  # hours of a 7-joint arm's log: time and peak memory (benchmark.json untouched)
+        long_log_run({}, float(sys.argv[sys.argv.index("--long-log") + 1]))
     elif "--log-runs" in sys.argv:  # the log run against its plain script alone (reports/benchmark.json untouched)
         log_figures: dict = {"machine": _machine()}
         log_runs(log_figures)

@@ -1,17 +1,28 @@
-"""The floor a log run is timed against: a plain least-squares identification of the Panda's log
-written directly with numpy, scipy and Pinocchio, as a user would without the harness. It reads the
-log, drops the rows its driver repeated whole, splits it at 70 % of its duration, conditions each
-part on its own as the data's README does (1 kHz grid, 10 Hz zero-phase Butterworth of order 4,
-accelerations from the filtered velocities, 0.3 s trimmed at each end, every 10th sample), builds
-Pinocchio's joint-torque regressor with each joint's rotor inertia, viscous, smooth Coulomb
-(tanh(q'/0.03)) and offset columns, fits by least squares and prints its held-out relative torque
-error ||tau_pred - tau|| / ||tau|| on the last 30 %.
+"""The floor a log run is timed against: a plain least-squares identification of a built-in log
+written directly with numpy, scipy and Pinocchio, as a user would without the harness.
 
-    .venv/bin/python benchmarks/plain_lstsq.py
+`panda` (the default): the Panda's log (harness/data/logs/panda_gaz2019). It drops the rows its driver
+repeated whole, splits the log at 70 % of its duration, conditions each part on its own as the data's
+README does (1 kHz grid, 10 Hz zero-phase Butterworth of order 4, accelerations from the filtered
+velocities, 0.3 s trimmed at each end, every 10th sample), builds Pinocchio's joint-torque regressor
+with each joint's rotor inertia, viscous, smooth Coulomb (tanh(q'/0.03)) and offset columns.
 
-Nothing of the harness is imported but the path of the robot's URDF (example-robot-data's Panda),
-so that its time is the work itself: benchmarks/bench.py runs it and `harness run panda_gaz2019`
-in turns, each in a fresh process (`log_run_panda_over_plain_lstsq`).
+`tx40`: the Staubli TX40's published files (harness/data/logs/staubli_tx40: motor angles and motor
+torques in two files, no time column, 5 kHz), mapped to the joints by hand as its README gives the
+coupled wrist (q_m = N q + offset, tau = N^T tau_m), split at 70 % of the run and each part conditioned
+as the built-in scenario is (20 Hz zero-phase Butterworth of order 4, derivatives by central
+differences of the filtered angles, 20 ms trimmed, every 10th sample); Pinocchio's regressor of the
+published URDF with each motor's rotor inertia, viscous, smooth Coulomb (tanh(q'_m / (0.02 |N_kk|)))
+and offset columns reaching the joints through N^T.
+
+Each fits by least squares and prints its held-out relative torque error ||tau_pred - tau|| / ||tau||
+on the last 30 %:
+
+    .venv/bin/python benchmarks/plain_lstsq.py [panda | tx40]
+
+Nothing of the harness is imported, so that its time is the work itself: benchmarks/bench.py runs it
+and `harness run panda_gaz2019` (`harness run tx40`) in turns, each in a fresh process
+(`log_run_panda_over_plain_lstsq`, `log_run_tx40_over_plain_lstsq`).
 """
 
 from __future__ import annotations
@@ -23,7 +34,8 @@ import numpy as np
 import pinocchio as pin
 from scipy.signal import butter, sosfiltfilt
 
-LOG = Path(__file__).resolve().parents[1] / "harness" / "data" / "logs" / "panda_gaz2019" / "log.csv"
+LOGS = Path(__file__).resolve().parents[1] / "harness" / "data" / "logs"
+LOG = LOGS / "panda_gaz2019" / "log.csv"
 JOINTS = [f"panda_joint{k}" for k in range(1, 8)]
 RATE, CUTOFF, ORDER, DECIMATE, TRIM, V_C = 1000.0, 10.0, 4, 10, 0.3, 0.03
 
@@ -55,7 +67,7 @@ def regressor(model, data, q, qd, qdd):
     return np.hstack([W, F.reshape(N * n, -1)])
 
 
-def main() -> float:
+def panda() -> float:
     log = np.loadtxt(LOG, delimiter=",", skiprows=1)
     log = log[np.r_[True, np.any(log[1:, 1:] != log[:-1, 1:], axis=1)]]  # a row repeated whole: held
     t, q, qd, tau = log[:, 0], log[:, 1:8], log[:, 8:15], log[:, 15:22]
@@ -73,5 +85,46 @@ def main() -> float:
     return error
 
 
+TX40 = LOGS / "staubli_tx40"
+TX40_RATE, TX40_CUTOFF, TX40_TRIM, TX40_V_C = 5000.0, 20.0, 0.02, 0.02
+TX40_N = np.diag([32.0, 32.0, 45.0, -48.0, 45.0, 32.0])
+TX40_N[5, 4] = 32.0  # motor 6 turns with q5 + q6
+TX40_ZERO = np.array([0.0, -np.pi / 2, np.pi / 2, 0.0, 0.0, 0.0])  # q = N^-1 q_m + ZERO: the URDF's zero
+
+
+def tx40() -> float:
+    q_m = np.loadtxt(TX40 / "data" / "pos_read_data.csv", delimiter=",", skiprows=1)
+    tau_m = np.loadtxt(TX40 / "data" / "curr_data.csv", delimiter=",", skiprows=1)
+    q, tau = q_m @ np.linalg.inv(TX40_N).T + TX40_ZERO, tau_m @ TX40_N
+    split = int(0.7 * len(q))
+    sos = butter(ORDER, TX40_CUTOFF, fs=TX40_RATE, output="sos")
+    model = pin.buildModelFromUrdf(str(TX40 / "urdf" / "tx40_mdh_modified.urdf"))
+    model.gravity.linear = np.array([0.0, 0.0, -9.80665])
+    data = model.createData()
+
+    def part(rows):
+        qf, tf = sosfiltfilt(sos, q[rows], axis=0), sosfiltfilt(sos, tau[rows], axis=0)
+        qd = np.gradient(qf, 1 / TX40_RATE, axis=0)
+        qdd = np.gradient(qd, 1 / TX40_RATE, axis=0)
+        k = int(TX40_TRIM * TX40_RATE)
+        keep = np.arange(k, len(qf) - k, DECIMATE)
+        qk, qdk, qddk = qf[keep], qd[keep], qdd[keep]
+        Y = np.stack([pin.computeJointTorqueRegressor(model, data, a, b, c).copy() for a, b, c in zip(qk, qdk, qddk,
+                                                                                                     strict=True)])
+        qd_m, qdd_m = qdk @ TX40_N.T, qddk @ TX40_N.T
+        motor = np.stack([qdd_m, qd_m, np.tanh(qd_m / (TX40_V_C * np.abs(np.diag(TX40_N)))), np.ones_like(qd_m)], -1)
+        drive = np.einsum("kj,tkc->tjkc", TX40_N, motor).reshape(len(keep), 6, 24)  # motor k at joint j: N_kj
+        return np.concatenate([Y, drive], axis=2).reshape(-1, Y.shape[2] + 24), tf[keep]
+
+    (W1, tau1), (W2, tau2) = part(slice(0, split)), part(slice(split, len(q)))
+    theta = np.linalg.lstsq(W1, tau1.ravel(), rcond=None)[0]
+    error = float(np.linalg.norm(W2 @ theta - tau2.ravel()) / np.linalg.norm(tau2))
+    print(f"plain least squares, TX40, held-out relative torque error: {100 * error:.2f} %")
+    return error
+
+
 if __name__ == "__main__":
-    sys.exit(0 if main() < 1 else 1)
+    robot = sys.argv[1] if len(sys.argv) > 1 else "panda"
+    if robot not in ("panda", "tx40"):
+        sys.exit(f"plain_lstsq.py: no robot {robot!r} (panda or tx40)")
+    sys.exit(0 if (panda if robot == "panda" else tx40)() < 1 else 1)

@@ -96,3 +96,39 @@ def test_the_law_search_with_a_filter_that_passes_everything_is_the_search_witho
                     FrictionLawConfig(), 0.0, None, columns) for columns in (None, passing)]
     assert found[0].laws == found[1].laws
     assert found[1].chosen_error == pytest.approx(found[0].chosen_error, rel=1e-9)
+
+
+@pytest.mark.parametrize(("order", "cutoff_hz"), [(4, 10.0), (3, 20.0), (6, 50.0)])
+def test_the_columns_filter_is_scipys_sosfiltfilt_bit_for_bit(order, cutoff_hz):
+    """The column filter, its initial conditions computed once (the law search filters thousands of
+    columns), is scipy.signal.sosfiltfilt to the last bit: one column, several, and one too short for
+    the padding (scipy's own answer)."""
+    from scipy.signal import sosfilt_zi
+
+    from harness.sources.log.condition import zero_phase
+
+    sos = butter(order, cutoff_hz, fs=1000.0, output="sos")
+    rng = np.random.default_rng(order)
+    for x in (rng.normal(size=(5000, 1)), rng.normal(size=(3000, 7)), np.cumsum(rng.normal(size=(200, 2)), axis=0)):
+        np.testing.assert_array_equal(zero_phase(sos, x, sosfilt_zi(sos)), sosfiltfilt(sos, x, axis=0))
+    with pytest.raises(ValueError, match="padlen"):
+        zero_phase(sos, rng.normal(size=(10, 1)), sosfilt_zi(sos))
+
+
+def test_two_stretches_joined_filter_each_on_its_own():
+    """A log cut at a gap keeps each stretch's full-rate velocities: the joined columns are each
+    stretch's filtered columns, in order, at the rows asked for."""
+    sos = butter(4, 10.0, fs=1000.0, output="sos")
+    rng = np.random.default_rng(5)
+    parts = []
+    for start in (0.0, 10.0):
+        qd = np.cumsum(rng.normal(size=(3000, 2)), axis=0) * 1e-3
+        rows = np.arange(100, 2900, 10)
+        parts.append(FilteredColumns(sos, ((qd, rows),), start + rows / 1000.0, 10.0))
+    joined = FilteredColumns.joined(parts)
+    t = np.concatenate([parts[0].t[::3], parts[1].t[5:]])
+    expected = np.concatenate([parts[0].filtered(np.tanh, parts[0].t[::3]), parts[1].filtered(np.tanh, parts[1].t[5:])])
+    np.testing.assert_array_equal(joined.filtered(np.tanh, t), expected)
+    qd, rows = parts[1].stretches[0]
+    np.testing.assert_array_equal(parts[1].filtered(np.tanh, parts[1].t[5:]),
+                                  sosfiltfilt(sos, np.tanh(qd), axis=0)[rows][5:])

@@ -364,3 +364,22 @@ def test_the_rigid_body_torque_read_from_the_base_parameters_is_the_links_torque
     tau_R = W[:, base.independent[link]] @ (base.of(x) - share)[link]
     links = W[:, : 10 * n] @ x[: 10 * n]
     assert np.max(np.abs(tau_R - links)) <= 1e-12 * np.max(np.abs(links))
+
+
+def test_the_folds_fits_solve_their_normal_equations_and_a_dependent_column_by_its_minimum_norm():
+    """Each fold's fit, by LAPACK's Cholesky of its equilibrated normal equations, is numpy's solution to
+    round-off (1e-10 relative at a condition number of about 1e4); where two columns are the same (a joint
+    that never reverses), every fold falls back to the minimum-norm solution."""
+    from harness.identify.friction_law import _Normal
+
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(5, 200, 12)) * np.geomspace(1, 100, 12)
+    M, rhs = np.einsum("kip,kiq->kpq", A, A), np.einsum("kip,ki->kp", A, rng.normal(size=(5, 200)))
+    x = _Normal._solve(None, M, rhs)
+    np.testing.assert_allclose(x, np.linalg.solve(M, rhs[..., None])[..., 0], rtol=1e-10)
+    np.testing.assert_allclose(_Normal._solve(None, M[0], rhs[0]), x[0], rtol=1e-13)  # one system alone
+    A[:, :, -1] = A[:, :, -2]
+    M, rhs = np.einsum("kip,kiq->kpq", A, A), np.einsum("kip,ki->kp", A, rng.normal(size=(5, 200)))
+    x = _Normal._solve(None, M, rhs)
+    np.testing.assert_allclose(x[:, -1], x[:, -2], rtol=1e-8)  # the minimum norm splits the pair evenly
+    np.testing.assert_allclose(np.einsum("kpq,kq->kp", M, x), rhs, rtol=1e-8, atol=1e-8 * np.abs(rhs).max())

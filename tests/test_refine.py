@@ -1,11 +1,13 @@
 """Refinement by simulation (harness/identify/refine.py, harness/stages/refinement.py) and the batched
 rollouts it runs on (harness/engines/rollout.py, `rollouts`).
 
-The rollouts are checked against an independent computation: MuJoCo's own mj_step, one start at a
-time, with the drive and the friction law applied at every RK4 stage by a control callback. Both
-run the same floating-point operations in the same order, so they must agree to round-off (1e-12
-relative: measured exactly equal). The refinement is checked on a bench log whose faults are known:
-torque channels 1 to 10 ms behind the encoders, and a model whose friction law is five times too smooth."""
+The rollouts are checked against an independent computation: MuJoCo's own mj_step (its RK4), one
+start at a time, with the drive and the friction law applied at every stage by a control callback.
+The batch takes the same stages in numpy with MuJoCo's accelerations of all rows in one call, so the
+two must agree to round-off (1e-12 relative; measured equal to the last bit on these benches, the
+accelerations being recovered from an Euler step of a power of two in seconds). The refinement is
+checked on a bench log whose faults are known: torque channels 1 to 10 ms behind the encoders, and a
+model whose friction law is five times too smooth."""
 
 from __future__ import annotations
 
@@ -17,11 +19,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness.api import load_scenario
+from harness.api import load_model, load_scenario
 from harness.cli import main
 from harness.engines.mujoco import build_spec
-from harness.engines.rollout import log_drives, rollouts, stage_times
-from harness.model import friction
+from harness.engines.rollout import ROWS_PER_THREAD, log_drives, rollouts, stage_times
+from harness.model import drives as drive_law
 from harness.stages.refinement import Candidate, choose, values
 from tests.conftest import SCENARIOS, late_log
 
@@ -48,10 +50,14 @@ def _one_at_a_time(spec, gravity_W, frictions, q0, qd0, drive) -> tuple[np.ndarr
     data = mujoco.MjData(model)
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
     qadr, vadr = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
-    dry = friction.Dry.of(frictions)
+    dry = drive_law.Dry(frictions, spec.transmission)
+    f_v = np.array([f.viscous for f in frictions])
+    viscous = np.diag(f_v) if spec.transmission is None else spec.transmission.N.T @ np.diag(f_v) @ spec.transmission.N
 
     def control(m, d):
-        d.qfrc_applied[vadr] = drive[round(d.time / (TIMESTEP / 2))] - dry(d.qvel[vadr])
+        tau, v = drive[round(d.time / (TIMESTEP / 2))], d.qvel[vadr]
+        # a load-dependent law's rigid-body torque: the drive less the rest of its friction
+        d.qfrc_applied[vadr] = tau - (dry(v, tau - dry(v, load=False) - viscous @ v) if dry.needs_load else dry(v))
 
     data.qpos[qadr], data.qvel[vadr] = q0, qd0
     q, qd = [], []
@@ -94,6 +100,49 @@ def test_each_rollout_of_a_batch_runs_under_its_own_law(ur5):
     np.testing.assert_allclose(q[1], q_ref, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(qd[1], qd_ref, rtol=1e-12, atol=1e-12)
     assert np.max(np.abs(q[0] - q[1])) > 1e-4  # the laws differ enough to tell
+
+
+@pytest.fixture(scope="module")
+def tx40():
+    return load_model(SCENARIOS.parent / "models" / "tx40.toml")
+
+
+def test_every_family_of_law_and_a_coupled_drive_roll_out_as_mj_step_does(ur5, tx40):
+    """Rows under Stribeck, load-dependent and asymmetric laws in one batch, and the TX40's coupled wrist
+    (its motors' laws through N, their inertia and damping on MuJoCo's tendons), each against mj_step."""
+    for spec, gravity_W, scale in ((ur5.robot, ur5.gravity_W, 1.0), (tx40, np.array([0.0, 0.0, -9.81]), 0.05)):
+        n = len(spec.joints)
+        # a rotor inertia on each motor (the TX40's file states none, and its hand's link alone is light)
+        base = tuple(dataclasses.replace(f, armature=f.armature or 1e-4) for f in spec.frictions)
+        laws = [base] + [tuple(dataclasses.replace(f, coulomb=1.0 + k, coulomb_velocity=0.02 * (k + 1), **extra)
+                               for f in base)
+                         for k, extra in enumerate(({"stribeck": 0.8, "stribeck_velocity": 0.1},
+                                                    {"load_coulomb": 0.05},
+                                                    {"viscous_asymmetry": 0.01, "coulomb_asymmetry": 0.3}))]
+        rng = np.random.default_rng(7)
+        q0, qd0 = rng.normal(size=(4, n)) * 0.5, rng.normal(size=(4, n)) * 0.3
+        drives = scale * _drives(4, n, 8)  # the TX40's wrist motors: a few tenths of N m
+        q, qd = rollouts(spec, gravity_W, laws, q0, qd0, drives, TIMESTEP)
+        for b, law in enumerate(laws):
+            q_ref, qd_ref = _one_at_a_time(spec, gravity_W, law, q0[b], qd0[b], drives[b])
+            np.testing.assert_allclose(q[b], q_ref, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(qd[b], qd_ref, rtol=1e-12, atol=1e-12)
+            assert np.all(np.abs(q[b]) < 10)  # a motion, not a divergence
+
+
+def test_a_rollout_is_the_same_on_the_pool_of_threads_as_alone(ur5):
+    """A batch large enough for MuJoCo's threads gives each row what the calling thread gives it alone."""
+    spec, n = ur5.robot, len(ur5.robot.joints)
+    B = 2 * ROWS_PER_THREAD + 3
+    rng = np.random.default_rng(9)
+    q0, qd0 = rng.normal(size=(B, n)) * 0.5, rng.normal(size=(B, n)) * 0.3
+    drives = _drives(B, n, 10)
+    law = tuple(spec.frictions)
+    q, qd = rollouts(spec, ur5.gravity_W, [law] * B, q0, qd0, drives, TIMESTEP)
+    for b in (0, ROWS_PER_THREAD + 1, B - 1):
+        alone, alone_d = rollouts(spec, ur5.gravity_W, [law], q0[b:b + 1], qd0[b:b + 1], drives[b:b + 1], TIMESTEP)
+        np.testing.assert_array_equal(q[b], alone[0])
+        np.testing.assert_array_equal(qd[b], alone_d[0])
 
 
 def test_a_diverged_rollout_is_nan_from_its_step_on_and_leaves_the_others_alone(ur5):

@@ -102,6 +102,25 @@ def dynamics_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4
     return ms
 
 
+ACCELERATION_STEP = 1024.0  # s: the Euler step of `acceleration_model` (a power of two: q'' = (q'_next - q') / h exact)
+
+
+def acceleration_model(spec: RobotSpec, gravity_W: np.ndarray) -> mujoco.MjModel:
+    """The robot as MuJoCo's forward dynamics of one state at a time, for `mujoco.rollout` to
+    evaluate a batch of states in one call (harness/engines/rollout.py): one Euler step of
+    ACCELERATION_STEP from (q, q') under the generalised force qfrc_applied gives q'_next = q' + h q'',
+    with every force explicit (its damping too: mjDSBL_EULERDAMP), no actuator (the force is applied
+    as it is), sensors and contacts off. The step's h is a power of two, so that
+    q'' = (q'_next - q') / h loses at most the last bit of max(|q'| / h, |q''|)."""
+    ms = new_spec(spec.name, gravity_W)
+    ms.option.integrator = _MJ_INTEGRATOR["Euler"]
+    ms.option.timestep = ACCELERATION_STEP
+    off = mujoco.mjtDisableBit
+    ms.option.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_EULERDAMP | off.mjDSBL_SENSOR
+    add_robot(ms, spec)
+    return ms.compile()
+
+
 def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
     """The joint whose site measures `joint`: itself, or for a carriage's inner joint the
     carriage's outer joint (same point, same wrench: the carriage has no mass)."""

@@ -1,11 +1,20 @@
-"""Rollouts: a model forward-simulated in MuJoCo under given joint torques, many starts in one batch
-of `mujoco.rollout` (RK4), its dry friction applied at every stage. What a log's prediction
-(`predict`: the drift of a model from measured states under the measured torques) and the refinement
-by simulation (harness/identify/refine.py) run."""
+"""Rollouts: a model forward-simulated in MuJoCo under given joint torques, many starts advanced
+together. What a log's prediction (`predict`: the drift of a model from measured states under the
+measured torques) and the refinement by simulation (harness/identify/refine.py) run.
+
+The scheme is MuJoCo's RK4 (the classical Runge-Kutta tableau, positions and velocities advanced from
+the four stages' velocities and accelerations), the drive and its dry friction evaluated at every
+stage. A drive's law is smooth and nonlinear in q' (tanh, Stribeck), which MuJoCo has no element
+for, so it would be a Python callback at each stage of each rollout (8 to 20 us a call). Here the
+stages are taken for the whole batch at once: MuJoCo evaluates the accelerations of all B states in
+one call of `mujoco.rollout` on a pool of threads (`acceleration_model`: forward dynamics without a
+callback), and numpy the stage's drive torque and dry friction of all B rows (friction.Dry.rows).
+Against MuJoCo's own RK4 with the callback the trajectories agree to round-off (tests/test_refine.py)."""
 
 from __future__ import annotations
 
 import copy
+import os
 from collections.abc import Sequence
 
 import mujoco
@@ -13,22 +22,16 @@ import numpy as np
 from mujoco import rollout as mujoco_rollout
 
 from harness.base.numerics import sampled
-from harness.engines.mujoco import build_spec, controlled
+from harness.engines.mujoco import ACCELERATION_STEP, acceleration_model, controlled
 from harness.model import drives as drive_law
 from harness.model import friction
 from harness.model.spec import RobotSpec
 
-
-def _as_slice(index: np.ndarray) -> slice | np.ndarray:
-    """index as a slice where its entries are consecutive."""
-    if len(index) and np.array_equal(index, np.arange(index[0], index[0] + len(index))):
-        return slice(int(index[0]), int(index[0]) + len(index))
-    return index
-
-
-
 PREDICTION_TIMESTEP = 0.001  # s: RK4 steps of a prediction (the log's torques read at every stage)
-_BLOCK = 1024.0  # s: rollout b runs on the clock from b * _BLOCK, which tells the callback whose drive it is
+RK4_A = (0.5, 0.5, 1.0)  # the classical tableau: stage i + 1 from stage i's rates, that far into the step
+RK4_B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
+ROWS_PER_THREAD = 64  # states a thread of the pool is given at least
+_CLOCK = 1.0  # s: the time of every state sent; MuJoCo's reset of a non-finite one sets it to 0
 
 
 def stage_times(steps: int, timestep: float) -> np.ndarray:
@@ -37,27 +40,83 @@ def stage_times(steps: int, timestep: float) -> np.ndarray:
     return np.arange(2 * steps + 1) * (timestep / 2)
 
 
+def threads(batch: int) -> int:
+    """The threads MuJoCo evaluates a batch of `batch` states on: the cores this process may run on, each
+    with at least ROWS_PER_THREAD rows (waking a thread costs about as much as 20 states); 0, the calling
+    thread, for a smaller batch."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    count = min(cores, batch // ROWS_PER_THREAD)
+    return count if count > 1 else 0
+
+
+class _Stage:
+    """A stage's rates of the rollouts still running (`rows`): the generalised force on each, the drive
+    less its own law's dry friction (one numpy evaluation for all), and their accelerations in one
+    `mujoco.rollout` call of one step of `acceleration_model`, row b in models[b] (its rotor inertia
+    and viscous friction), on the pool's threads."""
+
+    def __init__(self, models: list, dry: list, viscous: np.ndarray, index: np.ndarray, transmission,
+                 qadr: np.ndarray, vadr: np.ndarray, pool, rows: np.ndarray):
+        model = models[index[rows[0]]]
+        self.models = [models[k] for k in index[rows]]
+        self.dry = drive_law.Dry(friction.Dry.rows(dry, index[rows]), transmission)
+        self.viscous = viscous[index[rows]]  # (B, n), or (B, n, n) through a transmission: N^T diag(f_v) N
+        self.pool, self.qadr, self.vadr, self.dofs = pool, 1 + qadr, 1 + model.nq + vadr, vadr
+        self.data = [mujoco.MjData(model) for _ in range(max(pool.nthread, 1))]
+        full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        state = np.empty(mujoco.mj_stateSize(model, full))
+        mujoco.mj_getState(model, self.data[0], state, full)  # the layout: time, qpos, qvel, ...
+        state[0] = _CLOCK
+        B = len(rows)
+        self.state, self.next = np.tile(state, (B, 1)), np.empty((B, 1, len(state)))
+        self.force = np.zeros((B, 1, model.nv))
+        self.chunk = -(-B // max(pool.nthread, 1))  # one chunk per thread
+
+    def applied(self, qd: np.ndarray, drive: np.ndarray) -> np.ndarray:
+        """The drive less its dry friction. A load-dependent law reads the rigid-body torque as the drive
+        less the rest of its friction (the rotor inertia's part, I_a q'', is not known before the stage)."""
+        dry = self.dry
+        if not dry.any:
+            return drive
+        if dry.needs_load:
+            viscous = (self.viscous * qd if self.viscous.ndim == 2 else np.einsum("bij,bj->bi", self.viscous, qd))
+            return drive - dry(qd, drive - dry(qd, load=False) - viscous)
+        return drive - dry(qd)
+
+    def __call__(self, q: np.ndarray, qd: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(B, n) q'' and (B,) whether MuJoCo took the state as it was (not reset on a bad one)."""
+        self.state[:, self.qadr], self.state[:, self.vadr] = q, qd
+        self.force[:, 0, self.dofs] = self.applied(qd, drive)
+        self.pool.rollout(self.models, self.data, self.state, self.force, control_spec=_APPLIED, skip_checks=True,
+                          nstep=1, state=self.next, chunk_size=self.chunk)
+        return ((self.next[:, 0, self.vadr] - qd) / ACCELERATION_STEP,
+                self.next[:, 0, 0] == _CLOCK + ACCELERATION_STEP)
+
+
+_APPLIED = int(mujoco.mjtState.mjSTATE_QFRC_APPLIED)
+
+
 def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[friction.JointFriction, ...]],
              q0: np.ndarray, qd0: np.ndarray, drives: np.ndarray,
              timestep: float = PREDICTION_TIMESTEP) -> tuple[np.ndarray, np.ndarray]:
-    """B forward simulations of the robot in one batch of `mujoco.rollout` (RK4, `timestep`): rollout
-    b starts at (q0[b], qd0[b]) (B, n) and is driven by the joint torques drives[b] (B, 2 steps + 1, n),
-    given at `stage_times(steps, timestep)`, less the dry friction of its own law frictions[b]
-    (friction.Dry: Coulomb, offset and the families' terms); its rotor inertia and viscous friction are
-    MuJoCo's armature and damping, so laws that differ only in friction share the robot's inertials.
-    Returns q and q' after each step, (B, steps, n) in the spec's joint order, NaN from the step at
-    which a rollout diverged (a non-finite state, or MuJoCo's reset on one)."""
-    model = build_spec(spec, gravity_W, "RK4", timestep).compile()
-    data = mujoco.MjData(model)
+    """B forward simulations of the robot, advanced together by RK4 (`timestep`; the module's
+    docstring): rollout b starts at (q0[b], qd0[b]) (B, n) and is driven by the joint torques drives[b]
+    (B, 2 steps + 1, n), given at `stage_times(steps, timestep)`, less the dry friction of its own law
+    frictions[b] (friction.Dry: Coulomb, offset and the families' terms); its rotor inertia and viscous
+    friction are MuJoCo's armature and damping (with a transmission, its tendons'), so laws that differ
+    only in friction share the robot's inertials. Returns q and q' after each step, (B, steps, n) in
+    the spec's joint order, NaN from the step at which a rollout diverged (a non-finite state, or
+    MuJoCo's reset on one at any stage), which is simulated no further."""
+    model = acceleration_model(spec, gravity_W)
     joint_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
     qadr, vadr = model.jnt_qposadr[joint_ids], model.jnt_dofadr[joint_ids]
-    B = len(q0)
+    B, n = q0.shape
     steps = (drives.shape[1] - 1) // 2
     t = spec.transmission  # with one, each motor's inertia and damping are its tendon's (harness/model/mjspec.py)
     tendons = None if t is None else [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, m) for m in t.motors]
-    laws, models, forcing = {}, {}, []  # each distinct law once: its model (armature, damping) and dry friction
-    for fr in frictions:
-        if id(fr) not in laws:
+    seen, index, models, dry, viscous = {}, np.empty(B, dtype=int), [], [], []  # each distinct law once
+    for b, fr in enumerate(frictions):
+        if id(fr) not in seen:
             k = friction.values(fr)
             m = model
             if fr != tuple(spec.frictions):
@@ -66,43 +125,35 @@ def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[f
                     m.dof_armature[vadr], m.dof_damping[vadr] = k[:, 0], k[:, 1]
                 else:
                     m.tendon_armature[tendons], m.tendon_damping[tendons] = k[:, 0], k[:, 1]
-            dry = friction.Dry.of(fr) if t is None else drive_law.Dry(fr, t)
-            laws[id(fr)], models[id(fr)] = (dry, k[:, 1] if t is None else t.N.T @ np.diag(k[:, 1]) @ t.N), m
-        forcing.append(laws[id(fr)])
-    half, last = timestep / 2, 2 * steps
-    v_at = _as_slice(vadr)
-    qvel, qfrc_applied = data.qvel, data.qfrc_applied  # views of the one MjData the rollouts run in
-
-    def applied(m: mujoco.MjModel, d: mujoco.MjData) -> None:
-        now = d.time
-        b = min(int(now // _BLOCK), B - 1)  # (a rollout MuJoCo reset restarts at time 0: its NaN is set below)
-        drive = drives[b, min(round((now - b * _BLOCK) / half), last)]
-        dry, viscous = forcing[b]
-        v = qvel[v_at]
-        # load-dependent friction: the drive's torque less the rest of its friction stands for the
-        # rigid-body torque (the rotor inertia's part, I_a q'', is not known before the step); with a
-        # transmission the viscous part is N^T diag(f_v) N q' (`viscous` that matrix)
-        if dry.needs_load:
-            rest = drive - dry(v, load=False) - (viscous * v if viscous.ndim == 1 else viscous @ v)
-            qfrc_applied[v_at] = drive - dry(v, rest)
-        else:
-            qfrc_applied[v_at] = drive - dry(v)
-
-    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    state0 = np.empty(mujoco.mj_stateSize(model, full))
-    mujoco.mj_getState(model, data, state0, full)  # the layout: time, qpos, qvel, ...
-    state0 = np.tile(state0, (B, 1))
-    clock = np.arange(B) * _BLOCK
-    state0[:, 0] = clock
-    state0[:, 1 + qadr], state0[:, 1 + model.nq + vadr] = q0, qd0
-    with controlled(applied, keep_warnings=False):  # a diverged rollout is its NaN, not a warning line
-        state, _ = mujoco_rollout.rollout([models[id(fr)] for fr in frictions], data, state0,
-                                          np.zeros((1, 1, model.nu)), nstep=steps)
-    q, qd = state[:, :, 1 + qadr], state[:, :, 1 + model.nq + vadr]
-    expected = clock[:, None] + np.arange(1, steps + 1) * timestep
-    bad = ~(np.isfinite(q).all(axis=2) & np.isfinite(qd).all(axis=2)) | (np.abs(state[:, :, 0] - expected) > half)
-    bad = np.logical_or.accumulate(bad, axis=1)
-    return np.where(bad[..., None], np.nan, q), np.where(bad[..., None], np.nan, qd)
+            seen[id(fr)] = len(models)
+            models.append(m), dry.append(fr), viscous.append(k[:, 1] if t is None else t.N.T @ np.diag(k[:, 1]) @ t.N)
+        index[b] = seen[id(fr)]
+    viscous = np.asarray(viscous)
+    q_out, qd_out = np.full((B, steps, n), np.nan), np.full((B, steps, n), np.nan)
+    rows = np.arange(B)  # the rollouts still running
+    q, qd = np.array(q0, dtype=float), np.array(qd0, dtype=float)
+    h = timestep
+    with mujoco_rollout.Rollout(nthread=threads(B)) as pool, controlled(None, keep_warnings=False):
+        stage = _Stage(models, dry, viscous, index, t, qadr, vadr, pool, rows)
+        for s in range(steps):
+            rates, ok = [], np.ones(len(rows), dtype=bool)
+            q_i, qd_i = q, qd
+            for i, at in enumerate((2 * s, 2 * s + 1, 2 * s + 1, 2 * s + 2)):
+                if i:
+                    q_i, qd_i = q + (RK4_A[i - 1] * h) * rates[-1][0], qd + (RK4_A[i - 1] * h) * rates[-1][1]
+                qdd_i, took = stage(q_i, qd_i, drives[rows, at])
+                rates.append((qd_i, qdd_i))
+                ok &= took
+            q = q + h * sum(w * r[0] for w, r in zip(RK4_B, rates, strict=True))
+            qd = qd + h * sum(w * r[1] for w, r in zip(RK4_B, rates, strict=True))
+            ok &= np.isfinite(q).all(axis=1) & np.isfinite(qd).all(axis=1)
+            q_out[rows[ok], s], qd_out[rows[ok], s] = q[ok], qd[ok]
+            if not ok.all():  # the diverged are simulated no further
+                rows, q, qd = rows[ok], q[ok], qd[ok]
+                if not len(rows):
+                    break
+                stage = _Stage(models, dry, viscous, index, t, qadr, vadr, pool, rows)
+    return q_out, qd_out
 
 
 def log_drives(t: np.ndarray, tau: np.ndarray, start_times: np.ndarray, steps: int, timestep: float,

@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.optimize import minimize, minimize_scalar
 
 from harness.base.numerics import consecutive_blocks, relative_residual_of_sums
@@ -247,34 +248,39 @@ class _Normal:
         self.S[:, j, :m], self.S[:, j, m:] = C, 0.0
 
     def _solve(self, M: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        """x of M x = rhs, batched over the leading axis, equilibrated; where the columns are not
+        """x of M x = rhs, batched over the leading axis, equilibrated, by LAPACK's Cholesky (potrf, potrs;
+        numpy's batched solve would factor the triangles again by LU); where the columns are not
         independent (a joint that never reverses: |s| is its offset), the minimum-norm solution."""
         diag = np.diagonal(M, axis1=-2, axis2=-1)
         d = np.sqrt(np.where(diag > 0, diag, 1.0))
         Ms, b = M / d[..., :, None] / d[..., None, :], rhs / d
-        try:
-            L = np.linalg.cholesky(Ms)
-            x = np.linalg.solve(np.swapaxes(L, -1, -2), np.linalg.solve(L, b[..., None]))[..., 0]
-        except np.linalg.LinAlgError:
-            x = np.stack([np.linalg.lstsq(a, c, rcond=1e-13)[0] for a, c in zip(Ms.reshape(-1, *Ms.shape[-2:]),
-                                                                                b.reshape(-1, b.shape[-1]),
-                                                                                strict=True)]).reshape(b.shape)
-        return x / d
+        flat_M, flat_b = Ms.reshape(-1, *Ms.shape[-2:]), b.reshape(-1, b.shape[-1])
+        x = np.empty_like(flat_b)
+        for k, (a, c) in enumerate(zip(flat_M, flat_b, strict=True)):
+            L, info = dpotrf(a, lower=1, clean=0)
+            if info:
+                x = np.stack([np.linalg.lstsq(a, c, rcond=1e-13)[0] for a, c in zip(flat_M, flat_b, strict=True)])
+                break
+            x[k] = dpotrs(L, c, lower=1)[0]
+        return x.reshape(b.shape) / d
 
     def held_out_sse(self) -> np.ndarray:
         """(K,) the squared error of every fold, each predicted by the fit on the others (from the
         fold's rows: its normal equations would give it as |tau_k|^2 - 2 x.r_k + x.M_k x, which loses
         every digit on a log the law fits to round-off)."""
-        x = self._solve(self.M.sum(0) - np.einsum("ki,ipq->kpq", self.left_out, self.M),
-                        self.rhs.sum(0) - self.left_out @ self.rhs)  # (K, p): fold k's fit
+        P, p = self.M.shape[:2]
+        fitted = 1.0 - self.left_out  # (K, P): the pieces each fold's fit reads
+        x = self._solve((fitted @ self.M.reshape(P, p * p)).reshape(-1, p, p),
+                        fitted @ self.rhs)  # (K, p): fold k's fit
         r, n = self.r, self.n
         sse = np.zeros(len(self.folds))
         for k, f in enumerate(self.folds):
             G = self.G3[f]
-            drive = np.einsum("njs,js->nj", self.S[f], x[k, r:].reshape(n, self.slot))
+            drive = (self.S[f] * x[k, r:].reshape(n, self.slot)).sum(axis=-1)
             pred = ((G.reshape(-1, r) @ x[k, :r]).reshape(G.shape[:2])
                     + (drive if self.coupling is None else drive @ self.coupling))
-            sse[k] = float(np.sum((pred - self.tau[f]) ** 2))
+            residual = (pred - self.tau[f]).ravel()
+            sse[k] = float(residual @ residual)
         return sse
 
     def rigid_torque(self) -> np.ndarray:

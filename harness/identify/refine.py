@@ -34,7 +34,7 @@ fitting its torques within TORQUE_SLACK of the consistent fit.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
@@ -123,6 +123,7 @@ class _Problem:
     slots: tuple[tuple[int, str], ...]  # what each entry of z is: (joint, key)
     laws: tuple[Law, ...]  # each joint's law (its family's terms)
     motor: tuple[np.ndarray, ...]  # (qd, qdd, rigid, tau) at each drive: the joints', or the motors' (N^-T)
+    fits: dict = field(default_factory=dict)  # (joint, v_c, v_s, lag) -> its drive's fit (`_drive_fit_once`)
 
 
 def _law(p: _Problem, z: np.ndarray) -> tuple[tuple[JointFriction, ...], np.ndarray]:
@@ -136,7 +137,16 @@ def _law(p: _Problem, z: np.ndarray) -> tuple[tuple[JointFriction, ...], np.ndar
             lag[k] = value
         else:
             velocity[k][key] = float(np.exp(value))
-    return tuple(_drive_fit(p, k, velocity[k], lag[k]) for k in range(n)), lag
+    return tuple(_drive_fit_once(p, k, velocity[k], lag[k]) for k in range(n)), lag
+
+
+def _drive_fit_once(p: _Problem, k: int, velocity: dict, lag: float) -> JointFriction:
+    """_drive_fit, each joint's at given velocities and lag solved once: a Jacobian's column moves one
+    joint's value, and every other joint's fit is the one at the point it is taken at."""
+    key = (k, velocity["coulomb_velocity"], velocity["stribeck_velocity"], float(lag))
+    if key not in p.fits:
+        p.fits[key] = _drive_fit(p, k, velocity, lag)
+    return p.fits[key]
 
 
 def _read(t: np.ndarray, tau_k: np.ndarray, rows: np.ndarray, lag: float) -> np.ndarray:

@@ -128,8 +128,9 @@ class Dry:
     N^T dry_m(N q', N^-T tau_R) (harness/model/friction.py, Dry: Coulomb, offset and the families'
     terms of each motor). Built once per model, called at every step of a simulation."""
 
-    def __init__(self, frictions: tuple[JointFriction, ...], transmission: Transmission | None):
-        self.law = friction.Dry.of(frictions)
+    def __init__(self, frictions: tuple[JointFriction, ...] | friction.Dry, transmission: Transmission | None):
+        """frictions: each motor's law, or a batch's (friction.Dry.rows)."""
+        self.law = frictions if isinstance(frictions, friction.Dry) else friction.Dry.of(frictions)
         self.transmission = transmission
         self.any, self.needs_load = self.law.any, self.law.needs_load
 

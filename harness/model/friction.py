@@ -137,25 +137,37 @@ class Dry:
     tau_rigid where a joint's friction depends on the load. Built once per model, called at every
     step of a simulation."""
 
-    coulomb: np.ndarray
+    coulomb: np.ndarray  # (n,), or (B, n) for a batch whose rows' laws differ (`rows`)
     offset: np.ndarray
     coulomb_velocity: np.ndarray  # v_c, 1 where a sharp sign (see `sharp`)
-    extra: np.ndarray  # (n, 4) EXTRA_KEYS
+    extra: np.ndarray  # (n, 4) or (B, n, 4): EXTRA_KEYS
     stribeck_velocity: np.ndarray
     frictions: tuple[JointFriction, ...]
     any: bool  # whether it is anything but zero (decided once: it is asked at every step)
     has_extra: bool  # whether a joint has a family's term
     needs_load: bool  # whether a joint's friction depends on its load
-    sharp: np.ndarray | None  # (n,) bool: the joints whose Coulomb term is a sharp sign, None if none
+    sharp: np.ndarray | None  # (n,) or (B, n) bool: the joints whose Coulomb term is a sharp sign, None if none
 
     @classmethod
     def of(cls, frictions: tuple[JointFriction, ...]) -> Dry:
-        k, extra = values(frictions), extra_values(frictions)
-        v_c = np.array([f.coulomb_velocity for f in frictions])
-        return cls(k[:, 2], k[:, 3], np.where(v_c > 0, v_c, 1.0), extra,
-                   np.array([f.stribeck_velocity for f in frictions]), frictions,
-                   bool(np.any(k[:, 2:]) or np.any(extra)), bool(np.any(extra)), bool(np.any(extra[:, 3])),
-                   (v_c == 0) if np.any(v_c == 0) else None)
+        """One law for every row it is called at: each field (n,)."""
+        return cls._made([frictions], lambda a: a[0])
+
+    @classmethod
+    def rows(cls, laws: list[tuple[JointFriction, ...]], index: np.ndarray) -> Dry:
+        """A batch's law: row b of the velocities (B, n) it is called at is under laws[index[b]] (each
+        field (B, n)): a batch of rollouts whose laws differ, in one call per stage."""
+        return cls._made(laws, lambda a: a[index])
+
+    @classmethod
+    def _made(cls, laws: list[tuple[JointFriction, ...]], pick) -> Dry:
+        k = np.stack([values(fr) for fr in laws])  # (L, n, 4)
+        extra = np.stack([extra_values(fr) for fr in laws])  # (L, n, 4)
+        v_c = np.array([[f.coulomb_velocity for f in fr] for fr in laws]).reshape(k.shape[:2])
+        v_s = np.array([[f.stribeck_velocity for f in fr] for fr in laws]).reshape(k.shape[:2])
+        return cls(pick(k[..., 2]), pick(k[..., 3]), pick(np.where(v_c > 0, v_c, 1.0)), pick(extra), pick(v_s),
+                   tuple(f for fr in laws for f in fr), bool(np.any(k[..., 2:]) or np.any(extra)),
+                   bool(np.any(extra)), bool(np.any(extra[..., 3])), pick(v_c == 0) if np.any(v_c == 0) else None)
 
     def __call__(self, qd: np.ndarray, tau_rigid: np.ndarray | None = None, load: bool = True) -> np.ndarray:
         """`load` False: without the load-dependent term (no rigid-body torque needed). coulomb_shape's
@@ -169,7 +181,8 @@ class Dry:
                 _needs_load(self.frictions, tau_rigid)
             else:
                 tau_rigid = None
-            out = out + np.einsum("...ja,ja->...j", extra_shapes(qd, s, self.stribeck_velocity, tau_rigid), self.extra)
+            out = out + np.einsum("...ja,...ja->...j", extra_shapes(qd, s, self.stribeck_velocity, tau_rigid),
+                                  self.extra)
         return out
 
 
