@@ -518,19 +518,48 @@ def log_runs(figures: dict, rounds: int = 3) -> None:
             figures[f"log_run_{robot}_over_plain_lstsq"] = best / plain
 
 
+def _descendants(pid: int) -> list[int]:
+    """pid and every process it started that still runs (/proc/<pid>/task/<tid>/children)."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        for task in Path(f"/proc/{p}/task").glob("*/children"):
+            try:
+                todo.extend(int(c) for c in task.read_text().split())
+            except OSError:
+                pass
+    return out
+
+
+def _high_water_mib(pid: int) -> float:
+    try:
+        line = next(x for x in Path(f"/proc/{pid}/status").read_text().splitlines() if x.startswith("VmHWM"))
+    except (OSError, StopIteration):  # the process is ending
+        return 0.0
+    return int(line.split()[1]) / 1024
+
+
 def _timed(command: list[str]) -> tuple[float, str, float]:
-    """A command in a fresh process: its wall seconds, its output, and its peak resident memory (MiB,
-    the kernel's maximum resident set size of the process)."""
+    """A command in a fresh process: its wall seconds, its output, and its peak resident memory (MiB):
+    the largest high-water mark (VmHWM) of the command's process and of each process it starts (`harness
+    run` works in a process it forks), read from /proc every 5 ms while they run. (The kernel's
+    ru_maxrss of a child counts the parent's pages at the fork: this process's, which has grown by the
+    benchmarks before.)"""
     t0 = time.perf_counter()
-    child = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                             env=AS_INSTALLED)
-    out = child.stdout.read()
-    _, status, usage = os.wait4(child.pid, 0)
-    seconds = time.perf_counter() - t0
-    child.returncode = os.waitstatus_to_exitcode(status)
+    with tempfile.TemporaryFile("w+") as out:
+        child = subprocess.Popen(command, cwd=ROOT, stdout=out, stderr=subprocess.DEVNULL, text=True,
+                                 env=AS_INSTALLED)
+        peak = 0.0
+        while child.poll() is None:
+            peak = max([peak, *(_high_water_mib(p) for p in _descendants(child.pid))])
+            time.sleep(0.005)
+        seconds = time.perf_counter() - t0
+        out.seek(0)
+        said = out.read().strip()
     if child.returncode:
-        raise subprocess.CalledProcessError(child.returncode, command, out)
-    return seconds, out.strip(), usage.ru_maxrss / 1024
+        raise subprocess.CalledProcessError(child.returncode, command, said)
+    return seconds, said, peak
 
 
 def harness_run_measured(scenario: Path | str, out: Path) -> tuple[float, dict, float]:
