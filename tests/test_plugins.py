@@ -418,6 +418,19 @@ def test_a_simulated_scenario_loads_no_convex_solver_and_no_optimiser():
     assert out.stdout.strip() == "[]", out.stdout
 
 
+def test_a_log_scenario_imports_the_tools_it_names_and_no_other():
+    """The field's tools are imported when a scenario names them (FIGAROH's import alone takes about
+    1 s): tx40_motion names none, tx40 names FIGAROH; neither MuJoCo's sysid nor Dask nor rosbags."""
+    pytest.importorskip("figaroh")
+    tools = ("figaroh", "mujoco.sysid", "distributed", "rosbags")
+    code = ("import sys, harness; harness.load_scenario({!r}); "
+            f"print(sorted(m for m in {tools!r} if m in sys.modules))")
+    for scenario, expected in (("tx40_motion", "[]"), ("tx40", "['figaroh']")):
+        out = subprocess.run([sys.executable, "-c", code.format(scenario)], capture_output=True, text=True, cwd=ROOT,
+                             check=True)
+        assert out.stdout.strip() == expected, (scenario, out.stdout)
+
+
 def test_the_version_is_read_from_the_installed_metadata_only_when_asked_for():
     """`import harness` leaves importlib.metadata (about 40 ms) unloaded unless something before it
     loaded it; `harness.__version__` then reads the installed distribution's version."""
