@@ -67,6 +67,6 @@ def drive_term(columns, t: np.ndarray, law, k: int, transmission: Transmission |
         s = friction.coulomb_shape(qd_k, v)
         if term == "coulomb" or term == "load_coulomb":
             return s
-        return friction.extra_shapes(qd_k, s, v_s, None)[:, 0, friction.EXTRA_KEYS.index(term)][:, None]
+        return friction.extra_shape(term, qd_k, s, v_s, None)
 
     return columns.filtered(column, t)[:, 0]

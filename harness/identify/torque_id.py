@@ -148,7 +148,8 @@ def links_torque(G: np.ndarray, beta: np.ndarray, link_part: tuple[np.ndarray, n
     base parameters' columns, beta (r,) their values, link_part from BaseParameters.link_part (which
     of them hold a link's inertia, and the drive's share in each, taken out)."""
     link, share = link_part
-    return G[..., link] @ (beta - share)[link]
+    w = np.where(link, beta - share, 0.0)  # one product over every column: a column subset would copy G
+    return (G.reshape(-1, G.shape[-1]) @ w).reshape(G.shape[:-1])  # as one matrix: numpy loops over a stack's rows
 
 
 def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameters:

@@ -75,6 +75,8 @@ NO_FRICTION = JointFriction()
 def coulomb_shape(qd: np.ndarray, coulomb_velocity: np.ndarray) -> np.ndarray:
     """s(q'), (N, n): tanh(q' / v_c) where v_c > 0, sign(q') where v_c = 0."""
     v = np.asarray(coulomb_velocity, dtype=float)
+    if np.all(v > 0):  # every joint's turn smooth (the law search asks millions of samples at a time)
+        return np.tanh(qd / v)
     with np.errstate(divide="ignore", invalid="ignore"):
         smooth = np.tanh(qd / np.where(v > 0, v, 1.0))
     return np.where(v > 0, smooth, np.sign(qd))
@@ -86,14 +88,25 @@ def columns(frictions: tuple[JointFriction, ...], qd: np.ndarray, qdd: np.ndarra
     return np.stack([qdd, qd, coulomb_shape(qd, v), np.ones_like(qd)], axis=-1)
 
 
+def extra_shape(key: str, qd: np.ndarray, s: np.ndarray, stribeck_velocity: np.ndarray,
+                tau_rigid: np.ndarray | None) -> np.ndarray:
+    """(..., n): the shape of one of EXTRA_KEYS at velocities qd with Coulomb shape s: |q'|, |s|,
+    s exp(-(q'/v_s)^2) (zero where v_s = 0), |tau_R| s (zero where tau_rigid is not given)."""
+    if key == "viscous_asymmetry":
+        return np.abs(qd)
+    if key == "coulomb_asymmetry":
+        return np.abs(s)
+    if key == "stribeck":
+        v_s = stribeck_velocity
+        with np.errstate(divide="ignore", over="ignore", under="ignore", invalid="ignore"):
+            return np.where(v_s > 0, s * np.exp(-((qd / np.where(v_s > 0, v_s, 1.0)) ** 2)), 0.0)
+    return np.zeros_like(s) if tau_rigid is None else np.abs(tau_rigid) * s
+
+
 def extra_shapes(qd: np.ndarray, s: np.ndarray, stribeck_velocity: np.ndarray,
                  tau_rigid: np.ndarray | None) -> np.ndarray:
-    """(..., n, 4): the shapes of EXTRA_KEYS at velocities qd with Coulomb shape s."""
-    v_s = stribeck_velocity
-    with np.errstate(divide="ignore", over="ignore", under="ignore", invalid="ignore"):
-        stribeck = np.where(v_s > 0, s * np.exp(-((qd / np.where(v_s > 0, v_s, 1.0)) ** 2)), 0.0)
-    load = np.zeros_like(s) if tau_rigid is None else np.abs(tau_rigid) * s
-    return np.stack([np.abs(qd), np.abs(s), stribeck, load], axis=-1)
+    """(..., n, 4): the shapes of EXTRA_KEYS at velocities qd with Coulomb shape s (`extra_shape`)."""
+    return np.stack([extra_shape(key, qd, s, stribeck_velocity, tau_rigid) for key in EXTRA_KEYS], axis=-1)
 
 
 def extra_columns(frictions: tuple[JointFriction, ...], qd: np.ndarray,
