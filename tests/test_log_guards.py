@@ -313,3 +313,28 @@ def test_a_joint_read_for_another_shows_in_the_torque_constants_scaling():
     out = scaled(series, np.array([2.0, 3.0]), ["a", "b"])
     np.testing.assert_array_equal(out.tau[0], [3.0, 20.0])
     assert dataclasses.replace(series, tau=out.tau).joint_data(["a", "b"])[3][0].tolist() == [20.0, 3.0]
+
+
+def test_a_file_is_read_at_its_size_and_refused_past_its_limit_without_a_buffer_of_the_limit(tmp_path):
+    """A log's bytes: a regular file read whole at its size (its memory that size: under 2 x 1 MiB traced
+    for a 1 MiB file whose limit is 2 GiB; asking for limit + 1 bytes reserved 2 GiB at every log read),
+    refused past the limit before it is read; a stream (/dev/zero) refused after limit + 1 bytes."""
+    import tracemalloc
+    from pathlib import Path
+
+    from harness.base.tomlio import MAX_DATA_BYTES, InputError, MiB, read_bounded
+
+    log = tmp_path / "log.csv"
+    log.write_bytes(b"t,q1\n" + b"0.001,0.5\n" * (MiB // 10))
+    tracemalloc.start()
+    try:
+        content = read_bounded(log, MAX_DATA_BYTES)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert content == log.read_bytes() and peak < 2 * log.stat().st_size
+    with pytest.raises(InputError, match="larger than 0 MiB"):
+        read_bounded(log, 1000)
+    if Path("/dev/zero").exists():
+        with pytest.raises(InputError, match="larger than 1 MiB"):
+            read_bounded("/dev/zero", MiB)

@@ -8,6 +8,8 @@ any key that nobody asked for, so a misspelt key is an error rather than a silen
 from __future__ import annotations
 
 import math
+import os
+import stat
 import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -42,6 +44,7 @@ MiB = 1 << 20
 # after this many bytes instead of filling the memory.
 MAX_TOML_BYTES = 16 * MiB  # a model or scenario file: kilobytes in practice
 MAX_XML_BYTES = 64 * MiB  # a URDF: the largest published ones are a few MiB
+READ_PIECE = 16 * MiB  # a stream's bytes are read this many at a time
 MAX_DATA_BYTES = 2048 * MiB  # a log, a recording or a results.json: 900,000 samples of a 7-joint arm take 0.5 GiB
 
 
@@ -51,11 +54,24 @@ def in_one_line(text: str) -> str:
     return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
 
 
+def _read_stream(f, limit: int) -> bytes:
+    """At most limit + 1 bytes of a stream, read READ_PIECE at a time."""
+    content = bytearray()
+    while len(content) <= limit and (piece := f.read(min(READ_PIECE, limit + 1 - len(content)))):
+        content += piece
+    return bytes(content)
+
+
 def read_bounded(path: Path | str, limit: int) -> bytes:
     """A file's bytes, refused (InputError naming the file) beyond `limit` bytes or when unreadable."""
     try:
         with open(path, "rb") as f:
-            content = f.read(limit + 1)
+            size = os.fstat(f.fileno()).st_size if stat.S_ISREG(os.fstat(f.fileno()).st_mode) else None
+            if size is not None and size > limit:
+                raise InputError(path, "", f"larger than {limit // MiB} MiB, the most this kind of file may hold")
+            # a regular file read at its size; a stream (a FIFO, a device) up to the limit in pieces, so
+            # that no buffer of the limit's size is asked for (2 GiB for a log)
+            content = f.read() if size is not None else _read_stream(f, limit)
     except FileNotFoundError:
         raise InputError(path, "", "file not found") from None
     except OSError as exc:
