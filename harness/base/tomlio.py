@@ -66,7 +66,8 @@ def read_bounded(path: Path | str, limit: int) -> bytes:
     """A file's bytes, refused (InputError naming the file) beyond `limit` bytes or when unreadable."""
     try:
         with open(path, "rb") as f:
-            size = os.fstat(f.fileno()).st_size if stat.S_ISREG(os.fstat(f.fileno()).st_mode) else None
+            info = os.fstat(f.fileno())
+            size = info.st_size if stat.S_ISREG(info.st_mode) else None
             if size is not None and size > limit:
                 raise InputError(path, "", f"larger than {limit // MiB} MiB, the most this kind of file may hold")
             # a regular file read at its size; a stream (a FIFO, a device) up to the limit in pieces, so

@@ -55,11 +55,12 @@ class _Stage:
     `mujoco.rollout` call of one step of `acceleration_model`, row b in models[b] (its rotor inertia
     and viscous friction), on the pool's threads."""
 
-    def __init__(self, models: list, dry: list, viscous: np.ndarray, index: np.ndarray, transmission,
+    def __init__(self, models: list, laws: list, viscous: np.ndarray, index: np.ndarray, transmission,
                  qadr: np.ndarray, vadr: np.ndarray, pool, rows: np.ndarray):
+        """models[k], laws[k] and viscous[k]: the k-th distinct law's; row b of the batch is under law index[b]."""
         model = models[index[rows[0]]]
         self.models = [models[k] for k in index[rows]]
-        self.dry = drive_law.Dry(friction.Dry.rows(dry, index[rows]), transmission)
+        self.dry = drive_law.Dry(friction.Dry.rows(laws, index[rows]), transmission)
         self.viscous = viscous[index[rows]]  # (B, n), or (B, n, n) through a transmission: N^T diag(f_v) N
         self.pool, self.qadr, self.vadr, self.dofs = pool, 1 + qadr, 1 + model.nq + vadr, vadr
         self.data = [mujoco.MjData(model) for _ in range(max(pool.nthread, 1))]
@@ -114,7 +115,7 @@ def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[f
     steps = (drives.shape[1] - 1) // 2
     t = spec.transmission  # with one, each motor's inertia and damping are its tendon's (harness/model/mjspec.py)
     tendons = None if t is None else [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TENDON, m) for m in t.motors]
-    seen, index, models, dry, viscous = {}, np.empty(B, dtype=int), [], [], []  # each distinct law once
+    seen, index, models, laws, viscous = {}, np.empty(B, dtype=int), [], [], []  # each distinct law once
     for b, fr in enumerate(frictions):
         if id(fr) not in seen:
             k = friction.values(fr)
@@ -126,7 +127,7 @@ def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[f
                 else:
                     m.tendon_armature[tendons], m.tendon_damping[tendons] = k[:, 0], k[:, 1]
             seen[id(fr)] = len(models)
-            models.append(m), dry.append(fr), viscous.append(k[:, 1] if t is None else t.N.T @ np.diag(k[:, 1]) @ t.N)
+            models.append(m), laws.append(fr), viscous.append(k[:, 1] if t is None else t.N.T @ np.diag(k[:, 1]) @ t.N)
         index[b] = seen[id(fr)]
     viscous = np.asarray(viscous)
     q_out, qd_out = np.full((B, steps, n), np.nan), np.full((B, steps, n), np.nan)
@@ -134,7 +135,7 @@ def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[f
     q, qd = np.array(q0, dtype=float), np.array(qd0, dtype=float)
     h = timestep
     with mujoco_rollout.Rollout(nthread=threads(B)) as pool, controlled(None, keep_warnings=False):
-        stage = _Stage(models, dry, viscous, index, t, qadr, vadr, pool, rows)
+        stage = _Stage(models, laws, viscous, index, t, qadr, vadr, pool, rows)
         for s in range(steps):
             rates, ok = [], np.ones(len(rows), dtype=bool)
             q_i, qd_i = q, qd
@@ -152,7 +153,7 @@ def rollouts(spec: RobotSpec, gravity_W: np.ndarray, frictions: Sequence[tuple[f
                 rows, q, qd = rows[ok], q[ok], qd[ok]
                 if not len(rows):
                     break
-                stage = _Stage(models, dry, viscous, index, t, qadr, vadr, pool, rows)
+                stage = _Stage(models, laws, viscous, index, t, qadr, vadr, pool, rows)
     return q_out, qd_out
 
 

@@ -258,10 +258,11 @@ class _Normal:
         Ms, b = M / d[..., :, None] / d[..., None, :], rhs / d
         flat_M, flat_b = Ms.reshape(-1, *Ms.shape[-2:]), b.reshape(-1, b.shape[-1])
         x = np.empty_like(flat_b)
-        for k, (a, c) in enumerate(zip(flat_M, flat_b, strict=True)):
-            L, info = dpotrf(a, lower=1, clean=0)
-            if info:
-                x = np.stack([np.linalg.lstsq(a, c, rcond=1e-13)[0] for a, c in zip(flat_M, flat_b, strict=True)])
+        for k, (A, c) in enumerate(zip(flat_M, flat_b, strict=True)):
+            L, info = dpotrf(A, lower=1, clean=0)
+            if info:  # one system not positive definite: every one by its minimum-norm solution
+                x = np.stack([np.linalg.lstsq(A_k, c_k, rcond=1e-13)[0]
+                              for A_k, c_k in zip(flat_M, flat_b, strict=True)])
                 break
             x[k] = dpotrs(L, c, lower=1)[0]
         return x.reshape(b.shape) / d
