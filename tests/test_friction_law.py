@@ -383,3 +383,56 @@ def test_the_folds_fits_solve_their_normal_equations_and_a_dependent_column_by_i
     x = _Normal._solve(None, M, rhs)
     np.testing.assert_allclose(x[:, -1], x[:, -2], rtol=1e-8)  # the minimum norm splits the pair evenly
     np.testing.assert_allclose(np.einsum("kpq,kq->kp", M, x), rhs, rtol=1e-8, atol=1e-8 * np.abs(rhs).max())
+
+
+def _held_out_by_lstsq(normal, G3: np.ndarray, C: list[np.ndarray], tau: np.ndarray, coupling) -> np.ndarray:
+    """Each fold's squared error, predicted by numpy's least squares on the whole design's rows that
+    its fit reads (an independent computation of what _Normal.held_out_sse answers)."""
+    N, n, r = G3.shape
+    X = np.zeros((N, n, r + normal.slot * n))
+    X[:, :, :r] = G3
+    for k, c in enumerate(C):
+        weights = np.eye(n)[k] if coupling is None else coupling[k]
+        X[:, :, r + normal.slot * k: r + normal.slot * k + c.shape[1]] = c[:, None, :] * weights[None, :, None]
+    sse = []
+    for k, fold in enumerate(normal.folds):
+        rows = np.concatenate([np.arange(p.start, p.stop) for i, p in enumerate(normal.pieces)
+                               if not normal.left_out[k, i]])
+        x = np.linalg.lstsq(X[rows].reshape(-1, X.shape[-1]), tau[rows].ravel(), rcond=None)[0]
+        residual = X[fold] @ x - tau[fold]
+        sse.append(float(np.sum(residual**2)))
+    return np.array(sse)
+
+
+@pytest.mark.parametrize("coupled", [False, True])
+def test_the_held_out_error_from_the_folds_normal_equations_is_the_rows_and_below_its_floor_the_rows_answer(coupled):
+    """The search's held-out error (_Normal.held_out_sse: |tau_k|^2 - x.(2 r_k - M_k x) from fold k's
+    normal equations) equals each fold's squared error computed from its rows by numpy's least squares,
+    joint by joint and through a coupled transmission (a motor's columns reaching two joints), to 1e-9
+    relative (measured 7e-12 on the Panda's log; the normal equations lose about 10 eps |tau_k|^2, and
+    here the error is 7e-3 of |tau_k|^2). On torques the columns fit to round-off the normal equations'
+    form would answer with its own round-off (about 1e-15 |tau_k|^2, or a negative error): the rows
+    answer, at round-off squared."""
+    from harness.identify.friction_law import GRAM_FLOOR, _Normal, blocked_folds
+
+    rng = np.random.default_rng(7)
+    N, n, r, slot = 600, 3, 8, 4
+    coupling = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.5, 1.0]]) if coupled else None
+    G3 = rng.normal(size=(N, n, r))
+    C = [rng.normal(size=(N, m)) for m in (2, 3, 4)]
+    exact = np.einsum("tjr,r->tj", G3, rng.normal(size=r))
+    for k, c in enumerate(C):
+        weights = np.eye(n)[k] if coupling is None else coupling[k]
+        exact += (c @ rng.normal(size=c.shape[1]))[:, None] * weights[None, :]
+    for noise, floor in ((0.3, None), (0.0, GRAM_FLOOR)):
+        tau = exact + noise * rng.normal(size=exact.shape)
+        normal = _Normal(G3.reshape(N * n, r), (np.ones(r, bool), np.zeros(r)), tau, blocked_folds(N, 5, 6), slot,
+                         coupling)
+        for k, c in enumerate(C):
+            normal.set(k, c)
+        sse, tau_k = normal.held_out_sse(), np.array([np.sum(tau[f] ** 2) for f in normal.folds])
+        if floor is None:
+            assert np.all(sse > 1e-3 * tau_k)  # the normal equations' form answers
+            np.testing.assert_allclose(sse, _held_out_by_lstsq(normal, G3, C, tau, coupling), rtol=1e-9)
+        else:
+            assert np.all(sse <= 1e-24 * tau_k), sse / tau_k
