@@ -426,8 +426,8 @@ def test_the_held_out_error_from_the_folds_normal_equations_is_the_rows_and_belo
         exact += (c @ rng.normal(size=c.shape[1]))[:, None] * weights[None, :]
     for noise, floor in ((0.3, None), (0.0, GRAM_FLOOR)):
         tau = exact + noise * rng.normal(size=exact.shape)
-        normal = _Normal(G3.reshape(N * n, r), (np.ones(r, bool), np.zeros(r)), tau, blocked_folds(N, 5, 6), slot,
-                         coupling)
+        normal = _Normal(G3, np.arange(r), np.arange(N), (np.ones(r, bool), np.zeros(r)), tau, blocked_folds(N, 5, 6),
+                         slot, coupling)
         for k, c in enumerate(C):
             normal.set(k, c)
         sse, tau_k = normal.held_out_sse(), np.array([np.sum(tau[f] ** 2) for f in normal.folds])

@@ -68,6 +68,31 @@ def column_scale(W: np.ndarray) -> np.ndarray:
     return np.where(live_columns(s), s, 1.0)
 
 
+ROWS_AT_A_TIME = 1 << 15  # rows of a tall matrix reduced to its triangle at a time (`triangle`)
+
+
+def triangle(blocks: tuple[np.ndarray, ...], y: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """R, b = Q^T y and ||y - Q b|| of the column-scaled A = [blocks side by side] / col = Q R (Q with
+    orthonormal columns, R upper triangular, min(rows, p) x p): Householder QR of [A | y],
+    ROWS_AT_A_TIME rows at a time, each chunk stacked under the triangle of those before (a tall
+    matrix's rows reduced in pieces: only a chunk of A is ever copied, where one QR of the whole copies
+    it twice and its Q once more; a long log's regressor is the largest thing a run holds). The last is
+    the least-squares residual of y on A, read off the factorisation (no |y|^2 - |b|^2 cancellation):
+    the part of y outside Q's columns, and where A's rank is short of p the part of b that R's columns
+    do not reach (the minimum-norm solution's cut-off as numpy's for A itself)."""
+    p = len(col)
+    T = np.zeros((0, p + 1))
+    for a in range(0, len(y), ROWS_AT_A_TIME):
+        rows = np.column_stack([*(B[a: a + ROWS_AT_A_TIME] for B in blocks), y[a: a + ROWS_AT_A_TIME]])
+        rows[:, :p] /= col
+        T = np.linalg.qr(np.vstack([T, rows]), mode="r")
+    k = min(T.shape[0], p)
+    R, b = T[:k, :p], T[:k, p]
+    outside = float(abs(T[p, p])) if T.shape[0] > p else 0.0
+    unreached = R @ np.linalg.lstsq(R, b, rcond=np.finfo(float).eps * max(len(y), p))[0] - b
+    return R, b, float(np.hypot(outside, np.linalg.norm(unreached)))
+
+
 def equilibrated_singular_values(W: np.ndarray) -> np.ndarray:
     """The singular values of W with its columns scaled (`column_scale`), largest first."""
     return np.linalg.svd(W / column_scale(W), compute_uv=False)

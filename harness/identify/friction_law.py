@@ -39,7 +39,7 @@ from scipy.optimize import minimize, minimize_scalar
 
 from harness.base.numerics import consecutive_blocks, relative_residual_of_sums
 from harness.identify import filtered
-from harness.identify.torque_id import drive_column, links_torque
+from harness.identify.torque_id import drive_column, links_weights
 from harness.model import friction
 from harness.model.drives import Transmission
 from harness.model.friction import EXTRA_KEYS, FAMILIES, JointFriction
@@ -198,35 +198,52 @@ class _Normal:
     own. The fit that predicts fold k solves (sum M - sum_{i left out} M_i) x = (the same of r) and
     predicts fold k's rows. Replacing joint j's columns rewrites its slot only: O(N r) per trial."""
 
-    def __init__(self, G: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
-                 folds: Folds, slot: int, coupling: np.ndarray | None = None):
+    def __init__(self, W3: np.ndarray, columns: np.ndarray, order: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
+                 tau: np.ndarray, folds: Folds, slot: int, coupling: np.ndarray | None = None):
+        """W3 (N, n, c): the regressor's rows, of which the fixed columns G are `columns`, read in the
+        rows' `order` (time); tau (N, n) in that order. Without a transmission, G is kept once, joint
+        by joint beside the joint's torque (`by_joint`), and never whole: a long log's regressor is the
+        largest thing a run holds."""
         N, n = tau.shape
         # with a transmission, slot k holds motor k's columns, which reach joint j times coupling[k, j]
         # (N of harness/model/drives.py); None: slot j is joint j's own, on its rows alone
         self.coupling = coupling
         self.slot = slot  # friction columns a joint may have: q', s and the most terms of a law tried
-        r = G.shape[1]
+        r = len(columns)
         self.n, self.r = n, r
-        self.G3 = G.reshape(N, n, r)
         self.link_part = link_part  # the fixed columns that hold a link's parameters, the drive's share in each
         self.tau = tau
         self.folds, self.pieces, self.left_out = folds.folds, folds.pieces, folds.left_out
         p = r + slot * n
         self.M = np.zeros((len(self.pieces), p, p))
         self.rhs = np.zeros((len(self.pieces), p))
-        for k, f in enumerate(self.pieces):
-            g = self.G3[f].reshape(-1, r)
-            self.M[k, :r, :r], self.rhs[k, :r] = g.T @ g, g.T @ tau[f].ravel()
+        # (N, r + 1) per joint: its rows' fixed columns and its torque; with a transmission, what motor k's
+        # slot meets: the joints' rows' fixed columns and torques, weighted by N[k, j], and G3 (N, n, r)
+        # the joints' rows themselves
+        rows = order[:, None], columns[None, :]
+        own = [np.column_stack([W3[:, j][rows], tau[:, j]]) for j in range(n)]
+        self.G3 = None if coupling is None else np.stack([g[:, :r] for g in own], axis=1)
+        self.by_joint = own if coupling is None else [
+            np.column_stack([np.einsum("tjr,j->tr", self.G3, w), tau @ w]) for w in coupling]
+        for k, f in enumerate(self.pieces):  # each piece's G^T G and G^T tau, joint by joint
+            for g in own:
+                product = g[f].T @ g[f]
+                self.M[k, :r, :r] += product[:r, :r]
+                self.rhs[k, :r] += product[:r, r]
         # (K, P) 0/1: the pieces fold k is made of; (P,) each piece's |tau|^2
         self.own = np.array([[f.start <= piece.start < f.stop for piece in self.pieces] for f in self.folds], float)
         self.tau_sq = np.array([float(np.sum(tau[f] ** 2)) for f in self.pieces])
-        # (N, r + 1) per joint: its rows' fixed columns and its torque; with a transmission, what motor k's
-        # slot meets: the joints' rows' fixed columns and torques, weighted by N[k, j]
-        self.by_joint = [np.column_stack([self.G3[:, j], tau[:, j]]) for j in range(n)] if coupling is None else [
-            np.column_stack([np.einsum("tjr,j->tr", self.G3, w), tau @ w]) for w in coupling]
         self.S = np.zeros((N, n, slot))  # each joint's (or motor's) friction columns, on its own rows
         if coupling is not None:
             self.overlap = coupling @ coupling.T  # (n, n): sum_j N[k, j] N[l, j]
+
+    def fixed_torque(self, rows: slice, w: np.ndarray) -> np.ndarray:
+        """(len, n): the fixed columns' torque G w on the joints' rows `rows` (w (r,))."""
+        if self.G3 is not None:  # as one matrix: numpy loops over a stack's rows
+            G = self.G3[rows]
+            return (G.reshape(-1, self.r) @ w).reshape(G.shape[:2])
+        w_and_no_torque = np.append(w, 0.0)  # a joint's rows hold its torque last: one product, no copy
+        return np.column_stack([joint[rows] @ w_and_no_torque for joint in self.by_joint])
 
     def set(self, j: int, C: np.ndarray) -> None:
         """Joint j's (motor j's) friction columns C (N, m <= slot); the slot's unused columns stay zero,
@@ -289,17 +306,15 @@ class _Normal:
     def _rows_sse(self, f: slice, x: np.ndarray) -> float:
         """The squared error of the rows f predicted by the fit x, from the rows."""
         r, n = self.r, self.n
-        G = self.G3[f]
         drive = (self.S[f] * x[r:].reshape(n, self.slot)).sum(axis=-1)
-        pred = ((G.reshape(-1, r) @ x[:r]).reshape(G.shape[:2])
-                + (drive if self.coupling is None else drive @ self.coupling))
+        pred = self.fixed_torque(f, x[:r]) + (drive if self.coupling is None else drive @ self.coupling)
         residual = (pred - self.tau[f]).ravel()
         return float(residual @ residual)
 
     def rigid_torque(self) -> np.ndarray:
         """(N, n) the rigid-body torque of the fit on every fold."""
         g = self._solve(self.M.sum(0), self.rhs.sum(0))[: self.r]
-        return links_torque(self.G3, g, self.link_part)
+        return self.fixed_torque(slice(None), links_weights(g, self.link_part))
 
 
 def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
@@ -332,9 +347,8 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
                          f"(about {300 * n} trials of {config.folds} factorisations each) would take too long")
     law_shaped = {drive_column(n, j, key) for j in range(n) for key in ("viscous", "coulomb")}  # a law's columns
     kept = np.array([k for k, c in enumerate(independent) if c not in law_shaped])
-    G = W.reshape(N, n, -1)[order][:, :, independent[kept]]
-    normal = _Normal(G.reshape(N * n, -1), tuple(x[kept] for x in link_part), tau, folds, slot,
-                     None if transmission is None else transmission.N)
+    normal = _Normal(W.reshape(N, n, -1), independent[kept], order, tuple(x[kept] for x in link_part), tau, folds,
+                     slot, None if transmission is None else transmission.N)
 
     def at_motor(x: np.ndarray) -> np.ndarray:  # a joint torque as its motors' share
         return x if transmission is None else transmission.motor_torques(x)

@@ -202,11 +202,13 @@ def solve(K: np.ndarray, L: np.ndarray, names: Sequence[str], column_floor: np.n
                         kappa, weakly_identifiable(kappa))
 
 
-def sensitivity(K: np.ndarray, L: np.ndarray) -> np.ndarray:
+def sensitivity(K: np.ndarray, L: np.ndarray, svd: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """||row k of K^+|| ||L||: the change of parameter k per unit relative change of L in the worst
     direction (divide by the parameter's magnitude for the relative change). From the SVD of K:
-    K^+ = V S^-1 U^T, whose row norms are those of V S^-1. Infinite along undetermined directions."""
-    _, S, Vt = np.linalg.svd(K, full_matrices=False)
+    K^+ = V S^-1 U^T, whose row norms are those of V S^-1. Infinite along undetermined directions.
+    `svd`: K's singular values and right singular vectors where they are known (those of its triangle R,
+    K = Q R: harness/base/numerics.py, `triangle`)."""
+    S, Vt = svd if svd is not None else np.linalg.svd(K, full_matrices=False)[1:]
     determined = S > S[0] * np.finfo(float).eps * max(K.shape)
     out = np.sqrt(np.sum((Vt[determined].T / S[determined]) ** 2, axis=1)) * np.linalg.norm(L)
     return np.where(np.any(np.abs(Vt[~determined]) > 1e-8, axis=0), np.inf, out)
@@ -221,17 +223,18 @@ def weakly_identifiable(kappa: np.ndarray) -> np.ndarray:
         return (kappa > WEAK_RATIO * np.median(kappa[good])) & ~np.isnan(kappa)
 
 
-def sandwich_std(Ks: np.ndarray, r: np.ndarray, w: np.ndarray, cluster: np.ndarray | None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def sandwich_std(Ks: np.ndarray, r: np.ndarray, w: np.ndarray, cluster: np.ndarray | None,
+                 svd: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Standard deviation and 95 % half width of the weighted least-squares estimate z of
     W^1/2 Ks z = W^1/2 L with residuals r: the CR3 cluster-robust sandwich (module docstring).
-    Infinite along directions the data leave undetermined; NaN with fewer than two clusters."""
+    Infinite along directions the data leave undetermined; NaN with fewer than two clusters. `svd`:
+    W^1/2 Ks's singular values and right singular vectors where they are known (`sensitivity`)."""
     p = Ks.shape[1]
     cluster = np.arange(len(r)) if cluster is None else cluster
-    Xw = Ks * w[:, None]  # K^T W r = (W K)^T r
+    Xw = Ks if np.all(w == 1.0) else Ks * w[:, None]  # K^T W r = (W K)^T r
     # (K^T W K)^-1 from the SVD of W^1/2 K, not by inverting K^T W K (which squares its
     # condition number); a direction the data do not determine has infinite variance
-    _, S, Vt = np.linalg.svd(Ks * np.sqrt(w)[:, None], full_matrices=False)
+    S, Vt = svd if svd is not None else np.linalg.svd(Ks * np.sqrt(w)[:, None], full_matrices=False)[1:]
     determined = S > S[0] * np.finfo(float).eps * max(Ks.shape)
     bread = (Vt[determined].T / S[determined] ** 2) @ Vt[determined]
     undetermined = np.any(np.abs(Vt[~determined]) > 1e-8, axis=0)

@@ -21,9 +21,9 @@ import pinocchio as pin
 from harness.base.numerics import (
     column_scale,
     condition,
-    equilibrated_singular_values,
     live_columns,
     parameter_scale,
+    triangle,
 )
 from harness.engines.pinocchio import PinocchioModel
 from harness.identify.estimators import ols
@@ -143,13 +143,33 @@ class BaseParameters:
         return link, np.where(link, share, 0.0)
 
 
-def links_torque(G: np.ndarray, beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """The links' part of a base-parameter fit's torque, the rigid-body torque tau_R: G (..., r) the
-    base parameters' columns, beta (r,) their values, link_part from BaseParameters.link_part (which
-    of them hold a link's inertia, and the drive's share in each, taken out)."""
+def links_weights(beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """(r,): the weights of the base parameters' columns in the links' part of a fit's torque (beta (r,)
+    their values, link_part from BaseParameters.link_part: which of them hold a link's inertia, and the
+    drive's share in each, taken out)."""
     link, share = link_part
-    w = np.where(link, beta - share, 0.0)  # one product over every column: a column subset would copy G
+    return np.where(link, beta - share, 0.0)
+
+
+def links_torque(G: np.ndarray, beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
+                 columns: np.ndarray | None = None) -> np.ndarray:
+    """The links' part of a base-parameter fit's torque, the rigid-body torque tau_R: G (..., r) the
+    base parameters' columns (or the whole regressor, of which they are `columns`), beta (r,) their
+    values (`links_weights`)."""
+    w = links_weights(beta, link_part)  # one product over every column: a column subset would copy G
+    if columns is not None:
+        w = np.zeros(G.shape[-1])
+        w[columns] = links_weights(beta, link_part)
     return (G.reshape(-1, G.shape[-1]) @ w).reshape(G.shape[:-1])  # as one matrix: numpy loops over a stack's rows
+
+
+def beside(W: np.ndarray, columns: np.ndarray, E: np.ndarray) -> np.ndarray:
+    """[W[:, columns] | E] as one array, W's columns copied once (a column subset, then joined, would
+    copy them twice: a long log's regressor is the largest thing a run holds)."""
+    out = np.empty((W.shape[0], len(columns) + E.shape[1]))
+    np.take(W, columns, axis=1, out=out[:, : len(columns)], mode="clip")  # clip: out is written, not buffered
+    out[:, len(columns):] = E
+    return out
 
 
 def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameters:
@@ -274,8 +294,8 @@ def fit_base(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit
     L = tau.reshape(-1)
     est = ols(W1, L, tau.shape[1])
     s = column_scale(W1)
-    sv = equilibrated_singular_values(W1)
-    kappa = sensitivity(W1 / s, L) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
+    _, sv, Vt = np.linalg.svd(triangle((W1,), L, s)[0], full_matrices=False)  # the scaled regressor's
+    kappa = sensitivity(W1, L, (sv, Vt)) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
     return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), condition(sv))
 
 

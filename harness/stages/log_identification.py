@@ -25,12 +25,13 @@ ones reading the training span alone:
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from harness.base.numerics import relative_residual
+from harness.base.numerics import column_scale, triangle
 from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
 from harness.engines.pinocchio import PinocchioModel, build_model, rnea
@@ -41,6 +42,7 @@ from harness.identify.repeat import Repeatability, repeat
 from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
+    beside,
     describe_base,
     drive_column,
     fit_base,
@@ -109,7 +111,7 @@ class Delayed:
     note: str | None
     training: TimeSeries
     validation: TimeSeries | None
-    W: np.ndarray  # (N n, 14 n)
+    W: np.ndarray | None  # (N n, 14 n); None once the fit has taken it (`run`)
 
 
 def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
@@ -205,8 +207,10 @@ class LeastSquares:
 
 
 def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[str], training: TimeSeries,
-                  W: np.ndarray, laws: LawChoice, segments: int | None) -> LeastSquares:
-    """W: the training span's regressor at the model's own velocities (Delayed.W)."""
+                  W: np.ndarray | None, laws: LawChoice, segments: int | None) -> LeastSquares:
+    """W: the training span's regressor at the model's own velocities (Delayed.W), which the fit takes
+    over (its Coulomb columns are rewritten in place on a filtered log); None where a law was chosen
+    (the regressor is then made at its velocities)."""
     q, qd, qdd, tau = training.joint_data(joints)
     n = len(joints)
     if laws.choice is not None:  # the regressor with the chosen smoothing velocities
@@ -218,11 +222,11 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
     columns = filtered_columns(training)
     if columns is not None:  # the Coulomb columns filtered as the torques were
         W = filtered.with_filtered_coulomb(W, columns, training.t, laws.laws, robot.transmission,
-                                           lambda k: drive_column(n, k, "coulomb"))
+                                           lambda k: drive_column(n, k, "coulomb"), in_place=True)
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws.laws)])
     beta_model = np.concatenate([model.base.of(model.x_model), extra_model])
     E = extra_regressor(laws.laws, qd, rigid, robot.transmission, columns, training.t)
-    W_ls = np.hstack([W[:, model.base.independent], E])
+    W_ls = beside(W, model.base.independent, E)
     ls = with_structure(fit_base(W_ls, tau, beta_model), model.base)
     repeated, note = None, None
     if segments:
@@ -257,17 +261,17 @@ def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], 
     for name, series in spans.items():
         q, qd, qdd, tau = series.joint_data(joints)
         W = fitted.W if name == "training" else regressor(pm_identified, q, qd, qdd, with_friction=True)
-        W_base = W[:, model.base.independent]
-        rigid_ls = links_torque(W_base, fitted.ls.beta[:r], model.link_part).reshape(tau.shape)
+        rigid_ls = links_torque(W, fitted.ls.beta[:r], model.link_part, model.base.independent).reshape(tau.shape)
         columns = filtered_columns(series) if name == "training" else None  # as the fit read it
-        W_span = np.hstack([W_base, extra_regressor(laws, qd, rigid_ls, sc.robot.transmission, columns, series.t)])
+        W_span = beside(W, model.base.independent,
+                        extra_regressor(laws, qd, rigid_ls, sc.robot.transmission, columns, series.t))
         out.states[name], out.measured[name], out.t[name] = (q, qd, qdd), tau, series.t
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
                                  "consistent": rnea(pm_identified, q, qd, qdd).tau,
                                  "model as given": rnea(model.pm, q, qd, qdd).tau}
         if name == "validation":  # the model class's floor there: its least squares on that span itself
-            floor = W_span @ np.linalg.lstsq(W_span, tau.ravel(), rcond=None)[0]
-            out = _with_floor(out, relative_residual(floor.reshape(tau.shape) - tau, tau))
+            floor = triangle((W_span,), tau.ravel(), column_scale(W_span))[2]  # its residual, from its rows' QR
+            out = _with_floor(out, floor / float(np.linalg.norm(tau)))
         if pm_truth is not None:  # what the robot that made the log needs at these states
             out.truth[name] = rnea(pm_truth, q, qd, qdd).tau
     return out
@@ -374,7 +378,11 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     if config.choose:
         ctx.progress("the friction law of every joint (cross-validated within the training span)", None)
     laws = friction_laws(config, robot, model, joints, scaled.training, delayed.W)
-    fitted = least_squares(robot, sc.gravity_W, model, joints, scaled.training, delayed.W, laws, sc.data.repeat)
+    # the model's regressor goes to the fit where no law was chosen, and is let go of either way: one
+    # training regressor is held at a time
+    W_model, delayed = (None if laws.choice is not None else delayed.W), dataclasses.replace(delayed, W=None)
+    fitted = least_squares(robot, sc.gravity_W, model, joints, scaled.training, W_model, laws, sc.data.repeat)
+    del W_model
     ctx.progress("physically consistent parameters (semidefinite program)", None)
     tau = scaled.training.joint_data(joints)[3]
     fit, frictions = consistent.fit_with_laws(fitted.W, fitted.E, tau, laws.laws, model.theta,
