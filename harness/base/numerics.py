@@ -22,6 +22,7 @@ look independent.
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -61,18 +62,62 @@ def live_columns(norms: np.ndarray) -> np.ndarray:
     return norms > ZERO_COLUMN * np.max(norms, initial=0.0)
 
 
-def column_scale(W: np.ndarray) -> np.ndarray:
+def column_scale(W: np.ndarray | SideBySide) -> np.ndarray:
     """(p,) each column's norm; 1 for a column that is not live (`live_columns`: left as it is, not
     divided by zero or blown up)."""
-    s = np.linalg.norm(W, axis=0)
+    s = W.column_norms() if isinstance(W, SideBySide) else np.linalg.norm(W, axis=0)
     return np.where(live_columns(s), s, 1.0)
 
 
-ROWS_AT_A_TIME = 1 << 15  # rows of a tall matrix reduced to its triangle at a time (`triangle`)
+ROWS_AT_A_TIME = 1 << 15  # rows of a tall matrix read or reduced at a time (`SideBySide`, `triangle`)
 
 
-def triangle(blocks: tuple[np.ndarray, ...], y: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """R, b = Q^T y and ||y - Q b|| of the column-scaled A = [blocks side by side] / col = Q R (Q with
+@dataclass(frozen=True, eq=False)
+class SideBySide:
+    """Column blocks side by side, [B_1 | B_2 | ...], never joined: each block an array or an array's
+    columns `(array, columns)`; read a chunk of rows at a time (`A[a:b]`, a joined copy of those rows),
+    multiplied by a vector, its columns' norms taken, without a copy of the whole (a long log's
+    regressor is the largest thing a run holds: [W[:, base] | E] joined copies most of it again)."""
+
+    blocks: tuple
+
+    def _parts(self):
+        for block in self.blocks:
+            yield block if isinstance(block, tuple) else (block, None)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        rows = self.blocks[0][0].shape[0] if isinstance(self.blocks[0], tuple) else self.blocks[0].shape[0]
+        return rows, sum(B.shape[1] if columns is None else len(columns) for B, columns in self._parts())
+
+    def __getitem__(self, rows: slice) -> np.ndarray:
+        return np.column_stack([B[rows] if columns is None else B[rows][:, columns] for B, columns in self._parts()])
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        out, at = np.zeros(self.shape[0]), 0
+        for B, columns in self._parts():
+            width = B.shape[1] if columns is None else len(columns)
+            if columns is None:
+                out += B @ x[at: at + width]
+            else:  # one product over every column of B: a column subset would copy it
+                w = np.zeros(B.shape[1])
+                w[columns] = x[at: at + width]
+                out += B @ w
+            at += width
+        return out
+
+    def column_norms(self) -> np.ndarray:
+        """Each column's norm, its squares summed a chunk of rows at a time (|B|^2 of a whole block
+        would be a copy of it)."""
+        squares = np.zeros(self.shape[1])
+        for a in range(0, self.shape[0], ROWS_AT_A_TIME):
+            chunk = self[a: a + ROWS_AT_A_TIME]
+            squares += np.einsum("ij,ij->j", chunk, chunk)
+        return np.sqrt(squares)
+
+
+def triangle(A: np.ndarray | SideBySide, y: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """R, b = Q^T y and ||y - Q b|| of the column-scaled A / col = Q R (A an array or `SideBySide`; Q with
     orthonormal columns, R upper triangular, min(rows, p) x p): Householder QR of [A | y],
     ROWS_AT_A_TIME rows at a time, each chunk stacked under the triangle of those before (a tall
     matrix's rows reduced in pieces: only a chunk of A is ever copied, where one QR of the whole copies
@@ -83,7 +128,7 @@ def triangle(blocks: tuple[np.ndarray, ...], y: np.ndarray, col: np.ndarray) -> 
     p = len(col)
     T = np.zeros((0, p + 1))
     for a in range(0, len(y), ROWS_AT_A_TIME):
-        rows = np.column_stack([*(B[a: a + ROWS_AT_A_TIME] for B in blocks), y[a: a + ROWS_AT_A_TIME]])
+        rows = np.column_stack([A[a: a + ROWS_AT_A_TIME], y[a: a + ROWS_AT_A_TIME]])
         rows[:, :p] /= col
         T = np.linalg.qr(np.vstack([T, rows]), mode="r")
     k = min(T.shape[0], p)

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import cvxpy as cp
 import numpy as np
 
-from harness.base.numerics import PARAMETER_FLOOR, column_scale, relative_residual, triangle
+from harness.base.numerics import PARAMETER_FLOOR, SideBySide, column_scale, relative_residual, triangle
 from harness.base.tomlio import in_one_line
 from harness.identify.friction_law import Law, extra_terms
 from harness.model.drives import Transmission
@@ -115,24 +115,23 @@ class ConsistentFit:
     extra: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the friction families' coefficients (`fit`)
 
 
-def fit(W: np.ndarray | tuple[np.ndarray, ...], tau: np.ndarray, theta_model: np.ndarray, friction_model: np.ndarray,
+def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, friction_model: np.ndarray,
         scale: np.ndarray, extra: tuple[tuple[int, str], ...] = (), extra_model: np.ndarray | None = None
         ) -> ConsistentFit:
     """W: (rows, 10 n + 4 n + e) regressor (inertial columns, then friction columns, joint by joint,
     harness/identify/torque_id.py, then the columns of the friction families' coefficients `extra`,
-    (joint, harness/model/friction.py EXTRA_KEYS name) each), or those columns in blocks side by side
-    (never joined: harness/base/numerics.py, `triangle`); tau: (rows,); theta_model (n, 10),
+    (joint, harness/model/friction.py EXTRA_KEYS name) each), an array or blocks side by side never joined
+    (harness/base/numerics.py, SideBySide); tau: (rows,); theta_model (n, 10),
     friction_model (n, 4) and extra_model (e,): the model's own values; scale: (14 n + e,) the
     magnitude of each parameter's kind in the model. The families' terms are held physical: an
     asymmetry no larger than its coefficient (so that both directions' coefficients stay
     non-negative), Stribeck and load terms non-negative."""
     n = len(theta_model)
-    blocks = W if isinstance(W, tuple) else (W,)
     extra_model = np.zeros(len(extra)) if extra_model is None else extra_model
     x0 = np.concatenate([theta_model.ravel(), friction_model.ravel(), extra_model])
-    col = np.concatenate([column_scale(B) for B in blocks])
+    col = column_scale(W)
     p = len(col)
-    R, b, _ = triangle(blocks, tau, col)
+    R, b, _ = triangle(W, tau, col)
     norm_tau = float(np.linalg.norm(tau))
     z = cp.Variable(p)  # x * col: the column-scaled unknowns, so that R is well scaled
     x = cp.multiply(z, 1.0 / col)
@@ -187,8 +186,7 @@ def fit(W: np.ndarray | tuple[np.ndarray, ...], tau: np.ndarray, theta_model: np
         xv = zv / col
         if fallback:  # a looser solution may sit just outside the constraints: moved onto them
             xv = _physical(xv, eps, n, extra)
-    parts = np.split(xv, np.cumsum([B.shape[1] for B in blocks])[:-1])
-    residual = relative_residual(sum(B @ x for B, x in zip(blocks, parts, strict=True)) - tau, tau)
+    residual = relative_residual(W @ xv - tau, tau)
     return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n: 14 * n].reshape(n, 4), status, residual, solver,
                          fallback, tuple(attempts), eps, xv[14 * n:])
 
@@ -255,7 +253,7 @@ def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law
     extra_scale = np.array([max(abs(extra_model[c]), rms_tau[k] / max(float(extra_rms[c]), 1e-300))
                             for c, (k, _) in enumerate(terms)])
     scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel(), extra_scale])
-    result = fit((W, E), tau.reshape(-1), theta_model, friction_model, scale, tuple(terms), extra_model)
+    result = fit(SideBySide((W, E)), tau.reshape(-1), theta_model, friction_model, scale, tuple(terms), extra_model)
     frictions = tuple(
         JointFriction(*map(float, result.friction[k]), coulomb_velocity=law.coulomb_velocity,
                       stribeck_velocity=law.stribeck_velocity,

@@ -55,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import NORMAL_975, column_scale, triangle
+from harness.base.numerics import NORMAL_975, SideBySide, column_scale, triangle
 from harness.identify.lstsq import sandwich_std, t_quantile
 
 HUBER_C = 1.345  # Huber's constant: 95 % efficiency under Gaussian noise
@@ -111,19 +111,22 @@ def _finish(W1s: np.ndarray, z: np.ndarray, r: np.ndarray, w: np.ndarray, n: int
     return Estimate(z / s, std / s, half / s, time.perf_counter() - start)
 
 
-def ols(W1: np.ndarray, tau: np.ndarray, n: int, instruments: Instruments | None = None,
+def ols(W1: np.ndarray | SideBySide, tau: np.ndarray, n: int, instruments: Instruments | None = None,
         lags: int = 0) -> Estimate:
     """From the column-scaled regressor's triangle (harness/base/numerics.py, `triangle`: QR of its
     rows a chunk at a time, where numpy's least squares and SVD of the whole copy it several times):
     the solution, with the cut-off numpy's least squares takes for the whole, and the SVD of R, which
-    has the regressor's singular values and right singular vectors, for the sandwich."""
+    has the regressor's singular values and right singular vectors, for the sandwich, which reads the
+    scaled rows a chunk at a time (`sandwich_std`). W1 an array or column blocks never joined
+    (SideBySide)."""
     start = time.perf_counter()
     s = column_scale(W1)
-    R, b, _ = triangle((W1,), tau, s)
+    R, b, _ = triangle(W1, tau, s)
     z = np.linalg.lstsq(R, b, rcond=np.finfo(float).eps * max(W1.shape))[0]
     r = tau - W1 @ (z / s)
-    W1s = W1 / s
-    return _finish(W1s, z, r, np.ones(len(tau)), n, s, start, lags, np.linalg.svd(R, full_matrices=False)[1:])
+    svd = np.linalg.svd(R, full_matrices=False)[1:]
+    std, half = sandwich_std(W1, r, np.ones(len(tau)), clusters(len(r), n, 3 * (lags + 1) if lags else 1), svd, s)
+    return Estimate(z / s, std / s, half / s, time.perf_counter() - start)
 
 
 def _per_joint_variance(r: np.ndarray, n: int, dof: int) -> np.ndarray:

@@ -51,6 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.numerics import ROWS_AT_A_TIME, SideBySide
+
 T_LARGE_DOF = 1000  # beyond it the quantile is the Cornish-Fisher series (its next term under 1e-11 relative)
 
 
@@ -223,41 +225,35 @@ def weakly_identifiable(kappa: np.ndarray) -> np.ndarray:
         return (kappa > WEAK_RATIO * np.median(kappa[good])) & ~np.isnan(kappa)
 
 
-def sandwich_std(Ks: np.ndarray, r: np.ndarray, w: np.ndarray, cluster: np.ndarray | None,
-                 svd: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+def sandwich_std(Ks: np.ndarray | SideBySide, r: np.ndarray, w: np.ndarray, cluster: np.ndarray | None,
+                 svd: tuple[np.ndarray, np.ndarray] | None = None, scale: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Standard deviation and 95 % half width of the weighted least-squares estimate z of
     W^1/2 Ks z = W^1/2 L with residuals r: the CR3 cluster-robust sandwich (module docstring).
     Infinite along directions the data leave undetermined; NaN with fewer than two clusters. `svd`:
-    W^1/2 Ks's singular values and right singular vectors where they are known (`sensitivity`)."""
+    W^1/2 Ks's singular values and right singular vectors where they are known (`sensitivity`).
+    `scale`: Ks is the regressor given (an array or harness/base/numerics.py's SideBySide) over
+    `scale`, read a chunk of clusters at a time and never scaled whole."""
     p = Ks.shape[1]
     cluster = np.arange(len(r)) if cluster is None else cluster
-    Xw = Ks if np.all(w == 1.0) else Ks * w[:, None]  # K^T W r = (W K)^T r
-    # (K^T W K)^-1 from the SVD of W^1/2 K, not by inverting K^T W K (which squares its
-    # condition number); a direction the data do not determine has infinite variance
-    S, Vt = svd if svd is not None else np.linalg.svd(Ks * np.sqrt(w)[:, None], full_matrices=False)[1:]
+    if svd is None:
+        # (K^T W K)^-1 from the SVD of W^1/2 K, not by inverting K^T W K (which squares its
+        # condition number); a direction the data do not determine has infinite variance
+        svd = np.linalg.svd(_scaled(Ks, scale, slice(None)) * np.sqrt(w)[:, None], full_matrices=False)[1:]
+    S, Vt = svd
     determined = S > S[0] * np.finfo(float).eps * max(Ks.shape)
     bread = (Vt[determined].T / S[determined] ** 2) @ Vt[determined]
     undetermined = np.any(np.abs(Vt[~determined]) > 1e-8, axis=0)
     ids, counts = np.unique(cluster, return_counts=True)
     if np.all(counts == counts[0]) and np.array_equal(cluster, np.repeat(ids, counts[0])):
-        # equal, contiguous clusters (one sample each): all at once
-        G, k = len(ids), counts[0]
-        Kc, Xc, rc = Ks.reshape(G, k, -1), Xw.reshape(G, k, -1), r.reshape(G, k)
-        r_adj = None
-        if p < k:
-            # (1 - K_c B X_c^T)^-1 r_c = r_c + K_c B (1 - X_c^T K_c B)^-1 X_c^T r_c (Woodbury): p x p
-            # systems instead of k x k, the same numbers where both are regular
-            XtK_B = np.swapaxes(Xc, 1, 2) @ Kc @ bread
-            Xtr = np.einsum("gkp,gk->gp", Xc, rc)
-            inner_matrix = np.eye(p) - XtK_B
-            if np.all(np.linalg.cond(inner_matrix) < 1e10):  # else a cluster with leverage 1: the k x k form
-                r_adj = rc + (Kc @ (bread @ np.linalg.solve(inner_matrix, Xtr[..., None])))[..., 0]
-        if r_adj is None:
-            H = Kc @ bread @ np.swapaxes(Xc, 1, 2)  # leverage of each cluster on its own fit
-            # a cluster that alone determines a direction has leverage 1: pinv leaves that direction out
-            r_adj = (np.linalg.pinv(np.eye(k) - H) @ rc[..., None])[..., 0]
-        scores = np.einsum("gkp,gk->gp", Xc, r_adj)
+        # equal, contiguous clusters (one sample each): a chunk of clusters at a time
+        k = counts[0]
+        step = max(1, ROWS_AT_A_TIME // k) * k
+        scores = np.concatenate([_cluster_scores(_scaled(Ks, scale, slice(a, a + step)), w[a: a + step],
+                                                 r[a: a + step], k, bread) for a in range(0, len(r), step)])
     else:
+        Ks = _scaled(Ks, scale, slice(None))
+        Xw = Ks * w[:, None]
         scores = []
         for c in ids:
             rows = cluster == c
@@ -272,3 +268,31 @@ def sandwich_std(Ks: np.ndarray, r: np.ndarray, w: np.ndarray, cluster: np.ndarr
     var = np.sum((np.asarray(scores) @ bread) ** 2, axis=0)
     std = np.where(undetermined, np.inf, np.sqrt(var))
     return std, t_quantile(G - 1) * std
+
+
+def _scaled(K, scale: np.ndarray | None, rows: slice) -> np.ndarray:
+    """Rows `rows` of K / scale (K itself where scale is None), as an array."""
+    chunk = K[rows]
+    return chunk if scale is None else chunk / scale
+
+
+def _cluster_scores(Ks: np.ndarray, w: np.ndarray, r: np.ndarray, k: int, bread: np.ndarray) -> np.ndarray:
+    """(clusters, p): the scores X_c^T (1 - H_cc)^-1 r_c of consecutive clusters of k rows (CR3)."""
+    p = Ks.shape[1]
+    Xw = Ks if np.all(w == 1.0) else Ks * w[:, None]  # K^T W r = (W K)^T r
+    G = len(r) // k
+    Kc, Xc, rc = Ks.reshape(G, k, -1), Xw.reshape(G, k, -1), r.reshape(G, k)
+    r_adj = None
+    if p < k:
+        # (1 - K_c B X_c^T)^-1 r_c = r_c + K_c B (1 - X_c^T K_c B)^-1 X_c^T r_c (Woodbury): p x p
+        # systems instead of k x k, the same numbers where both are regular
+        XtK_B = np.swapaxes(Xc, 1, 2) @ Kc @ bread
+        Xtr = np.einsum("gkp,gk->gp", Xc, rc)
+        inner_matrix = np.eye(p) - XtK_B
+        if np.all(np.linalg.cond(inner_matrix) < 1e10):  # else a cluster with leverage 1: the k x k form
+            r_adj = rc + (Kc @ (bread @ np.linalg.solve(inner_matrix, Xtr[..., None])))[..., 0]
+    if r_adj is None:
+        H = Kc @ bread @ np.swapaxes(Xc, 1, 2)  # leverage of each cluster on its own fit
+        # a cluster that alone determines a direction has leverage 1: pinv leaves that direction out
+        r_adj = (np.linalg.pinv(np.eye(k) - H) @ rc[..., None])[..., 0]
+    return np.einsum("gkp,gk->gp", Xc, r_adj)

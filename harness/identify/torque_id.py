@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from harness.base.numerics import (
+    SideBySide,
     column_scale,
     condition,
     live_columns,
@@ -163,15 +164,6 @@ def links_torque(G: np.ndarray, beta: np.ndarray, link_part: tuple[np.ndarray, n
     return (G.reshape(-1, G.shape[-1]) @ w).reshape(G.shape[:-1])  # as one matrix: numpy loops over a stack's rows
 
 
-def beside(W: np.ndarray, columns: np.ndarray, E: np.ndarray) -> np.ndarray:
-    """[W[:, columns] | E] as one array, W's columns copied once (a column subset, then joined, would
-    copy them twice: a long log's regressor is the largest thing a run holds)."""
-    out = np.empty((W.shape[0], len(columns) + E.shape[1]))
-    np.take(W, columns, axis=1, out=out[:, : len(columns)], mode="clip")  # clip: out is written, not buffered
-    out[:, len(columns):] = E
-    return out
-
-
 def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameters:
     from scipy.linalg import qr, solve_triangular  # pivoted QR: numpy has none; imported where needed
 
@@ -285,7 +277,7 @@ class BaseFit:
     condition_number: float  # of the column-scaled base regressor
 
 
-def fit_base(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit:
+def fit_base(W1: np.ndarray | SideBySide, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit:
     """Least squares of the base parameters from torques tau (N, n) and their regressor W1 (N n, r):
     ordinary least squares on the column-scaled regressor with CR3 intervals clustered by sample (a
     sample's joints share noise; harness/identify/estimators.py), the scaled regressor's condition number,
@@ -294,7 +286,7 @@ def fit_base(W1: np.ndarray, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit
     L = tau.reshape(-1)
     est = ols(W1, L, tau.shape[1])
     s = column_scale(W1)
-    _, sv, Vt = np.linalg.svd(triangle((W1,), L, s)[0], full_matrices=False)  # the scaled regressor's
+    _, sv, Vt = np.linalg.svd(triangle(W1, L, s)[0], full_matrices=False)  # the scaled regressor's
     kappa = sensitivity(W1, L, (sv, Vt)) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
     return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), condition(sv))
 

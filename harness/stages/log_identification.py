@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.base.numerics import column_scale, triangle
+from harness.base.numerics import SideBySide, column_scale, triangle
 from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
 from harness.engines.pinocchio import PinocchioModel, build_model, rnea
@@ -42,7 +42,6 @@ from harness.identify.repeat import Repeatability, repeat
 from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
-    beside,
     describe_base,
     drive_column,
     fit_base,
@@ -226,7 +225,7 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws.laws)])
     beta_model = np.concatenate([model.base.of(model.x_model), extra_model])
     E = extra_regressor(laws.laws, qd, rigid, robot.transmission, columns, training.t)
-    W_ls = beside(W, model.base.independent, E)
+    W_ls = SideBySide(((W, model.base.independent), E))  # never joined: a long log's regressor is large
     ls = with_structure(fit_base(W_ls, tau, beta_model), model.base)
     repeated, note = None, None
     if segments:
@@ -263,14 +262,14 @@ def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], 
         W = fitted.W if name == "training" else regressor(pm_identified, q, qd, qdd, with_friction=True)
         rigid_ls = links_torque(W, fitted.ls.beta[:r], model.link_part, model.base.independent).reshape(tau.shape)
         columns = filtered_columns(series) if name == "training" else None  # as the fit read it
-        W_span = beside(W, model.base.independent,
-                        extra_regressor(laws, qd, rigid_ls, sc.robot.transmission, columns, series.t))
+        W_span = SideBySide(((W, model.base.independent),
+                             extra_regressor(laws, qd, rigid_ls, sc.robot.transmission, columns, series.t)))
         out.states[name], out.measured[name], out.t[name] = (q, qd, qdd), tau, series.t
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
                                  "consistent": rnea(pm_identified, q, qd, qdd).tau,
                                  "model as given": rnea(model.pm, q, qd, qdd).tau}
         if name == "validation":  # the model class's floor there: its least squares on that span itself
-            floor = triangle((W_span,), tau.ravel(), column_scale(W_span))[2]  # its residual, from its rows' QR
+            floor = triangle(W_span, tau.ravel(), column_scale(W_span))[2]  # its residual, from its rows' QR
             out = _with_floor(out, floor / float(np.linalg.norm(tau)))
         if pm_truth is not None:  # what the robot that made the log needs at these states
             out.truth[name] = rnea(pm_truth, q, qd, qdd).tau
