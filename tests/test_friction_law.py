@@ -405,16 +405,20 @@ def _held_out_by_lstsq(normal, G3: np.ndarray, C: list[np.ndarray], tau: np.ndar
 
 
 @pytest.mark.parametrize("coupled", [False, True])
-def test_the_held_out_error_from_the_folds_normal_equations_is_the_rows_and_below_its_floor_the_rows_answer(coupled):
+def test_the_held_out_error_from_the_folds_normal_equations_is_the_rows_and_below_its_floor_the_rows_answer(
+        coupled, monkeypatch):
     """The search's held-out error (_Normal.held_out_sse: |tau_k|^2 - x.(2 r_k - M_k x) from fold k's
     normal equations) equals each fold's squared error computed from its rows by numpy's least squares,
     joint by joint and through a coupled transmission (a motor's columns reaching two joints), to 1e-9
     relative (measured 7e-12 on the Panda's log; the normal equations lose about 10 eps |tau_k|^2, and
     here the error is 7e-3 of |tau_k|^2). On torques the columns fit to round-off the normal equations'
     form would answer with its own round-off (about 1e-15 |tau_k|^2, or a negative error): the rows
-    answer, at round-off squared."""
+    answer, at round-off squared. The fixed columns are read 128 samples at a time (the search reads a long
+    log's regressor in chunks, never whole)."""
+    from harness.identify import friction_law
     from harness.identify.friction_law import GRAM_FLOOR, _Normal, blocked_folds
 
+    monkeypatch.setattr(friction_law, "SAMPLES_AT_A_TIME", 128)  # the regressor's rows read in five chunks
     rng = np.random.default_rng(7)
     N, n, r, slot = 600, 3, 8, 4
     coupling = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.5, 1.0]]) if coupled else None
@@ -426,8 +430,8 @@ def test_the_held_out_error_from_the_folds_normal_equations_is_the_rows_and_belo
         exact += (c @ rng.normal(size=c.shape[1]))[:, None] * weights[None, :]
     for noise, floor in ((0.3, None), (0.0, GRAM_FLOOR)):
         tau = exact + noise * rng.normal(size=exact.shape)
-        normal = _Normal(G3, np.arange(r), np.arange(N), (np.ones(r, bool), np.zeros(r)), tau, blocked_folds(N, 5, 6),
-                         slot, coupling)
+        normal = _Normal(lambda samples: G3[samples], np.arange(r), np.arange(N), (np.ones(r, bool), np.zeros(r)), tau,
+                         blocked_folds(N, 5, 6), slot, coupling)
         for k, c in enumerate(C):
             normal.set(k, c)
         sse, tau_k = normal.held_out_sse(), np.array([np.sum(tau[f] ** 2) for f in normal.folds])

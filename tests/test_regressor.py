@@ -69,3 +69,18 @@ def test_the_two_layouts_and_pinocchios_loop_give_one_regressor(monkeypatch):
     monkeypatch.setattr(harness.identify.torque_id, "batched_supports", lambda model: False)
     looped = regressor_by_joint(pm, q, qd, qdd, True)
     np.testing.assert_allclose(looped, by_joint, rtol=0, atol=1e-13 * np.abs(by_joint).max())
+
+
+@pytest.mark.parametrize("robot", list(ROBOTS))
+def test_the_regressor_made_a_chunk_of_samples_at_a_time_is_the_whole_bit_for_bit(robot, monkeypatch):
+    """regressor() makes its rows SAMPLES_AT_A_TIME samples at a time (a long log's regressor is not
+    made twice over, once joint by joint and once transposed): each sample's rows are computed alone,
+    so the chunks (here 37 samples, the last one short) give the whole's rows bit for bit."""
+    spec = load_spec(ROBOTS[robot])
+    pm = build_model(spec, GRAVITY)
+    n = len(spec.joint_names)
+    q, qd, qdd = _states(pm.model.nq, 200, seed=4)
+    q, qd, qdd = q[:, :n], qd[:, :n], qdd[:, :n]
+    whole = regressor_by_joint(pm, q, qd, qdd, True).transpose(2, 0, 1).reshape(len(q) * n, -1)
+    monkeypatch.setattr(harness.identify.torque_id, "SAMPLES_AT_A_TIME", 37)
+    np.testing.assert_array_equal(regressor(pm, q, qd, qdd, True), whole)

@@ -51,6 +51,7 @@ REFINE_TOL = 1e-3  # in log v: a velocity to 0.1 %
 REFINE_EVALUATIONS = 60  # trials of the joint (v_c, v_s) refinement
 LOAD_ITERATIONS = 3  # fixed-point steps of a load-dependent law's rigid-body torque
 MIN_FOLD = 50  # samples each part of the training span needs
+SAMPLES_AT_A_TIME = 4096  # samples of the regressor read at a time (`_Normal`)
 KEPT_COLUMNS = 64  # filtered friction columns a search keeps for reuse (`_LawColumns`)
 GRAM_FLOOR = 1e-5  # a fold's squared error below this of its |tau|^2 is taken from its rows (_Normal.held_out_sse)
 MAX_UNKNOWNS = 250  # base parameters and friction slots beyond which the choice is not tried (the Panda: 83)
@@ -198,12 +199,13 @@ class _Normal:
     own. The fit that predicts fold k solves (sum M - sum_{i left out} M_i) x = (the same of r) and
     predicts fold k's rows. Replacing joint j's columns rewrites its slot only: O(N r) per trial."""
 
-    def __init__(self, W3: np.ndarray, columns: np.ndarray, order: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
+    def __init__(self, rows_of, columns: np.ndarray, order: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
                  tau: np.ndarray, folds: Folds, slot: int, coupling: np.ndarray | None = None):
-        """W3 (N, n, c): the regressor's rows, of which the fixed columns G are `columns`, read in the
-        rows' `order` (time); tau (N, n) in that order. Without a transmission, G is kept once, joint
-        by joint beside the joint's torque (`by_joint`), and never whole: a long log's regressor is the
-        largest thing a run holds."""
+        """rows_of(samples) -> (len, n, c): the regressor's rows of those samples (`regressor_rows`), of
+        which the fixed columns G are `columns`, read in the samples' `order` (time) SAMPLES_AT_A_TIME at
+        a time; tau (N, n) in that order. Without a transmission, G is kept once, joint by joint beside
+        the joint's torque (`by_joint`), and never whole: a long log's regressor is the largest thing a
+        run holds, and the search need not hold it."""
         N, n = tau.shape
         # with a transmission, slot k holds motor k's columns, which reach joint j times coupling[k, j]
         # (N of harness/model/drives.py); None: slot j is joint j's own, on its rows alone
@@ -220,8 +222,13 @@ class _Normal:
         # (N, r + 1) per joint: its rows' fixed columns and its torque; with a transmission, what motor k's
         # slot meets: the joints' rows' fixed columns and torques, weighted by N[k, j], and G3 (N, n, r)
         # the joints' rows themselves
-        rows = order[:, None], columns[None, :]
-        own = [np.column_stack([W3[:, j][rows], tau[:, j]]) for j in range(n)]
+        own = [np.empty((N, r + 1)) for _ in range(n)]
+        for a in range(0, N, SAMPLES_AT_A_TIME):
+            block = rows_of(order[a: a + SAMPLES_AT_A_TIME])
+            for j, g in enumerate(own):
+                g[a: a + len(block), :r] = block[:, j, columns]
+        for j, g in enumerate(own):
+            g[:, r] = tau[:, j]
         self.G3 = None if coupling is None else np.stack([g[:, :r] for g in own], axis=1)
         self.by_joint = own if coupling is None else [
             np.column_stack([np.einsum("tjr,j->tr", self.G3, w), tau @ w]) for w in coupling]
@@ -317,11 +324,19 @@ class _Normal:
         return self.fixed_torque(slice(None), links_weights(g, self.link_part))
 
 
-def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
+def regressor_rows(W: np.ndarray, n: int):
+    """`rows_of` of an array W (N n, c), the regressor with friction: samples -> (len, n, c)."""
+    W3 = W.reshape(-1, n, W.shape[1])
+    return lambda samples: W3[samples]
+
+
+def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
            qd: np.ndarray, t: np.ndarray, model: tuple[JointFriction, ...], config: FrictionLawConfig,
            reach: float = 0.0, transmission: Transmission | None = None, columns=None) -> FrictionChoice:
     """Each joint's friction law, chosen within the training span. W: (N n, 10 n + 4 n) the
-    regressor with friction (harness/identify/torque_id.py), `independent` the base parameters'
+    regressor with friction (harness/identify/torque_id.py), or a function of sample indices that
+    gives their rows (len, n, 10 n + 4 n) (`regressor_rows`: a long log's regressor made a chunk of
+    samples at a time, never whole), `independent` the base parameters'
     columns and `link_part` which hold a link's parameters and the drive's share in each
     (BaseParameters.link_part: the rigid-body torque of a load-dependent law); tau, qd: (N, n);
     t: (N,); `reach` (s) how far a sample's conditioning reaches, the guard around each fold
@@ -347,8 +362,9 @@ def choose(W: np.ndarray, independent: np.ndarray, link_part: tuple[np.ndarray, 
                          f"(about {300 * n} trials of {config.folds} factorisations each) would take too long")
     law_shaped = {drive_column(n, j, key) for j in range(n) for key in ("viscous", "coulomb")}  # a law's columns
     kept = np.array([k for k, c in enumerate(independent) if c not in law_shaped])
-    normal = _Normal(W.reshape(N, n, -1), independent[kept], order, tuple(x[kept] for x in link_part), tau, folds,
-                     slot, None if transmission is None else transmission.N)
+    rows_of = regressor_rows(W, n) if isinstance(W, np.ndarray) else W
+    normal = _Normal(rows_of, independent[kept], order, tuple(x[kept] for x in link_part), tau, folds, slot,
+                     None if transmission is None else transmission.N)
 
     def at_motor(x: np.ndarray) -> np.ndarray:  # a joint torque as its motors' share
         return x if transmission is None else transmission.motor_torques(x)

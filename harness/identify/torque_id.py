@@ -58,8 +58,15 @@ def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
     """(N * n, 10 n [+ 4 n]): the joint torque regressor of every sample, rows sample by sample in
     the spec's joint order, columns joint by joint (the body each joint carries); with friction,
     then per joint the columns of [armature, viscous, coulomb, offset] (harness/model/friction.py)."""
-    W = regressor_by_joint(pm, q, qd, qdd, with_friction)  # (n, p, N)
-    return np.ascontiguousarray(W.transpose(2, 0, 1)).reshape(len(q) * W.shape[0], -1)
+    n, N = len(pm.joint_ids), len(q)
+    out = np.empty((N, n, 14 * n if with_friction else 10 * n))
+    for a in range(0, N, SAMPLES_AT_A_TIME):  # joint by joint, then transposed: a chunk at a time, not a copy
+        out[a: a + SAMPLES_AT_A_TIME] = regressor_by_joint(pm, *(x[a: a + SAMPLES_AT_A_TIME] for x in (q, qd, qdd)),
+                                                           with_friction).transpose(2, 0, 1)
+    return out.reshape(N * n, -1)
+
+
+SAMPLES_AT_A_TIME = 8192  # samples of the regressor made at a time (`regressor`)
 
 
 def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,

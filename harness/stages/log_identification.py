@@ -110,7 +110,7 @@ class Delayed:
     note: str | None
     training: TimeSeries
     validation: TimeSeries | None
-    W: np.ndarray | None  # (N n, 14 n); None once the fit has taken it (`run`)
+    W: np.ndarray | None  # (N n, 14 n); None once the delays and the constants have read it (`run`)
 
 
 def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
@@ -176,13 +176,20 @@ def filtered_columns(series: TimeSeries):
     return columns if columns is not None and columns.covers(series.t) else None
 
 
-def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: list[str], training: TimeSeries,
-                  W: np.ndarray) -> LawChoice:
+def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: list[str],
+                  training: TimeSeries) -> LawChoice:
+    """The search reads the training span's regressor at the model's velocities a chunk of samples at a
+    time (its fixed columns do not depend on a law's), never whole."""
     choice, note = None, None
     if config.choose:
-        _, qd, _, tau = training.joint_data(joints)
+        q, qd, qdd, tau = training.joint_data(joints)
+
+        def rows_of(samples: np.ndarray) -> np.ndarray:
+            return regressor(model.pm, q[samples], qd[samples], qdd[samples], with_friction=True).reshape(
+                len(samples), len(joints), -1)
+
         try:
-            choice = friction_law.choose(W, model.base.independent, model.link_part, tau, qd, training.t,
+            choice = friction_law.choose(rows_of, model.base.independent, model.link_part, tau, qd, training.t,
                                          robot.frictions, config, training.meta.get("reach_s", 0.0),
                                          robot.transmission, filtered_columns(training))
         except ValueError as exc:
@@ -206,10 +213,9 @@ class LeastSquares:
 
 
 def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[str], training: TimeSeries,
-                  W: np.ndarray | None, laws: LawChoice, segments: int | None) -> LeastSquares:
-    """W: the training span's regressor at the model's own velocities (Delayed.W), which the fit takes
-    over (its Coulomb columns are rewritten in place on a filtered log); None where a law was chosen
-    (the regressor is then made at its velocities)."""
+                  laws: LawChoice, segments: int | None) -> LeastSquares:
+    """On the training span's regressor at the laws' velocities (the chosen ones, or the model's own),
+    made here: its Coulomb columns are rewritten in place on a filtered log."""
     q, qd, qdd, tau = training.joint_data(joints)
     n = len(joints)
     if laws.choice is not None:  # the regressor with the chosen smoothing velocities
@@ -217,6 +223,7 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
                       q, qd, qdd, with_friction=True)
         rigid = laws.choice.tau_rigid
     else:
+        W = regressor(model.pm, q, qd, qdd, with_friction=True)
         rigid = (W[:, : 10 * n] @ model.theta.ravel()).reshape(tau.shape)
     columns = filtered_columns(training)
     if columns is not None:  # the Coulomb columns filtered as the torques were
@@ -376,12 +383,11 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     config = config or FrictionLawConfig()
     if config.choose:
         ctx.progress("the friction law of every joint (cross-validated within the training span)", None)
-    laws = friction_laws(config, robot, model, joints, scaled.training, delayed.W)
-    # the model's regressor goes to the fit where no law was chosen, and is let go of either way: one
-    # training regressor is held at a time
-    W_model, delayed = (None if laws.choice is not None else delayed.W), dataclasses.replace(delayed, W=None)
-    fitted = least_squares(robot, sc.gravity_W, model, joints, scaled.training, W_model, laws, sc.data.repeat)
-    del W_model
+    # the model's regressor served the delays and the constants: let go of, the search and the fit
+    # make theirs (one training regressor is held at a time)
+    delayed = dataclasses.replace(delayed, W=None)
+    laws = friction_laws(config, robot, model, joints, scaled.training)
+    fitted = least_squares(robot, sc.gravity_W, model, joints, scaled.training, laws, sc.data.repeat)
     ctx.progress("physically consistent parameters (semidefinite program)", None)
     tau = scaled.training.joint_data(joints)[3]
     fit, frictions = consistent.fit_with_laws(fitted.W, fitted.E, tau, laws.laws, model.theta,
