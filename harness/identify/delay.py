@@ -94,10 +94,10 @@ def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LAR
                          f"{largest * 1e3:g} ms")
     n = tau.shape[1]
     curve = np.empty((n, len(candidates)))
-    bases = [_basis(W[rows, j, :]) for j in range(n)]
-    for j in range(n):
+    for j in range(n):  # one joint's basis at a time: together they are the size of the regressor
+        basis = _basis(W[rows, j, :])
         for k, d in enumerate(candidates):
-            curve[j, k] = _residual(bases[j], np.interp(t[rows] + d, t, tau[:, j]))
+            curve[j, k] = _residual(basis, np.interp(t[rows] + d, t, tau[:, j]))
     best = np.argmin(curve, axis=1)
     delay = candidates[best].astype(float)
     residual = curve[np.arange(n), best].copy()
