@@ -87,7 +87,7 @@ class SideBySide:
 
     @property
     def shape(self) -> tuple[int, int]:
-        rows = self.blocks[0][0].shape[0] if isinstance(self.blocks[0], tuple) else self.blocks[0].shape[0]
+        rows = next(self._parts())[0].shape[0]
         return rows, sum(B.shape[1] if columns is None else len(columns) for B, columns in self._parts())
 
     def __getitem__(self, rows: slice) -> np.ndarray:

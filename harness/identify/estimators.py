@@ -105,9 +105,12 @@ def clusters(rows: int, n: int, block: int) -> np.ndarray:
     return np.arange(rows) // (n * block)
 
 
-def _finish(W1s: np.ndarray, z: np.ndarray, r: np.ndarray, w: np.ndarray, n: int, s: np.ndarray,
-            start: float, lags: int, svd: tuple[np.ndarray, np.ndarray] | None = None) -> Estimate:
-    std, half = sandwich_std(W1s, r, w, clusters(len(r), n, 3 * (lags + 1) if lags else 1), svd)
+def _finish(W1s: np.ndarray | SideBySide, z: np.ndarray, r: np.ndarray, w: np.ndarray, n: int, s: np.ndarray,
+            start: float, lags: int, svd: tuple[np.ndarray, np.ndarray] | None = None,
+            scale: np.ndarray | None = None) -> Estimate:
+    """The estimate z / s with its CR3 intervals (`sandwich_std`: W1s the scaled regressor, or the
+    regressor over `scale`, read a chunk at a time; `svd` its singular values and vectors if known)."""
+    std, half = sandwich_std(W1s, r, w, clusters(len(r), n, 3 * (lags + 1) if lags else 1), svd, scale)
     return Estimate(z / s, std / s, half / s, time.perf_counter() - start)
 
 
@@ -120,13 +123,36 @@ def ols(W1: np.ndarray | SideBySide, tau: np.ndarray, n: int, instruments: Instr
     scaled rows a chunk at a time (`sandwich_std`). W1 an array or column blocks never joined
     (SideBySide)."""
     start = time.perf_counter()
+    return ols_of(reduced(W1, tau), W1, tau, n, lags, start)
+
+
+@dataclass(frozen=True, eq=False)
+class Reduced:
+    """A regressor reduced once (`reduced`): its column scale s, the triangle R and b = Q^T tau of W1 / s
+    (harness/base/numerics.py, `triangle`), and R's singular values and right singular vectors (the scaled
+    regressor's): what the least squares, its intervals and the sensitivities read."""
+
+    s: np.ndarray
+    R: np.ndarray
+    b: np.ndarray
+    sv: np.ndarray
+    Vt: np.ndarray
+
+
+def reduced(W1: np.ndarray | SideBySide, tau: np.ndarray) -> Reduced:
     s = column_scale(W1)
     R, b, _ = triangle(W1, tau, s)
-    z = np.linalg.lstsq(R, b, rcond=np.finfo(float).eps * max(W1.shape))[0]
-    r = tau - W1 @ (z / s)
-    svd = np.linalg.svd(R, full_matrices=False)[1:]
-    std, half = sandwich_std(W1, r, np.ones(len(tau)), clusters(len(r), n, 3 * (lags + 1) if lags else 1), svd, s)
-    return Estimate(z / s, std / s, half / s, time.perf_counter() - start)
+    _, sv, Vt = np.linalg.svd(R, full_matrices=False)
+    return Reduced(s, R, b, sv, Vt)
+
+
+def ols_of(red: Reduced, W1: np.ndarray | SideBySide, tau: np.ndarray, n: int, lags: int = 0,
+           start: float | None = None) -> Estimate:
+    """`ols` from its regressor's reduction (`reduced`), made once by a caller that reads it too."""
+    start = time.perf_counter() if start is None else start
+    z = np.linalg.lstsq(red.R, red.b, rcond=np.finfo(float).eps * max(W1.shape))[0]
+    r = tau - W1 @ (z / red.s)
+    return _finish(W1, z, r, np.ones(len(tau)), n, red.s, start, lags, (red.sv, red.Vt), red.s)
 
 
 def _per_joint_variance(r: np.ndarray, n: int, dof: int) -> np.ndarray:

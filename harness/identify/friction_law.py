@@ -238,7 +238,7 @@ class _Normal:
                 self.M[k, :r, :r] += product[:r, :r]
                 self.rhs[k, :r] += product[:r, r]
         # (K, P) 0/1: the pieces fold k is made of; (P,) each piece's |tau|^2
-        self.own = np.array([[f.start <= piece.start < f.stop for piece in self.pieces] for f in self.folds], float)
+        self.in_fold = np.array([[f.start <= piece.start < f.stop for piece in self.pieces] for f in self.folds], float)
         self.tau_sq = np.array([float(np.sum(tau[f] ** 2)) for f in self.pieces])
         self.S = np.zeros((N, n, slot))  # each joint's (or motor's) friction columns, on its own rows
         if coupling is not None:
@@ -304,7 +304,8 @@ class _Normal:
         flat = self.M.reshape(P, p * p)
         fitted = 1.0 - self.left_out  # (K, P): the pieces each fold's fit reads
         x = self._solve((fitted @ flat).reshape(-1, p, p), fitted @ self.rhs)  # (K, p): fold k's fit
-        M_k, r_k, tau_k = (self.own @ flat).reshape(-1, p, p), self.own @ self.rhs, self.own @ self.tau_sq
+        M_k, r_k, tau_k = ((self.in_fold @ flat).reshape(-1, p, p), self.in_fold @ self.rhs,
+                            self.in_fold @ self.tau_sq)
         sse = tau_k - np.einsum("kp,kp->k", x, 2 * r_k - np.einsum("kpq,kq->kp", M_k, x))
         for k in np.flatnonzero(~(sse > GRAM_FLOOR * tau_k)):
             sse[k] = self._rows_sse(self.folds[k], x[k])

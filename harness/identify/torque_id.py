@@ -20,14 +20,12 @@ import pinocchio as pin
 
 from harness.base.numerics import (
     SideBySide,
-    column_scale,
     condition,
     live_columns,
     parameter_scale,
-    triangle,
 )
 from harness.engines.pinocchio import PinocchioModel
-from harness.identify.estimators import ols
+from harness.identify.estimators import ols_of, reduced
 from harness.identify.lstsq import sensitivity, weakly_identifiable
 from harness.model import drives, friction
 from harness.model.inertia import PARAMETER_NAMES
@@ -159,15 +157,10 @@ def links_weights(beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray]) ->
     return np.where(link, beta - share, 0.0)
 
 
-def links_torque(G: np.ndarray, beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
-                 columns: np.ndarray | None = None) -> np.ndarray:
+def links_torque(G: np.ndarray, beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """The links' part of a base-parameter fit's torque, the rigid-body torque tau_R: G (..., r) the
-    base parameters' columns (or the whole regressor, of which they are `columns`), beta (r,) their
-    values (`links_weights`)."""
+    base parameters' columns, beta (r,) their values (`links_weights`)."""
     w = links_weights(beta, link_part)  # one product over every column: a column subset would copy G
-    if columns is not None:
-        w = np.zeros(G.shape[-1])
-        w[columns] = links_weights(beta, link_part)
     return (G.reshape(-1, G.shape[-1]) @ w).reshape(G.shape[:-1])  # as one matrix: numpy loops over a stack's rows
 
 
@@ -291,10 +284,10 @@ def fit_base(W1: np.ndarray | SideBySide, tau: np.ndarray, beta_model: np.ndarra
     and each parameter's sensitivity relative to its size in the model or, where the model has it
     zero (a friction the model does not declare), in the estimate."""
     L = tau.reshape(-1)
-    est = ols(W1, L, tau.shape[1])
-    s = column_scale(W1)
-    _, sv, Vt = np.linalg.svd(triangle(W1, L, s)[0], full_matrices=False)  # the scaled regressor's
-    kappa = sensitivity(W1, L, (sv, Vt)) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
+    red = reduced(W1, L)  # the scaled regressor's triangle and its SVD, made once for all three
+    est = ols_of(red, W1, L, tau.shape[1])
+    s, sv = red.s, red.sv
+    kappa = sensitivity(W1, L, (sv, red.Vt)) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
     return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), condition(sv))
 
 

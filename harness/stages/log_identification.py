@@ -45,7 +45,7 @@ from harness.identify.torque_id import (
     describe_base,
     drive_column,
     fit_base,
-    links_torque,
+    links_weights,
     parameter_names,
     regressor,
     structural_base,
@@ -267,10 +267,10 @@ def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], 
     for name, series in spans.items():
         q, qd, qdd, tau = series.joint_data(joints)
         W = fitted.W if name == "training" else regressor(pm_identified, q, qd, qdd, with_friction=True)
-        rigid_ls = links_torque(W, fitted.ls.beta[:r], model.link_part, model.base.independent).reshape(tau.shape)
+        base = (W, model.base.independent)  # the base parameters' columns, never copied out
+        rigid_ls = (SideBySide((base,)) @ links_weights(fitted.ls.beta[:r], model.link_part)).reshape(tau.shape)
         columns = filtered_columns(series) if name == "training" else None  # as the fit read it
-        W_span = SideBySide(((W, model.base.independent),
-                             extra_regressor(laws, qd, rigid_ls, sc.robot.transmission, columns, series.t)))
+        W_span = SideBySide((base, extra_regressor(laws, qd, rigid_ls, sc.robot.transmission, columns, series.t)))
         out.states[name], out.measured[name], out.t[name] = (q, qd, qdd), tau, series.t
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
                                  "consistent": rnea(pm_identified, q, qd, qdd).tau,
