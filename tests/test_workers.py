@@ -11,6 +11,7 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -266,3 +267,26 @@ def test_a_trial_that_ends_its_worker_process_ends_the_map_with_an_error_not_a_w
 
     assert ended(0) == "SystemExit 0"
     assert ended(1).startswith("RuntimeError a worker process ended without handing back its trials")
+
+
+
+_HELD = threading.Lock()  # held by the process that starts a local cluster, in the test below
+
+
+def _takes_the_held_lock(state: dict, task: int) -> bool:
+    """Whether the worker can take _HELD: a worker forked from a process holding it would inherit it held."""
+    taken = _HELD.acquire(timeout=5)
+    if taken:
+        _HELD.release()
+    return taken
+
+
+def test_a_local_clusters_workers_do_not_inherit_the_locks_this_process_holds():
+    """The local cluster's workers start from a process without threads (multiprocessing's fork
+    server), not as forks of this one: a fork copies every lock as it is at that instant, and a
+    worker forked while another thread of this process held sys.stderr's buffer lock waited for it for
+    ever at its first write (seen once in the slow checks). Here a lock is held while the cluster
+    starts and its trials take it, each waiting at most 5 s."""
+    with _HELD:
+        taken = Workers(dask=LOCAL).map(_toy_setup, (0,), _takes_the_held_lock, range(4))
+    assert taken == [True] * 4

@@ -15,7 +15,9 @@ cores). BLAS's thread count belongs to a process, so Dask workers are started si
 
 Within `with workers.opened():` the workers are started once (the Dask cluster started, or the
 scheduler reached) for every map in the block, and what the maps share (the scenario, its
-recording) is sent to them once; outside such a block each map starts and stops its own.
+recording) is sent to them once; outside such a block each map starts and stops its own. A local
+cluster's workers import the main module of the process that starts it (`_start_method`), as
+multiprocessing's do: a script starts one under `if __name__ == "__main__":`.
 """
 
 from __future__ import annotations
@@ -233,16 +235,15 @@ def _client(address: str):
         import logging
         import multiprocessing
 
-        # workers forked from this process start with its modules imported (about 0.5 s for two on 2
-        # cores, against 2 s spawned: each would import numpy, MuJoCo, Pinocchio and the harness again);
-        # what serves only a dashboard (none is served: bokeh is not required) is switched off, the
-        # memory watch slowed, and the event loops' tick, which only watches for a loop held up (a
-        # warning after 3 s), taken every second instead of every 20 ms. A worker's loop shares the
-        # interpreter with its trials: idle, each worker's thread then takes 3 to 5 ms of CPU a second
-        # instead of 18 to 20, and the scheduler and nannies in this process 8 to 10 instead of 45
-        # The configuration holds while the cluster runs, not only while it starts: a nanny reads it
-        # again when it restarts a worker that died (which it would otherwise spawn, not fork).
-        method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
+        # the workers start with this process's modules imported (`_start_method`). What serves only a
+        # dashboard (none is served: bokeh is not required) is switched off, the memory watch slowed,
+        # and the event loops' tick, which only watches for a loop held up (a warning after 3 s), taken
+        # every second instead of every 20 ms. A worker's loop shares the interpreter with its trials:
+        # idle, each worker's thread then takes 3 to 5 ms of CPU a second instead of 18 to 20, and the
+        # scheduler and nannies in this process 8 to 10 instead of 45. The configuration holds while
+        # the cluster runs, not only while it starts: a nanny reads it again when it restarts a worker
+        # that died (started the same way).
+        method = _start_method(multiprocessing)
         config = dask.config.set({"distributed.worker.multiprocessing-method": method,
                                   "distributed.worker.profile.enabled": False,
                                   "distributed.admin.system-monitor.interval": "5s",
@@ -265,6 +266,32 @@ def _client(address: str):
         return Client(address, timeout="10s"), None, None
     except (OSError, TimeoutError, ValueError) as exc:
         raise WorkersError(f"cannot reach a Dask scheduler at {address!r} ({exc})") from None
+
+
+def _start_method(multiprocessing) -> str:
+    """How the local cluster's nannies start their workers. Not by forking this process: it runs the
+    cluster's event loop in a thread beside the caller's, and a fork copies every lock as it is at that
+    instant, held by a thread that does not exist in the child. A worker forked while another thread
+    held sys.stderr's buffer lock blocked for ever at its first write (seen once in the test suite).
+    Where it can, the workers are forked from multiprocessing's fork server instead: one process,
+    without threads, started once per process that uses it, which has imported the harness's modules
+    that this process has (and the libraries they import); the workers start with them imported
+    (about 0.5 s for two on 2 cores the first time, the fork server's start, then 0.1 s; against 2 s
+    spawned: each would import numpy, MuJoCo, Pinocchio and the harness again). A fork server
+    already running (started by an earlier cluster) is used as it is."""
+    import sys
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return "spawn"
+    from multiprocessing import forkserver
+
+    # Dask's own choice of what the fork server imports (distributed and its libraries) is read when
+    # it starts a worker: the server is started here, first, with those and the harness's
+    preload = sorted(name for name in sys.modules if name == "harness" or name.startswith("harness."))
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(["distributed", "numpy", *preload])
+    forkserver.ensure_running()
+    return "forkserver"
 
 
 def guided_chunks(n: int, slots: int) -> list[tuple[int, int]]:
