@@ -63,7 +63,7 @@ def check(raw: TimeSeries, robot: RobotSpec, source: DataSource | None = None) -
         raise InputError(path, "t", f"{len(tk)} distinct sample{'' if len(tk) == 1 else 's'} in {len(raw.t)} rows, "
                                     "at least 10 needed" + (f" ({dropped} rows repeat the time, or the whole row, of "
                                                             "the row before them, and are dropped)" if dropped else ""))
-    kept = raw.span(keep)  # the rows kept: checked here, conditioned after
+    kept = raw if keep.all() else raw.span(keep)  # the rows kept: checked here, conditioned after
     check_velocities(kept, robot, source)
     dt = np.diff(tk)
     median = float(np.median(dt))

@@ -179,8 +179,9 @@ def conditioned(kept: TimeSeries, pieces: list[np.ndarray], source: DataSource, 
         if samples <= pad or samples - 2 * int(np.ceil(reach * rate)) < 10 * source.decimate:
             dropped.append((float(t0), float(t1)))
             continue
-        logs.append(smooth(kept.span(np.isin(np.arange(len(kept.t)), rows)), source, robot, rate, checked.record,
-                           checked.warnings))
+        # a stretch's rows are consecutive: a view of them, not a copy
+        stretch = slice(rows[0], rows[-1] + 1) if rows[-1] - rows[0] + 1 == len(rows) else rows
+        logs.append(smooth(kept.span(stretch), source, robot, rate, checked.record, checked.warnings))
     if dropped:
         notes.append(f"{label}: {len(dropped)} stretch(es) between gaps too short to filter and trim "
                      f"({', '.join(f'{a:.3g}-{b:.3g} s' for a, b in dropped[:4])}"

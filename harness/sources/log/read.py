@@ -8,19 +8,18 @@ from __future__ import annotations
 import csv
 import hashlib
 import io
+import os
+import stat
+import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from harness.base.series import TimeSeries
-from harness.base.tomlio import MAX_DATA_BYTES, InputError, Table, read_bounded
+from harness.base.tomlio import MAX_DATA_BYTES, InputError, MiB, Table
 from harness.model.spec import RobotSpec
 from harness.sources.log.schema import DataSource, column_names
 from harness.sources.log.units import to_si
-
-if TYPE_CHECKING:  # pandas is imported where a log is read: a bench run does not need it
-    import pandas as pd
 
 
 def raw_series(path: Path, sha256: str, t: np.ndarray, q: np.ndarray, qd: np.ndarray | None, tau: np.ndarray,
@@ -57,27 +56,22 @@ def _check_header(path: Path, header: list[str], source: DataSource, robot: Robo
                                               f"has {n} joints ({', '.join(robot.joint_names)})")
 
 
-def _read_frame(path: Path, nrows: int | None = None, content: bytes | None = None) -> pd.DataFrame:
-    """The CSV at `path` (or its `content`, already read) as a table; refusals name the file."""
+def _header(path: Path, line: bytes) -> list[str]:
+    """A CSV's header line as its column names, blanks around them dropped ("t, q1, q2" is read as
+    "t,q1,q2"); a name written twice is refused (the log would be read from one of them unsaid)."""
     import pandas as pd
-    try:
-        df = pd.read_csv(io.BytesIO(content) if content is not None else path, low_memory=False, nrows=nrows)
-    except (OSError, UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
+
+    try:  # what pandas makes of it: a line that is not text, or not a CSV line, is refused here
+        parsed = pd.read_csv(io.BytesIO(line), nrows=0).columns
+    except (UnicodeDecodeError, ValueError) as exc:
         raise InputError(path, "", f"not a CSV log ({str(exc).splitlines()[0]})") from None
-    if len(df.columns) < 2:
-        raise InputError(path, "", f"not a CSV log (one column, {str(df.columns[0])[:40]!r})")
-    # the header's names as written, blanks around them dropped ("t, q1, q2" is read as "t,q1,q2"); pandas
-    # would rename a repeated name ("q1", "q1.1") and the log would be read from one of them unsaid
-    text = content if content is not None else _first_line(path)
-    end = text.find(b"\n")
-    line = text if end < 0 else text[:end]  # not split: `content` may be the whole file
+    if len(parsed) < 2:
+        raise InputError(path, "", f"not a CSV log (one column, {str(parsed[0])[:40] if len(parsed) else ''!r})")
     header = [name.strip() for name in next(csv.reader([line.decode("utf-8-sig", errors="replace")]), [])]
-    if len(header) == len(df.columns):
-        repeated = [name for k, name in enumerate(header) if name in header[:k]]
-        if repeated:
-            raise InputError(path, repeated[0], "column named twice in the header")
-        df.columns = header
-    return df
+    repeated = [name for k, name in enumerate(header) if name in header[:k]]
+    if repeated:
+        raise InputError(path, repeated[0], "column named twice in the header")
+    return header
 
 
 def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
@@ -92,7 +86,7 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
         return
     for path in (source.file, source.torque_file, source.validation_file, source.payload and source.payload.file):
         if path is not None:
-            _check_header(path, list(_read_frame(path, nrows=0, content=_first_line(path)).columns), source, robot)
+            _check_header(path, _header(path, _first_line(path)), source, robot)
 
 
 HEADER_BYTES = 1 << 20  # a log's header line: thousands of columns fit
@@ -124,21 +118,22 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
         series.meta["read"] = _read_record(source, robot, [path], f"the bag's stamps (topic {source.topic})")
         return _windowed(source, series)
     names = column_names(source, robot)
-    frames = [(path, *_csv(path, source, robot))]
-    if source.torque_file is not None and file is None:  # the torques in a file of their own, row by row
-        frames.append((source.torque_file, *_csv(source.torque_file, source, robot)))
-    columns = {kind: np.column_stack([_column(p, df, c) for c in names[kind]])
-               for p, df, _ in frames for kind in _kinds(source, p) if kind in names}
-    if len(frames) > 1 and len(frames[0][1]) != len(frames[1][1]):
-        raise InputError(source.torque_file, "", f"{len(frames[1][1])} rows, where {path.name} has "
-                                                 f"{len(frames[0][1])}: the two files are read row by row")
-    rows = len(frames[0][1])
-    t = columns["t"][:, 0] if "t" in columns else np.arange(rows) / source.sample_rate
-    digest = hashlib.sha256(b"".join(content for _, _, content in frames)).hexdigest()
-    q, qd, tau = to_si(source, robot, columns["q"], columns.get("qd"), columns["tau"])
-    series = raw_series(path, digest, t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names))
-    series.meta["read"] = _read_record(source, robot, [p for p, _, _ in frames],
-                                       f"column {names['t'][0]!r}" if "t" in columns
+    files = [path] + ([source.torque_file] if source.torque_file is not None and file is None else [])
+    digest = hashlib.sha256()  # of the files' bytes one after the other, as they are parsed
+    columns, rows = {}, []
+    for p in files:  # with a torque file, the torques in a file of their own, row by row
+        read, count = _csv(p, {kind: names[kind] for kind in _kinds(source, p) if kind in names}, source, robot,
+                           digest)
+        columns.update(read)
+        rows.append(count)
+    if len(rows) > 1 and rows[0] != rows[1]:
+        raise InputError(source.torque_file, "", f"{rows[1]} rows, where {path.name} has {rows[0]}: the two files "
+                                                 "are read row by row")
+    t = columns["t"][:, 0] if "t" in columns else np.arange(rows[0]) / source.sample_rate
+    q, qd, tau = to_si(source, robot, columns.pop("q"), columns.pop("qd", None), columns.pop("tau"))
+    series = raw_series(path, digest.hexdigest(), t, *at_joints(source, robot, q, qd, tau),
+                        tuple(robot.joint_names))
+    series.meta["read"] = _read_record(source, robot, files, f"column {names['t'][0]!r}" if "t" in columns
                                        else f"row k at k / {source.sample_rate:g} s (sample_rate)")
     return _windowed(source, series)
 
@@ -153,26 +148,93 @@ def _read_record(source: DataSource, robot: RobotSpec, files: list[Path], time: 
     return record
 
 
-def _csv(path: Path, source: DataSource, robot: RobotSpec):
-    """A CSV of the log, read once (parsed and hashed): its table, checked against the columns the
-    scenario names in it, and its bytes."""
-    content = read_bounded(path, MAX_DATA_BYTES)
-    df = _read_frame(path, content=content)
-    if df.empty:
-        raise InputError(path, "", "the log has no rows")
-    _check_header(path, list(df.columns), source, robot)
-    return df, content
+CHUNK_ROWS = 1 << 14  # a CSV log's rows parsed at a time
+STREAM_BUFFER = 1 << 20  # bytes of its file read at a time
 
 
-def _column(path: Path, df, name: str) -> np.ndarray:
+class _Digested(io.RawIOBase):
+    """A file's bytes as they are read, hashed into `digest` and counted: refused beyond `limit`."""
+
+    def __init__(self, f, path: Path, digest, limit: int):
+        self.f, self.path, self.digest, self.limit, self.size = f, path, digest, limit, 0
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        count = self.f.readinto(buffer)
+        if count:
+            self.size += count
+            if self.size > self.limit:
+                raise InputError(self.path, "", f"larger than {self.limit // MiB} MiB, the most this kind of file "
+                                                "may hold")
+            self.digest.update(memoryview(buffer)[:count])
+        return count
+
+
+def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: RobotSpec,
+         digest) -> tuple[dict[str, np.ndarray], int]:
+    """The columns `wanted` ({kind: names}) of the CSV at `path`, {kind: (rows, len(names))}, and its row
+    count: its header checked against the scenario's columns, its rows parsed CHUNK_ROWS at a time and
+    only those columns kept (a long log's text and its other columns are never held whole), every
+    byte hashed into `digest` as it is read. A cell that is not a finite number is refused naming
+    its column, its first row and how many rows have one."""
     import pandas as pd
 
-    x = pd.to_numeric(df[name], errors="coerce").to_numpy(dtype=float)
-    bad = np.flatnonzero(~np.isfinite(x))
-    if len(bad):
-        raise InputError(path, name, f"row {bad[0] + 2} is {_cell(df[name].iloc[bad[0]])}, not a finite number "
-                                     f"({len(bad)} such row{'s' if len(bad) > 1 else ''})")
-    return x
+    header = _header(path, _first_line(path))
+    _check_header(path, header, source, robot)
+    at = {name: header.index(name) for names in wanted.values() for name in names}
+    positions = sorted(set(at.values()))
+    pieces: dict[int, list[np.ndarray]] = {k: [] for k in positions}
+    bad: dict[int, tuple[int, object, int]] = {}  # position -> (its first bad row, that cell, how many)
+    try:
+        with open(path, "rb") as f:
+            info = os.fstat(f.fileno())  # a regular file refused at its size; a stream (a FIFO) as it is read
+            if stat.S_ISREG(info.st_mode) and info.st_size > MAX_DATA_BYTES:
+                raise InputError(path, "", f"larger than {MAX_DATA_BYTES // MiB} MiB, the most this kind of file "
+                                           "may hold")
+            stream = io.BufferedReader(_Digested(f, path, digest, MAX_DATA_BYTES), STREAM_BUFFER)
+            # as many fields as the header's: a short row's last are empty (refused below, naming its row),
+            # a longer row is an error (pandas warns of the first row's and drops its last fields)
+            with warnings.catch_warnings(), pd.read_csv(
+                    stream, header=None, skiprows=1, names=range(len(header)), index_col=False,
+                    chunksize=CHUNK_ROWS, low_memory=False) as chunks:
+                warnings.simplefilter("error", pd.errors.ParserWarning)
+                for chunk in chunks:
+                    for k in positions:
+                        # a copy: a view would keep the chunk's block of every column alive
+                        x = pd.to_numeric(chunk[k], errors="coerce").to_numpy(dtype=float, copy=True)
+                        wrong = np.flatnonzero(~np.isfinite(x))
+                        if len(wrong):
+                            first = bad.get(k, (int(chunk.index[wrong[0]]) + 2, chunk[k].iloc[wrong[0]], 0))
+                            bad[k] = (first[0], first[1], first[2] + len(wrong))
+                        pieces[k].append(x)
+            while stream.read(STREAM_BUFFER):  # whatever follows the last row, hashed too
+                pass
+    except OSError as exc:
+        raise InputError(path, "", f"cannot read file ({exc.strerror or exc})") from None
+    except pd.errors.ParserWarning:
+        raise InputError(path, "", f"not a CSV log (its first row has more fields than its header's "
+                                   f"{len(header)})") from None
+    except (UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
+        raise InputError(path, "", f"not a CSV log ({str(exc).splitlines()[0]})") from None
+    rows = sum(len(x) for x in pieces[positions[0]])
+    if not rows:
+        raise InputError(path, "", "the log has no rows")
+    for name, k in at.items():
+        if k in bad:
+            row, cell, count = bad[k]
+            raise InputError(path, name, f"row {row} is {_cell(cell)}, not a finite number "
+                                         f"({count} such row{'s' if count > 1 else ''})")
+    out, kinds = {}, list(wanted.items())
+    for i, (kind, names) in enumerate(kinds):  # each column's pieces let go of once the last kind needing them has them
+        out[kind] = np.empty((rows, len(names)))
+        for c, name in enumerate(names):
+            out[kind][:, c] = np.concatenate(pieces[at[name]])
+        later = {at[name] for _, rest in kinds[i + 1:] for name in rest}
+        for k in {at[name] for name in names} - later:
+            pieces[k] = []
+    return out, rows
 
 
 def at_joints(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,

@@ -52,8 +52,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     and trimmed on its own (on the whole file's grid rate), so that no filter or difference reaches
     across a gap or the split (the trim at both ends of each stretch is the guard band). A validation
     file is conditioned whole, on its own."""
-    raw = read_raw(source, robot)
-    checked = check(raw, robot, source)
+    checked = check(read_raw(source, robot), robot, source)  # the rows read let go of: `kept` holds what is used
     kept, rate = checked.kept, checked.rate(source)
     t_split = None if source.validation_from is None else \
         kept.t[0] + source.validation_from * (kept.t[-1] - kept.t[0])
