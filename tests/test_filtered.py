@@ -12,7 +12,8 @@ from scipy.signal import butter, sosfiltfilt
 from harness.engines.pinocchio import build_model
 from harness.identify import filtered
 from harness.identify.friction_law import Law, extra_regressor
-from harness.identify.torque_id import drive_column, regressor
+from harness.identify.span_rows import span_regressor
+from harness.identify.torque_id import regressor
 from harness.model.load import load_spec
 from harness.sources.log.condition import FilteredColumns
 from tests.conftest import MODELS
@@ -36,9 +37,10 @@ def test_a_filter_that_passes_everything_leaves_every_friction_column_as_it_was(
     columns = FilteredColumns(PASS_ALL, stretches, t[keep])
     laws = tuple(Law("stribeck+load_coulomb", 0.02 + 0.01 * k, 0.1) for k in range(n))
     spec = spec.with_frictions(tuple(law.shapes for law in laws))
-    W = regressor(build_model(spec, np.array([0, 0, -9.81])), q[keep], qd[keep], qdd[keep], with_friction=True)
-    rewritten = filtered.with_filtered_coulomb(W, columns, t[keep], laws, spec.transmission,
-                                               lambda k: drive_column(n, k, "coulomb"))
+    pm = build_model(spec, np.array([0, 0, -9.81]))
+    W = regressor(pm, q[keep], qd[keep], qdd[keep], with_friction=True)
+    rewritten = span_regressor(pm, q[keep], qd[keep], qdd[keep], filtered.coulomb(columns, t[keep], laws,
+                                                                                   spec.transmission))
     assert np.array_equal(rewritten, W)
     rigid = rng.standard_normal((len(keep), n))
     E = extra_regressor(laws, qd[keep], rigid, spec.transmission)

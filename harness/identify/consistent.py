@@ -48,6 +48,7 @@ import numpy as np
 from harness.base.numerics import PARAMETER_FLOOR, SideBySide, column_scale, relative_residual, triangle
 from harness.base.tomlio import in_one_line
 from harness.identify.friction_law import Law, extra_terms
+from harness.identify.torque_id import SAMPLES_AT_A_TIME
 from harness.model.drives import Transmission
 from harness.model.friction import BOUNDED_BY, IDENTIFIED_KEYS, JointFriction
 from harness.model.inertia import (
@@ -236,14 +237,14 @@ def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law
     # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
     # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
     if transmission is None:
-        rms_cols = np.sqrt(np.mean(W[:, 10 * n:].reshape(N, n, -1) ** 2, axis=0)).reshape(n, n, 4)
+        rms_cols = np.sqrt(_friction_squares(W, N, n, over_joints=False)).reshape(n, n, 4)
         cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
         rms_tau = np.sqrt(np.mean(tau**2, axis=0))
         extra_rms = np.sqrt(np.mean(E.reshape(N, n, -1) ** 2, axis=0))  # (n, e): each column's RMS on each joint's rows
         extra_rms = np.array([extra_rms[k, c] for c, (k, _) in enumerate(terms)])
     else:  # a motor's columns over every row they reach, against the torque of the joints it turns with
         reach = transmission.N != 0  # (motors, joints)
-        cols = np.sqrt(np.sum(W[:, 10 * n:].reshape(N, n, n, 4) ** 2, axis=(0, 1)) / N)
+        cols = np.sqrt(_friction_squares(W, N, n, over_joints=True))
         rms_tau = np.sqrt(((tau**2).mean(axis=0) @ reach.T) / np.maximum(reach.sum(axis=1), 1))
         extra_rms = np.sqrt(np.sum(E**2, axis=0) / N)
     carry = rms_tau[:, None] / np.where(cols > 0, cols, 1.0)
@@ -260,6 +261,21 @@ def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law
                       **{key: float(result.extra[c]) for c, (kk, key) in enumerate(terms) if kk == k})
         for k, law in enumerate(laws))
     return result, frictions
+
+
+def _friction_squares(W, N: int, n: int, over_joints: bool) -> np.ndarray:
+    """The mean over the N samples of each friction column's square: on each joint's rows (n, 4 n), or
+    `over_joints` summed over them (n, 4); of a regressor held whole (numpy's reductions of the squares,
+    as ever), or made on demand (summed a chunk of samples at a time: harness/identify/span_rows.py)."""
+    if isinstance(W, np.ndarray):
+        if over_joints:
+            return np.sum(W[:, 10 * n:].reshape(N, n, n, 4) ** 2, axis=(0, 1)) / N
+        return np.mean(W[:, 10 * n:].reshape(N, n, -1) ** 2, axis=0)
+    total = np.zeros((n, 4 * n))
+    for a in range(0, N, SAMPLES_AT_A_TIME):
+        F = W.samples(a, a + SAMPLES_AT_A_TIME)[:, :, 10 * n:]
+        total += np.einsum("snc,snc->nc", F, F)
+    return total.sum(axis=0).reshape(n, 4) / N if over_joints else total / N
 
 
 PLAUSIBLE = 3.0  # a link's identified mass or inertia more than 3 times, or under a third of, the model's: warned

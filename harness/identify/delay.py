@@ -21,6 +21,7 @@ import numpy as np
 
 from harness.base.numerics import column_scale, relative_residual
 from harness.base.series import STRETCH_BREAK, TimeSeries, room
+from harness.identify.torque_id import SAMPLES_AT_A_TIME
 
 LARGEST = 0.02  # s: the candidates span +-20 ms
 STEP = 0.0005  # s
@@ -75,10 +76,12 @@ def grid_step(t: np.ndarray, filtered: bool, step: float = STEP) -> float:
     return max(1, round(step / dt)) * dt
 
 
-def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LARGEST, step: float = STEP,
+def estimate(t: np.ndarray, tau: np.ndarray, W, largest: float = LARGEST, step: float = STEP,
              filtered: bool = True) -> Delays:
     """t (N,) s, uniform within each stretch of a log cut at its gaps; tau (N, n); W (N, n, p) the
-    regressor's rows by joint; `filtered`, whether the log went through a low-pass (`grid_step`). The
+    regressor's rows by joint, or a function of a range of samples (a, b) that gives theirs,
+    (b - a, n, p) (harness/identify/span_rows.py: a long log's, made on demand); `filtered`, whether
+    the log went through a low-pass (`grid_step`). The
     rows used are those at least `largest` from a stretch's ends (at least MIN_CANDIDATES grid steps).
     The delay between candidates is the vertex of the parabola through the best candidate's squared
     residual and its neighbours' (a lag's residual is quadratic in the delay's error near its
@@ -89,13 +92,15 @@ def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LAR
     largest = float(candidates[-1])
     back, ahead = room(t)
     rows = (back >= largest) & (ahead >= largest)
-    if rows.sum() < 2 * W.shape[2]:
+    samples = W if callable(W) else (lambda a, b: W[a:b])
+    p = samples(0, 1).shape[2]
+    if rows.sum() < 2 * p:
         raise ValueError(f"{int(rows.sum())} samples away from the ends: too few to estimate a delay of up to "
                          f"{largest * 1e3:g} ms")
     n = tau.shape[1]
     curve = np.empty((n, len(candidates)))
     for j in range(n):  # one joint's basis at a time: together they are the size of the regressor
-        basis = _basis(W[rows, j, :])
+        basis = _basis(_joint_rows(samples, len(t), j, rows))
         for k, d in enumerate(candidates):
             curve[j, k] = _residual(basis, np.interp(t[rows] + d, t, tau[:, j]))
     best = np.argmin(curve, axis=1)
@@ -111,6 +116,13 @@ def estimate(t: np.ndarray, tau: np.ndarray, W: np.ndarray, largest: float = LAR
             residual[j] = np.sqrt(max(y1 - (y0 - y2) ** 2 / (8 * denominator), 0.0))
     zero = curve[:, np.argmin(np.abs(candidates))]
     return Delays(delay, residual, zero, candidates, curve, at_edge)
+
+
+def _joint_rows(samples, N: int, j: int, rows: np.ndarray) -> np.ndarray:
+    """(rows.sum(), p): joint j's regressor rows at the samples `rows` (N,) selects, read
+    SAMPLES_AT_A_TIME samples at a time."""
+    return np.concatenate([samples(a, a + SAMPLES_AT_A_TIME)[rows[a: a + SAMPLES_AT_A_TIME], j, :]
+                           for a in range(0, N, SAMPLES_AT_A_TIME)])
 
 
 def shifted(t: np.ndarray, tau: np.ndarray, delay: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:

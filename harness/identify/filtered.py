@@ -37,25 +37,6 @@ def coulomb(columns, t: np.ndarray, laws, transmission: Transmission | None) -> 
     return columns.filtered(lambda qd: friction.coulomb_shape(rates(qd), v), t)
 
 
-def with_filtered_coulomb(W: np.ndarray, columns, t: np.ndarray, laws, transmission: Transmission | None,
-                          coulomb_column, in_place: bool = False) -> np.ndarray:
-    """The regressor with friction W (N n, p) with each drive's Coulomb column filtered
-    (`coulomb_column(k)`: drive k's column index); with a transmission, motor k's reaches joint j times
-    N[k, j] (harness/model/drives.py). `in_place`: W itself rewritten (a long log's regressor is the
-    largest thing a run holds), else a copy."""
-    N = len(t)
-    n = W.shape[0] // N
-    S = coulomb(columns, t, laws, transmission)
-    W3 = W.reshape(N, n, -1) if in_place else W.reshape(N, n, -1).copy()
-    for k in range(S.shape[1]):
-        c = coulomb_column(k)
-        if transmission is None:
-            W3[:, k, c] = S[:, k]
-        else:
-            W3[:, :, c] = S[:, k, None] * transmission.N[k][None, :]
-    return W3.reshape(W.shape)
-
-
 def drive_term(columns, t: np.ndarray, law, k: int, transmission: Transmission | None, term: str) -> np.ndarray:
     """(N,): one column of drive k's law, filtered: its Coulomb shape s (`term` "coulomb") or one of its
     family's shapes (EXTRA_KEYS; the load column s itself, to be multiplied by |tau_R|). The friction

@@ -39,11 +39,11 @@ from harness.identify import consistent, delay, filtered, friction_law, scale
 from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
 from harness.identify.ls_model import LeastSquaresFit, extra_terms_names
 from harness.identify.repeat import Repeatability, repeat
+from harness.identify.span_rows import RowsOnDemand, rows_by_sample, span_regressor
 from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
     describe_base,
-    drive_column,
     fit_base,
     links_weights,
     parameter_names,
@@ -110,20 +110,20 @@ class Delayed:
     note: str | None
     training: TimeSeries
     validation: TimeSeries | None
-    W: np.ndarray | None  # (N n, 14 n); None once the delays and the constants have read it (`run`)
+    W: np.ndarray | RowsOnDemand | None  # (N n, 14 n); None once the delays and the constants have read it (`run`)
 
 
 def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
            validation: TimeSeries | None) -> Delayed:
-    def rows(series: TimeSeries) -> np.ndarray:
-        return regressor(model.pm, *series.joint_data(joints)[:3], with_friction=True)
+    def rows(series: TimeSeries) -> np.ndarray | RowsOnDemand:
+        return span_regressor(model.pm, *series.joint_data(joints)[:3])
 
     W = rows(training)
     if mode == "none":
         return Delayed(None, None, training, validation, W)
     try:
         filtered = FULL_RATE in training.meta  # a low-passed span keeps its full rate (sources/log/condition.py)
-        lags = delay.estimate(training.t, training.joint_data(joints)[3], W.reshape(len(training.t), len(joints), -1),
+        lags = delay.estimate(training.t, training.joint_data(joints)[3], rows_by_sample(W, len(joints)),
                               filtered=filtered)
     except ValueError as exc:
         return Delayed(None, f"delays not estimated: {exc}", training, validation, W)
@@ -153,6 +153,8 @@ def constants(data, robot, model: LogModel, joints: list[str], d: Delayed, paylo
     if d.lags is not None and data.delay == "estimate" and np.any(d.lags.found):
         training = delay.corrected(d.training, d.lags, joints)
         W = regressor(model.pm, *training.joint_data(joints)[:3], with_friction=True)
+    if isinstance(W, RowsOnDemand):  # the torque constants' fit reads it whole
+        W = W.whole()
     tau = training.joint_data(joints)[3]
     found = scale.torque_constants(model.pm, model.base, W, tau, model.base.of(model.x_model), robot, data.payload,
                                    payload)
@@ -203,7 +205,7 @@ class LeastSquares:
     """Step 4: the least-squares fit of the base parameters and the families' coefficients, on the
     regressor at the laws' velocities; the fit repeated on disjoint segments where asked."""
 
-    W: np.ndarray  # (N n, 14 n) the training span's regressor at the laws' velocities
+    W: np.ndarray | RowsOnDemand  # (N n, 14 n) the training span's regressor at the laws' velocities
     E: np.ndarray  # (N n, e) the families' columns (extra_terms(laws)) on the training span
     beta_model: np.ndarray  # the model's own base parameters and family coefficients
     extra_model: np.ndarray  # (e,) the model's family coefficients
@@ -217,18 +219,13 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
     """On the training span's regressor at the laws' velocities (the chosen ones, or the model's own),
     made here: its Coulomb columns are rewritten in place on a filtered log."""
     q, qd, qdd, tau = training.joint_data(joints)
-    n = len(joints)
-    if laws.choice is not None:  # the regressor with the chosen smoothing velocities
-        W = regressor(build_model(robot.with_frictions(laws.choice.frictions(robot.frictions)), gravity_W),
-                      q, qd, qdd, with_friction=True)
-        rigid = laws.choice.tau_rigid
-    else:
-        W = regressor(model.pm, q, qd, qdd, with_friction=True)
-        rigid = (W[:, : 10 * n] @ model.theta.ravel()).reshape(tau.shape)
     columns = filtered_columns(training)
-    if columns is not None:  # the Coulomb columns filtered as the torques were
-        W = filtered.with_filtered_coulomb(W, columns, training.t, laws.laws, robot.transmission,
-                                           lambda k: drive_column(n, k, "coulomb"), in_place=True)
+    # the Coulomb columns filtered as the torques were, on a filtered log
+    coulomb = None if columns is None else filtered.coulomb(columns, training.t, laws.laws, robot.transmission)
+    pm = model.pm if laws.choice is None else build_model(  # the chosen smoothing velocities
+        robot.with_frictions(laws.choice.frictions(robot.frictions)), gravity_W)
+    W = span_regressor(pm, q, qd, qdd, coulomb)
+    rigid = laws.choice.tau_rigid if laws.choice is not None else links_torque(W, model.theta, tau.shape)
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws.laws)])
     beta_model = np.concatenate([model.base.of(model.x_model), extra_model])
     E = extra_regressor(laws.laws, qd, rigid, robot.transmission, columns, training.t)
@@ -241,6 +238,12 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
         except ValueError as exc:
             note = f"repeatability not measured: {exc}"
     return LeastSquares(W, E, beta_model, extra_model, ls, repeated, note)
+
+
+def links_torque(W: np.ndarray | RowsOnDemand, theta: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """(N, n) the links' torque of the parameters theta (n, 10) on a span's regressor W: its first 10 n
+    columns, never copied out."""
+    return (SideBySide(((W, np.arange(theta.size)),)) @ theta.ravel()).reshape(shape)
 
 
 @dataclass(frozen=True, eq=False)
@@ -266,7 +269,7 @@ def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], 
     out = Judged({}, {}, {}, {}, {}, None)
     for name, series in spans.items():
         q, qd, qdd, tau = series.joint_data(joints)
-        W = fitted.W if name == "training" else regressor(pm_identified, q, qd, qdd, with_friction=True)
+        W = fitted.W if name == "training" else span_regressor(pm_identified, q, qd, qdd)
         base = (W, model.base.independent)  # the base parameters' columns, never copied out
         rigid_ls = (SideBySide((base,)) @ links_weights(fitted.ls.beta[:r], model.link_part)).reshape(tau.shape)
         columns = filtered_columns(series) if name == "training" else None  # as the fit read it
@@ -298,8 +301,7 @@ class Exported:
 
 
 def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], theta: np.ndarray,
-                 training: TimeSeries, W: np.ndarray, ls: LeastSquaresFit) -> Exported:
-    n = len(robot.joints)
+                 training: TimeSeries, W: np.ndarray | RowsOnDemand, ls: LeastSquaresFit) -> Exported:
     _, qd, _, tau = training.joint_data(robot.joint_names)
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
@@ -308,7 +310,7 @@ def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], th
         f"{robot.name}: the least-squares fit of its base parameters from {sc.data.file.name} by harness (scenario "
         f"{sc.name}).\nFormat: docs/reference.md, 'The least-squares fit'; harness.identified_model(folder, "
         "fit=\"least squares\") evaluates it.")
-    mapping = coulomb_mapping(identified, qd, tau, (W[:, : 10 * n] @ theta.ravel()).reshape(tau.shape))
+    mapping = coulomb_mapping(identified, qd, tau, links_torque(W, theta, tau.shape))
     worst = max(mapping, key=lambda j: mapping[j]["rms"])
     refused = None
     try:  # MuJoCo's compiler has checks of its own: what it refuses is said, not a crash
