@@ -7,9 +7,10 @@
 
 The motion: each joint a sum of five sines (periods 2 to 20 s) within 0.4 rad of the Panda's ready
 pose; the torques Pinocchio's RNEA of the model with a drive law on every joint (rotor inertia,
-viscous, Coulomb over 0.03 rad/s, offset), 0.5 % noise on each channel; positions and velocities to
-six significant digits, as a CSV of t, q1..q7, qd1..qd7, tau1..tau7 (FOLDER/long.csv, about 200 bytes a
-row) and FOLDER/long.toml. benchmarks/bench.py runs it (`log_run_1h_peak_rss_mib`).
+viscous, Coulomb over 0.03 rad/s, offset), 0.5 % noise on each channel; t to the millisecond,
+positions, velocities and torques to six significant digits, as a CSV of t, q1..q7, qd1..qd7,
+tau1..tau7 (FOLDER/long.csv, about 200 bytes a row) and FOLDER/long.toml. benchmarks/bench.py runs it
+(`log_run_1h_peak_rss_mib`).
 """
 
 from __future__ import annotations
@@ -56,7 +57,9 @@ def write(folder: Path, hours: float = 1.0) -> Path:
             tau = np.array([pin.rnea(model, data, *x) for x in zip(q, qd, qdd, strict=True)])
             tau += law[:, 0] * qdd + law[:, 1] * qd + law[:, 2] * np.tanh(qd / 0.03) + law[:, 3]
             tau += 0.005 * np.std(tau, axis=0) * rng.normal(size=tau.shape)
-            np.savetxt(out, np.column_stack([t, q, qd, tau]), fmt="%.6g", delimiter=",")
+            # t to the millisecond whatever its size (six significant digits would hold 10 ms past 1000 s, and
+            # the rows sharing a time would be dropped as repeats)
+            np.savetxt(out, np.column_stack([t, q, qd, tau]), fmt=["%.3f"] + ["%.6g"] * (3 * n), delimiter=",")
     scenario = folder / "long.toml"
     scenario.write_text(
         f'[scenario]\ndescription = "{hours:g} h of a 7-joint arm at 1 kHz (benchmarks/long_log.py)"\n'

@@ -163,8 +163,11 @@ def consecutive_blocks(n: int, count: int) -> list[slice]:
 
 def sampled(t: np.ndarray, x: np.ndarray, when: np.ndarray) -> np.ndarray:
     """A signal x (N, n) sampled at times t (N,), read at times `when` (any shape) by linear
-    interpolation, column by column: (*when.shape, n)."""
-    return np.stack([np.interp(when, t, x[:, j]) for j in range(x.shape[1])], axis=-1)
+    interpolation, column by column (into one array: a long log's columns are not held twice): (*when.shape, n)."""
+    out = np.empty((*np.shape(when), x.shape[1]))
+    for j in range(x.shape[1]):
+        out[..., j] = np.interp(when, t, x[:, j])
+    return out
 
 
 def evenly_spaced(n: int, count: int) -> np.ndarray:

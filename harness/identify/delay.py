@@ -51,8 +51,10 @@ class Delays:
 
 def _basis(Wj: np.ndarray) -> np.ndarray:
     """An orthonormal basis of the column space of the column-scaled Wj (its numerical rank's left
-    singular vectors): the least-squares residual of any y is then y less its projection."""
-    U, sv, _ = np.linalg.svd(Wj / column_scale(Wj), full_matrices=False)
+    singular vectors): the least-squares residual of any y is then y less its projection. Wj is
+    scaled in place (the caller's own copy of a joint's rows: a long log's are hundreds of MiB)."""
+    Wj /= column_scale(Wj)
+    U, sv, _ = np.linalg.svd(Wj, full_matrices=False)
     return U[:, sv > sv[0] * max(Wj.shape) * np.finfo(float).eps] if sv.size and sv[0] > 0 else U[:, :0]
 
 
@@ -100,7 +102,7 @@ def estimate(t: np.ndarray, tau: np.ndarray, W, largest: float = LARGEST, step: 
     n = tau.shape[1]
     curve = np.empty((n, len(candidates)))
     for j in range(n):  # one joint's basis at a time: together they are the size of the regressor
-        basis = _basis(_joint_rows(samples, len(t), j, rows))
+        basis = _basis(_joint_rows(samples, len(t), j, rows, p))
         for k, d in enumerate(candidates):
             curve[j, k] = _residual(basis, np.interp(t[rows] + d, t, tau[:, j]))
     best = np.argmin(curve, axis=1)
@@ -118,11 +120,15 @@ def estimate(t: np.ndarray, tau: np.ndarray, W, largest: float = LARGEST, step: 
     return Delays(delay, residual, zero, candidates, curve, at_edge)
 
 
-def _joint_rows(samples, N: int, j: int, rows: np.ndarray) -> np.ndarray:
+def _joint_rows(samples, N: int, j: int, rows: np.ndarray, p: int) -> np.ndarray:
     """(rows.sum(), p): joint j's regressor rows at the samples `rows` (N,) selects, read
-    SAMPLES_AT_A_TIME samples at a time."""
-    return np.concatenate([samples(a, a + SAMPLES_AT_A_TIME)[rows[a: a + SAMPLES_AT_A_TIME], j, :]
-                           for a in range(0, N, SAMPLES_AT_A_TIME)])
+    SAMPLES_AT_A_TIME samples at a time into one array."""
+    out, at = np.empty((int(rows.sum()), p)), 0
+    for a in range(0, N, SAMPLES_AT_A_TIME):
+        piece = samples(a, a + SAMPLES_AT_A_TIME)[rows[a: a + SAMPLES_AT_A_TIME], j, :]
+        out[at: at + len(piece)] = piece
+        at += len(piece)
+    return out
 
 
 def shifted(t: np.ndarray, tau: np.ndarray, delay: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:

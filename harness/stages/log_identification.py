@@ -217,7 +217,8 @@ class LeastSquares:
 def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[str], training: TimeSeries,
                   laws: LawChoice, segments: int | None) -> LeastSquares:
     """On the training span's regressor at the laws' velocities (the chosen ones, or the model's own),
-    made here: its Coulomb columns are rewritten in place on a filtered log."""
+    made here, its Coulomb columns the filtered ones on a filtered log; a long span's made where it is
+    read, never whole (harness/identify/span_rows.py)."""
     q, qd, qdd, tau = training.joint_data(joints)
     columns = filtered_columns(training)
     # the Coulomb columns filtered as the torques were, on a filtered log

@@ -128,7 +128,12 @@ def smooth(kept: TimeSeries, source: DataSource, robot: RobotSpec, rate: float, 
             raise InputError(path, "cutoff", f"{len(grid)} samples are too few to filter (need over {pad})")
 
         def lowpass(x: np.ndarray) -> np.ndarray:
-            return sosfiltfilt(sos, x, axis=0)
+            """Column by column into one array (the same numbers as the whole at once: its padded copies
+            are a column's, not the quantity's)."""
+            out = np.empty_like(x)
+            for j in range(x.shape[1]):
+                out[:, j] = sosfiltfilt(sos, x[:, j])
+            return out
 
         q, tau = lowpass(q), lowpass(tau)
         qd = lowpass(qd) if qd is not None else None

@@ -49,9 +49,12 @@ def check_velocities(kept: TimeSeries, robot: RobotSpec, source: DataSource | No
     rad/s, k = 1/57.3)."""
     if kept.qd is None or len(kept.t) < 3:
         return
-    d = np.diff(kept.q, axis=0) / np.diff(kept.t)[:, None]
-    v = 0.5 * (kept.qd[1:] + kept.qd[:-1])
-    dv, vv, dd = (d * v).sum(axis=0), (v * v).sum(axis=0), (d * d).sum(axis=0)
+    step = np.diff(kept.t)
+    dv, vv, dd = (np.empty(kept.q.shape[1]) for _ in range(3))
+    for j in range(kept.q.shape[1]):  # joint by joint: a long log's differences are not made for all at once
+        d = np.diff(kept.q[:, j]) / step
+        v = 0.5 * (kept.qd[1:, j] + kept.qd[:-1, j])
+        dv[j], vv[j], dd[j] = d @ v, v @ v, d @ d
     with np.errstate(invalid="ignore", divide="ignore"):
         k, cosine = dv / vv, dv / np.sqrt(vv * dd)
     moves = np.isfinite(cosine) & (np.abs(cosine) >= TRACKING)
