@@ -272,13 +272,14 @@ def _start_method(multiprocessing) -> str:
     """How the local cluster's nannies start their workers. Not by forking this process: it runs the
     cluster's event loop in a thread beside the caller's, and a fork copies every lock as it is at that
     instant, held by a thread that does not exist in the child. A worker forked while another thread
-    held sys.stderr's buffer lock blocked for ever at its first write (seen once in the test suite).
+    held sys.stderr's buffer lock blocked for ever at its first write (seen once in the slow checks).
     Where it can, the workers are forked from multiprocessing's fork server instead: one process,
     without threads, started once per process that uses it, which has imported the harness's modules
-    that this process has (and the libraries they import); the workers start with them imported
-    (about 0.5 s for two on 2 cores the first time, the fork server's start, then 0.1 s; against 2 s
-    spawned: each would import numpy, MuJoCo, Pinocchio and the harness again). A fork server
-    already running (started by an earlier cluster) is used as it is."""
+    that this process has (and the libraries they import); the workers start with them imported (a
+    cluster of two on 2 cores started and stopped in 0.97 s the first time, the fork server's start,
+    then 0.25 s; forked from this process 0.43 and 0.14 s; spawned about 2 s, each worker importing
+    numpy, MuJoCo, Pinocchio and the harness again). A fork server already running (started by an
+    earlier cluster) is used as it is."""
     import sys
 
     if "forkserver" not in multiprocessing.get_all_start_methods():
