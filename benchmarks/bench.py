@@ -591,6 +591,18 @@ def long_log_run(figures: dict, hours: float) -> None:
         print(f"    {k:<80} {v:6.2f} s")
 
 
+def added_to_benchmark(figures: dict) -> None:
+    """`figures` written into reports/benchmark.json beside what the last full run wrote there (a run on
+    another machine is not mixed in: the file is started again)."""
+    out = ROOT / "reports" / "benchmark.json"
+    machine = _machine()
+    previous = json.loads(out.read_text()) if out.exists() else {}
+    merged = previous if previous.get("machine") == machine else {"machine": machine}
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps({**merged, **figures}, indent=2) + "\n")
+    print(f"added {', '.join(figures)} to {out}")
+
+
 def main() -> None:
     figures: dict = {"machine": _machine()}
     torques(figures)
@@ -684,8 +696,10 @@ if __name__ == "__main__":
         long_identification()
     elif "--long-baseline" in sys.argv:
         long_baseline()
-    elif "--long-log" in sys.argv:  # hours of a 7-joint arm's log: time and peak memory (benchmark.json untouched)
-        long_log_run({}, float(sys.argv[sys.argv.index("--long-log") + 1]))
+    elif "--long-log" in sys.argv:  # hours of a 7-joint arm's log: time and peak memory, added to benchmark.json
+        long_figures: dict = {}
+        long_log_run(long_figures, float(sys.argv[sys.argv.index("--long-log") + 1]))
+        added_to_benchmark(long_figures)
     elif "--log-runs" in sys.argv:  # the log run against its plain script alone (reports/benchmark.json untouched)
         log_figures: dict = {"machine": _machine()}
         log_runs(log_figures)

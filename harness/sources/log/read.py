@@ -9,6 +9,7 @@ import csv
 import hashlib
 import io
 import os
+import re
 import stat
 import warnings
 from pathlib import Path
@@ -181,23 +182,26 @@ def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: Ro
     its column, its first row and how many rows have one."""
     import pandas as pd
 
-    header = _header(path, _first_line(path))
-    _check_header(path, header, source, robot)
-    at = {name: header.index(name) for names in wanted.values() for name in names}
-    positions = sorted(set(at.values()))
-    pieces: dict[int, list[np.ndarray]] = {k: [] for k in positions}
     bad: dict[int, tuple[int, object, int]] = {}  # position -> (its first bad row, that cell, how many)
     try:
-        with open(path, "rb") as f:
-            info = os.fstat(f.fileno())  # a regular file refused at its size; a stream (a FIFO) as it is read
+        with open(path, "rb") as f:  # read once, from its header to its end
+            info = os.fstat(f.fileno())  # a regular file refused at its size; a stream as it is read
             if stat.S_ISREG(info.st_mode) and info.st_size > MAX_DATA_BYTES:
                 raise InputError(path, "", f"larger than {MAX_DATA_BYTES // MiB} MiB, the most this kind of file "
                                            "may hold")
             stream = io.BufferedReader(_Digested(f, path, digest, MAX_DATA_BYTES), STREAM_BUFFER)
+            line = stream.readline(HEADER_BYTES + 1)
+            if len(line) > HEADER_BYTES:
+                raise InputError(path, "", f"no header line within its first {HEADER_BYTES >> 20} MiB: not a CSV log")
+            header = _header(path, line)
+            _check_header(path, header, source, robot)
+            at = {name: header.index(name) for names in wanted.values() for name in names}
+            positions = sorted(set(at.values()))
+            pieces: dict[int, list[np.ndarray]] = {k: [] for k in positions}
             # as many fields as the header's: a short row's last are empty (refused below, naming its row),
             # a longer row is an error (pandas warns of the first row's and drops its last fields)
             with warnings.catch_warnings(), pd.read_csv(
-                    stream, header=None, skiprows=1, names=range(len(header)), index_col=False,
+                    stream, header=None, names=range(len(header)), index_col=False,
                     chunksize=CHUNK_ROWS, low_memory=False) as chunks:
                 warnings.simplefilter("error", pd.errors.ParserWarning)
                 for chunk in chunks:
@@ -217,7 +221,9 @@ def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: Ro
         raise InputError(path, "", f"not a CSV log (its first row has more fields than its header's "
                                    f"{len(header)})") from None
     except (UnicodeDecodeError, ValueError, pd.errors.ParserError) as exc:
-        raise InputError(path, "", f"not a CSV log ({str(exc).splitlines()[0]})") from None
+        # pandas counts the lines it was given, from the one after the header: the file's are one more
+        said = re.sub(r"\bline (\d+)", lambda m: f"line {int(m.group(1)) + 1}", str(exc).splitlines()[0])
+        raise InputError(path, "", f"not a CSV log ({said})") from None
     rows = sum(len(x) for x in pieces[positions[0]])
     if not rows:
         raise InputError(path, "", "the log has no rows")
