@@ -62,6 +62,11 @@ def _read_stream(f, limit: int) -> bytes:
     return bytes(content)
 
 
+def too_large(path: Path | str, limit: int) -> InputError:
+    """The refusal of a file beyond `limit` bytes."""
+    return InputError(path, "", f"larger than {limit // MiB} MiB, the most this kind of file may hold")
+
+
 def read_bounded(path: Path | str, limit: int) -> bytes:
     """A file's bytes, refused (InputError naming the file) beyond `limit` bytes or when unreadable."""
     try:
@@ -69,7 +74,7 @@ def read_bounded(path: Path | str, limit: int) -> bytes:
             info = os.fstat(f.fileno())
             size = info.st_size if stat.S_ISREG(info.st_mode) else None
             if size is not None and size > limit:
-                raise InputError(path, "", f"larger than {limit // MiB} MiB, the most this kind of file may hold")
+                raise too_large(path, limit)
             # a regular file read at its size; a stream (a FIFO, a device) up to the limit in pieces, so
             # that no buffer of the limit's size is asked for (2 GiB for a log)
             content = f.read() if size is not None else _read_stream(f, limit)
@@ -78,7 +83,7 @@ def read_bounded(path: Path | str, limit: int) -> bytes:
     except OSError as exc:
         raise InputError(path, "", f"cannot read file ({exc.strerror or exc})") from None
     if len(content) > limit:
-        raise InputError(path, "", f"larger than {limit // MiB} MiB, the most this kind of file may hold")
+        raise too_large(path, limit)
     return content
 
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import sys
 import threading
 import uuid
 from collections.abc import Callable, Iterator, Sequence
@@ -280,8 +281,6 @@ def _start_method(multiprocessing) -> str:
     then 0.25 s; forked from this process 0.43 and 0.14 s; spawned about 2 s, each worker importing
     numpy, MuJoCo, Pinocchio and the harness again). A fork server already running (started by an
     earlier cluster) is used as it is."""
-    import sys
-
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return "spawn"
     from multiprocessing import forkserver

@@ -157,13 +157,6 @@ def links_weights(beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray]) ->
     return np.where(link, beta - share, 0.0)
 
 
-def links_torque(G: np.ndarray, beta: np.ndarray, link_part: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """The links' part of a base-parameter fit's torque, the rigid-body torque tau_R: G (..., r) the
-    base parameters' columns, beta (r,) their values (`links_weights`)."""
-    w = links_weights(beta, link_part)  # one product over every column: a column subset would copy G
-    return (G.reshape(-1, G.shape[-1]) @ w).reshape(G.shape[:-1])  # as one matrix: numpy loops over a stack's rows
-
-
 def base_parameters(W: np.ndarray, with_friction: bool = False) -> BaseParameters:
     from scipy.linalg import qr, solve_triangular  # pivoted QR: numpy has none; imported where needed
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.base.series import TimeSeries
-from harness.base.tomlio import MAX_DATA_BYTES, InputError, MiB, Table
+from harness.base.tomlio import MAX_DATA_BYTES, InputError, Table, too_large
 from harness.model.spec import RobotSpec
 from harness.sources.log.schema import DataSource, column_names
 from harness.sources.log.units import to_si
@@ -167,8 +167,7 @@ class _Digested(io.RawIOBase):
         if count:
             self.size += count
             if self.size > self.limit:
-                raise InputError(self.path, "", f"larger than {self.limit // MiB} MiB, the most this kind of file "
-                                                "may hold")
+                raise too_large(self.path, self.limit)
             self.digest.update(memoryview(buffer)[:count])
         return count
 
@@ -187,8 +186,7 @@ def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: Ro
         with open(path, "rb") as f:  # read once, from its header to its end
             info = os.fstat(f.fileno())  # a regular file refused at its size; a stream as it is read
             if stat.S_ISREG(info.st_mode) and info.st_size > MAX_DATA_BYTES:
-                raise InputError(path, "", f"larger than {MAX_DATA_BYTES // MiB} MiB, the most this kind of file "
-                                           "may hold")
+                raise too_large(path, MAX_DATA_BYTES)
             stream = io.BufferedReader(_Digested(f, path, digest, MAX_DATA_BYTES), STREAM_BUFFER)
             line = stream.readline(HEADER_BYTES + 1)
             if len(line) > HEADER_BYTES:
