@@ -23,6 +23,11 @@ and optionally
                                                  one and its moment about the joint point, world components
     mass_matrix(q) -> M                          (N, n, n)
 
+A closed chain's model (a model file with loops: harness/model/loops.py) is given every joint's
+(q, q', q'') in its `joint_names` order and returns the actuated joints' torques (N, n_a), in the order
+of its optional `actuated_joints` (by default the actuated ones in its `joint_names` order): what the
+motors must give, the loops' share carried by the passive joints and the loops (G^T tau of the tree).
+
 Identification method: the attribute is called in the same way and returns an object with
 `joint_names` and `fit(q, qd, qdd, tau)` (arrays (N, n), measured; and `t`, the (N,) sample times in
 s, passed by keyword where the signature names it) returning the identified model: an
@@ -283,6 +288,21 @@ def inverse_dynamics(plugin: str, what: str, model, joints: Sequence[str], q: np
     to_model, back = column_maps(model.joint_names, joints)
     return call(plugin, what, model.inverse_dynamics, q[:, to_model], qd[:, to_model], qdd[:, to_model],
                 shape=q.shape)[:, back]
+
+
+def actuated_torques(plugin: str, what: str, model, joints: Sequence[str], actuated: Sequence[str], q: np.ndarray,
+                     qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """A closed chain's model (harness/model/closure.py): given every joint's states (N, n) in the
+    robot's order `joints`, its answer is the actuated joints' torques (N, n_a), its columns in the
+    order of its `actuated_joints` (by default the robot's `actuated` joints in its `joint_names`
+    order), brought back to `actuated`'s order."""
+    to_model, _ = column_maps(model.joint_names, joints)
+    names = list(getattr(model, "actuated_joints", None) or [j for j in model.joint_names if j in actuated])
+    if sorted(names) != sorted(actuated):
+        raise PluginError(plugin, f"actuated_joints {names} are not the robot's actuated joints {list(actuated)}")
+    out = call(plugin, what, model.inverse_dynamics, q[:, to_model], qd[:, to_model], qdd[:, to_model],
+               shape=(len(q), len(actuated)))
+    return out[:, [names.index(a) for a in actuated]]
 
 
 @dataclass(frozen=True, eq=False)

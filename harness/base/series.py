@@ -53,6 +53,10 @@ class TimeSeries:
     a_W: np.ndarray | None = None  # (N, nb, 3) centre-of-mass acceleration
     omega_W: np.ndarray | None = None  # (N, nb, 3)
     omegadot_W: np.ndarray | None = None  # (N, nb, 3)
+    loops: tuple[str, ...] = ()  # a closed chain's loops (harness/model/loops.py)
+    loop_gap: np.ndarray | None = None  # (N, n_loops) m: how far each loop's joined points are apart
+    loop_F_W: np.ndarray | None = None  # (N, nb, 3) the loops' force on each body (a closed chain's)
+    loop_M_W: np.ndarray | None = None  # (N, nb, 3) and their moment about its centre of mass
     meta: dict = field(default_factory=dict)
 
     def joint_index(self, name: str) -> int:
@@ -73,7 +77,8 @@ class TimeSeries:
 
     def columns(self) -> dict[str, np.ndarray]:
         """The CSV's columns in order, {name: (N,) values}: the joints', then the bodies' and the joint
-        wrenches where they are recorded."""
+        wrenches where they are recorded, then a closed chain's loop gaps (`gap[<loop>]`, m) and the
+        loops' force and moment on each body (`loopFx[<body>]` .. `loopMz[<body>]`)."""
         cols: dict[str, np.ndarray] = {"t": self.t}
         for j, name in enumerate(self.joints):
             for k in JOINT_CHANNELS:
@@ -92,6 +97,13 @@ class TimeSeries:
                     cols[f"{name}_F{s}"] = self.F_W[:, j, k]
                 for k, s in enumerate(XYZ):
                     cols[f"{name}_M{s}"] = self.M_W[:, j, k]
+        for k, name in enumerate(self.loops if self.loop_gap is not None else ()):
+            cols[f"gap[{name}]"] = self.loop_gap[:, k]
+        if self.loop_F_W is not None:
+            for b, name in enumerate(self.bodies):
+                for arr, kind in ((self.loop_F_W, "F"), (self.loop_M_W, "M")):
+                    for k, s in enumerate(XYZ):
+                        cols[f"loop{kind}{s}[{name}]"] = arr[:, b, k]
         return cols
 
     def write_csv(self, path: Path) -> None:
@@ -146,6 +158,12 @@ def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:
         return np.stack([df[[fmt.format(n=n, s=s) for s in XYZ]].to_numpy() for n in of], axis=1)
 
     R = np.stack([df[[f"{b}_{r}" for r in ROTATION]].to_numpy() for b in names], axis=1)
+    loops = tuple(c[len("gap["):-1] for c in df.columns if c.startswith("gap[") and c.endswith("]"))
+    if loops:
+        series.update(loops=loops, loop_gap=df[[f"gap[{n}]" for n in loops]].to_numpy())
+    if all(f"loopFx[{b}]" in df.columns for b in names) and names:
+        series.update({f"loop_{kind}_W": np.stack([df[[f"loop{kind}{s}[{b}]" for s in XYZ]].to_numpy() for b in names],
+                                                  axis=1) for kind in ("F", "M")})
     return TimeSeries(**series, bodies=names, F_W=vec(joints, "{n}_F{s}"), M_W=vec(joints, "{n}_M{s}"),
                       p_W=vec(names, "{n}_{s}"), v_W=vec(names, "{n}_v{s}"), R_WB=R.reshape(len(df), len(names), 3, 3),
                       a_W=vec(names, "{n}_a{s}"), omega_W=vec(names, "{n}_w{s}"), omegadot_W=vec(names, "{n}_wd{s}"))

@@ -20,6 +20,7 @@ are kept in `meta["drive_stages"]`, so that another model can be driven by exact
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -50,7 +51,22 @@ def _driven(spec: RobotSpec, gravity_W: np.ndarray, integrator: str,
     for joint in spec.joints:
         ms.add_actuator(name=f"drive_{joint.name}", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
                         gear=[1.0, 0, 0, 0, 0, 0])
+    if spec.loops:  # stiff loops (LOOP_SOLIMP), their Jacobian dense for the drive's projection
+        ms.option.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
+        for eq in ms.equalities:
+            eq.solref, eq.solimp = [LOOP_TIME_CONSTANT_STEPS * float(timestep), 1.0], list(LOOP_SOLIMP)
     return ms, elements
+
+
+# A loop's constraint is soft in MuJoCo: its impedance and reference acceleration make the loop's gap
+# close as a damped spring. Stiff settings for closed chains: a time constant of 2 steps (MuJoCo's
+# smallest, solref's time constant is clamped at twice the step) and an impedance of 0.9999 (MuJoCo's
+# largest: the constraint force reaches 99.99 % of what a rigid loop needs). The built-in four-bar's
+# 2 s run (scenarios/fourbar.toml, RK4): largest gap 1.7e-8 m at a 1 ms step, 4.2e-9 m at 0.5 ms (the
+# gap goes as the step squared), against 3.0e-4 m with MuJoCo's defaults (solref 0.02 1, solimp 0.9
+# 0.95 0.001 0.5 2) at 1 ms; the joints then track the motion to 8.8e-8, 2.2e-8 and 1.4e-3 rad.
+LOOP_TIME_CONSTANT_STEPS = 2.0
+LOOP_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 
 
 def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
@@ -119,6 +135,31 @@ def acceleration_model(spec: RobotSpec, gravity_W: np.ndarray) -> mujoco.MjModel
     ms.option.disableflags |= off.mjDSBL_CONTACT | off.mjDSBL_EULERDAMP | off.mjDSBL_SENSOR
     add_robot(ms, spec)
     return ms.compile()
+
+
+def inverse_dynamics(spec: RobotSpec, gravity_W: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                     qdd: np.ndarray) -> np.ndarray:
+    """MuJoCo's inverse dynamics (mj_inverse's qfrc_inverse, (N, n) spec joint order) of the bench's model
+    of `spec` (rotor inertia and viscous friction on the joints, or on the motors' tendons), plus the dry
+    terms the bench applies beside them (Coulomb, offset and the families' terms, through N:
+    harness/model/drives.py, Dry). With loops, qfrc_inverse less the constraint force MuJoCo's soft
+    model makes of q'' (harness/model/closure.py projects it away)."""
+    model = build_spec(spec, gravity_W).compile()
+    data = mujoco.MjData(model)
+    cols = [model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in spec.joint_names]
+    pos = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in spec.joint_names]
+    tau = np.empty_like(q)
+    for k in range(len(q)):
+        data.qpos[pos], data.qvel[cols], data.qacc[cols] = q[k], qd[k], qdd[k]
+        mujoco.mj_inverse(model, data)
+        tau[k] = data.qfrc_inverse[cols]
+    dry = drives.Dry(spec.frictions, spec.transmission)
+    if not dry.any:
+        return tau
+    if not dry.needs_load:
+        return tau + dry(qd)
+    # the load law reads the rigid bodies' torque: MuJoCo's own, its model without the drives
+    return tau + dry(qd, inverse_dynamics(spec.rigid(), gravity_W, q, qd, qdd))
 
 
 def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
@@ -214,12 +255,18 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     data.qpos[:], data.qvel[:] = drive.q_d[0], drive.qd_d[0]
     sensor_rows = np.empty((n_rows, model.nsensordata))
     qacc_rows = np.empty((n_rows, drive.n))
+    gap_rows = np.empty((n_rows, len(spec.loops)))
+    body_ids = np.array([model.body(b.name).id for b in spec.massive_bodies])
+    wrench_rows = np.empty((n_rows, len(body_ids), 6)) if spec.loops else None
     with controlled(drive.callback()) as warned:
         for row in range(n_rows):
             data.time = row * substeps * dt
             mujoco.mj_forward(model, data)
             sensor_rows[row] = data.sensordata
             qacc_rows[row] = data.qacc[drive.vadr]
+            if spec.loops:
+                gap_rows[row] = _loop_gaps(model, data)
+                wrench_rows[row] = _loop_wrenches(model, data, body_ids)
             if row < n_rows - 1:
                 drive.captured[1] = True
                 mujoco.mj_step(model, data, substeps)  # one call for the steps to the next row
@@ -236,7 +283,53 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
         **dict(zip(("q_ref", "qd_ref", "qdd_ref"), (x[::2 * substeps] for x in in_spec_order), strict=True)),
         "drive_stages": drive.stages_by_step(),  # (steps, stages, joints): torques at every evaluation
     }
-    return _recorded(spec, model, gravity_W, t, sensor_rows, qacc_rows, meta)
+    rec = _recorded(spec, model, gravity_W, t, sensor_rows, qacc_rows, meta)
+    if not spec.loops:
+        return rec
+    meta["loop_settings"] = {"solref": model.eq_solref[0].tolist(), "solimp": model.eq_solimp[0].tolist()}
+    return dataclasses.replace(rec, loops=tuple(loop.name for loop in spec.loops), loop_gap=gap_rows,
+                               loop_F_W=wrench_rows[:, :, :3], loop_M_W=wrench_rows[:, :, 3:])
+
+
+def _loop_wrenches(model: mujoco.MjModel, data: mujoco.MjData, body_ids: np.ndarray) -> np.ndarray:
+    """(nb, 6): the force and the moment about its centre of mass that the loops apply to each body,
+    world components. With contacts off and nothing applied, a body's external wrench (cfrc_ext, set by
+    the force sensors' mj_rnePostConstraint: [moment about the subtree's centre of mass of its tree's
+    root; force]) is its loops'."""
+    ext = data.cfrc_ext[body_ids]
+    c = data.subtree_com[model.body_rootid[body_ids]]
+    F = ext[:, 3:]
+    return np.concatenate([F, ext[:, :3] + np.cross(c - data.xipos[body_ids], F)], axis=1)
+
+
+def _loop_gaps(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """(n_loops,) m: how far apart each loop's joined points are (the norm of its first three
+    constraint residuals, efc_pos, in MuJoCo's order of equalities)."""
+    rows = np.flatnonzero(data.efc_type[: data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY))
+    ids = data.efc_id[rows]
+    return np.array([np.linalg.norm(data.efc_pos[rows[ids == k][:3]]) for k in range(model.neq)])
+
+
+def _loop_projection(spec: RobotSpec, vadr: np.ndarray) -> Callable[[mujoco.MjModel, mujoco.MjData, np.ndarray], None]:
+    """For a closed chain, the computed torque tau (every dof's, what the tree would need) made the
+    actuated joints' tau_a = G^T tau and zero on the passive ones (harness/model/closure.py), G from the
+    loops' rows of MuJoCo's own constraint Jacobian at the state being evaluated (efc_J, dense: checked
+    against the harness's J in tests/test_closed_chains.py). Under S^T tau_a the constrained dynamics
+    give G^T (M q'' + h) = tau_a: the actuated joints follow q''_cmd, the passive ones what the loops
+    make of it."""
+    from harness.model.closure import RANK
+
+    act = vadr[[spec.joint_names.index(a) for a in spec.actuated]]
+    passive = np.setdiff1d(vadr, act)
+    equality = int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+
+    def project(m: mujoco.MjModel, d: mujoco.MjData, tau: np.ndarray) -> None:
+        J = d.efc_J[: d.nefc * m.nv].reshape(d.nefc, m.nv)[d.efc_type[: d.nefc] == equality]
+        G_p = -np.linalg.pinv(J[:, passive], rcond=RANK) @ J[:, act]
+        tau[act] += G_p.T @ tau[passive]
+        tau[passive] = 0.0
+
+    return project
 
 
 class _ComputedTorque:
@@ -286,12 +379,14 @@ class _ComputedTorque:
         self.e, self.ed, self.qacc_cmd, self.tau = (np.empty(n) for _ in range(4))
         w = simulation.tracking_bandwidth
         self.kp, self.kd = np.full(n, w * w), np.full(n, 2.0 * w)
+        self.project = _loop_projection(spec, vadr) if spec.loops else None
 
     def callback(self) -> Callable[[mujoco.MjModel, mujoco.MjData], None]:
-        if self.transmission is not None:
-            return self._through_transmission()
         """The drive as MuJoCo calls it, its arrays bound as the closure's locals (an attribute lookup
         per array at each of a run's evaluations costs 5 % of kr500_rail's simulation)."""
+        if self.transmission is not None:
+            return self._through_transmission()
+        project = self.project
         q_d, qd_d, qdd_d, half, kp, kd = self.q_d, self.qd_d, self.qdd_d, self.half, self.kp, self.kd
         qpos, qvel, ctrl, to_ctrl = self.qpos, self.qvel, self.ctrl, self.to_ctrl
         qfrc_bias, qfrc_passive, qfrc_applied = self.qfrc_bias, self.qfrc_passive, self.qfrc_applied
@@ -311,6 +406,8 @@ class _ComputedTorque:
             add(tau, qfrc_bias, tau)
             subtract(tau, qfrc_passive, tau)
             subtract(tau, qfrc_applied, tau)
+            if project is not None:
+                project(m, d, tau)
             if to_ctrl is None:
                 ctrl[:] = tau
             else:

@@ -78,11 +78,25 @@ class InverseDynamics:
     M_W: np.ndarray  # (N, joints, 3) its moment about the joint point
 
 
-def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> InverseDynamics:
+@dataclass(frozen=True, eq=False)
+class PointForce:
+    """A force f_W (N, 3) on a spec joint's outer body at the world point x_W (N, 3), with a moment
+    m_W (N, 3) or None: what a closed chain's loop applies (harness/model/closure.py, multipliers)."""
+
+    joint: int  # the spec joint whose outer body it acts on
+    x_W: np.ndarray
+    f_W: np.ndarray
+    m_W: np.ndarray | None = None
+
+
+def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+         external: tuple[PointForce, ...] = ()) -> InverseDynamics:
     """RNEA at every sample (one call per state), with the joint wrenches data.f moved to world
     components: data.f[i] is the spatial force across joint i, [linear; angular] about the joint
     frame origin in the joint frame; oMi rotates it to the world. RNEA works with local placements
-    and leaves data.oMi as it was, so forwardKinematics sets it for the same q."""
+    and leaves data.oMi as it was, so forwardKinematics sets it for the same q. `external` forces
+    act on the bodies (Pinocchio's fext, in each joint's frame about its origin): the torques are
+    then M q'' + h - J^T f."""
     model = pm.model
     data = model.createData()
     N, nj = q.shape
@@ -91,9 +105,23 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> 
     M = np.empty((N, nj, 3))
     qq, vv, aa = (np.zeros((N, model.nq)) for _ in range(3))
     qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    fext = pin.StdVec_Force()
+    for _ in range(model.njoints):
+        fext.append(pin.Force.Zero())
     for k in range(N):
-        full = pin.rnea(model, data, qq[k], vv[k], aa[k])
-        pin.forwardKinematics(model, data, qq[k])
+        if external:
+            pin.forwardKinematics(model, data, qq[k])
+            for i in range(model.njoints):
+                fext[i] = pin.Force.Zero()
+            for e in external:
+                jid = pm.joint_ids[e.joint]
+                R, p = data.oMi[jid].rotation, data.oMi[jid].translation
+                moment = np.cross(e.x_W[k] - p, e.f_W[k]) + (0.0 if e.m_W is None else e.m_W[k])
+                fext[jid] = fext[jid] + pin.Force(R.T @ e.f_W[k], R.T @ moment)
+            full = pin.rnea(model, data, qq[k], vv[k], aa[k], fext)
+        else:
+            full = pin.rnea(model, data, qq[k], vv[k], aa[k])
+            pin.forwardKinematics(model, data, qq[k])
         tau[k] = full[pm.q_index]
         for j, jid in enumerate(pm.joint_ids):
             R = data.oMi[jid].rotation

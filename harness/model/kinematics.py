@@ -140,7 +140,7 @@ def _turned(R: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.matmul(v, R)
 
 
-def _point_acceleration(a_c, wd, w, r):
+def point_acceleration(a_c, wd, w, r):
     """a_c + w' x r + w x (w x r), component-major (3, ...)."""
     out = cross(w, cross(w, r, axis=0), axis=0)
     out += cross(wd, r, axis=0)
@@ -247,7 +247,7 @@ def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.n
             u = _turned(R_P, st.u0)
             O_J = _turned(R_P, st.p0)
             O_J += t[P]
-            a_O = _point_acceleration(a[:, P], wd_P, w_P, O_J - c_P)  # the parent's point at O_J
+            a_O = point_acceleration(a[:, P], wd_P, w_P, O_J - c_P)  # the parent's point at O_J
         w_B, wd_B = w[:, i], wd[:, i]
         if st.revolute:
             angle = s * st.norm
@@ -268,7 +268,7 @@ def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.n
                 wd_B += cross(w_P, u, axis=0) * sd
             if velocities:
                 v[:, i] = cross(w_B, r, axis=0) + (0.0 if P < 0 else v_P + cross(w_P, O_J - c_P, axis=0))
-            a[:, i] = _point_acceleration(a_O, wd_B, w_B, r)
+            a[:, i] = point_acceleration(a_O, wd_B, w_B, r)
         else:
             R_B[...] = R_P
             np.multiply(u, s, out=t_B)
@@ -286,7 +286,7 @@ def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.n
                 if velocities:
                     v[:, i] = v_P + cross(w_P, c[:, i] - c_P, axis=0) + u * sd
                 acc += 2.0 * cross(w_P, u, axis=0) * sd
-                acc += _point_acceleration(a_O, wd_P, w_P, c[:, i] - O_J)
+                acc += point_acceleration(a_O, wd_P, w_P, c[:, i] - O_J)
                 a[:, i] = acc
         _times_constant(R_B, st.R_WB0_T, out=R_WB[:, :, i])
         axes[:, k], points[:, k] = u, O_J

@@ -51,7 +51,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
     model.finish()
-    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = tendons = None
+    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = tendons = closure = None
     fixed: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     if root.has("dh"):
@@ -90,7 +90,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
         if not mjcf_path.is_file():
             raise mt.error("file", f"MJCF file {mjcf_path} not found")
         mt.finish()
-        bodies, joints, limits, drive_limits, gravity, notes, tendons = read_mjcf(mjcf_path, mt)
+        bodies, joints, limits, drive_limits, gravity, notes, tendons, closure = read_mjcf(mjcf_path, mt)
         joints = _joint_friction(root, joints, "the MJCF file")
         body_tables = [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies]
         joint_tables = [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints]
@@ -102,6 +102,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     if payload is not None:
         bodies = _with_payload(bodies, payload)
     drives = root.table("drives") if root.has("drives") else None
+    chain_table = root.table("closed_chain") if root.has("closed_chain") else None
     root.finish()
     if urdf_path or mjcf_path:
         notes = notes + _degenerate(bodies, "the URDF" if urdf_path else "the MJCF file")
@@ -114,6 +115,63 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     if drives is not None:  # in the spec's joint order, root outwards
         joints, transmission = read_drives(drives, list(spec.joints))
         spec = dataclasses.replace(spec, joints=tuple(joints), transmission=transmission)
+    if closure is not None or chain_table is not None:
+        spec = _closed_chain(spec, closure, chain_table, Table({}, path, "mjcf") if mjcf_path else root)
+    return spec
+
+
+def _closed_chain(spec: RobotSpec, from_file: tuple | None, t: Table | None, file_table: Table) -> RobotSpec:
+    """The spec with its loops (an MJCF file's, or `[[closed_chain.loops]]`'s for a TOML or URDF tree:
+    `name`, `type` connect or weld, `body1`, `body2` (a body or "world") and `point`, the world point at
+    q = 0 where they are joined, a weld keeping their relative orientation at q = 0) and its actuated
+    joints (`closed_chain.actuated`, else the MJCF file's actuated joints), checked: the loops close
+    near q = 0 and the actuated joints determine the passive ones there (harness/model/closure.py)."""
+    from harness.model.closure import ClosedChain, ClosureError, close, projection
+    from harness.model.spec import LOOP_KINDS, Loop
+
+    loops, actuated = from_file if from_file is not None else ((), ())
+    key, where = ("file", file_table) if from_file is not None else ("closed_chain", t)
+    origin = f"{spec.mjcf}: " if from_file is not None else ""
+    if t is not None:
+        if t.has("actuated"):
+            actuated = t.strings("actuated", choices=spec.joint_names)
+            key, where, origin = "actuated", t, ""
+        if t.has("loops"):
+            if from_file is not None:
+                raise t.error("loops", f"{spec.mjcf} states its loops (<equality>): give them there or here, not both")
+            bodies = [b.name for b in spec.bodies] + [WORLD]
+            read = []
+            for lt in t.tables("loops"):
+                kind = lt.string("type", choices=LOOP_KINDS)
+                a, b = lt.string("body1", choices=bodies), lt.string("body2", choices=bodies)
+                if a == b:
+                    raise lt.error("body2", f"joins body {a!r} to itself")
+                point = lt.vector("point")
+                frame = np.eye(3) if kind == "weld" else None
+                read.append(Loop(lt.string("name", default=f"loop{len(read) + 1}"), kind, a, b, point, point,
+                                 frame, frame))
+                lt.finish()
+            loops = tuple(read)
+        t.finish()
+    if not loops:
+        raise where.error(key, "a closed chain needs loops: none is stated")
+    if spec.transmission is not None:
+        raise where.error(key, f"{origin}loop {loops[0].name!r}: a closed chain with drives ([drives]) is not "
+                               "supported")
+    for loop in loops:
+        for body in (loop.body_a, loop.body_b):
+            if body != WORLD and spec.body(body).massless:
+                raise where.error(key, f"{origin}loop {loop.name!r} joins body {body!r}, which has no mass (a carriage "
+                                       "merged into its child): join the body that moves")
+    if not actuated:
+        raise where.error(key, f"{origin}loop {loops[0].name!r} closes a chain whose actuated joints are not named "
+                               "(an MJCF file's joint actuators, or closed_chain.actuated)")
+    spec = dataclasses.replace(spec, loops=tuple(loops), actuated=tuple(actuated))
+    try:
+        chain = ClosedChain.of(spec)
+        projection(chain, close(chain, np.zeros(len(spec.joints)), "the initial configuration (all q = 0), row"))
+    except ClosureError as exc:
+        raise where.error(key, f"{origin}{exc}") from None
     return spec
 
 
@@ -167,12 +225,13 @@ def spec_from_mjmodel(model, path: Path, name: str) -> RobotSpec:
     from harness.model.mjcf import read_model
 
     table = Table({}, path)
-    bodies, joints, limits, drive_limits, gravity, notes, tendons = read_model(model, path, table)
+    bodies, joints, limits, drive_limits, gravity, notes, tendons, closure = read_model(model, path, table)
     spec = _assemble(RobotSpec(name, "", path, tuple(bodies), tuple(joints), None, limits, None, (), drive_limits,
                                gravity, path, notes),
                      [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies],
                      [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints])
-    return spec if tendons is None else with_tendon_drives(spec, tendons, table)
+    spec = spec if tendons is None else with_tendon_drives(spec, tendons, table)
+    return spec if closure is None else _closed_chain(spec, closure, None, table)
 
 
 def _joint_friction(root: Table, joints: list[Joint], source: str) -> list[Joint]:

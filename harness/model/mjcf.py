@@ -21,9 +21,13 @@ units is the tendon's armature and damping over g^2 and its frictionloss over |g
 joints is the same). Every joint must then be on a drive tendon (N is square and invertible) and carry
 no armature, damping or frictionloss of its own; MJCF has no motor offsets (they are read as zero).
 
+Loops: `<equality>` `connect` and `weld` elements (of two bodies or two sites) close the tree into a
+closed chain (harness/model/loops.py), its actuated joints those a joint actuator drives.
+
 Refused, with a line naming the element: ball joints, free joints below the root, a body with more
-than one joint, tendons that are not such drives, equality constraints (coupled joints, loops), joint
-stiffness (springs) and gravity compensation, which the harness's models do not carry.
+than one joint, tendons that are not such drives, joint, tendon and flex equalities (couplings, a
+tendon loop), an equality that starts inactive, loops beside drive tendons, joint stiffness
+(springs) and gravity compensation, which the harness's models do not carry.
 """
 
 from __future__ import annotations
@@ -40,11 +44,11 @@ from harness.model.spec import Body, Joint, RobotSpec
 FLOATING_BASE_FIXED = "the floating base is taken as fixed to the world at the file's pose"  # ends its note
 
 
-def read_mjcf(path: Path, table: Table, key: str = "file"
-              ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...], dict | None]:
+def read_mjcf(path: Path, table: Table, key: str = "file") -> tuple:
     """Bodies and joints (world frame at q = 0) of an MJCF file, joint position limits by name,
     effort limits by name ({"effort": ..}), the file's gravity (3,), what was assumed (a floating base
-    fixed), one line each, and its drives (`drive_tendons`, None without). Errors name the file and
+    fixed), one line each, its drives (`drive_tendons`, None without) and its loops and actuated
+    joints (`_closure`, None without equality constraints). Errors name the file and
     the element, under `key` of `table`."""
     import mujoco
 
@@ -62,8 +66,7 @@ def compiler_message(exc: BaseException) -> str:
     return "; ".join(line.strip() for line in str(exc).strip().splitlines() if line.strip()) or type(exc).__name__
 
 
-def read_model(model, path: Path, table: Table, key: str = "file"
-               ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...], dict | None]:
+def read_model(model, path: Path, table: Table, key: str = "file") -> tuple:
     """`read_mjcf`'s reading of a compiled MuJoCo model (mujoco.MjModel) that came from `path`."""
     import mujoco
 
@@ -83,13 +86,13 @@ def _name(model, kind, i: int) -> str:
     return mujoco.mj_id2name(model, kind, i) or f"#{i}"
 
 
-def _read(model, mujoco, path: Path
-          ) -> tuple[list[Body], list[Joint], dict, dict, np.ndarray, tuple[str, ...], dict | None]:
+def _read(model, mujoco, path: Path) -> tuple:
     obj, jt = mujoco.mjtObj, mujoco.mjtJoint
+    _check_equalities(model, mujoco)
     drives = drive_tendons(model, mujoco) if model.ntendon else None
-    if model.neq:
-        raise _Refused(f"equality constraint {_name(model, obj.mjOBJ_EQUALITY, 0)!r}: equality constraints "
-                       "(coupled joints, loops) are not supported")
+    if model.neq and drives is not None:
+        raise _Refused(f"equality constraint {_name(model, obj.mjOBJ_EQUALITY, 0)!r}: a closed chain with drive "
+                       "tendons is not supported")
     if np.any(model.body_gravcomp):
         b = int(np.flatnonzero(model.body_gravcomp)[0])
         raise _Refused(f"body {_name(model, obj.mjOBJ_BODY, b)!r}: gravcomp is not supported")
@@ -166,7 +169,64 @@ def _read(model, mujoco, path: Path
         effort = float(np.max(np.abs(model.actuator_forcerange[a])) * abs(model.actuator_gear[a, 0]))
         name = _name(model, obj.mjOBJ_JOINT, j)
         efforts[name] = {"effort": effort + efforts.get(name, {}).get("effort", 0.0)}  # actuators on one joint add
-    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives
+    closure = _closure(model, data, mujoco, owner) if model.neq else None
+    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives, closure
+
+
+def _check_equalities(model, mujoco) -> None:
+    """Every equality constraint a loop (`_closure`): joint, tendon and flex equalities and one that
+    starts inactive refused in one line."""
+    obj, eq = mujoco.mjtObj, mujoco.mjtEq
+    for i in range(model.neq):
+        name, kind = _name(model, obj.mjOBJ_EQUALITY, i), mujoco.mjtEq(int(model.eq_type[i]))
+        if kind not in (eq.mjEQ_CONNECT, eq.mjEQ_WELD):
+            what = {eq.mjEQ_JOINT: "a joint coupling", eq.mjEQ_TENDON: "a tendon coupling or tendon loop"}.get(
+                kind, "a flex constraint")
+            raise _Refused(f"equality constraint {name!r} is {what}: only connect and weld loops are supported")
+        if not model.eq_active0[i]:
+            raise _Refused(f"equality constraint {name!r} starts inactive: a loop switched on and off is not "
+                           "supported")
+
+
+def _closure(model, data, mujoco, owner: dict) -> tuple[tuple, tuple[str, ...]]:
+    """The file's loops (harness/model/loops.py: each `connect` or `weld` of two bodies or two sites,
+    its points and frames where they are at q = 0, `data` holding the kinematics there) and its actuated
+    joints (those a joint actuator drives). A body without a joint belongs to the body it is merged into
+    (`owner`). Refused: joint, tendon and flex equalities (couplings, a tendon loop), an equality that
+    starts inactive, a loop whose two sides are one body."""
+    from harness.model.spec import Loop
+
+    obj, eq = mujoco.mjtObj, mujoco.mjtEq
+    loops = []
+    for i in range(model.neq):
+        name, kind = _name(model, obj.mjOBJ_EQUALITY, i), mujoco.mjtEq(int(model.eq_type[i]))
+        d = model.eq_data[i]
+        ends = []
+        for side, obj_id in ((0, int(model.eq_obj1id[i])), (1, int(model.eq_obj2id[i]))):
+            if int(model.eq_objtype[i]) == int(obj.mjOBJ_SITE):
+                body = int(model.site_bodyid[obj_id])
+                point, R = data.site_xpos[obj_id].copy(), data.site_xmat[obj_id].reshape(3, 3).copy()
+            else:
+                body = obj_id
+                R_body, p_body = data.xmat[body].reshape(3, 3), data.xpos[body]
+                if kind == eq.mjEQ_CONNECT:  # data: the anchor in body 1's frame, then in body 2's
+                    point, R = p_body + R_body @ d[3 * side:3 * side + 3], R_body.copy()
+                else:  # data: the anchor in body 2's frame, then where it and body 2's axes are in body 1's
+                    rel = np.zeros(9)
+                    mujoco.mju_quat2Mat(rel, d[6:10])
+                    if side == 0:
+                        point, R = p_body + R_body @ d[3:6], R_body @ rel.reshape(3, 3)
+                    else:
+                        point, R = p_body + R_body @ d[0:3], R_body.copy()
+            ends.append((_name(model, obj.mjOBJ_BODY, owner[body]) if owner[body] else "world", point, R))
+        if ends[0][0] == ends[1][0]:
+            raise _Refused(f"equality constraint {name!r} joins body {ends[0][0]!r} to itself")
+        weld = kind == eq.mjEQ_WELD
+        loops.append(Loop(name, "weld" if weld else "connect", ends[0][0], ends[1][0], ends[0][1], ends[1][1],
+                          ends[0][2] if weld else None, ends[1][2] if weld else None))
+    actuated = tuple(dict.fromkeys(_name(model, obj.mjOBJ_JOINT, int(model.actuator_trnid[a, 0]))
+                                   for a in range(model.nu) if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT))
+    return tuple(loops), actuated
 
 
 def drive_tendons(model, mujoco) -> dict:

@@ -71,7 +71,26 @@ def add_robot(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False) ->
                         fromto=[-half, 0, 0, half, 0, 0], contype=0, conaffinity=0)
     if spec.transmission is not None:
         add_drives(ms, spec, frictionloss)
+    add_loops(ms, spec, elements, frames)
     return elements
+
+
+def add_loops(ms: mujoco.MjSpec, spec: RobotSpec, elements: dict, frames: dict) -> None:
+    """Each loop of the spec (harness/model/loops.py) as an equality constraint between two sites,
+    `<loop>_1` on body a and `<loop>_2` on body b, at its joined points (and, for a weld, with its
+    joined frames): MuJoCo's site-based connect and weld make the sites' points (and frames)
+    coincide, whatever the configuration the model is compiled at."""
+    kinds = {"connect": mujoco.mjtEq.mjEQ_CONNECT, "weld": mujoco.mjtEq.mjEQ_WELD}
+    for loop in spec.loops:
+        names = []
+        for side, (body, point, R) in enumerate(((loop.body_a, loop.point_a_W0, loop.R_W_frame_a0),
+                                                 (loop.body_b, loop.point_b_W0, loop.R_W_frame_b0)), start=1):
+            R_WE, p_WE = frames[body]
+            R = R_WE if R is None else R
+            names.append(f"{loop.name}_{side}")
+            elements[body].add_site(name=names[-1], pos=R_WE.T @ (point - p_WE), quat=_quat(R_WE.T @ R))
+        ms.add_equality(name=loop.name, type=kinds[loop.kind], objtype=mujoco.mjtObj.mjOBJ_SITE,
+                        name1=names[0], name2=names[1])
 
 
 def add_drives(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False) -> list[mujoco.MjsTendon]:

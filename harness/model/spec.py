@@ -1,5 +1,6 @@
 """RobotSpec: a tree of rigid bodies and one-degree-of-freedom joints, as harness/model/load.py
-reads it from a model file (TOML, or a URDF named by one). Geometry in the world frame at the initial
+reads it from a model file (TOML, or a URDF or MJCF named by one), and the loops that close it when
+it is a closed chain's (harness/model/loops.py). Geometry in the world frame at the initial
 pose (all joint coordinates zero): each body's centre of mass `p_W_com0`, principal axes `R_WB0` and
 moments `I_B`; each joint's point `p_W0` and axis `axis_W0`."""
 
@@ -17,6 +18,7 @@ from harness.model.friction import NO_FRICTION, JointFriction
 WORLD = "world"
 JOINT_TYPES = ("revolute", "prismatic")
 BODY_SHAPES = ("cylinder", "rod", "point", "explicit", "massless")
+LOOP_KINDS = ("connect", "weld")
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,25 @@ class Joint:
 
 
 @dataclass(frozen=True, eq=False)
+class Loop:
+    """A loop closure: a point (connect) or a frame (weld) of body a joined to one of body b
+    (harness/model/loops.py gives its constraint equations)."""
+
+    name: str
+    kind: str  # "connect" or "weld"
+    body_a: str  # a spec body, or WORLD
+    body_b: str
+    point_a_W0: np.ndarray  # (3,) the joined point of body a where it is at q = 0, world components
+    point_b_W0: np.ndarray  # (3,) that of body b
+    R_W_frame_a0: np.ndarray | None = None  # weld: (3, 3) the joined frame of body a at q = 0
+    R_W_frame_b0: np.ndarray | None = None
+
+    @property
+    def rows(self) -> int:
+        return 3 if self.kind == "connect" else 6
+
+
+@dataclass(frozen=True, eq=False)
 class RobotSpec:
     """A validated tree. Bodies and joints are ordered from the root outwards."""
 
@@ -101,6 +122,8 @@ class RobotSpec:
     notes: tuple[str, ...] = ()  # what reading it assumed, one line each (a floating base fixed to the world)
     transmission: Transmission | None = None  # the drives' N and offsets (harness/model/drives.py); None: each
     # joint driven on its own through a ratio already folded into its friction and rotor inertia
+    loops: tuple[Loop, ...] = ()  # loop closures (harness/model/loops.py): the tree is a closed chain's
+    actuated: tuple[str, ...] = ()  # a closed chain's actuated joints (the others are passive)
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -132,6 +155,11 @@ class RobotSpec:
         """The same robot with each joint's friction law replaced, in joint order."""
         return dataclasses.replace(self, joints=tuple(dataclasses.replace(j, friction=f)
                                                       for j, f in zip(self.joints, frictions, strict=True)))
+
+    def rigid(self) -> RobotSpec:
+        """The same robot without its drives and their friction and rotor inertia: the rigid bodies alone."""
+        joints = tuple(dataclasses.replace(j, friction=NO_FRICTION) for j in self.joints)
+        return dataclasses.replace(self, joints=joints, transmission=None)
 
     def inner_joint(self, body: str) -> Joint:
         return next(j for j in self.joints if j.child == body)

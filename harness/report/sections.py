@@ -211,6 +211,28 @@ def estimator_comparison(r: dict) -> str:
         + fig_bias + fig_cov)
 
 
+def _closed_chain(cc: dict | None) -> str:
+    """A closed chain's part of the torques section: what the actuated torques are, and its loops."""
+    if not cc:
+        return ""
+    loops = [[esc(name), esc(v["type"]), esc(v["body1"]), esc(v["body2"]), num(cc["loop_gap_per_loop"][name])]
+             for name, v in cc["loops"].items()]
+    settings = cc.get("loop_settings") or {}
+    return (
+        "<h3>A closed chain</h3>"
+        f"<p>Actuated joints: {esc(', '.join(cc['actuated']))}; passive: {esc(', '.join(cc['passive']))}. "
+        f"The torques compared are the actuated joints': {esc(cc['projection'])}. Here the tree's own torques at "
+        f"the actuated joints differ from the chain's by up to {num(cc['raw_tree_vs_actuated_max_rel_error'])} "
+        "of the joint's load. With the loops' forces (the multipliers) applied to Pinocchio's bodies its passive "
+        f"joints need at most {num(cc['passive_torque_with_loop_forces_max'])} N m; the loops' generalised "
+        f"forces agree with MuJoCo's to {num(cc['loop_forces_vs_mujoco_max_rel_error'])} "
+        f"({esc(cc['loop_forces_definition'])}). MuJoCo's loops are soft constraints (solref "
+        f"{esc(' '.join(num(x) for x in settings.get('solref', [])))}, solimp "
+        f"{esc(' '.join(num(x) for x in settings.get('solimp', [])))}): each stays open by its gap.</p>"
+        + table(["loop", "type", "body 1", "body 2", "largest gap [m]"], loops)
+    )
+
+
 def torques(r: dict) -> str:
     tq = r["torques"]
     t = np.array([s["t"] for s in tq["samples"]])
@@ -264,6 +286,7 @@ def torques(r: dict) -> str:
         "torques",
         "Joint torques",
         intro
+        + _closed_chain(tq.get("closed_chain"))
         + table(["pair", "largest abs error", "where", "largest rel error", "where"], rows)
         + "<h3>Largest relative error per joint</h3>"
         + table(["pair", *tq["joints"]], per_joint)

@@ -160,16 +160,6 @@ def _read(path: Path) -> tuple[RobotSpec, Path | None]:
     return spec_from_data({kind: {"file": str(path.resolve())}}, path), path
 
 
-def _rigid(spec: RobotSpec) -> RobotSpec:
-    """The spec without its drives and their friction and rotor inertia: the rigid bodies alone."""
-    import dataclasses
-
-    from harness.model.friction import NO_FRICTION
-
-    return dataclasses.replace(spec, joints=tuple(dataclasses.replace(j, friction=NO_FRICTION) for j in spec.joints),
-                               transmission=None)
-
-
 def _states(spec: RobotSpec, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     from harness.model.states import position_bounds, random_states
 
@@ -265,32 +255,6 @@ class _Pinocchio:
         return int(np.sum(sv > sv[0] * max(W.shape) * np.finfo(float).eps * 1e3)) if sv.size else 0
 
 
-def _mujoco_torques(spec: RobotSpec, q, qd, qdd) -> np.ndarray:
-    """MuJoCo's inverse dynamics of the bench's model of `spec` (rotor inertia and viscous friction on the
-    joints, or on the motors' tendons), plus the dry terms the bench applies beside them (Coulomb,
-    offset and the families' terms, through N: harness/model/drives.py, Dry)."""
-    import mujoco
-
-    from harness.engines.mujoco import build_spec
-    from harness.model.drives import Dry
-
-    model = build_spec(spec, GRAVITY_W).compile()
-    data = mujoco.MjData(model)
-    cols = [model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in spec.joint_names]
-    tau = np.empty_like(q)
-    for k in range(len(q)):
-        data.qpos[cols], data.qvel[cols], data.qacc[cols] = q[k], qd[k], qdd[k]
-        mujoco.mj_inverse(model, data)
-        tau[k] = data.qfrc_inverse[cols]
-    dry = Dry(spec.frictions, spec.transmission)
-    if not dry.any:
-        return tau
-    if not dry.needs_load:
-        return tau + dry(qd)
-    # the load law reads the rigid bodies' torque: MuJoCo's own, its model without the drives
-    return tau + dry(qd, _mujoco_torques(_rigid(spec), q, qd, qdd))
-
-
 def _mujoco_conversion(path: Path, name: str) -> RobotSpec:
     """MuJoCo's compiler's model of the URDF, read back as an MJCF file is read."""
     import mujoco
@@ -336,6 +300,7 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
     `identify_in`, a folder, the robot is also identified from its own bench log there."""
     import warnings
 
+    from harness.engines.mujoco import inverse_dynamics
     from harness.engines.pinocchio import build_model, crba, rnea
     from harness.identify.torque_id import structural_base
     from harness.model.mjcf import FLOATING_BASE_FIXED
@@ -360,17 +325,17 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
         row.verdict, row.reason = "agrees", "no moving joint: nothing to compare"
         row.seconds = time.perf_counter() - t0
         return row
-    rigid = _rigid(spec)
+    rigid = spec.rigid()
     q, qd, qdd = _states(spec, STATES, seed=1)
     pm = build_model(rigid, GRAVITY_W)
     ours, M = rnea(pm, q, qd, qdd).tau, crba(pm, q)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         problems += _against_pinocchios_parser(row, spec, described, (q, qd, qdd), ours, M)
-        row.torques_vs_mujoco = _largest(_mujoco_torques(rigid, q, qd, qdd), ours)
+        row.torques_vs_mujoco = _largest(inverse_dynamics(rigid, GRAVITY_W, q, qd, qdd), ours)
         if spec.transmission is not None or any(not f.none for f in spec.frictions):
             with_drives = rnea(build_model(spec, GRAVITY_W), q, qd, qdd).tau
-            row.drives_vs_pinocchio = _largest(_mujoco_torques(spec, q, qd, qdd), with_drives)
+            row.drives_vs_pinocchio = _largest(inverse_dynamics(spec, GRAVITY_W, q, qd, qdd), with_drives)
         if is_mjcf:
             row.mjcf = "the file itself"
         elif _not_the_files(spec, described):
@@ -380,7 +345,7 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
                 with _CapturedStderr() as said:
                     converted = _mujoco_conversion(described, name)
                 row.notes += [f"MuJoCo's URDF import said: {line}" for line in said.lines]
-                converted = _rigid(converted)
+                converted = converted.rigid()
                 if sorted(converted.joint_names) != sorted(spec.joint_names):
                     raise ValueError(f"MuJoCo's model has other joints ({', '.join(converted.joint_names[:4])}, ...)")
                 to_theirs = [spec.joint_names.index(j) for j in converted.joint_names]

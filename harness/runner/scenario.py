@@ -132,8 +132,36 @@ class Scenario:
     def prescribed(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Prescribed (q, q', q''), each of shape (len(t), n_joints), robot joint order."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.robot.loops:
+            from harness.model.closure import ClosureError
+
+            try:
+                return _closed_chain_motion(self.robot, self.motion, t)
+            except ClosureError as exc:
+                raise InputError(self.source, "motion", f"the motion of the actuated joints cannot be followed: "
+                                                        f"{exc}") from None
         parts = [m.evaluate(t) for m in self.motion.values()]
         return tuple(np.stack([p[k] for p in parts], axis=-1) for k in range(3))
+
+
+def _closed_chain_motion(robot: RobotSpec, motion: dict[str, Motion], t: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A closed chain's (q, q', q'') at times t: the actuated joints' motions, the passive joints'
+    from the loops (harness/model/closure.py), followed from q = 0 to the motion at t = 0 and then in
+    time order, so that every call finds the same assembly of the mechanism."""
+    from harness.model.closure import ClosedChain, positions
+    from harness.model.closure import motion as chain_motion
+
+    chain = ClosedChain.of(robot)
+    order = np.argsort(t, kind="stable")
+    times = np.concatenate([[0.0], t[order]])
+    parts = [motion[a].evaluate(times) for a in robot.actuated]
+    q_a, qd_a, qdd_a = (np.stack([p[k] for p in parts], axis=-1) for k in range(3))
+    q = positions(chain, q_a, np.zeros(chain.n))
+    m = chain_motion(chain, q[1:], qd_a[1:], qdd_a[1:])
+    back = np.empty_like(order)
+    back[order] = np.arange(len(order))
+    return m.q[back], m.qd[back], m.qdd[back]
 
 
 def _relative_file(t: Table, key: str, rel: str, base: Path) -> Path:
@@ -261,6 +289,9 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     robot = load_spec(_relative_file(s, "model", model_rel, path))
     if not robot.joints:
         raise s.error("model", f"model {robot.name!r} has no moving joint: nothing to simulate or identify")
+    if robot.loops:
+        raise s.error("model", f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r}): a "
+                               "measured log of a closed chain is not supported")
     gravity = _gravity(gravity, robot)
     dt = root.table("data")
     source = read_source(dt, path, len(robot.joints), robot.joint_names)
@@ -335,6 +366,8 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     if not robot.joints:
         raise s.error("model", f"model {robot.name!r} has no moving joint: nothing to simulate or identify")
     gravity = _gravity(gravity, robot)
+    if robot.loops:
+        _closed_chain_tables(root, robot)
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))
     gates = _read_all_gates(root, gate_files)
@@ -353,6 +386,8 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     _check_grid(path, s, sample_times, duration, output_steps, measurement, simulation)
     scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                         np.asarray(sample_times), motion, simulation, measurement, gates, text, excitation)
+    if robot.loops:  # the loops followed along the motion now: a singular or unreachable motion is bad input
+        scenario.prescribed(np.linspace(0.0, duration, output_steps + 1))
     models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
                    for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
     methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)
@@ -370,14 +405,31 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
 
 
+CLOSED_CHAIN_LATER = ("excitation", "torque_identification", "identification", "studies", "estimators", "payload")
+
+
+def _closed_chain_tables(root: Table, robot: RobotSpec) -> None:
+    """A closed chain's scenario judges its actuated torques (the engines, the models under test) and
+    its loops; what identifies a robot or runs a paper's study reads an open tree: refused by name."""
+    for table in CLOSED_CHAIN_LATER:
+        if root.has(table):
+            raise root.error(table, f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r}): "
+                                    f"[{table}] is not supported on closed chains; their scenarios judge the "
+                                    "actuated torques and the loops")
+
+
 def _read_motions(motion_table: Table, robot: RobotSpec, duration: float, output_steps: int) -> dict[str, Motion]:
-    """`[motion]`: every joint of the robot, and no other, each finite over the run."""
+    """`[motion]`: every joint of the robot (of a closed chain, every actuated joint), and no other, each
+    finite over the run."""
     motion = {}
     for name in motion_table.data:
         if name not in robot.joint_names:
             raise motion_table.error(name, f"joint {name!r} is not in model {robot.name!r} "
                                            f"(joints: {', '.join(robot.joint_names)})")
-    for j in robot.joint_names:
+        if robot.loops and name not in robot.actuated:
+            raise motion_table.error(name, f"joint {name!r} is passive: its motion follows from the loops of "
+                                           f"{robot.name!r} (actuated: {', '.join(robot.actuated)})")
+    for j in (robot.actuated if robot.loops else robot.joint_names):
         if j not in motion_table.data:
             raise motion_table.error(j, f"missing: every joint of model {robot.name!r} needs a "
                                         "motion (use type = \"locked\" to hold it)")

@@ -47,10 +47,14 @@ def pair_metrics(a: np.ndarray, b: np.ndarray, scale: np.ndarray, t: np.ndarray,
     }
 
 
-def wrench_metrics(a: np.ndarray, b: np.ndarray, t: np.ndarray, joints: list[str]) -> dict:
-    """(N, joints, 3) wrenches: largest |a - b| relative to the largest |b| of each joint."""
-    size = np.linalg.norm(b, axis=-1)
-    rel = relative_error(np.linalg.norm(a - b, axis=-1), 0.0, np.max(size, axis=0))
+def wrench_metrics(a: np.ndarray, b: np.ndarray, t: np.ndarray, joints: list[str], floor: float = 0.0) -> dict:
+    """(N, joints, 3) wrenches: largest |a - b| relative to the largest |b| of each joint, or, with a
+    `floor`, to that fraction of the largest any joint carries where the joint's own is smaller (a
+    passive hinge of a planar loop carries no moment: its round-off is not an error)."""
+    size = np.max(np.linalg.norm(b, axis=-1), axis=0)
+    if size.size:
+        size = np.maximum(size, floor * size.max())
+    rel = relative_error(np.linalg.norm(a - b, axis=-1), 0.0, size)
     k, j = np.unravel_index(np.argmax(rel), rel.shape)
     return {"max_rel_error": float(rel[k, j]), "max_rel_joint": joints[j], "max_rel_t": float(t[k])}
 

@@ -20,6 +20,7 @@ from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.states import motion_scale, position_bounds, random_states
 from harness.stages.metrics import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
 
+CLOSED_CHAIN_WRENCH_FLOOR = 1e-4  # round-off of a sum of wrenches ~1e-15 of the largest: 1e-11 of this floor
 MASS_MATRIX_SAMPLES = 20  # configurations of the recording at which a model's M(q) is compared
 
 
@@ -61,6 +62,8 @@ class TorqueComparison:
     M_rec: np.ndarray
     models: tuple[ModelTorques, ...]
     random: RandomStates | None = None  # when there is a model under test
+    wrench_joints: list[str] | None = None  # the joints of F_pin .. M_rec where they are not `joints` (a closed chain)
+    closed_chain: dict | None = None  # a closed chain's projection, its loops and their figures
 
     def sources(self) -> dict[str, np.ndarray]:
         return {"mujoco": self.mujoco, "pinocchio": self.pinocchio, **{m.name: m.tau for m in self.models}}
@@ -70,14 +73,17 @@ class TorqueComparison:
         mass matrices and the random states."""
         sources, joints, t = self.sources(), self.joints, self.t
         pairs = [(m.name, ref) for m in self.models for ref in ("pinocchio", "mujoco")] + [("pinocchio", "mujoco")]
-        reactions = {"pinocchio_vs_mujoco": {"force": wrench_metrics(self.F_pin, self.F_rec, t, joints),
-                                             "moment": wrench_metrics(self.M_pin, self.M_rec, t, joints)}}
+        wj = self.wrench_joints or joints
+        fl = CLOSED_CHAIN_WRENCH_FLOOR if self.closed_chain is not None else 0.0
+        reactions = {"pinocchio_vs_mujoco": {"force": wrench_metrics(self.F_pin, self.F_rec, t, wj, fl),
+                                             "moment": wrench_metrics(self.M_pin, self.M_rec, t, wj, fl)}}
         for m in self.models:
             if m.F_W is not None:
-                reactions[f"{m.name}_vs_mujoco"] = {"force": wrench_metrics(m.F_W, self.F_rec, t, joints),
-                                                    "moment": wrench_metrics(m.M_W, self.M_rec, t, joints)}
+                reactions[f"{m.name}_vs_mujoco"] = {"force": wrench_metrics(m.F_W, self.F_rec, t, wj, fl),
+                                                    "moment": wrench_metrics(m.M_W, self.M_rec, t, wj, fl)}
         return {
             "joints": joints,
+            **({"closed_chain": self.closed_chain} if self.closed_chain is not None else {}),
             "definition": DEFINITION,
             "load_scale": dict(zip(joints, floats(self.load_scale), strict=True)),
             "models": {m.name: {"plugin": m.reference, "model_file": m.model_file,
@@ -89,10 +95,13 @@ class TorqueComparison:
             **{f"{a}_vs_{b}": pair_metrics(sources[a], sources[b], self.load_scale, t, joints) for a, b in pairs},
             "reactions": {
                 "definition": "|a - b| / largest |b| of the joint over the run, b the recorded wrench "
-                              "(force of the inner on the outer body, moment about the joint point)",
+                              "(force of the inner on the outer body, moment about the joint point)"
+                              + (f"; of a closed chain, at least {CLOSED_CHAIN_WRENCH_FLOOR:g} of the largest any "
+                                 "joint carries (a passive hinge of a planar loop carries no moment)"
+                                 if self.closed_chain is not None else ""),
                 **reactions,
             },
-            **{f"{m.name}_random_vs_pinocchio": _random_metrics(m.random_tau, self.random, joints)
+            **{f"{m.name}_random_vs_pinocchio": _random_metrics(m.random_tau, self.random, joints, self.wrench_joints)
                for m in self.models},
             "mass_matrix": {
                 "definition": f"largest |M - M_pinocchio| / largest |M_pinocchio| at {MASS_MATRIX_SAMPLES} rows "
@@ -167,6 +176,8 @@ def _random_states(sc, pm, config: RandomStatesConfig) -> RandomStates:
 
 
 def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
+    if ctx.scenario.robot.loops:
+        return _closed_chain(ctx, config or RandomStatesConfig())
     sc, rec = ctx.scenario, ctx.truth
     joints = sc.robot.joint_names
     cols = [rec.joint_index(j) for j in joints]
@@ -191,6 +202,102 @@ def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
 
 
 
+PROJECTION = ("tau_a = G^T tau: the tree's joint torques tau (the open tree's inverse dynamics at every joint's "
+              "q, q', q'') projected onto the actuated joints by G, q' = G q'_a (the loops solved for the passive "
+              "joints: harness/model/closure.py). The engines' own torques at the actuated joints are the tree's, "
+              "not the chain's: with the loop closed, part of what the motors give travels through the loop")
+
+
+def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
+    """A closed chain's actuated torques: MuJoCo's are what drove the simulation (its drive projects the
+    computed torque through the loops: harness/engines/mujoco.py); Pinocchio's are G^T rnea at the recorded
+    states; each model under test answers for the actuated joints. The loops' forces lambda, from
+    J^T lambda = tau - S^T tau_a, are applied to Pinocchio's bodies for its joint wrenches (compared with
+    MuJoCo's force sensors) and leave its passive joints' torques at zero; at random states, q_a, q'_a and
+    q''_a are drawn and the passive joints follow from the loops."""
+    from harness.engines.pinocchio import PointForce
+    from harness.model.closure import (
+        ClosedChain,
+        actuated_torques,
+        loop_wrenches,
+        multipliers,
+        projection,
+        random_motion,
+    )
+    from harness.model.loops import jacobian
+
+    sc, rec = ctx.scenario, ctx.truth
+    robot = sc.robot
+    joints, actuated = robot.joint_names, list(robot.actuated)
+    chain = ClosedChain.of(robot)
+    cols = [rec.joint_index(j) for j in joints]
+    q, qd, qdd = rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols]
+    pm = build_model(robot, sc.gravity_W)
+    tree = rnea(pm, q, qd, qdd).tau
+    J = jacobian(robot, chain.loops, q)
+    G = projection(chain, q, J, where="recorded row", closed=False)
+    tau_a = actuated_torques(G, tree)
+    lam = multipliers(chain, J, tree, tau_a)
+    forces = tuple(PointForce(joints.index(robot.inner_joint(b).name), x, f, m)
+                   for b, x, f, m in loop_wrenches(chain, q, lam))
+    pin = rnea(pm, q, qd, qdd, forces)
+    # the joint reactions under the loop wrenches MuJoCo applied: where a loop over-constrains (a planar
+    # loop's out-of-plane force), the rigid model leaves the loop force open and MuJoCo's soft constraint
+    # chooses it; the loops' generalised force J^T lambda, what moves the robot, is compared on its own
+    mj_forces = tuple(PointForce(joints.index(robot.inner_joint(b).name), rec.p_W[:, k], rec.loop_F_W[:, k],
+                                 rec.loop_M_W[:, k]) for k, b in enumerate(rec.bodies))
+    pin_mj = rnea(pm, q, qd, qdd, mj_forces)
+    ours, theirs = tree - pin.tau, tree - pin_mj.tau
+    generalised = float(np.max(np.abs(ours - theirs)) / np.max(np.abs(ours))) if np.any(ours) else 0.0
+    a_cols = [joints.index(a) for a in actuated]
+    passive = [j for j in joints if j not in actuated]
+    p_cols = [joints.index(p) for p in passive]
+    load = joint_load_scale(robot, rec)
+    models = []
+    for e in sc.models:
+        tau_m = actuated_torques_of(e, joints, actuated, q, qd, qdd, "inverse_dynamics")
+        models.append(ModelTorques(e.name, e.reference, str(e.robot.source), tau_m, None, None, None))
+    random = None
+    if models:
+        _, qd_run, qdd_run = sc.prescribed(sc.t_out)
+        lo, hi = position_bounds(actuated, [robot.joint(a).revolute for a in actuated], robot.limits)
+        m = random_motion(chain, lo, hi, motion_scale(qd_run[:, a_cols]), motion_scale(qdd_run[:, a_cols]),
+                          config.count, config.seed)
+        r_tree = rnea(pm, m.q, m.qd, m.qdd)
+        r_tau = actuated_torques(m.G, r_tree.tau)
+        wrench = np.stack([(r_tree.M_W if robot.joint(a).revolute else r_tree.F_W)[:, joints.index(a)]
+                           for a in actuated], axis=1)
+        random = RandomStates(m.q, m.qd, m.qdd, r_tau, np.max(np.linalg.norm(wrench, axis=-1), axis=0), config.seed)
+        models = [dataclasses.replace(mt, random_tau=actuated_torques_of(e, joints, actuated, m.q, m.qd, m.qdd,
+                                                                         "inverse_dynamics (random states)"))
+                  for mt, e in zip(models, sc.models, strict=True)]
+    raw = relative_error(tree[:, a_cols], tau_a, load[a_cols])
+    gap = rec.loop_gap if rec.loop_gap is not None else np.zeros((len(rec.t), len(chain.loops)))
+    info = {
+        "actuated": actuated, "passive": passive,
+        "loops": {lp.name: {"type": lp.kind, "body1": lp.body_a, "body2": lp.body_b} for lp in chain.loops},
+        "projection": PROJECTION,
+        "raw_tree_vs_actuated_max_rel_error": float(np.max(raw)),
+        "passive_torque_with_loop_forces_max": float(np.max(np.abs(pin.tau[:, p_cols]))) if p_cols else 0.0,
+        "loop_forces_vs_mujoco_max_rel_error": generalised,
+        "loop_forces_definition": "the loops' generalised force J^T lambda (lambda from J^T lambda = tau - S^T "
+                                  "tau_a, Pinocchio's tree torques) against MuJoCo's (its constraint forces on "
+                                  "the bodies, through Pinocchio's RNEA): largest |difference| / largest |J^T lambda|",
+        "loop_gap_max": float(np.max(gap)) if gap.size else 0.0,
+        "loop_gap_per_loop": {lp.name: float(np.max(gap[:, k])) for k, lp in enumerate(chain.loops)},
+        "loop_settings": rec.meta.get("loop_settings"),
+    }
+    return TorqueComparison(actuated, rec.t, load[a_cols], rec.tau[:, [rec.joint_index(a) for a in actuated]], tau_a,
+                            pin_mj.F_W, pin_mj.M_W, rec.F_W[:, cols], rec.M_W[:, cols], tuple(models), random,
+                            wrench_joints=joints, closed_chain=info)
+
+
+def actuated_torques_of(entry, joints, actuated, q, qd, qdd, what: str) -> np.ndarray:
+    from harness.base.plugins import actuated_torques as plugin_actuated_torques
+
+    return plugin_actuated_torques(entry.reference, what, entry.instance, joints, actuated, q, qd, qdd)
+
+
 DIFFERENCE_TOL = 1e-12  # relative: parameters that differ by less are the same number written twice
 
 
@@ -212,15 +319,19 @@ def parameter_differences(model, robot) -> list[dict]:
     return out
 
 
-def _random_metrics(tau: np.ndarray, rs: RandomStates, joints: list[str]) -> dict:
+def _random_metrics(tau: np.ndarray, rs: RandomStates, joints: list[str],
+                    state_joints: list[str] | None = None) -> dict:
+    """`joints` the columns of the torques, `state_joints` those of the states (every joint of a closed
+    chain, whose torques are its actuated joints')."""
     rel = relative_error(tau, rs.tau, rs.load_scale)
+    sj = state_joints or joints
     k, j = np.unravel_index(np.argmax(rel), rel.shape)
     return {
         "max_rel_error": float(rel[k, j]), "max_rel_joint": joints[j], "max_rel_state": int(k),
         "max_rel_error_per_joint": dict(zip(joints, (float(x) for x in rel.max(axis=0)), strict=True)),
-        "worst_state": {"q": dict(zip(joints, floats(rs.q[k]), strict=True)),
-                        "qd": dict(zip(joints, floats(rs.qd[k]), strict=True)),
-                        "qdd": dict(zip(joints, floats(rs.qdd[k]), strict=True))},
+        "worst_state": {"q": dict(zip(sj, floats(rs.q[k]), strict=True)),
+                        "qd": dict(zip(sj, floats(rs.qd[k]), strict=True)),
+                        "qdd": dict(zip(sj, floats(rs.qdd[k]), strict=True))},
         "states": len(rs.q), "seed": rs.seed,
         "definition": "|tau - tau_pinocchio| / L_J at random states: q uniform within the joint limits (+-pi rad or "
                       "+-1 m without), q' and q'' uniform within the largest of each joint along the scenario's "

@@ -1,0 +1,278 @@
+"""A closed chain's motion from its actuated joints, and its actuated joints' torques.
+
+The joints split into the actuated ones (q_a, named by the model) and the passive ones (q_p). The
+loops' constraint equations (harness/model/loops.py) fix the passive joints:
+
+    position      Phi(q_a, q_p) = 0                        solved by Newton's method for q_p
+    velocity      J_a q'_a + J_p q'_p = 0                  q'_p = -J_p^+ J_a q'_a
+    acceleration  J_a q''_a + J_p q''_p + b = 0            q''_p = -J_p^+ (J_a q''_a + b)
+
+so that q' = G q'_a and q'' = G q''_a + g with G (n x n_a) the identity on the actuated rows and
+-J_p^+ J_a on the passive ones, and g zero on the actuated rows and -J_p^+ b on the passive ones.
+J_p^+ is the pseudo-inverse: a planar loop's connect has an out-of-plane row that is zero, which
+a plain inverse (or Pinocchio's constraintDynamics with its default proximal settings) cannot take.
+G is accepted where J_p has full column rank (the passive joints are determined) and J G = 0 to
+NULL_SPACE of |J| |G| (the actuated joints are independent: the loop allows every actuated motion).
+
+Torques (d'Alembert, the first seed's Lagrange multipliers): the tree's joint torques tau(q, q',
+q'') (RNEA of the open tree, any engine) and the loops' forces lambda satisfy
+
+    tau = S^T tau_a + J^T lambda,        so    tau_a = G^T tau,    lambda = (J^T)^+ (tau - S^T tau_a)
+
+(G^T S^T = 1, G^T J^T = (J G)^T = 0). tau_a is the closed chain's actuated torque; an engine's raw
+torque on the actuated joints is not (it is whatever the tree needs, with the loop's share carried
+by the passive joints or the constraint, depending on the engine).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.model.loops import bias, jacobian, residual
+from harness.model.spec import WORLD, Loop, RobotSpec
+
+NEWTON_ITERATIONS = 30
+CLOSED = 1e-12  # a loop is closed when |Phi| <= CLOSED times the mechanism's size (positions; rad for welds)
+NULL_SPACE = 1e-12  # |J G| <= NULL_SPACE |J| |G|: G's columns in J's null space
+RANK = 1e-9  # J_p's smallest singular value over its largest: below, the passive joints are not determined
+CONTINUATION_STEP = 0.05  # rad (or this fraction of the size, m): the largest actuated step between solves
+
+
+class ClosureError(ValueError):
+    """The loop cannot be closed, or the actuated joints do not determine the passive ones."""
+
+
+@dataclass(frozen=True, eq=False)
+class ClosedChain:
+    """A spec with loops and its actuated joints (indices into the spec's joints)."""
+
+    spec: RobotSpec
+    loops: tuple[Loop, ...]
+    actuated: tuple[int, ...]
+    passive: tuple[int, ...]
+    size: float  # m: the largest distance between joint points and joined points at q = 0
+
+    @classmethod
+    def of(cls, spec: RobotSpec, loops: tuple[Loop, ...] | None = None,
+           actuated: tuple[str, ...] | None = None) -> ClosedChain:
+        loops = spec.loops if loops is None else loops
+        actuated = spec.actuated if actuated is None else actuated
+        if not loops:
+            raise ClosureError(f"{spec.name}: no loop closes the tree")
+        if not actuated:
+            raise ClosureError(f"{spec.name}: its actuated joints are not named")
+        names = spec.joint_names
+        missing = [a for a in actuated if a not in names]
+        if missing:
+            raise ClosureError(f"{spec.name}: actuated joint {missing[0]!r} is not one of its joints")
+        act = tuple(names.index(a) for a in actuated)
+        passive = tuple(i for i in range(len(names)) if i not in act)
+        points = [j.p_W0 for j in spec.joints] + [p for lp in loops for p in (lp.point_a_W0, lp.point_b_W0)]
+        P = np.array(points)
+        size = float(np.max(np.linalg.norm(P[:, None] - P[None], axis=-1))) or 1.0
+        return cls(spec, tuple(loops), act, passive, size)
+
+    @property
+    def n(self) -> int:
+        return len(self.spec.joints)
+
+    def _scale(self) -> np.ndarray:
+        """(rows,) each constraint row's unit: the size for positions, 1 for a weld's rotation."""
+        return np.concatenate([[self.size] * 3 + ([1.0] * 3 if lp.kind == "weld" else []) for lp in self.loops])
+
+
+def _pinv_passive(chain: ClosedChain, J: np.ndarray, where: str) -> np.ndarray:
+    """J_p^+ (N, n_p, rows), refused where J_p lacks full column rank."""
+    J_p = J[:, :, chain.passive]
+    s = np.linalg.svd(J_p, compute_uv=False)
+    if chain.passive:
+        ratio = s[:, len(chain.passive) - 1] / np.maximum(s[:, 0], np.finfo(float).tiny)
+        bad = np.flatnonzero(~(ratio > RANK))
+        if bad.size:
+            raise ClosureError(f"{chain.spec.name}: the passive joints are not determined by the loops at {where} "
+                               f"{bad[0]} (J_p's singular values' ratio {ratio[bad[0]]:.1e}: a singular "
+                               "configuration, or fewer independent loop equations than passive joints)")
+    return np.linalg.pinv(J_p, rcond=RANK)
+
+
+def projection(chain: ClosedChain, q: np.ndarray, J: np.ndarray | None = None,
+               where: str = "sample", closed: bool = True) -> np.ndarray:
+    """G(q), (N, n, n_a): q' = G q'_a for every velocity the loops allow (module docstring); refused
+    where J_p is rank deficient or, at `closed` configurations, G's columns are not in J's null space to
+    NULL_SPACE (where a loop is slightly open, as in a simulation's recording, a planar loop's
+    out-of-plane row is not quite zero and J G is of the gap's order)."""
+    q = np.atleast_2d(q)
+    J = jacobian(chain.spec, chain.loops, q) if J is None else J
+    G = np.zeros((len(q), chain.n, len(chain.actuated)))
+    G[:, chain.actuated, np.arange(len(chain.actuated))] = 1.0
+    G[:, chain.passive, :] = -_pinv_passive(chain, J, where) @ J[:, :, chain.actuated]
+    if not closed:
+        return G
+    JG = np.abs(J @ G).max(axis=(1, 2))
+    bound = NULL_SPACE * np.linalg.norm(J, axis=(1, 2)) * np.linalg.norm(G, axis=(1, 2))
+    bad = np.flatnonzero(~(JG <= bound))
+    if bad.size:
+        raise ClosureError(f"{chain.spec.name}: the actuated joints are not independent at {where} {bad[0]}: "
+                           f"|J G| = {JG[bad[0]]:.1e} (the loops forbid some actuated motions)")
+    return G
+
+
+def _newton(chain: ClosedChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Newton's method on q_p for every row of q at once (q_a held): q and the scaled |Phi| per row."""
+    q = q.copy()
+    scale = chain._scale()
+    for _ in range(NEWTON_ITERATIONS):
+        phi = residual(chain.spec, chain.loops, q)
+        err = np.max(np.abs(phi) / scale, axis=1)
+        todo = err > CLOSED
+        if not todo.any():
+            return q, err
+        J = jacobian(chain.spec, chain.loops, q[todo])[:, :, chain.passive]
+        step = np.linalg.pinv(J, rcond=RANK) @ phi[todo][:, :, None]
+        q[np.ix_(np.flatnonzero(todo), chain.passive)] -= step[:, :, 0]
+    phi = residual(chain.spec, chain.loops, q)
+    return q, np.max(np.abs(phi) / scale, axis=1)
+
+
+def close(chain: ClosedChain, q: np.ndarray, where: str = "sample") -> np.ndarray:
+    """q (N, n) with its passive joints moved so that every loop closes, each row from itself."""
+    q, err = _newton(chain, np.atleast_2d(np.asarray(q, dtype=float)))
+    bad = np.flatnonzero(~(err <= CLOSED))
+    if bad.size:
+        raise ClosureError(f"{chain.spec.name}: the loops do not close at {where} {bad[0]} (|Phi| = "
+                           f"{err[bad[0]]:.1e} of the size after {NEWTON_ITERATIONS} Newton steps: out of reach, or "
+                           "too far from the configuration it started from)")
+    return q
+
+
+def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.ndarray:
+    """q (N, n): the actuated joints at q_a (N, n_a), a motion in sample order, and the passive ones
+    closing every loop, followed continuously from q_start (n,) (whose actuated entries need not be
+    q_a[0]'s): first along samples at most CONTINUATION_STEP apart (each solve predicted from the
+    last by G), then every sample at once from the nearest of those before it."""
+    q_a = np.atleast_2d(np.asarray(q_a, dtype=float))
+    span = np.array([1.0 if j.revolute else chain.size for j in chain.spec.joints])[list(chain.actuated)]
+    path = np.vstack([np.asarray(q_start, dtype=float)[list(chain.actuated)], q_a])
+    travel = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(path, axis=0)) / span, axis=1))])
+    # stations: q_start, then samples at most CONTINUATION_STEP of travel apart (steps larger than it
+    # between two samples are cut into intermediate stations)
+    stations_travel = np.arange(0.0, travel[-1] + CONTINUATION_STEP, CONTINUATION_STEP)
+    stations = np.array([np.interp(stations_travel, travel, path[:, k]) for k in range(path.shape[1])]).T
+    q = close(chain, np.asarray(q_start, dtype=float), "the starting configuration")[0]
+    solved = np.empty((len(stations), chain.n))
+    for s, target in enumerate(stations):
+        G = projection(chain, q, where="a continuation step from sample")[0]
+        guess = q + G @ (target - q[list(chain.actuated)])
+        guess[list(chain.actuated)] = target
+        q = close(chain, guess, f"travel {stations_travel[s]:.3g} along the motion, before sample")[0]
+        solved[s] = q
+    nearest = np.clip(np.searchsorted(stations_travel, travel[1:], side="right") - 1, 0, len(stations) - 1)
+    guess = solved[nearest].copy()
+    G = projection(chain, guess)
+    guess += (G @ (q_a - guess[:, list(chain.actuated)])[:, :, None])[:, :, 0]
+    guess[:, list(chain.actuated)] = q_a
+    return close(chain, guess)
+
+
+@dataclass(frozen=True, eq=False)
+class ChainMotion:
+    """A consistent motion of a closed chain: every joint's (q, q', q''), (N, n), G (N, n, n_a) and J."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    G: np.ndarray
+    J: np.ndarray
+
+
+def motion(chain: ClosedChain, q: np.ndarray, qd_a: np.ndarray, qdd_a: np.ndarray) -> ChainMotion:
+    """The velocity and acceleration levels at closed configurations q (N, n): q' = G q'_a and
+    q'' = G q''_a - J_p^+ b on the passive rows (module docstring)."""
+    J = jacobian(chain.spec, chain.loops, q)
+    G = projection(chain, q, J)
+    qd = (G @ np.atleast_2d(qd_a)[:, :, None])[:, :, 0]
+    b = bias(chain.spec, chain.loops, q, qd)
+    qdd = (G @ np.atleast_2d(qdd_a)[:, :, None])[:, :, 0]
+    qdd[:, chain.passive] -= (_pinv_passive(chain, J, "sample") @ b[:, :, None])[:, :, 0]
+    return ChainMotion(q, qd, qdd, G, J)
+
+
+def actuated_torques(G: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """tau_a = G^T tau, (N, n_a): the tree's joint torques (N, n) projected onto the actuated joints."""
+    return (np.swapaxes(G, 1, 2) @ tau[:, :, None])[:, :, 0]
+
+
+def multipliers(chain: ClosedChain, J: np.ndarray, tau: np.ndarray, tau_a: np.ndarray) -> np.ndarray:
+    """lambda (N, rows): the loops' forces (and a weld's moments) on body a, from
+    J^T lambda = tau - S^T tau_a (least norm where a loop's rows are redundant, as a planar loop's
+    out-of-plane row is)."""
+    rhs = tau.copy()
+    rhs[:, chain.actuated] -= tau_a
+    return (np.linalg.pinv(np.swapaxes(J, 1, 2), rcond=RANK) @ rhs[:, :, None])[:, :, 0]
+
+
+def reach(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closed configurations (N, n) with the actuated joints at q_a (N, n_a), each followed from
+    q_start (n,) along the straight line of actuated values in steps of at most CONTINUATION_STEP,
+    every row at once; and which rows closed (N,) (a target out of the mechanism's reach does not)."""
+    q_a = np.atleast_2d(np.asarray(q_a, dtype=float))
+    act = list(chain.actuated)
+    q0 = close(chain, np.asarray(q_start, dtype=float), "the starting configuration")[0]
+    span = np.array([1.0 if j.revolute else chain.size for j in chain.spec.joints])[act]
+    steps = max(1, int(np.ceil(np.max(np.abs(q_a - q0[act]) / span) / CONTINUATION_STEP)))
+    q = np.repeat(q0[None], len(q_a), axis=0)
+    ok = np.ones(len(q_a), dtype=bool)
+    for s in range(1, steps + 1):
+        target = q0[act] + (q_a - q0[act]) * (s / steps)
+        J = jacobian(chain.spec, chain.loops, q[ok])
+        J_p = J[:, :, chain.passive]
+        step = target[ok] - q[ok][:, act]
+        guess = q[ok].copy()
+        guess[:, chain.passive] -= (np.linalg.pinv(J_p, rcond=RANK) @ (J[:, :, act] @ step[:, :, None]))[:, :, 0]
+        guess[:, act] = target[ok]
+        closed, err = _newton(chain, guess)
+        q[ok] = closed
+        ok[np.flatnonzero(ok)[~(err <= CLOSED)]] = False
+    return q, ok
+
+
+def random_motion(chain: ClosedChain, lo: np.ndarray, hi: np.ndarray, qd_scale: np.ndarray, qdd_scale: np.ndarray,
+                  count: int, seed: int) -> ChainMotion:
+    """`count` random consistent states: the actuated joints' (q_a, q'_a, q''_a) uniform within
+    [lo, hi], +-qd_scale and +-qdd_scale (each (n_a,); harness/model/states.py, random_states, with
+    `seed`), the passive joints' from the loops (reached from q = 0; targets out of reach are drawn
+    again, up to four draws)."""
+    from harness.model.states import random_states
+
+    kept: list[np.ndarray] = []
+    for draw in range(4):
+        q_a, qd_a, qdd_a = random_states(lo, hi, qd_scale, qdd_scale, count, seed + draw)
+        q, ok = reach(chain, q_a, np.zeros(chain.n))
+        kept.append((q[ok], qd_a[ok], qdd_a[ok]))
+        if sum(len(k[0]) for k in kept) >= count:
+            break
+    q, qd_a, qdd_a = (np.concatenate([k[i] for k in kept])[:count] for i in range(3))
+    if len(q) < count:
+        raise ClosureError(f"{chain.spec.name}: only {len(q)} of {count} random actuated configurations are within "
+                           "the loops' reach")
+    return motion(chain, q, qd_a, qdd_a)
+
+
+def loop_wrenches(chain: ClosedChain, q: np.ndarray, lam: np.ndarray
+                  ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
+    """The loops' forces as forces on the bodies, (body, x_W, f_W, m_W) each (N, 3): lambda's force
+    (and, for a weld, its moment) on body a at its joined point, the opposite on body b at its own
+    (a world side left out). J^T lambda is their generalised force."""
+    from harness.model.loops import joined_points
+
+    out, row = [], 0
+    for loop, (x_a, x_b) in zip(chain.loops, joined_points(chain.spec, chain.loops, q), strict=True):
+        f = lam[:, row:row + 3]
+        m = lam[:, row + 3:row + 6] if loop.kind == "weld" else None
+        for body, x, sign in ((loop.body_a, x_a, 1.0), (loop.body_b, x_b, -1.0)):
+            if body != WORLD:
+                out.append((body, x, sign * f, None if m is None else sign * m))
+        row += loop.rows
+    return out

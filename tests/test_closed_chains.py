@@ -1,0 +1,423 @@
+"""Closed chains: loops read from MJCF and TOML, the passive joints solved at the three levels, G,
+and the actuated torques of two engines projected through the loop.
+
+Independent references: the four-bar's closure by circle intersection and the parallelogram's
+geometry (its forearm keeps the crank's angle), central finite differences of the constraint
+equations and of the motion, MuJoCo's own constraint residual and Jacobian (efc_pos, efc_J) of the
+file as MuJoCo reads it, and a forward solve of the rigid KKT system from Pinocchio's mass matrix.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from harness.base.tomlio import InputError
+from harness.engines import mujoco as mj_engine
+from harness.engines import pinocchio as pin_engine
+from harness.model import closure, loops
+from harness.model.load import load_spec, spec_from_data
+
+from .conftest import MODELS
+
+GRAVITY_W = np.array([0.0, 0.0, -9.81])
+FOURBAR_XML = (MODELS / "fourbar.xml").read_text()
+
+
+@pytest.fixture(scope="module")
+def fourbar():
+    return closure.ClosedChain.of(load_spec(MODELS / "fourbar.toml"))
+
+
+@pytest.fixture(scope="module")
+def parallelogram():
+    return closure.ClosedChain.of(load_spec(MODELS / "parallelogram.toml"))
+
+
+def _mjcf(tmp_path, xml: str, extra: str = ""):
+    (tmp_path / "m.xml").write_text(xml)
+    return spec_from_data({"mjcf": {"file": "m.xml"}, **({"closed_chain": extra} if extra else {})},
+                          tmp_path / "m.toml")
+
+
+def _column(spec, name):
+    return spec.joint_names.index(name)
+
+
+# --- reading -----------------------------------------------------------------------------------------
+
+
+def test_a_four_bar_with_two_subtrees_from_the_ground_is_read_whole(fourbar):
+    """Pinocchio's own MJCF importer builds half of this model (the issue's finding); the harness
+    builds Pinocchio's model from the spec, which holds every body."""
+    spec = fourbar.spec
+    assert sorted(b.name for b in spec.bodies) == ["coupler", "crank", "rocker"]
+    assert spec.inner_joint("rocker").parent == "world" and spec.inner_joint("crank").parent == "world"
+    (loop,) = spec.loops
+    assert (loop.kind, loop.body_a, loop.body_b) == ("connect", "coupler", "rocker")
+    np.testing.assert_allclose(loop.point_a_W0, [0.3, 0.0, 0.2], atol=1e-15)
+    np.testing.assert_allclose(loop.point_b_W0, [0.3, 0.0, 0.2], atol=1e-15)
+    assert spec.actuated == ("crank",)
+    assert pin_engine.build_model(spec, GRAVITY_W).model.nq == 3
+
+
+def test_the_parallelogram_arm_names_three_actuated_joints(parallelogram):
+    assert parallelogram.spec.actuated == ("turret", "shoulder", "crank")
+    assert sorted(parallelogram.spec.joint_names[i] for i in parallelogram.passive) == ["elbow", "rod"]
+
+
+REFUSED = {
+    "a joint coupling": ('<connect name="coupler_rocker" body1="coupler" body2="rocker" anchor="0.24 0 0.12"/>',
+                         '<joint name="geared" joint1="crank" joint2="rocker"/>',
+                         "equality constraint 'geared' is a joint coupling"),
+    "a tendon loop": ('<connect name="coupler_rocker" body1="coupler" body2="rocker" anchor="0.24 0 0.12"/>',
+                      '<tendon name="pinned" tendon1="loop_tendon"/>', "equality constraint 'pinned' is a tendon"),
+    "inactive": ('anchor="0.24 0 0.12"/>', 'anchor="0.24 0 0.12" active="false"/>', "starts inactive"),
+    "no actuator": ('<motor name="crank" joint="crank"/>', "", "actuated joints are not named"),
+    "dependent actuators": ('<motor name="crank" joint="crank"/>',
+                            '<motor name="crank" joint="crank"/><motor name="rocker" joint="rocker"/>',
+                            "the actuated joints are not independent"),
+    # MuJoCo places a body connect's second anchor where the first is at qpos0; two sites need not meet
+    "a loop that cannot close": ('<connect name="coupler_rocker" body1="coupler" body2="rocker" anchor="0.24 0 0.12"/>',
+                                 '<connect name="far" site1="tip" site2="far"/>', "the loops do not close"),
+    # a body without a joint is merged into its parent: the loop would join the coupler to itself
+    "a body joined to itself": ('body2="rocker"', 'body2="tip_body"', "joins body 'coupler' to itself"),
+}
+
+
+@pytest.mark.parametrize("case", REFUSED)
+def test_what_cannot_be_read_is_refused_in_one_line(tmp_path, case):
+    old, new, message = REFUSED[case]
+    xml = FOURBAR_XML.replace(old, new)
+    xml = xml.replace('<geom type="capsule" fromto="0 0 0 0.24 0 0.12" size="0.01" mass="1.2"/>',
+                      '<geom type="capsule" fromto="0 0 0 0.24 0 0.12" size="0.01" mass="1.2"/><site name="tip" '
+                      'pos="0.24 0 0.12"/><body name="tip_body" pos="0.24 0 0.12"><geom size="0.01" mass="0.1"/>'
+                      '</body>')
+    xml = xml.replace('<geom type="capsule" fromto="0 0 0 -0.05 0 0.2" size="0.01" mass="0.8"/>',
+                      '<geom type="capsule" fromto="0 0 0 -0.05 0 0.2" size="0.01" mass="0.8"/>'
+                      '<site name="far" pos="1.5 0 0.2"/>')
+    if case == "a tendon loop":
+        xml = xml.replace("<equality>", '<tendon><fixed name="loop_tendon"><joint joint="rocker" coef="1"/>'
+                                        "</fixed></tendon><equality>")
+    assert xml != FOURBAR_XML
+    with pytest.raises(InputError) as err:
+        _mjcf(tmp_path, xml)
+    assert message in str(err.value) and "m.xml" in str(err.value) and "\n" not in err.value.one_line()
+
+
+def test_a_closed_chain_s_actuated_joints_can_be_named_in_the_model_file(tmp_path):
+    xml = FOURBAR_XML.replace('<motor name="crank" joint="crank"/>', "")
+    spec = _mjcf(tmp_path, xml, {"actuated": ["rocker"]})
+    assert spec.actuated == ("rocker",)
+    with pytest.raises(InputError, match=r"closed_chain\.actuated"):
+        _mjcf(tmp_path, xml, {"actuated": ["wrist"]})
+    with pytest.raises(InputError, match="give them there or here"):
+        _mjcf(tmp_path, FOURBAR_XML, {"loops": [{"type": "connect", "body1": "coupler", "body2": "rocker",
+                                                 "point": [0.3, 0.0, 0.2]}]})
+
+
+def test_a_tree_from_toml_closes_with_its_stated_loops(tmp_path, fourbar):
+    """The four-bar as a TOML tree (bodies and joints written out) with [[closed_chain.loops]]: the
+    same loop as the MJCF file's, the same passive joints along a turn of the crank."""
+    spec = fourbar.spec
+    bodies = [{"name": b.name, "shape": "explicit", "mass": b.mass, "com": b.p_W_com0.tolist(),
+               "e1": b.R_WB0[:, 0].tolist(), "e2": b.R_WB0[:, 1].tolist(), "inertia": b.principal_inertia.tolist()}
+              for b in spec.bodies]
+    joints = [{"name": j.name, "type": j.type, "parent": j.parent, "child": j.child, "point": j.p_W0.tolist(),
+               "axis": j.axis_W0.tolist()} for j in spec.joints]
+    data = {"model": {"name": "fourbar_toml"}, "bodies": bodies, "joints": joints,
+            "closed_chain": {"actuated": ["crank"], "loops": [{"name": "C", "type": "connect", "body1": "coupler",
+                                                                "body2": "rocker", "point": [0.3, 0.0, 0.2]}]}}
+    toml_spec = spec_from_data(data, tmp_path / "fourbar.toml")
+    chain = closure.ClosedChain.of(toml_spec)
+    q_a = np.linspace(0.0, 2 * np.pi, 200)[:, None]
+    ours = closure.positions(chain, q_a, np.zeros(3))
+    theirs = closure.positions(fourbar, q_a, np.zeros(3))
+    order = [toml_spec.joint_names.index(n) for n in spec.joint_names]
+    np.testing.assert_allclose(ours[:, order], theirs, atol=1e-10)
+    with pytest.raises(InputError, match=r"closed_chain\.loops"):
+        spec_from_data({**data, "closed_chain": {"actuated": ["crank"], "loops": [
+            {"type": "connect", "body1": "coupler", "body2": "ghost", "point": [0, 0, 0]}]}}, tmp_path / "f.toml")
+
+
+# --- the three levels and G ----------------------------------------------------------------------------
+
+
+def test_the_four_bar_s_passive_joints_are_its_circle_intersection(fourbar):
+    """Crank angle theta about y: B = A + R_y(theta) (B0 - A); C is where the circles about B (radius
+    |BC|) and about D (radius |DC|) meet, on the branch the mechanism is drawn in; the rocker's angle
+    is the turn of DC from its drawn direction."""
+    spec = fourbar.spec
+    A, B0, C0, D = (np.array(p) for p in ([0, 0, 0], [0.06, 0, 0.08], [0.3, 0, 0.2], [0.35, 0, 0]))
+    theta = np.linspace(0.0, 2 * np.pi, 721)
+    q = closure.positions(fourbar, theta[:, None], np.zeros(3))
+    xz = lambda v: v[..., [0, 2]]  # noqa: E731
+    turn = lambda a: np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])  # R_y in (x, z)  # noqa: E731
+    B = xz(A) + np.einsum("nij,j->ni", turn(theta).transpose(2, 0, 1), xz(B0 - A))
+    r1, r2 = np.linalg.norm(C0 - B0), np.linalg.norm(C0 - D)
+    d = np.linalg.norm(xz(D) - B, axis=1)
+    a = (r1**2 - r2**2 + d**2) / (2 * d)
+    h = np.sqrt(r1**2 - a**2)
+    u = (xz(D) - B) / d[:, None]
+    n = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    candidates = [B + a[:, None] * u + s * h[:, None] * n for s in (1.0, -1.0)]
+    drawn = np.argmin([np.linalg.norm(c[0] - xz(C0)) for c in candidates])
+    C = candidates[drawn]
+    start, now = xz(C0 - D), C - xz(D)
+    # a turn about +y takes (x, z) to (x cos + z sin, -x sin + z cos): angle = atan2 of the cross and dot
+    rocker = np.arctan2(start[0] * now[:, 1] - start[1] * now[:, 0], start @ now.T) * -1.0
+    np.testing.assert_allclose(np.unwrap(q[:, _column(spec, "rocker")]), np.unwrap(rocker), atol=1e-11)
+
+
+def test_the_parallelogram_s_forearm_keeps_the_crank_s_angle(parallelogram):
+    spec = parallelogram.spec
+    rng = np.random.default_rng(3)
+    q_a = np.cumsum(rng.uniform(-0.01, 0.01, (400, 3)), axis=0)  # a wandering motion within +-0.6 rad
+    q = closure.positions(parallelogram, q_a, np.zeros(5))
+    c = {n: q[:, _column(spec, n)] for n in spec.joint_names}
+    np.testing.assert_allclose(c["elbow"], c["crank"] - c["shoulder"], atol=1e-12)
+    np.testing.assert_allclose(c["rod"], c["shoulder"] - c["crank"], atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+def test_the_constraint_jacobian_and_bias_are_the_derivatives_of_phi(name, request):
+    """J against central differences of Phi (step 1e-6: error ~ h^2 |Phi'''| ~ 1e-12, round-off
+    ~ eps |x| / h ~ 1e-10: tolerance 1e-8); b against central differences of J q' along the
+    direction q' (the same orders)."""
+    chain = request.getfixturevalue(name)
+    spec, n = chain.spec, chain.n
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-0.5, 0.5, (6, n))
+    qd = rng.uniform(-2.0, 2.0, (6, n))
+    J = loops.jacobian(spec, chain.loops, q)
+    h = 1e-6
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = h
+        fd = (loops.residual(spec, chain.loops, q + e) - loops.residual(spec, chain.loops, q - e)) / (2 * h)
+        np.testing.assert_allclose(J[:, :, j], fd, atol=1e-8)
+    Jd = (loops.jacobian(spec, chain.loops, q + h * qd) - loops.jacobian(spec, chain.loops, q - h * qd)) / (2 * h)
+    np.testing.assert_allclose(loops.bias(spec, chain.loops, q, qd), (Jd @ qd[:, :, None])[:, :, 0], atol=1e-7)
+
+
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+def test_velocity_and_acceleration_levels_are_the_motion_s_derivatives(name, request):
+    """q' = G q'_a and q'' = G q''_a + g against central differences of the solved positions along
+    a smooth actuated motion (step 1e-4 s: truncation ~ h^2 |q'''| ~ 1e-7)."""
+    chain = request.getfixturevalue(name)
+    t = np.arange(0.0, 2.0, 1e-4)
+    na = len(chain.actuated)
+    w = np.arange(1, na + 1) * 1.3
+    q_a = 0.4 * np.sin(np.outer(t, w))
+    qd_a = 0.4 * w * np.cos(np.outer(t, w))
+    qdd_a = -0.4 * w**2 * np.sin(np.outer(t, w))
+    q = closure.positions(chain, q_a, np.zeros(chain.n))
+    m = closure.motion(chain, q, qd_a, qdd_a)
+    h = t[1] - t[0]
+    np.testing.assert_allclose((q[2:] - q[:-2]) / (2 * h), m.qd[1:-1], atol=1e-6)
+    np.testing.assert_allclose((m.qd[2:] - m.qd[:-2]) / (2 * h), m.qdd[1:-1], atol=1e-5)
+    assert np.abs(loops.residual(chain.spec, chain.loops, q)).max() <= closure.CLOSED * chain.size
+
+
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+def test_g_lies_in_mujoco_s_constraint_null_space(name, request):
+    """MuJoCo's own reading of the file: its equality rows' residual efc_pos is zero at our closed
+    configurations, and its constraint Jacobian efc_J annihilates G, to 1e-12 of their sizes."""
+    chain = request.getfixturevalue(name)
+    model = mujoco.MjModel.from_xml_path(str(chain.spec.mjcf))
+    data = mujoco.MjData(model)
+    m = closure.random_motion(chain, *_bounds(chain), count=40, seed=2)
+    jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in chain.spec.joint_names]
+    for k in range(len(m.q)):
+        data.qpos[model.jnt_qposadr[jid]] = m.q[k]
+        mujoco.mj_forward(model, data)
+        rows = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+        J = data.efc_J.reshape(data.nefc, model.nv)[rows][:, model.jnt_dofadr[jid]]
+        assert np.abs(data.efc_pos[rows]).max() <= 1e-12 * chain.size
+        assert np.abs(J @ m.G[k]).max() <= 1e-12 * np.linalg.norm(J) * np.linalg.norm(m.G[k])
+
+
+def _bounds(chain):
+    limits = chain.spec.limits or {}
+    names = [chain.spec.joint_names[i] for i in chain.actuated]
+    lo = np.array([limits.get(n, (-np.pi, np.pi))[0] for n in names])
+    hi = np.array([limits.get(n, (-np.pi, np.pi))[1] for n in names])
+    return lo, hi, np.full(len(names), 2.0), np.full(len(names), 5.0)
+
+
+WELDS = ['<weld name="w" body1="coupler" body2="pin"/>',
+         '<weld name="w" body1="pin" body2="coupler" anchor="0.01 0.02 0.03"/>',
+         '<weld name="w" body1="coupler" body2="pin" relpose="0.24 0 0.12 1 0 0 0"/>']
+
+
+@pytest.mark.parametrize("weld", WELDS)
+def test_a_weld_closes_as_mujoco_reads_it(tmp_path, weld):
+    """A four-bar whose coupler is welded to a pin on the rocker (the loop's last joint is the pin's):
+    MuJoCo's residual of the file's weld is zero at the configurations solved from the harness's
+    reading of it, in each of MJCF's ways of stating a weld."""
+    xml = FOURBAR_XML.replace('<connect name="coupler_rocker" body1="coupler" body2="rocker" anchor="0.24 0 0.12"/>',
+                              weld)
+    xml = xml.replace('<body name="coupler" pos="0.06 0 0.08">',
+                      '<body name="coupler" pos="0.06 0 0.08" euler="0 0.3 0">')
+    xml = xml.replace('<geom type="capsule" fromto="0 0 0 -0.05 0 0.2" size="0.01" mass="0.8"/>',
+                      '<geom type="capsule" fromto="0 0 0 -0.05 0 0.2" size="0.01" mass="0.8"/>'
+                      '<body name="pin" pos="-0.05 0 0.2" euler="0 0.4 0"><joint name="pin" type="hinge" axis="0 1 0"/>'
+                      '<geom type="sphere" size="0.02" mass="0.1"/></body>')
+    spec = _mjcf(tmp_path, xml)
+    (loop,) = spec.loops
+    assert loop.kind == "weld"
+    chain = closure.ClosedChain.of(spec)
+    q = closure.positions(chain, np.linspace(0.0, 6.0, 60)[:, None], np.zeros(4))
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
+    for k in range(0, 60, 6):
+        data.qpos[model.jnt_qposadr[jid]] = q[k]
+        mujoco.mj_forward(model, data)
+        assert np.abs(data.efc_pos[data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY]).max() <= 1e-12
+
+
+# --- torques -------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+def test_two_engines_agree_on_the_actuated_torques_and_raw_torques_are_not_them(name, request):
+    """G^T rnea (Pinocchio) and G^T qfrc_inverse (MuJoCo, with the loop as an equality constraint) at
+    200 random consistent states: to 1e-9 of the largest (round-off is ~1e-15; above 1e-9 is a bug).
+    The engines' raw actuated entries are not the chain's torques (they are the tree's)."""
+    chain = request.getfixturevalue(name)
+    m = closure.random_motion(chain, *_bounds(chain), count=200, seed=11)
+    tau_pin = pin_engine.rnea(pin_engine.build_model(chain.spec, GRAVITY_W), m.q, m.qd, m.qdd).tau
+    tau_mj = mj_engine.inverse_dynamics(chain.spec, GRAVITY_W, m.q, m.qd, m.qdd)
+    a_pin, a_mj = closure.actuated_torques(m.G, tau_pin), closure.actuated_torques(m.G, tau_mj)
+    scale = np.abs(a_pin).max()
+    assert np.abs(a_pin - a_mj).max() <= 1e-9 * scale
+    raw = tau_mj[:, list(chain.actuated)]
+    assert np.abs(raw - a_pin).max() >= 0.1 * scale
+
+
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+def test_the_actuated_torques_drive_the_rigid_chain_through_its_motion(name, request):
+    """Forward check: with Pinocchio's M(q) and h(q, q') (RNEA at q'' = 0), the rigid KKT system
+    [M  -J^T; J  0] [q''; lambda] = [S^T tau_a - h; -b] under tau_a = G^T tau returns the motion's q''
+    (to 1e-9 of its size), and lambda the loop forces `multipliers` gives (least norm: a planar
+    loop's out-of-plane row carries none)."""
+    chain = request.getfixturevalue(name)
+    m = closure.random_motion(chain, *_bounds(chain), count=50, seed=4)
+    pm = pin_engine.build_model(chain.spec, GRAVITY_W)
+    tau = pin_engine.rnea(pm, m.q, m.qd, m.qdd).tau
+    h = pin_engine.rnea(pm, m.q, m.qd, np.zeros_like(m.qdd)).tau
+    M = pin_engine.crba(pm, m.q)
+    tau_a = closure.actuated_torques(m.G, tau)
+    lam = closure.multipliers(chain, m.J, tau, tau_a)
+    b = loops.bias(chain.spec, chain.loops, m.q, m.qd)
+    n, rows = chain.n, m.J.shape[1]
+    for k in range(len(m.q)):
+        K = np.block([[M[k], -m.J[k].T], [m.J[k], np.zeros((rows, rows))]])
+        rhs = np.concatenate([-h[k], -b[k]])
+        rhs[list(chain.actuated)] += tau_a[k]
+        sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
+        np.testing.assert_allclose(sol[:n], m.qdd[k], atol=1e-9 * max(1.0, np.abs(m.qdd[k]).max()))
+        np.testing.assert_allclose(m.J[k].T @ sol[n:], m.J[k].T @ lam[k], atol=1e-9 * np.abs(tau[k]).max())
+
+
+# --- scenarios -----------------------------------------------------------------------------------------
+
+SCENARIOS = MODELS.parent / "scenarios"
+
+
+def _scenario(tmp_path, name: str, edit=lambda text: text) -> object:
+    from harness.runner.scenario import load_scenario
+
+    text = edit((SCENARIOS / f"{name}.toml").read_text()).replace('"../models/', f'"{MODELS}/')
+    text = text.replace('gate_sets = ["gates/', f'gate_sets = ["{SCENARIOS}/gates/')
+    (tmp_path / f"{name}.toml").write_text(text)
+    return load_scenario(tmp_path / f"{name}.toml")
+
+
+SCENARIO_REFUSALS = {
+    "a passive joint's motion": ("fourbar", lambda t: t + '\n[motion.rocker]\ntype = "locked"\n',
+                                 "motion.rocker", "is passive"),
+    "identification": ("fourbar", lambda t: t + "\n[torque_identification]\n", "torque_identification",
+                       "closed chain"),
+    # crank - shoulder = pi / 2 at t = 0: the crank along the upper arm, J_p singular
+    "a motion at the parallelogram's fold": (
+        "parallelogram", lambda t: t.replace("[motion.crank]\ntype = \"sinusoids\"\noffset = 0.0",
+                                             "[motion.crank]\ntype = \"sinusoids\"\noffset = 1.7707963267948966"),
+        "motion", "cannot be followed"),
+}
+
+
+@pytest.mark.parametrize("case", SCENARIO_REFUSALS)
+def test_a_closed_chain_scenario_refuses_what_it_cannot_run(tmp_path, case):
+    name, edit, key, message = SCENARIO_REFUSALS[case]
+    with pytest.raises(InputError) as err:
+        _scenario(tmp_path, name, edit)
+    assert err.value.key == key and message in str(err.value)
+
+
+class ProjectedTree:
+    """A user's closed-chain model: Pinocchio's RNEA of the tree projected by G (harness/model/closure.py),
+    for the spec it is given (the robot's own, or one with a body 1 % heavier)."""
+
+    def __init__(self, spec):
+        self.chain = closure.ClosedChain.of(spec)
+        self.pm = pin_engine.build_model(spec, GRAVITY_W)
+        self.joint_names = list(reversed(spec.joint_names))  # its own column order
+        self.actuated_joints = list(reversed(spec.actuated))
+        self._order = [spec.joint_names.index(j) for j in self.joint_names]
+
+    def inverse_dynamics(self, q, qd, qdd):
+        back = np.argsort(self._order)
+        q, qd, qdd = q[:, back], qd[:, back], qdd[:, back]
+        tau = pin_engine.rnea(self.pm, q, qd, qdd).tau
+        tau_a = closure.actuated_torques(closure.projection(self.chain, q, closed=False), tau)
+        names = list(self.chain.spec.actuated)
+        return tau_a[:, [names.index(a) for a in self.actuated_joints]]
+
+
+@pytest.mark.slow
+def test_a_users_closed_chain_model_is_judged_on_its_actuated_torques(tmp_path):
+    """The four-bar scenario with two models under test: the projected tree of the robot itself agrees
+    with both engines along the motion and at the random states to 1e-9; the same with the rocker 1 %
+    heavier is off by more than 1e-4 of the crank's load (the rocker's weight alone is 8 N against a
+    largest crank torque of a few N m) and fails its gates. The run's recording reads back with its
+    loop gaps and loop wrenches; the tree's raw torques are not the chain's."""
+    import dataclasses
+
+    import harness
+    from harness.base.series import read_csv
+
+    sc = _scenario(tmp_path, "fourbar")
+    robot = sc.robot
+    assert np.array_equal(sc.gravity_W, GRAVITY_W)  # the MJCF file's, which the models are built with
+    heavy = dataclasses.replace(robot, bodies=tuple(dataclasses.replace(b, mass=b.mass * 1.01) if b.name == "rocker"
+                                                    else b for b in robot.bodies))
+    result = harness.run(sc, models={"exact": ProjectedTree(robot), "heavy": ProjectedTree(heavy)})
+    tq = result.results["torques"]
+    for ref in ("pinocchio", "mujoco"):
+        assert tq[f"exact_vs_{ref}"]["max_rel_error"] <= 1e-9
+        assert tq[f"heavy_vs_{ref}"]["max_rel_error"] >= 1e-4
+    assert tq["exact_random_vs_pinocchio"]["max_rel_error"] <= 1e-9
+    assert tq["exact_random_vs_pinocchio"]["states"] == 200
+    assert tq["heavy_random_vs_pinocchio"]["max_rel_error"] >= 1e-4
+    failed = {g.name for g in result.gates if not g.passed}
+    assert failed and all("heavy" in name for name in failed)
+    cc = tq["closed_chain"]
+    assert cc["raw_tree_vs_actuated_max_rel_error"] >= 0.1
+    assert cc["passive_torque_with_loop_forces_max"] <= 1e-9 * max(tq["load_scale"].values())
+    out = tmp_path / "out"
+    from harness.cli import main
+
+    assert main(["run", str(tmp_path / "fourbar.toml"), "--out", str(out), "--quiet"]) == 0
+    rec = read_csv(out / "recording.csv")
+    assert rec.loops == ("coupler_rocker",)
+    assert np.max(rec.loop_gap) == json_of(out)["torques"]["closed_chain"]["loop_gap_max"]
+    assert rec.loop_F_W.shape == (len(rec.t), 3, 3) and np.abs(rec.loop_F_W).max() > 0
+
+
+def json_of(folder):
+    import json
+
+    return json.loads((folder / "results.json").read_text())
