@@ -87,6 +87,10 @@ def _joints(robot: Path, key: str, flag: str) -> list[tuple[str, float, float, f
             spec = load_spec(Path(tmp) / "robot.toml")
         except InputError as exc:
             raise InputError(robot, flag, exc.message.removeprefix(f"{path}: ")) from None
+    if spec.loops:
+        raise InputError(robot, flag, f"a closed chain (loop {spec.loops[0].name!r}): the project written here moves "
+                                      "every joint; start from the built-in fourbar or parallelogram scenario "
+                                      "(docs/closed_chains.md)")
     out = []
     for j in spec.joints:
         lo, hi = (spec.limits or {}).get(j.name, (-np.inf, np.inf))

@@ -150,14 +150,19 @@ def _not_the_files(spec: RobotSpec, described: Path | None) -> str:
 
 def _read(path: Path) -> tuple[RobotSpec, Path | None]:
     """The robot as the harness reads it, and the URDF or MJCF file that describes it (a model file's,
-    None for a model file of the harness's own tree)."""
+    None for a model file of the harness's own tree). A closed chain's tree is what is audited (its
+    loops are the closed-chain scenarios': docs/closed_chains.md)."""
+    import dataclasses
+
     from harness.model.load import load_spec, spec_from_data
 
     if path.suffix.lower() == ".toml":
         spec = load_spec(path)
-        return spec, spec.urdf or spec.mjcf
-    kind = "mjcf" if path.suffix.lower() == ".xml" else "urdf"
-    return spec_from_data({kind: {"file": str(path.resolve())}}, path), path
+        source = spec.urdf or spec.mjcf
+    else:
+        kind = "mjcf" if path.suffix.lower() == ".xml" else "urdf"
+        spec, source = spec_from_data({kind: {"file": str(path.resolve())}}, path), path
+    return dataclasses.replace(spec, loops=(), actuated=()), source
 
 
 def _states(spec: RobotSpec, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
