@@ -67,6 +67,20 @@ def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
 SAMPLES_AT_A_TIME = 8192  # samples of the regressor made at a time (`regressor`)
 
 
+def chain_regressor(pm: PinocchioModel, chain, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                    with_friction: bool = False, closed: bool = False) -> np.ndarray:
+    """(N * n_a, p): a closed chain's actuated-torque regressor G^T Y (harness/model/closure.py): the
+    tree's regressor (`regressor`, every joint's row) projected onto the actuated joints, rows sample
+    by sample in the chain's actuated order. Exact where the tree's torques are Y theta: tau_a = G^T Y
+    theta. `closed`: q closes every loop (G's null-space check is then made)."""
+    from harness.model.closure import projection
+
+    N, n = len(q), len(pm.joint_ids)
+    W = regressor(pm, q, qd, qdd, with_friction).reshape(N, n, -1)
+    G = projection(chain, q, closed=closed)
+    return np.einsum("nja,njp->nap", G, W).reshape(N * len(chain.actuated), -1)
+
+
 def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                        with_friction: bool = False, out: np.ndarray | None = None) -> np.ndarray:
     """The same regressor as (n, p, N): out[i, :, k] is joint i's row at sample k, so each joint's
@@ -210,12 +224,24 @@ STRUCTURAL_STATES = 200  # random states for the structural base: 2 x 10 n rows 
 
 
 def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0,
-                    with_friction: bool = False) -> BaseParameters:
+                    with_friction: bool = False, chain=None) -> BaseParameters:
     """The base parameters of the model's structure, chosen once: QR with column pivoting of the
     noise-free regressor at STRUCTURAL_STATES random states (q uniform within the joint limits, or
     +-pi, +-1 m; q', q'' standard normal), not of a measured trajectory, whose noise or poor
     excitation would change which combinations are chosen. For the same model and seed it is the
-    same every time it is asked for."""
+    same every time it is asked for. Of a closed chain (`chain`, harness/model/closure.py): its
+    actuated-torque regressor G^T Y at random consistent states (the actuated joints' q uniform within
+    their limits, q'_a and q''_a within +-1, the passive joints' from the loops)."""
+    if chain is not None:
+        from harness.model.closure import random_motion
+
+        act = list(chain.actuated)
+        names = [pm.model.names[pm.joint_ids[k]] for k in act]
+        lo, hi = position_bounds(names, [pm.model.joints[pm.joint_ids[k]].shortname().startswith("JointModelR")
+                                         for k in act], limits)
+        m = random_motion(chain, lo, hi, np.ones(len(act)), np.ones(len(act)), STRUCTURAL_STATES, seed)
+        return base_parameters(chain_regressor(pm, chain, m.q, m.qd, m.qdd, with_friction, closed=True),
+                               with_friction)
     rng = np.random.default_rng(seed)
     n = len(pm.joint_ids)
     lo, hi = position_bounds([pm.model.names[jid] for jid in pm.joint_ids],
@@ -239,21 +265,29 @@ class TorqueIdentification:
     weak: np.ndarray  # (r,) bool: weakly identifiable
     validation_error: np.ndarray | None  # (N_val, n) predicted - recorded torques, validation trajectory
     validation_scale: np.ndarray | None = None  # (n,) joint loads L_J of the validation recording
+    torque_joints: list[str] | None = None  # the torques' joints where they are not every joint (a closed chain's)
 
 
 def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau,
-                          validation: tuple | None = None, base: BaseParameters | None = None
-                          ) -> TorqueIdentification:
-    """Least squares of the base parameters (default: the structural ones of `pm`) from joint torques."""
-    base = base or structural_base(pm)
-    W1 = regressor(pm, q, qd, qdd, base.with_friction)[:, base.independent]
+                          validation: tuple | None = None, base: BaseParameters | None = None,
+                          chain=None) -> TorqueIdentification:
+    """Least squares of the base parameters (default: the structural ones of `pm`) from joint torques;
+    of a closed chain (`chain`), from its actuated joints' torques tau (N, n_a) through G^T Y."""
+    base = base or structural_base(pm, chain=chain)
+
+    def rows(q, qd, qdd):
+        if chain is None:
+            return regressor(pm, q, qd, qdd, base.with_friction)
+        return chain_regressor(pm, chain, q, qd, qdd, base.with_friction)
+
+    W1 = rows(q, qd, qdd)[:, base.independent]
     # the model's own values: the magnitudes of the parameters
     beta_model = base.of(true_parameters(pm, base.with_friction))
     fit = with_structure(fit_base(W1, tau, beta_model), base)
     err = None
     if validation is not None:
         qv, qdv, qddv, tauv = validation
-        pred = (regressor(pm, qv, qdv, qddv, base.with_friction)[:, base.independent] @ fit.beta).reshape(tauv.shape)
+        pred = (rows(qv, qdv, qddv)[:, base.independent] @ fit.beta).reshape(tauv.shape)
         err = pred - tauv
     names = parameter_names(joints, base.with_friction)
     return TorqueIdentification(names, base, beta_model, fit.beta, fit.condition_number, fit.std, fit.ci_half_width,

@@ -405,12 +405,13 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
 
 
-CLOSED_CHAIN_LATER = ("excitation", "torque_identification", "identification", "studies", "estimators", "payload")
+CLOSED_CHAIN_LATER = ("excitation", "identification", "studies", "estimators", "payload")
 
 
 def _closed_chain_tables(root: Table, robot: RobotSpec) -> None:
-    """A closed chain's scenario judges its actuated torques (the engines, the models under test) and
-    its loops; what identifies a robot or runs a paper's study reads an open tree: refused by name."""
+    """A closed chain's scenario judges its actuated torques (the engines, the models under test), its
+    loops and its joint-torque identification (`[torque_identification]`, through G^T Y); the other
+    identifications and a paper's study read an open tree: refused by name."""
     for table in CLOSED_CHAIN_LATER:
         if root.has(table):
             raise root.error(table, f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r}): "

@@ -30,7 +30,7 @@ from harness.identify.trials import over_trials
 from harness.model import friction
 from harness.stages.metrics import joint_load_scale
 from harness.stages.plugin_fits import BaseMap, BaseTable, SkippedMethod, base_map, base_table, fit_method
-from harness.stages.shared import TorqueConfig, structural_base_of, torque_config
+from harness.stages.shared import TorqueConfig, chain_of, structural_base_of, torque_config
 
 
 def configure_torque(t, scenario) -> TorqueConfig:
@@ -50,9 +50,19 @@ def run_builtin(ctx, config: TorqueConfig | None) -> BuiltinIdentification | Non
     joints = sc.robot.joint_names
     val = ctx.recorded(config.validation)
     pm = build_model(sc.robot, sc.gravity_W)
-    ti = identify_from_torques(pm, joints, *ctx.training.joint_data(joints), val.joint_data(joints),
-                               structural_base_of(ctx))
-    ti.validation_scale = joint_load_scale(sc.robot, val)
+    chain = chain_of(sc.robot)
+    if chain is None:
+        ti = identify_from_torques(pm, joints, *ctx.training.joint_data(joints), val.joint_data(joints),
+                                   structural_base_of(ctx))
+        ti.validation_scale = joint_load_scale(sc.robot, val)
+        return BuiltinIdentification(ti, config.validation.name)
+    # a closed chain: its actuated joints' torques, through G^T Y (harness/identify/torque_id.py)
+    act = list(chain.actuated)
+    training, validation = ctx.training.joint_data(joints), val.joint_data(joints)
+    ti = identify_from_torques(pm, joints, *training[:3], training[3][:, act], (*validation[:3], validation[3][:, act]),
+                               structural_base_of(ctx), chain)
+    ti.validation_scale = joint_load_scale(sc.robot, val)[act]
+    ti.torque_joints = list(sc.robot.actuated)
     return BuiltinIdentification(ti, config.validation.name)
 
 
@@ -106,7 +116,8 @@ class BuiltinIdentification:
             err = relative_error(ti.validation_error, 0.0, ti.validation_scale)
             _, worst_joint = np.unravel_index(np.argmax(err), err.shape)
             out["validation"] = {"scenario": self.validation, "max_rel_error": float(err.max()),
-                                 "max_rel_joint": ti.names[10 * worst_joint].rsplit(".", 1)[0],
+                                 "max_rel_joint": (ti.torque_joints[worst_joint] if ti.torque_joints else
+                                                   ti.names[10 * worst_joint].rsplit(".", 1)[0]),
                                  "rms_rel_error": float(np.sqrt(np.mean(err**2))),
                                  "definition": "|predicted - recorded torque| / L_J of the validation run"}
         return out

@@ -37,4 +37,13 @@ def structural_base_of(ctx):
     friction = with_friction(sc)
     return ctx.once(("structural base parameters", friction),
                     lambda: structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits,
-                                            with_friction=friction))
+                                            with_friction=friction, chain=chain_of(sc.robot)))
+
+
+def chain_of(robot):
+    """The robot's closed chain (harness/model/closure.py), None for an open tree."""
+    if not robot.loops:
+        return None
+    from harness.model.closure import ClosedChain
+
+    return ClosedChain.of(robot)
