@@ -16,6 +16,11 @@ applied as motor controls, then mj_step integrates. At each output row mj_forwar
 state with the controls in force, so forces, accelerations and drive torques in a row belong to
 one and the same instant. The torques of every evaluation inside each step (the four RK4 stages)
 are kept in `meta["drive_stages"]`, so that another model can be driven by exactly the same input.
+
+A closed chain's loops (harness/model/loops.py) are equality constraints between two sites, made
+stiff (LOOP_SOLIMP, a time constant of two steps); its drive gives the actuated joints the computed
+torque projected through the loops, G^T tau, and the passive joints nothing (`_loop_projection`), and
+each row records every loop's gap and the loops' wrench on every body.
 """
 
 from __future__ import annotations

@@ -274,7 +274,8 @@ def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "") -> str
     """The robot as an MJCF file: its bodies with their inertials, hinge and slide joints with their
     ranges, `armature` (rotor inertia), `damping` (viscous friction) and `frictionloss` (Coulomb
     friction, which MuJoCo applies as dry friction: the mapping of the smooth law is the caller's to
-    state), and a motor per joint (gear 1) with the joint's effort limit as its force range. Built
+    state), a motor per joint (gear 1; a closed chain's actuated joints only) with the joint's effort
+    limit as its force range, and a closed chain's loops as site-based equalities. Built
     with MjSpec and written by MuJoCo's own writer, then every number it wrote rewritten from the
     MjSpec's doubles at full precision (the writer keeps six digits), so the file reloads to the bit.
     `comment` (plain text) heads the file."""
@@ -293,8 +294,8 @@ def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "") -> str
         lo, hi = (spec.limits or {}).get(joint.name, (-np.inf, np.inf))
         if np.isfinite(lo) and np.isfinite(hi):
             j.range = [lo, hi]
-        if spec.transmission is None:
-            effort = (spec.drive_limits or {}).get(joint.name, {}).get("effort")
+        if spec.transmission is None and (not spec.loops or joint.name in spec.actuated):  # a closed chain's
+            effort = (spec.drive_limits or {}).get(joint.name, {}).get("effort")  # passive joints: no motor
             motor = ms.add_actuator(name=joint.name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
                                     gear=[1.0, 0, 0, 0, 0, 0])
             if effort is not None:
@@ -321,7 +322,8 @@ _ATTRIBUTES = {"body": {"pos": "pos", "quat": "quat"},
                          "damping": "damping", "frictionloss": "frictionloss"},
                "general": {"gear": "gear", "forcerange": "forcerange"},
                "fixed": {"armature": "armature", "damping": "damping", "frictionloss": "frictionloss"},
-               "option": {"gravity": "gravity"}}
+               "option": {"gravity": "gravity"},
+               "site": {"pos": "pos", "quat": "quat"}}
 
 
 def _exact_numbers(el, ms, root) -> None:
@@ -339,7 +341,7 @@ def _exact_numbers(el, ms, root) -> None:
     elif el.tag == "joint" and el.get("name") is None:  # a tendon's wrap: its coefficient is set by the caller
         return
     else:
-        source = {"body": ms.body, "joint": ms.joint, "general": ms.actuator}[el.tag](el.get("name"))
+        source = {"body": ms.body, "joint": ms.joint, "general": ms.actuator, "site": ms.site}[el.tag](el.get("name"))
     for attribute, field in names.items():
         if el.get(attribute) is None:
             continue
