@@ -83,7 +83,7 @@ class ClosedChain:
         return np.concatenate([[self.size] * 3 + ([1.0] * 3 if lp.kind == "weld" else []) for lp in self.loops])
 
 
-def _pinv_passive(chain: ClosedChain, J: np.ndarray, where: str) -> np.ndarray:
+def _pinv_passive(chain: ClosedChain, J: np.ndarray, where: str, numbered: bool = True) -> np.ndarray:
     """J_p^+ (N, n_p, rows), refused where J_p lacks full column rank."""
     J_p = J[:, :, chain.passive]
     s = np.linalg.svd(J_p, compute_uv=False)
@@ -91,14 +91,15 @@ def _pinv_passive(chain: ClosedChain, J: np.ndarray, where: str) -> np.ndarray:
         ratio = s[:, len(chain.passive) - 1] / np.maximum(s[:, 0], np.finfo(float).tiny)
         bad = np.flatnonzero(~(ratio > RANK))
         if bad.size:
-            raise ClosureError(f"{chain.spec.name}: the passive joints are not determined by the loops at {where} "
-                               f"{bad[0]} (J_p's singular values' ratio {ratio[bad[0]]:.1e}: a singular "
+            at = f"{where} {bad[0]}" if numbered else where
+            raise ClosureError(f"{chain.spec.name}: the passive joints are not determined by the loops at {at} "
+                               f"(J_p's singular values' ratio {ratio[bad[0]]:.1e}: a singular "
                                "configuration, or fewer independent loop equations than passive joints)")
     return np.linalg.pinv(J_p, rcond=RANK)
 
 
 def projection(chain: ClosedChain, q: np.ndarray, J: np.ndarray | None = None,
-               where: str = "sample", closed: bool = True) -> np.ndarray:
+               where: str = "sample", closed: bool = True, numbered: bool = True) -> np.ndarray:
     """G(q), (N, n, n_a): q' = G q'_a for every velocity the loops allow (module docstring); refused
     where J_p is rank deficient or, at `closed` configurations, G's columns are not in J's null space to
     NULL_SPACE (where a loop is slightly open, as in a simulation's recording, a planar loop's
@@ -107,14 +108,15 @@ def projection(chain: ClosedChain, q: np.ndarray, J: np.ndarray | None = None,
     J = jacobian(chain.spec, chain.loops, q) if J is None else J
     G = np.zeros((len(q), chain.n, len(chain.actuated)))
     G[:, chain.actuated, np.arange(len(chain.actuated))] = 1.0
-    G[:, chain.passive, :] = -_pinv_passive(chain, J, where) @ J[:, :, chain.actuated]
+    G[:, chain.passive, :] = -_pinv_passive(chain, J, where, numbered) @ J[:, :, chain.actuated]
     if not closed:
         return G
     JG = np.abs(J @ G).max(axis=(1, 2))
     bound = NULL_SPACE * np.linalg.norm(J, axis=(1, 2)) * np.linalg.norm(G, axis=(1, 2))
     bad = np.flatnonzero(~(JG <= bound))
     if bad.size:
-        raise ClosureError(f"{chain.spec.name}: the actuated joints are not independent at {where} {bad[0]}: "
+        at = f"{where} {bad[0]}" if numbered else where
+        raise ClosureError(f"{chain.spec.name}: the actuated joints are not independent at {at}: "
                            f"|J G| = {JG[bad[0]]:.1e} (the loops forbid some actuated motions)")
     return G
 
@@ -136,12 +138,14 @@ def _newton(chain: ClosedChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return q, np.max(np.abs(phi) / scale, axis=1)
 
 
-def close(chain: ClosedChain, q: np.ndarray, where: str = "sample") -> np.ndarray:
-    """q (N, n) with its passive joints moved so that every loop closes, each row from itself."""
+def close(chain: ClosedChain, q: np.ndarray, where: str = "sample", numbered: bool = True) -> np.ndarray:
+    """q (N, n) with its passive joints moved so that every loop closes, each row from itself; a row
+    that does not close is refused, named `where` and its row number (or `where` alone)."""
     q, err = _newton(chain, np.atleast_2d(np.asarray(q, dtype=float)))
     bad = np.flatnonzero(~(err <= CLOSED))
     if bad.size:
-        raise ClosureError(f"{chain.spec.name}: the loops do not close at {where} {bad[0]} (|Phi| = "
+        at = f"{where} {bad[0]}" if numbered else where
+        raise ClosureError(f"{chain.spec.name}: the loops do not close at {at} (|Phi| = "
                            f"{err[bad[0]]:.1e} of the size after {NEWTON_ITERATIONS} Newton steps: out of reach, or "
                            "too far from the configuration it started from)")
     return q
@@ -160,13 +164,15 @@ def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.nd
     # between two samples are cut into intermediate stations)
     stations_travel = np.arange(0.0, travel[-1] + CONTINUATION_STEP, CONTINUATION_STEP)
     stations = np.array([np.interp(stations_travel, travel, path[:, k]) for k in range(path.shape[1])]).T
-    q = close(chain, np.asarray(q_start, dtype=float), "the starting configuration")[0]
+    q = close(chain, np.asarray(q_start, dtype=float), "the starting configuration", numbered=False)[0]
     solved = np.empty((len(stations), chain.n))
     for s, target in enumerate(stations):
-        G = projection(chain, q, where="a continuation step from sample")[0]
+        k = min(int(np.searchsorted(travel[1:], stations_travel[s])), len(q_a) - 1)
+        where = f"sample {k} of the motion (q_a = {np.array2string(target, precision=4)}, reached from the one before)"
+        G = projection(chain, q, where=where, numbered=False)[0]
         guess = q + G @ (target - q[list(chain.actuated)])
         guess[list(chain.actuated)] = target
-        q = close(chain, guess, f"travel {stations_travel[s]:.3g} along the motion, before sample")[0]
+        q = close(chain, guess, where, numbered=False)[0]
         solved[s] = q
     nearest = np.clip(np.searchsorted(stations_travel, travel[1:], side="right") - 1, 0, len(stations) - 1)
     guess = solved[nearest].copy()
