@@ -150,3 +150,56 @@ def crba(pm: PinocchioModel, q: np.ndarray) -> np.ndarray:
         M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
         out[k] = M[np.ix_(pm.q_index, pm.q_index)]
     return out + drives.mass(pm.frictions, pm.transmission) if pm.frictions else out
+
+
+PROXIMAL = (1e-12, 1e-8, 20)  # accuracy, mu, iterations: mu > 0 takes a planar loop's zero constraint row
+# (with Pinocchio's default proximal settings its constraintDynamics returns NaN on it)
+
+
+def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0: np.ndarray,
+                        stage_tau: np.ndarray, timestep: float, every: int) -> np.ndarray:
+    """A closed chain's rigid forward dynamics, Pinocchio's constraintDynamics with every loop of the
+    spec a RigidConstraintModel (a connect CONTACT_3D at its joined points, a weld CONTACT_6D at its
+    joined frames; PROXIMAL settings), integrated by RK4 from (q0, v0) (n,) under the joint torques
+    given at each of its four stages, stage_tau (steps, 4, n) (the bench's drive stages): q every
+    `every` steps, (steps // every + 1, n), spec joint order."""
+    model = pm.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, np.zeros(model.nq))
+    cmodels, cdatas = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
+    for loop in spec.loops:
+        ends = []
+        for body, p, R in ((loop.body_a, loop.point_a_W0, loop.R_W_frame_a0),
+                           (loop.body_b, loop.point_b_W0, loop.R_W_frame_b0)):
+            jid = 0 if body == WORLD else pm.joint_ids[spec.joint_names.index(spec.inner_joint(body).name)]
+            ends.append((jid, data.oMi[jid].actInv(pin.SE3(np.eye(3) if R is None else R, np.asarray(p)))))
+        kind = pin.ContactType.CONTACT_3D if loop.kind == "connect" else pin.ContactType.CONTACT_6D
+        cm = pin.RigidConstraintModel(kind, model, ends[0][0], ends[0][1], ends[1][0], ends[1][1],
+                                      pin.ReferenceFrame.LOCAL)
+        cmodels.append(cm)
+        cdatas.append(cm.createData())
+    pin.initConstraintDynamics(model, data, cmodels, cdatas)
+    prox = pin.ProximalSettings(*PROXIMAL)
+    qq, vv, tt = np.zeros(model.nq), np.zeros(model.nv), np.zeros(model.nv)
+    idx = pm.q_index
+
+    def qdd(q, v, tau):
+        qq[idx], vv[idx], tt[idx] = q, v, tau
+        return pin.constraintDynamics(model, data, qq, vv, tt, cmodels, cdatas, prox)[idx]
+
+    h = timestep
+    q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)
+    out = [q.copy()]
+    for k, s in enumerate(stage_tau):
+        a1 = qdd(q, v, s[0])
+        v2 = v + h / 2 * a1
+        a2 = qdd(q + h / 2 * v, v2, s[1])
+        v3 = v + h / 2 * a2
+        a3 = qdd(q + h / 2 * v2, v3, s[2])
+        v4 = v + h * a3
+        a4 = qdd(q + h * v3, v4, s[3])
+        q = q + h / 6 * (v + 2 * v2 + 2 * v3 + v4)
+        v = v + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
+        if (k + 1) % every == 0:
+            out.append(q.copy())
+    return np.array(out)

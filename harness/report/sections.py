@@ -228,7 +228,11 @@ def _closed_chain(cc: dict | None) -> str:
         f"forces agree with MuJoCo's to {num(cc['loop_forces_vs_mujoco_max_rel_error'])} "
         f"({esc(cc['loop_forces_definition'])}). MuJoCo's loops are soft constraints (solref "
         f"{esc(' '.join(num(x) for x in settings.get('solref', [])))}, solimp "
-        f"{esc(' '.join(num(x) for x in settings.get('solimp', [])))}): each stays open by its gap.</p>"
+        f"{esc(' '.join(num(x) for x in settings.get('solimp', [])))}): each stays open by its gap"
+        + (f"; against rigid loops (Pinocchio's constraintDynamics under the same torques) the run moves "
+           f"by up to {num(cc['mujoco_vs_rigid_loops']['max_rel_range'])} of a joint's range "
+           f"({esc(cc['mujoco_vs_rigid_loops']['max_rel_joint'])})" if cc.get("mujoco_vs_rigid_loops") else "")
+        + ".</p>"
         + table(["loop", "type", "body 1", "body 2", "largest gap [m]"], loops)
     )
 

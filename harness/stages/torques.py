@@ -278,6 +278,7 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
     gap = rec.loop_gap if rec.loop_gap is not None else np.zeros((len(rec.t), len(chain.loops)))
     info = {
         "actuated": actuated, "passive": passive,
+        "mujoco_vs_rigid_loops": _against_rigid_loops(pm, robot, rec),
         "loops": {lp.name: {"type": lp.kind, "body1": lp.body_a, "body2": lp.body_b} for lp in chain.loops},
         "projection": PROJECTION,
         "raw_tree_vs_actuated_max_rel_error": float(np.max(raw)),
@@ -298,6 +299,29 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
     return TorqueComparison(actuated, rec.t, load[a_cols], rec.tau[:, [rec.joint_index(a) for a in actuated]], tau_a,
                             pin_mj.F_W, pin_mj.M_W, rec.F_W[:, cols], rec.M_W[:, cols], tuple(models), random,
                             wrench_joints=joints, closed_chain=info)
+
+
+def _against_rigid_loops(pm, robot, rec) -> dict | None:
+    """The bench's simulation against rigid loops: Pinocchio's constraintDynamics integrated by RK4 at
+    the bench's step under the torques MuJoCo was given at every stage (harness/engines/pinocchio.py,
+    constrained_rollout), from the recording's first state; per joint the largest |q - q_MuJoCo| over
+    the run relative to the joint's range of motion. None where the bench did not integrate by RK4."""
+    from harness.engines.pinocchio import constrained_rollout
+
+    stages = rec.meta.get("drive_stages")
+    if stages is None or rec.meta.get("integrator") != "RK4" or stages.shape[1] != 4:
+        return None
+    cols = [rec.joint_index(j) for j in robot.joint_names]
+    q_rec = rec.q[:, cols]
+    q = constrained_rollout(pm, robot, q_rec[0], rec.qd[0, cols], stages, rec.meta["timestep"], rec.meta["substeps"])
+    span = np.ptp(q_rec, axis=0)
+    rel = relative_error(q, q_rec[: len(q)], np.where(span > 0, span, 1.0)).max(axis=0)
+    return {"max_rel_range": float(rel.max()), "max_rel_joint": robot.joint_names[int(np.argmax(rel))],
+            "per_joint": dict(zip(robot.joint_names, floats(rel), strict=True)),
+            "definition": "Pinocchio's rigid-loop forward dynamics (constraintDynamics, RK4 at the bench's step, "
+                          "under the torques MuJoCo was given at every stage, from the recording's first state) "
+                          "against the recording: largest |q - q_MuJoCo| / the joint's range of motion over the run; "
+                          "what MuJoCo's soft loops make of the motion"}
 
 
 def actuated_torques_of(entry, joints, actuated, q, qd, qdd, what: str) -> np.ndarray:
