@@ -415,6 +415,19 @@ def test_a_users_closed_chain_model_is_judged_on_its_actuated_torques(tmp_path):
     assert rec.loops == ("coupler_rocker",)
     assert np.max(rec.loop_gap) == json_of(out)["torques"]["closed_chain"]["loop_gap_max"]
     assert rec.loop_F_W.shape == (len(rec.t), 3, 3) and np.abs(rec.loop_F_W).max() > 0
+    # the first seed's multipliers against MuJoCo's loop force on the coupler (body a of the only loop),
+    # where the loop determines it: in the plane (x, z); out of it (y) the rigid loop leaves it open
+    # (graph: least norm, 0) and MuJoCo's soft constraint puts a small force there
+    from harness.papers.graph_theory_2021.closed import closed_chain_inverse
+    from harness.papers.graph_theory_2021.dynamics import build_graph_model
+
+    cols = [rec.joint_index(j) for j in robot.joint_names]
+    graph = closed_chain_inverse(robot, build_graph_model(robot, GRAVITY_W), rec.q[:, cols], rec.qd[:, cols],
+                                 rec.qdd[:, cols])
+    theirs = rec.loop_F_W[:, rec.bodies.index("coupler")]
+    in_plane = [0, 2]
+    assert np.abs(graph.lam[:, in_plane] - theirs[:, in_plane]).max() <= 1e-9 * np.abs(theirs).max()
+    assert np.all(graph.lam[:, 1] == 0.0) or np.abs(graph.lam[:, 1]).max() <= 1e-12 * np.abs(theirs).max()
 
 
 def json_of(folder):
@@ -494,3 +507,36 @@ def test_pinocchios_rigid_loops_move_the_chain_as_its_actuated_torques_say(name,
     truth = m.q[::20]
     span = np.ptp(truth, axis=0)
     assert np.all(np.abs(q - truth).max(axis=0) <= 1e-8 * span)
+
+
+# --- the first seed's method -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+def test_the_graph_theory_method_closes_the_loops_with_its_incidence_matrices(name, request):
+    """The graph-theory model of a closed chain (harness/papers/graph_theory_2021/closed.py: the tree's
+    Newton-Euler equations by its incidence matrices, the loops' forces as unknowns, the passive joints'
+    drives zero) against the constraint-Jacobian route (Pinocchio's RNEA projected by G, multipliers from
+    J^T lambda = tau - S^T tau_a), two derivations sharing no code, at 100 random consistent states:
+    actuated torques and multipliers to 1e-9 of their largest (round-off ~1e-15); with the multipliers
+    its passive joints transmit no moment along their axes."""
+    from harness.papers.graph_theory_2021.closed import closed_chain_inverse
+    from harness.papers.graph_theory_2021.dynamics import build_graph_model
+
+    chain = request.getfixturevalue(name)
+    spec = chain.spec
+    m = closure.random_motion(chain, *_bounds(chain), count=100, seed=31)
+    graph = closed_chain_inverse(spec, build_graph_model(spec, GRAVITY_W), m.q, m.qd, m.qdd)
+    tree = pin_engine.rnea(pin_engine.build_model(spec, GRAVITY_W), m.q, m.qd, m.qdd).tau
+    tau_a = closure.actuated_torques(m.G, tree)
+    lam = closure.multipliers(chain, m.J, tree, tau_a)
+    act = list(chain.actuated)
+    assert np.abs(graph.tau[:, act] - tau_a).max() <= 1e-9 * np.abs(tau_a).max()
+    assert np.abs(graph.lam - lam).max() <= 1e-9 * np.abs(lam).max()
+    from harness.model.kinematics import forward_kinematics
+
+    axes = forward_kinematics(spec, m.q, m.qd, m.qdd).axis_W
+    passive = list(chain.passive)
+    assert all(spec.joints[p].revolute for p in passive)
+    along = np.einsum("npa,npa->np", graph.M_W[:, passive], axes[:, passive])
+    assert np.abs(along).max() <= 1e-9 * np.abs(tau_a).max()

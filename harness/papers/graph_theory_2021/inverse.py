@@ -42,7 +42,7 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: TimeSeries) -> Gra
     # the angles only feed sines and cosines, which read a strided view as fast: no copy
     A = A_0i_components(_select(rec.theta, b).transpose(2, 1, 0))
     F, M = newton_euler(model, A, a, w, wd, *joint_arms_components(top, A, np.ascontiguousarray(q.T)))
-    tau, F_W, M_W = _drives(spec, top, F, M, lambda jj, on: np.einsum(
+    tau, F_W, M_W = joint_drives(spec, top, F, M, lambda jj, on: np.einsum(
         "ijn,j->in", A[:, :, top.bodies.index(on)], spec.body(on).R_WB0.T @ spec.joints[jj].axis_W0))
     return GraphInverse(np.ascontiguousarray(tau.T), F_W.transpose(2, 1, 0), M_W.transpose(2, 1, 0))
 
@@ -75,6 +75,15 @@ def _of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray
     joint arms C_e,ik (Eq. 19) are read off the kinematics, which has every joint point and centre
     of mass in the world already: the joint point of the outer body less either body's centre of
     mass; so is each drive's axis."""
+    args, buffers = motion_terms(spec, model, q, qd, qdd, buffers)
+    F, M = newton_euler(model, *args)
+    return joint_drives(spec, model.topology, F, M, lambda jj, on: buffers.axes[:, jj])
+
+
+def motion_terms(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                 buffers: KinematicsBuffers) -> tuple[tuple, KinematicsBuffers]:
+    """`newton_euler`'s arguments from joint coordinates (A, r'', omega, omega', the joints' arms from the
+    outer and inner bodies' centres of mass), and the buffers the kinematics was written into."""
     if len(q) != buffers.N:  # a last, shorter block
         buffers = KinematicsBuffers.of(spec, len(q))
     kin = forward_kinematics(spec, q, qd, qdd, velocities=False, buffers=buffers)
@@ -91,9 +100,8 @@ def _of_motion(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray
     c_in = np.zeros_like(c_out)
     has_inner = top.inner >= 0
     c_in[:, has_inner] = O[:, has_inner] - c[:, top.inner[has_inner]]
-    F, M = newton_euler(model, _select(buffers.R_WB, b, axis=2), _select(buffers.a, b, axis=1),
-                        _select(buffers.w, b, axis=1), _select(buffers.wd, b, axis=1), c_out, c_in)
-    return _drives(spec, top, F, M, lambda jj, on: buffers.axes[:, jj])
+    return (_select(buffers.R_WB, b, axis=2), _select(buffers.a, b, axis=1), _select(buffers.w, b, axis=1),
+            _select(buffers.wd, b, axis=1), c_out, c_in), buffers
 
 
 def _select(x: np.ndarray, index: list[int], axis: int = 1) -> np.ndarray:
@@ -109,15 +117,19 @@ def _samples_last(x: np.ndarray, bodies: list[int]) -> np.ndarray:
 
 
 def newton_euler(model: GraphModel, A: np.ndarray, a: np.ndarray, w: np.ndarray, wd: np.ndarray,
-                 c_out: np.ndarray, c_in: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                 c_out: np.ndarray, c_in: np.ndarray, f_ext: np.ndarray | None = None,
+                 m_ext: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Eqs. 22-23 solved for the force elements F_k and joint moments M_k (about O_k), all samples at
     once, in the graph's order. Component-major with the samples last: A (3, 3, n, N) with A[i, j]
     the entries A(0i)_ij; r_i'', omega_i, omega_i' and the arms from each joint's outer and inner
     body's centre of mass to the joint point (world components, zero where the inner body is the
     ground) each (3, n, N). Every step is an operation on whole (n, N) arrays, and each sum over
-    joints one matrix product. Returns F, M, (3, n, N) each."""
+    joints one matrix product. Returns F, M, (3, n, N) each. `f_ext`, `m_ext` (3, n, N): forces on the
+    bodies and their moments about each centre of mass from outside the tree (a closed chain's loops:
+    harness/papers/graph_theory_2021/closed.py), on the right-hand side of Eqs. 22-23."""
     top = model.topology
-    F = -(top.S_e_inv @ (model.m[:, None] * (a - model.g_W[:, None, None])))
+    inertial = model.m[:, None] * (a - model.g_W[:, None, None])
+    F = -(top.S_e_inv @ (inertial if f_ext is None else inertial - f_ext))
     P_out, P_in = top.outer_of, top.inner_of
     # sum_k C_e,ik x F_k, joint by joint: C = -c on the outer body, +c on the inner one
     C_x_F = P_in @ cross(c_in, F, axis=0)
@@ -129,11 +141,13 @@ def newton_euler(model: GraphModel, A: np.ndarray, a: np.ndarray, w: np.ndarray,
     body = cross(w_B, J * w_B, axis=0)
     body += J * wd_B
     C_x_F += rotate(A, body)
+    if m_ext is not None:
+        C_x_F -= m_ext
     M = -(top.S_inv @ C_x_F)
     return F, M
 
 
-def _drives(spec: RobotSpec, top: Topology, F: np.ndarray, M: np.ndarray, axis_W) -> tuple:
+def joint_drives(spec: RobotSpec, top: Topology, F: np.ndarray, M: np.ndarray, axis_W) -> tuple:
     """Each spec joint's wrench is that of the graph joint it is or carries (a carriage transmits its
     child's); its drive is the moment (revolute) or force (prismatic) along its axis in the world,
     axis_W(jj, on) of the spec joint jj whose axis turns with body `on` (None: fixed to the ground).

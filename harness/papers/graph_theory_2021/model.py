@@ -1,7 +1,8 @@
 """The graph-theory model as a model under test (harness/base/plugins.py, ModelUnderTest): joint
 torques and joint wrenches from (q, q', q'') by the paper's Newton-Euler equations (Eqs. 17-23)
 solved with the incidence matrix (harness/papers/graph_theory_2021/inverse.py), the body motion
-from the tree's forward kinematics."""
+from the tree's forward kinematics; of a closed chain, with the loops' forces as further unknowns
+(closed.py), answering for its actuated joints."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import numpy as np
 
 from harness.model import friction
 from harness.model.spec import RobotSpec
+from harness.papers.graph_theory_2021.closed import closed_chain_inverse
 from harness.papers.graph_theory_2021.dynamics import build_graph_model
 from harness.papers.graph_theory_2021.inverse import GraphInverse, inverse_dynamics_of_motion
 
@@ -22,14 +24,25 @@ class GraphTheoryModel:
         self.spec = spec
         self.graph = build_graph_model(spec, gravity_W)
         self.joint_names = list(spec.joint_names)
+        if spec.loops:  # a closed chain: its actuated joints' drives (closed.py)
+            self.actuated_joints = list(spec.actuated)
+            if not all(f.none for f in spec.frictions):
+                raise ValueError("the graph-theory model of a closed chain carries no joint friction (its passive "
+                                 "joints' friction would enter the loops' equations)")
 
     def solve(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> GraphInverse:
+        if self.spec.loops:
+            out = closed_chain_inverse(self.spec, self.graph, q, qd, qdd)
+            return GraphInverse(out.tau, out.F_W, out.M_W)
         return inverse_dynamics_of_motion(self.spec, self.graph, q, qd, qdd)
 
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """The drive torques: the joint wrenches' components along the axes, plus the drives' own
-        rotor inertia and friction (harness/model/friction.py)."""
+        rotor inertia and friction (harness/model/friction.py); of a closed chain, the actuated
+        joints' (harness/papers/graph_theory_2021/closed.py)."""
         tau = self.solve(q, qd, qdd).tau
+        if self.spec.loops:
+            return tau[:, [self.joint_names.index(a) for a in self.actuated_joints]]
         return tau + friction.torque(self.spec.frictions, qd, qdd, tau)
 
     def joint_wrenches(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
