@@ -152,8 +152,9 @@ def crba(pm: PinocchioModel, q: np.ndarray) -> np.ndarray:
     return out + drives.mass(pm.frictions, pm.transmission) if pm.frictions else out
 
 
-PROXIMAL = (1e-12, 1e-8, 20)  # accuracy, mu, iterations: mu > 0 takes a planar loop's zero constraint row
-# (with Pinocchio's default proximal settings its constraintDynamics returns NaN on it)
+PROXIMAL = (1e-12, 1e-8, 20)  # accuracy, mu, iterations: mu > 0 keeps the constrained system regular where a
+# planar loop's constraint row is zero (Pinocchio 4.1's defaults, mu = 0 and one iteration, answer the
+# built-in four-bar as well: its acceleration equals harness/model/closure.py's to 2e-13 either way)
 
 
 def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0: np.ndarray,

@@ -10,7 +10,7 @@ loops' constraint equations (harness/model/loops.py) fix the passive joints:
 so that q' = G q'_a and q'' = G q''_a + g with G (n x n_a) the identity on the actuated rows and
 -J_p^+ J_a on the passive ones, and g zero on the actuated rows and -J_p^+ b on the passive ones.
 J_p^+ is the pseudo-inverse: a planar loop's connect has an out-of-plane row that is zero, which
-a plain inverse (or Pinocchio's constraintDynamics with its default proximal settings) cannot take.
+a plain inverse cannot take.
 G is accepted where J_p has full column rank (the passive joints are determined) and J G = 0 to
 NULL_SPACE of |J| |G| (the actuated joints are independent: the loop allows every actuated motion).
 
