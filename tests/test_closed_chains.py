@@ -346,6 +346,11 @@ SCENARIO_REFUSALS = {
         "parallelogram", lambda t: t.replace("[motion.crank]\ntype = \"sinusoids\"\noffset = 0.0",
                                              "[motion.crank]\ntype = \"sinusoids\"\noffset = 1.7707963267948966"),
         "motion", "cannot be followed"),
+    # crank - shoulder passes pi / 2 between two samples: the parallelogram folds flat on the way
+    "a motion through the parallelogram's fold": (
+        "parallelogram", lambda t: t.replace("[motion.crank]\ntype = \"sinusoids\"\noffset = 0.0\nsin = [[0.3, 2.7]]",
+                                             "[motion.crank]\ntype = \"sinusoids\"\noffset = 1.5\nsin = [[0.5, 2.7]]"),
+        "motion", "crosses a singular configuration"),
 }
 
 

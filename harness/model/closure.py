@@ -166,6 +166,7 @@ def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.nd
     stations = np.array([np.interp(stations_travel, travel, path[:, k]) for k in range(path.shape[1])]).T
     q = close(chain, np.asarray(q_start, dtype=float), "the starting configuration", numbered=False)[0]
     solved = np.empty((len(stations), chain.n))
+    frame = J_p = None
     for s, target in enumerate(stations):
         k = min(int(np.searchsorted(travel[1:], stations_travel[s])), len(q_a) - 1)
         where = f"sample {k} of the motion (q_a = {np.array2string(target, precision=4)}, reached from the one before)"
@@ -174,12 +175,31 @@ def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.nd
         guess[list(chain.actuated)] = target
         q = close(chain, guess, where, numbered=False)[0]
         solved[s] = q
+        frame, J_p = _no_fold(chain, q, frame, J_p, where)
     nearest = np.clip(np.searchsorted(stations_travel, travel[1:], side="right") - 1, 0, len(stations) - 1)
     guess = solved[nearest].copy()
     G = projection(chain, guess)
     guess += (G @ (q_a - guess[:, list(chain.actuated)])[:, :, None])[:, :, 0]
     guess[:, list(chain.actuated)] = q_a
     return close(chain, guess)
+
+
+def _no_fold(chain: ClosedChain, q: np.ndarray, frame: np.ndarray | None, J_p_before: np.ndarray | None,
+             where: str) -> tuple[np.ndarray | None, np.ndarray]:
+    """Refuses a step of the motion across a singular configuration: J_p (the passive joints' columns
+    of J at q) and the one before it, read in the frame of the one before's range (its first n_p left
+    singular vectors), have determinants of opposite signs where a singular value has passed through
+    zero between them (a parallelogram folding flat) or the solve has jumped to the mechanism's other
+    assembly. Returns the frame and J_p at q for the next step."""
+    J_p = jacobian(chain.spec, chain.loops, q[None])[0][:, chain.passive]
+    n_p = len(chain.passive)
+    if n_p and frame is not None:
+        before, after = np.linalg.det(frame.T @ J_p_before), np.linalg.det(frame.T @ J_p)
+        if before * after <= 0.0:
+            raise ClosureError(f"{chain.spec.name}: the motion crosses a singular configuration of the loops before "
+                               f"{where} (the passive joints' Jacobian changes orientation: the mechanism folds, or "
+                               "changes assembly, and the actuated joints no longer drive it)")
+    return (np.linalg.svd(J_p)[0][:, :n_p] if n_p else None), J_p
 
 
 @dataclass(frozen=True, eq=False)
