@@ -151,8 +151,8 @@ def inverse_dynamics(spec: RobotSpec, gravity_W: np.ndarray, q: np.ndarray, qd: 
     model makes of q'' (harness/model/closure.py projects it away)."""
     model = build_spec(spec, gravity_W).compile()
     data = mujoco.MjData(model)
-    cols = [model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in spec.joint_names]
-    pos = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in spec.joint_names]
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
+    cols, pos = model.jnt_dofadr[ids], model.jnt_qposadr[ids]
     tau = np.empty_like(q)
     for k in range(len(q)):
         data.qpos[pos], data.qvel[cols], data.qacc[cols] = q[k], qd[k], qdd[k]

@@ -55,10 +55,9 @@ class ClosedChain:
     size: float  # m: the largest distance between joint points and joined points at q = 0
 
     @classmethod
-    def of(cls, spec: RobotSpec, loops: tuple[Loop, ...] | None = None,
-           actuated: tuple[str, ...] | None = None) -> ClosedChain:
-        loops = spec.loops if loops is None else loops
-        actuated = spec.actuated if actuated is None else actuated
+    def of(cls, spec: RobotSpec) -> ClosedChain:
+        """The spec's loops and actuated joints (RobotSpec.loops, .actuated)."""
+        loops, actuated = spec.loops, spec.actuated
         if not loops:
             raise ClosureError(f"{spec.name}: no loop closes the tree")
         if not actuated:
@@ -78,24 +77,41 @@ class ClosedChain:
     def n(self) -> int:
         return len(self.spec.joints)
 
+    @property
+    def actuated_span(self) -> np.ndarray:
+        """(n_a,) what one unit of an actuated joint's travel is: 1 rad, or the mechanism's size (m)."""
+        return np.array([1.0 if self.spec.joints[k].revolute else self.size for k in self.actuated])
+
     def _scale(self) -> np.ndarray:
         """(rows,) each constraint row's unit: the size for positions, 1 for a weld's rotation."""
         return np.concatenate([[self.size] * 3 + ([1.0] * 3 if lp.kind == "weld" else []) for lp in self.loops])
 
 
 def _pinv_passive(chain: ClosedChain, J: np.ndarray, where: str, numbered: bool = True) -> np.ndarray:
-    """J_p^+ (N, n_p, rows), refused where J_p lacks full column rank."""
-    J_p = J[:, :, chain.passive]
-    s = np.linalg.svd(J_p, compute_uv=False)
-    if chain.passive:
-        ratio = s[:, len(chain.passive) - 1] / np.maximum(s[:, 0], np.finfo(float).tiny)
-        bad = np.flatnonzero(~(ratio > RANK))
-        if bad.size:
-            at = f"{where} {bad[0]}" if numbered else where
-            raise ClosureError(f"{chain.spec.name}: the passive joints are not determined by the loops at {at} "
-                               f"(J_p's singular values' ratio {ratio[bad[0]]:.1e}: a singular "
-                               "configuration, or fewer independent loop equations than passive joints)")
-    return np.linalg.pinv(J_p, rcond=RANK)
+    """J_p^+ (N, n_p, rows) from one SVD of J_p (singular values under RANK of the largest dropped, as
+    numpy's pinv with rcond=RANK drops them), refused where J_p lacks full column rank."""
+    N, rows, n_p = len(J), J.shape[1], len(chain.passive)
+    if not n_p:
+        return np.zeros((N, 0, rows))
+    U, s, Vt = np.linalg.svd(J[:, :, chain.passive], full_matrices=False)
+    smallest = s[:, n_p - 1] if rows >= n_p else np.zeros(N)  # fewer loop rows than passive joints: rank short
+    ratio = smallest / np.maximum(s[:, 0], np.finfo(float).tiny)
+    bad = np.flatnonzero(~(ratio > RANK))
+    if bad.size:
+        at = f"{where} {bad[0]}" if numbered else where
+        raise ClosureError(f"{chain.spec.name}: the passive joints are not determined by the loops at {at} "
+                           f"(J_p's singular values' ratio {ratio[bad[0]]:.1e}: a singular "
+                           "configuration, or fewer independent loop equations than passive joints)")
+    return np.swapaxes(Vt, 1, 2) @ np.swapaxes(U / s[:, None, :], 1, 2)
+
+
+def _G(chain: ClosedChain, J: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """G (N, n, n_a) from J and J_p^+ (`_pinv_passive`): the identity on the actuated rows, -J_p^+ J_a on
+    the passive ones."""
+    G = np.zeros((len(J), chain.n, len(chain.actuated)))
+    G[:, chain.actuated, np.arange(len(chain.actuated))] = 1.0
+    G[:, chain.passive, :] = -P @ J[:, :, chain.actuated]
+    return G
 
 
 def projection(chain: ClosedChain, q: np.ndarray, J: np.ndarray | None = None,
@@ -106,11 +122,14 @@ def projection(chain: ClosedChain, q: np.ndarray, J: np.ndarray | None = None,
     out-of-plane row is not quite zero and J G is of the gap's order)."""
     q = np.atleast_2d(q)
     J = jacobian(chain.spec, chain.loops, q) if J is None else J
-    G = np.zeros((len(q), chain.n, len(chain.actuated)))
-    G[:, chain.actuated, np.arange(len(chain.actuated))] = 1.0
-    G[:, chain.passive, :] = -_pinv_passive(chain, J, where, numbered) @ J[:, :, chain.actuated]
-    if not closed:
-        return G
+    G = _G(chain, J, _pinv_passive(chain, J, where, numbered))
+    if closed:
+        _check_null_space(chain, J, G, where, numbered)
+    return G
+
+
+def _check_null_space(chain: ClosedChain, J: np.ndarray, G: np.ndarray, where: str, numbered: bool) -> None:
+    """Refused where |J G| > NULL_SPACE |J| |G|: the loops forbid some actuated motions."""
     JG = np.abs(J @ G).max(axis=(1, 2))
     bound = NULL_SPACE * np.linalg.norm(J, axis=(1, 2)) * np.linalg.norm(G, axis=(1, 2))
     bad = np.flatnonzero(~(JG <= bound))
@@ -118,7 +137,16 @@ def projection(chain: ClosedChain, q: np.ndarray, J: np.ndarray | None = None,
         at = f"{where} {bad[0]}" if numbered else where
         raise ClosureError(f"{chain.spec.name}: the actuated joints are not independent at {at}: "
                            f"|J G| = {JG[bad[0]]:.1e} (the loops forbid some actuated motions)")
-    return G
+
+
+def _predicted(chain: ClosedChain, q: np.ndarray, J: np.ndarray, P: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """q (N, n) moved to the actuated values `target` (N, n_a) to first order along the loops:
+    q_p - J_p^+ J_a (target - q_a), P = J_p^+ at q: the guess Newton's method starts from."""
+    act = list(chain.actuated)
+    out = q.copy()
+    out[:, chain.passive] -= (P @ (J[:, :, act] @ (target - q[:, act])[:, :, None]))[:, :, 0]
+    out[:, act] = target
+    return out
 
 
 def _newton(chain: ClosedChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -157,49 +185,43 @@ def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.nd
     q_a[0]'s): first along samples at most CONTINUATION_STEP apart (each solve predicted from the
     last by G), then every sample at once from the nearest of those before it."""
     q_a = np.atleast_2d(np.asarray(q_a, dtype=float))
-    span = np.array([1.0 if j.revolute else chain.size for j in chain.spec.joints])[list(chain.actuated)]
     path = np.vstack([np.asarray(q_start, dtype=float)[list(chain.actuated)], q_a])
-    travel = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(path, axis=0)) / span, axis=1))])
+    travel = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(path, axis=0)) / chain.actuated_span, axis=1))])
     # stations: q_start, then samples at most CONTINUATION_STEP of travel apart (steps larger than it
     # between two samples are cut into intermediate stations)
     stations_travel = np.arange(0.0, travel[-1] + CONTINUATION_STEP, CONTINUATION_STEP)
     stations = np.array([np.interp(stations_travel, travel, path[:, k]) for k in range(path.shape[1])]).T
-    q = close(chain, np.asarray(q_start, dtype=float), "the starting configuration", numbered=False)[0]
+    q = close(chain, np.asarray(q_start, dtype=float), "the starting configuration", numbered=False)
+    J = jacobian(chain.spec, chain.loops, q)
     solved = np.empty((len(stations), chain.n))
-    frame = J_p = None
     for s, target in enumerate(stations):
         k = min(int(np.searchsorted(travel[1:], stations_travel[s])), len(q_a) - 1)
         where = f"sample {k} of the motion (q_a = {np.array2string(target, precision=4)}, reached from the one before)"
-        G = projection(chain, q, where=where, numbered=False)[0]
-        guess = q + G @ (target - q[list(chain.actuated)])
-        guess[list(chain.actuated)] = target
-        q = close(chain, guess, where, numbered=False)[0]
-        solved[s] = q
-        frame, J_p = _no_fold(chain, q, frame, J_p, where)
+        P = _pinv_passive(chain, J, where, numbered=False)
+        q = close(chain, _predicted(chain, q, J, P, target[None]), where, numbered=False)
+        J_before, J = J, jacobian(chain.spec, chain.loops, q)
+        _no_fold(chain, J_before[0], J[0], where)
+        solved[s] = q[0]
     nearest = np.clip(np.searchsorted(stations_travel, travel[1:], side="right") - 1, 0, len(stations) - 1)
-    guess = solved[nearest].copy()
-    G = projection(chain, guess)
-    guess += (G @ (q_a - guess[:, list(chain.actuated)])[:, :, None])[:, :, 0]
-    guess[:, list(chain.actuated)] = q_a
-    return close(chain, guess)
+    guess = solved[nearest]
+    J = jacobian(chain.spec, chain.loops, guess)
+    return close(chain, _predicted(chain, guess, J, _pinv_passive(chain, J, "sample"), q_a))
 
 
-def _no_fold(chain: ClosedChain, q: np.ndarray, frame: np.ndarray | None, J_p_before: np.ndarray | None,
-             where: str) -> tuple[np.ndarray | None, np.ndarray]:
+def _no_fold(chain: ClosedChain, J_before: np.ndarray, J_now: np.ndarray, where: str) -> None:
     """Refuses a step of the motion across a singular configuration: J_p (the passive joints' columns
-    of J at q) and the one before it, read in the frame of the one before's range (its first n_p left
-    singular vectors), have determinants of opposite signs where a singular value has passed through
-    zero between them (a parallelogram folding flat) or the solve has jumped to the mechanism's other
-    assembly. Returns the frame and J_p at q for the next step."""
-    J_p = jacobian(chain.spec, chain.loops, q[None])[0][:, chain.passive]
+    of J) before and after the step, read in the frame of the range before (its first n_p left singular
+    vectors), have determinants of opposite signs where a singular value has passed through zero between
+    them (a parallelogram folding flat) or the solve has jumped to the mechanism's other assembly."""
     n_p = len(chain.passive)
-    if n_p and frame is not None:
-        before, after = np.linalg.det(frame.T @ J_p_before), np.linalg.det(frame.T @ J_p)
-        if before * after <= 0.0:
-            raise ClosureError(f"{chain.spec.name}: the motion crosses a singular configuration of the loops before "
-                               f"{where} (the passive joints' Jacobian changes orientation: the mechanism folds, or "
-                               "changes assembly, and the actuated joints no longer drive it)")
-    return (np.linalg.svd(J_p)[0][:, :n_p] if n_p else None), J_p
+    if not n_p:
+        return
+    J_p_before, J_p = J_before[:, chain.passive], J_now[:, chain.passive]
+    frame = np.linalg.svd(J_p_before)[0][:, :n_p]
+    if np.linalg.det(frame.T @ J_p_before) * np.linalg.det(frame.T @ J_p) <= 0.0:
+        raise ClosureError(f"{chain.spec.name}: the motion crosses a singular configuration of the loops before "
+                           f"{where} (the passive joints' Jacobian changes orientation: the mechanism folds, or "
+                           "changes assembly, and the actuated joints no longer drive it)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,12 +239,27 @@ def motion(chain: ClosedChain, q: np.ndarray, qd_a: np.ndarray, qdd_a: np.ndarra
     """The velocity and acceleration levels at closed configurations q (N, n): q' = G q'_a and
     q'' = G q''_a - J_p^+ b on the passive rows (module docstring)."""
     J = jacobian(chain.spec, chain.loops, q)
-    G = projection(chain, q, J)
+    P = _pinv_passive(chain, J, "sample")
+    G = _G(chain, J, P)
+    _check_null_space(chain, J, G, "sample", numbered=True)
     qd = (G @ np.atleast_2d(qd_a)[:, :, None])[:, :, 0]
     b = bias(chain.spec, chain.loops, q, qd)
     qdd = (G @ np.atleast_2d(qdd_a)[:, :, None])[:, :, 0]
-    qdd[:, chain.passive] -= (_pinv_passive(chain, J, "sample") @ b[:, :, None])[:, :, 0]
+    qdd[:, chain.passive] -= (P @ b[:, :, None])[:, :, 0]
     return ChainMotion(q, qd, qdd, G, J)
+
+
+def along(chain: ClosedChain, t: np.ndarray, actuated_motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A closed chain's (q, q', q'') (N, n) at times t (N,), any order: `actuated_motion(times)` gives
+    the actuated joints' (q_a, q'_a, q''_a), each (len(times), n_a); the passive joints' follow from the
+    loops, from q = 0 to the motion at t = 0 and then in time order, so that every call finds the same
+    assembly of the mechanism."""
+    order = np.argsort(t, kind="stable")
+    q_a, qd_a, qdd_a = actuated_motion(np.concatenate([[0.0], t[order]]))
+    m = motion(chain, positions(chain, q_a, np.zeros(chain.n))[1:], qd_a[1:], qdd_a[1:])
+    back = np.empty_like(order)
+    back[order] = np.arange(len(order))
+    return m.q[back], m.qd[back], m.qdd[back]
 
 
 def actuated_torques(G: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -246,19 +283,14 @@ def reach(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> tuple[np.
     q_a = np.atleast_2d(np.asarray(q_a, dtype=float))
     act = list(chain.actuated)
     q0 = close(chain, np.asarray(q_start, dtype=float), "the starting configuration")[0]
-    span = np.array([1.0 if j.revolute else chain.size for j in chain.spec.joints])[act]
-    steps = max(1, int(np.ceil(np.max(np.abs(q_a - q0[act]) / span) / CONTINUATION_STEP)))
+    steps = max(1, int(np.ceil(np.max(np.abs(q_a - q0[act]) / chain.actuated_span) / CONTINUATION_STEP)))
     q = np.repeat(q0[None], len(q_a), axis=0)
     ok = np.ones(len(q_a), dtype=bool)
     for s in range(1, steps + 1):
         target = q0[act] + (q_a - q0[act]) * (s / steps)
         J = jacobian(chain.spec, chain.loops, q[ok])
-        J_p = J[:, :, chain.passive]
-        step = target[ok] - q[ok][:, act]
-        guess = q[ok].copy()
-        guess[:, chain.passive] -= (np.linalg.pinv(J_p, rcond=RANK) @ (J[:, :, act] @ step[:, :, None]))[:, :, 0]
-        guess[:, act] = target[ok]
-        closed, err = _newton(chain, guess)
+        P = np.linalg.pinv(J[:, :, chain.passive], rcond=RANK)  # a row that cannot be followed is dropped, not refused
+        closed, err = _newton(chain, _predicted(chain, q[ok], J, P, target[ok]))
         q[ok] = closed
         ok[np.flatnonzero(ok)[~(err <= CLOSED)]] = False
     return q, ok

@@ -34,10 +34,6 @@ from harness.model.kinematics import TreeKinematics, cross, forward_kinematics, 
 from harness.model.spec import WORLD, Loop, RobotSpec
 
 
-def loop_rows(loops: tuple[Loop, ...]) -> int:
-    return sum(loop.rows for loop in loops)
-
-
 def _carried(spec: RobotSpec, body: str) -> np.ndarray:
     """(n_joints,) 1.0 for each joint whose motion carries `body` (the joints from the world to it)."""
     out = np.zeros(len(spec.joints))

@@ -132,36 +132,20 @@ class Scenario:
     def prescribed(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Prescribed (q, q', q''), each of shape (len(t), n_joints), robot joint order."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        if self.robot.loops:
-            from harness.model.closure import ClosureError
+        if not self.robot.loops:
+            return self._given(t)
+        from harness.model.closure import ClosedChain, ClosureError, along  # of a closed chain, the actuated
 
-            try:
-                return _closed_chain_motion(self.robot, self.motion, t)
-            except ClosureError as exc:
-                raise InputError(self.source, "motion", f"the motion of the actuated joints cannot be followed: "
-                                                        f"{exc}") from None
+        try:  # joints' motions are given and the passive joints' follow from the loops
+            return along(ClosedChain.of(self.robot), t, self._given)
+        except ClosureError as exc:
+            raise InputError(self.source, "motion", f"the motion of the actuated joints cannot be followed: "
+                                                    f"{exc}") from None
+
+    def _given(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The [motion] tables' (q, q', q''), each (len(t), joints with a motion), in their order."""
         parts = [m.evaluate(t) for m in self.motion.values()]
         return tuple(np.stack([p[k] for p in parts], axis=-1) for k in range(3))
-
-
-def _closed_chain_motion(robot: RobotSpec, motion: dict[str, Motion], t: np.ndarray
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A closed chain's (q, q', q'') at times t: the actuated joints' motions, the passive joints'
-    from the loops (harness/model/closure.py), followed from q = 0 to the motion at t = 0 and then in
-    time order, so that every call finds the same assembly of the mechanism."""
-    from harness.model.closure import ClosedChain, positions
-    from harness.model.closure import motion as chain_motion
-
-    chain = ClosedChain.of(robot)
-    order = np.argsort(t, kind="stable")
-    times = np.concatenate([[0.0], t[order]])
-    parts = [motion[a].evaluate(times) for a in robot.actuated]
-    q_a, qd_a, qdd_a = (np.stack([p[k] for p in parts], axis=-1) for k in range(3))
-    q = positions(chain, q_a, np.zeros(chain.n))
-    m = chain_motion(chain, q[1:], qd_a[1:], qdd_a[1:])
-    back = np.empty_like(order)
-    back[order] = np.arange(len(order))
-    return m.q[back], m.qd[back], m.qdd[back]
 
 
 def _relative_file(t: Table, key: str, rel: str, base: Path) -> Path:
@@ -366,8 +350,10 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     if not robot.joints:
         raise s.error("model", f"model {robot.name!r} has no moving joint: nothing to simulate or identify")
     gravity = _gravity(gravity, robot)
-    if robot.loops:
-        _closed_chain_tables(root, robot)
+    for table in CLOSED_CHAIN_LATER if robot.loops else ():  # they read an open tree
+        if root.has(table):
+            raise root.error(table, f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r}): "
+                                    f"[{table}] is not supported on closed chains (docs/closed_chains.md)")
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))
     gates = _read_all_gates(root, gate_files)
@@ -405,18 +391,9 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
 
 
+# a closed chain's scenario judges its actuated torques, its loops and its joint-torque identification
+# (through G^T Y); these tables read an open tree
 CLOSED_CHAIN_LATER = ("excitation", "identification", "studies", "estimators", "payload")
-
-
-def _closed_chain_tables(root: Table, robot: RobotSpec) -> None:
-    """A closed chain's scenario judges its actuated torques (the engines, the models under test), its
-    loops and its joint-torque identification (`[torque_identification]`, through G^T Y); the other
-    identifications and a paper's study read an open tree: refused by name."""
-    for table in CLOSED_CHAIN_LATER:
-        if root.has(table):
-            raise root.error(table, f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r}): "
-                                    f"[{table}] is not supported on closed chains; their scenarios judge the "
-                                    "actuated torques and the loops")
 
 
 def _read_motions(motion_table: Table, robot: RobotSpec, duration: float, output_steps: int) -> dict[str, Motion]:

@@ -50,19 +50,13 @@ def run_builtin(ctx, config: TorqueConfig | None) -> BuiltinIdentification | Non
     joints = sc.robot.joint_names
     val = ctx.recorded(config.validation)
     pm = build_model(sc.robot, sc.gravity_W)
-    chain = chain_of(sc.robot)
-    if chain is None:
-        ti = identify_from_torques(pm, joints, *ctx.training.joint_data(joints), val.joint_data(joints),
-                                   structural_base_of(ctx))
-        ti.validation_scale = joint_load_scale(sc.robot, val)
-        return BuiltinIdentification(ti, config.validation.name)
-    # a closed chain: its actuated joints' torques, through G^T Y (harness/identify/torque_id.py)
-    act = list(chain.actuated)
-    training, validation = ctx.training.joint_data(joints), val.joint_data(joints)
-    ti = identify_from_torques(pm, joints, *training[:3], training[3][:, act], (*validation[:3], validation[3][:, act]),
+    chain = chain_of(sc.robot)  # a closed chain: its actuated joints' torques, through G^T Y
+    torques = slice(None) if chain is None else list(chain.actuated)
+    (q, qd, qdd, tau), (qv, qdv, qddv, tauv) = ctx.training.joint_data(joints), val.joint_data(joints)
+    ti = identify_from_torques(pm, joints, q, qd, qdd, tau[:, torques], (qv, qdv, qddv, tauv[:, torques]),
                                structural_base_of(ctx), chain)
-    ti.validation_scale = joint_load_scale(sc.robot, val)[act]
-    ti.torque_joints = list(sc.robot.actuated)
+    ti.validation_scale = joint_load_scale(sc.robot, val)[torques]
+    ti.torque_joints = None if chain is None else list(sc.robot.actuated)
     return BuiltinIdentification(ti, config.validation.name)
 
 

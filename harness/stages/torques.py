@@ -16,6 +16,7 @@ import numpy as np
 
 from harness.base.numerics import evenly_spaced, floats, relative_error
 from harness.base.plugins import PluginError, Stage, call, check_array, column_maps, inverse_dynamics, invoke
+from harness.base.plugins import actuated_torques as plugin_actuated_torques
 from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.states import motion_scale, position_bounds, random_states
 from harness.stages.metrics import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
@@ -255,7 +256,7 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
     load = joint_load_scale(robot, rec)
     models = []
     for e in sc.models:
-        tau_m = actuated_torques_of(e, joints, actuated, q, qd, qdd, "inverse_dynamics")
+        tau_m = plugin_actuated_torques(e.reference, "inverse_dynamics", e.instance, joints, actuated, q, qd, qdd)
         models.append(ModelTorques(e.name, e.reference, str(e.robot.source), tau_m, None, None, None))
     random = None
     if models:
@@ -268,8 +269,8 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
         wrench = np.stack([(r_tree.M_W if robot.joint(a).revolute else r_tree.F_W)[:, joints.index(a)]
                            for a in actuated], axis=1)
         random = RandomStates(m.q, m.qd, m.qdd, r_tau, np.max(np.linalg.norm(wrench, axis=-1), axis=0), config.seed)
-        models = [dataclasses.replace(mt, random_tau=actuated_torques_of(e, joints, actuated, m.q, m.qd, m.qdd,
-                                                                         "inverse_dynamics (random states)"))
+        models = [dataclasses.replace(mt, random_tau=plugin_actuated_torques(
+                      e.reference, "inverse_dynamics (random states)", e.instance, joints, actuated, m.q, m.qd, m.qdd))
                   for mt, e in zip(models, sc.models, strict=True)]
     raw = relative_error(tree[:, a_cols], tau_a, load[a_cols])
     Jqdd = (J @ qdd[:, :, None])[:, :, 0]
@@ -322,12 +323,6 @@ def _against_rigid_loops(pm, robot, rec) -> dict | None:
                           "under the torques MuJoCo was given at every stage, from the recording's first state) "
                           "against the recording: largest |q - q_MuJoCo| / the joint's range of motion over the run; "
                           "what MuJoCo's soft loops make of the motion"}
-
-
-def actuated_torques_of(entry, joints, actuated, q, qd, qdd, what: str) -> np.ndarray:
-    from harness.base.plugins import actuated_torques as plugin_actuated_torques
-
-    return plugin_actuated_torques(entry.reference, what, entry.instance, joints, actuated, q, qd, qdd)
 
 
 DIFFERENCE_TOL = 1e-12  # relative: parameters that differ by less are the same number written twice

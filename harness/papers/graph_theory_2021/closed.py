@@ -47,7 +47,8 @@ def closed_chain_inverse(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: 
     args, buffers = motion_terms(spec, model, q, qd, qdd, KinematicsBuffers.of(spec, N))
     A, a, w, wd, c_out, c_in = args
     axes = buffers.axes.copy()
-    R_WB = {name: buffers.R_WB[:, :, [b.name for b in spec.bodies].index(name)].copy() for name in top.bodies}
+    kin_bodies = [b.name for b in spec.bodies]
+    R_WB = {name: buffers.R_WB[:, :, kin_bodies.index(name)].copy() for name in top.bodies}
 
     def drives(F, M):
         return joint_drives(spec, top, F, M, lambda jj, on: axes[:, jj])
