@@ -397,7 +397,7 @@ def test_a_users_closed_chain_model_is_judged_on_its_actuated_torques(tmp_path):
     sc = _scenario(tmp_path, "fourbar")
     robot = sc.robot
     assert np.array_equal(sc.gravity_W, GRAVITY_W)  # the MJCF file's, which the models are built with
-    heavy = dataclasses.replace(robot, bodies=tuple(dataclasses.replace(b, mass=b.mass * 1.01) if b.name == "rocker"
+    heavy = dataclasses.replace(robot, bodies=tuple(dataclasses.replace(b, mass=b.mass * 1.0001) if b.name == "rocker"
                                                     else b for b in robot.bodies))
     result = harness.run(sc, models={"exact": ProjectedTree(robot), "heavy": ProjectedTree(heavy)})
     tq = result.results["torques"]
@@ -490,6 +490,22 @@ def test_a_closed_chain_written_as_mjcf_reads_back_with_its_loops(tmp_path, name
         np.testing.assert_allclose(theirs.point_b_W0, ours.point_b_W0, atol=1e-15)
 
 
+def _driven(chain, h: float, steps: int, spec=None):
+    """A smooth consistent motion of the chain (each actuated joint 0.3 sin(1.7 k t)) at every RK4 stage's
+    time of `steps` steps of h, and its actuated torques tau_a = G^T rnea (of `spec`'s parameters, default
+    the chain's): the motion, the torques at each step's four stages (steps, 4, n; zero on the passive
+    joints) and Pinocchio's model of the chain."""
+    t = np.arange(2 * steps + 1) * (h / 2)
+    w = np.arange(1, len(chain.actuated) + 1) * 1.7
+    wt = np.outer(t, w)
+    q_a, qd_a, qdd_a = 0.3 * np.sin(wt), 0.3 * w * np.cos(wt), -0.3 * w**2 * np.sin(wt)
+    m = closure.motion(chain, closure.positions(chain, q_a, np.zeros(chain.n)), qd_a, qdd_a)
+    pm = pin_engine.build_model(spec or chain.spec, GRAVITY_W)
+    tau = np.zeros_like(m.q)
+    tau[:, list(chain.actuated)] = closure.actuated_torques(m.G, pin_engine.rnea(pm, m.q, m.qd, m.qdd).tau)
+    return m, np.stack([tau[0:-1:2], tau[1::2], tau[1::2], tau[2::2]], axis=1), pm  # t, t + h/2 (twice), t + h
+
+
 @pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
 def test_pinocchios_rigid_loops_move_the_chain_as_its_actuated_torques_say(name, request):
     """Pinocchio's constraintDynamics (the loops as RigidConstraintModels, harness/engines/pinocchio.py,
@@ -498,20 +514,94 @@ def test_pinocchios_rigid_loops_move_the_chain_as_its_actuated_torques_say(name,
     1e-11 a step; within 1e-8 of each joint's range over 0.5 s. This is what the bench's MuJoCo run is
     compared with (torques.closed_chain.mujoco_vs_rigid_loops)."""
     chain = request.getfixturevalue(name)
-    spec, h, steps = chain.spec, 1e-3, 500
-    t = np.arange(2 * steps + 1) * (h / 2)  # every RK4 stage's time
-    w = np.arange(1, len(chain.actuated) + 1) * 1.7
-    wt = np.outer(t, w)
-    q_a, qd_a, qdd_a = 0.3 * np.sin(wt), 0.3 * w * np.cos(wt), -0.3 * w**2 * np.sin(wt)
-    m = closure.motion(chain, closure.positions(chain, q_a, np.zeros(chain.n)), qd_a, qdd_a)
-    pm = pin_engine.build_model(spec, GRAVITY_W)
-    tau = np.zeros_like(m.q)
-    tau[:, list(chain.actuated)] = closure.actuated_torques(m.G, pin_engine.rnea(pm, m.q, m.qd, m.qdd).tau)
-    stages = np.stack([tau[0:-1:2], tau[1::2], tau[1::2], tau[2::2]], axis=1)  # t, t + h/2 (twice), t + h
-    q = pin_engine.constrained_rollout(pm, spec, m.q[0], m.qd[0], stages, h, 10)
+    m, stages, pm = _driven(chain, 1e-3, 500)
+    q, _ = pin_engine.constrained_rollout(pm, chain.spec, m.q[0], m.qd[0], stages, 1e-3, 10)
     truth = m.q[::20]
     span = np.ptp(truth, axis=0)
     assert np.all(np.abs(q - truth).max(axis=0) <= 1e-8 * span)
+
+
+# --- forward dynamics of a model under test --------------------------------------------------------------
+
+
+def _pinocchio_as_a_model(chain, pm):
+    """G^T rnea as a closed chain's model: every joint's (q, q', q'') in, the actuated joints' torques out."""
+    act = list(chain.actuated)
+
+    def inverse(q, qd, qdd):
+        m = closure.motion(chain, q, qd[:, act], qdd[:, act])
+        return closure.actuated_torques(m.G, pin_engine.rnea(pm, q, qd, qdd).tau)
+    return inverse
+
+
+def test_a_models_forward_dynamics_read_off_its_inverse_dynamics_follows_the_motion(parallelogram):
+    """harness/model/chain_forward.py: the actuated mass matrix (3 x 3 here) and bias read off G^T rnea,
+    RK4 in the actuated joints with the loops closed at every stage, two rollouts at once (from t = 0
+    and t = 0.1 s) under the torques of a smooth consistent motion: each follows the motion within 1e-8
+    of each joint's range over 0.1 s (RK4's error at 1 ms, as for Pinocchio's rigid loops above). The
+    four-bar's is checked against Pinocchio's rigid loops below."""
+    from harness.model import chain_forward
+
+    chain = parallelogram
+    m, stages, pm = _driven(chain, 1e-3, 200)
+    act = list(chain.actuated)
+    starts = np.array([0, 100])
+    window = starts[:, None] + np.arange(101)
+    q = chain_forward.rollout(chain, _pinocchio_as_a_model(chain, pm), m.q[2 * starts], m.qd[2 * starts][:, act],
+                              stages[window[:, :-1]][..., act], 1e-3)
+    truth = m.q[::2][window]
+    span = np.ptp(m.q, axis=0)
+    assert q.shape == truth.shape
+    assert np.all(np.abs(q - truth).max(axis=(0, 1)) <= 1e-8 * span)
+
+
+def test_the_graph_theory_models_forward_run_agrees_with_pinocchios_rigid_loops(fourbar):
+    """The first seed's closed-chain model (its incidence matrices, the loops' forces as unknowns) forward-
+    simulated from its own inverse dynamics against Pinocchio's constraintDynamics under the same
+    torques, both RK4 at 1 ms over 0.1 s: two schemes in different coordinates, whose truncation errors
+    differ by ~1e-10 of the range (the scenario's figure, 3e-10); within 1e-8."""
+    from harness.model import chain_forward
+    from harness.papers.graph_theory_2021.model import make
+
+    m, stages, pm = _driven(fourbar, 1e-3, 100)
+    act = list(fourbar.actuated)
+    q_ref, _ = pin_engine.constrained_rollout(pm, fourbar.spec, m.q[0], m.qd[0], stages, 1e-3, 1)
+    graph = make(fourbar.spec, gravity_W=GRAVITY_W)
+    q = chain_forward.rollout(fourbar, graph.inverse_dynamics, m.q[:1], m.qd[:1, act], stages[None][..., act], 1e-3)
+    span = np.ptp(q_ref, axis=0)
+    assert np.all(np.abs(q[0] - q_ref).max(axis=0) <= 1e-8 * span)
+
+
+def test_a_model_whose_rocker_is_heavier_by_a_ten_thousandth_is_seen_by_its_forward_run(fourbar):
+    """The scenario's gate (1e-6 of a joint's range) can fail: a model whose rocker is 0.01 % heavier, run
+    0.1 s from the motion's state under the true torques, leaves it by more than 1e-5 of the rocker's
+    range (5.1e-5 measured; 5.1e-3 for 1 % heavier: linear in the error)."""
+    import dataclasses
+
+    from harness.model import chain_forward
+
+    spec = fourbar.spec
+    heavy = dataclasses.replace(spec, bodies=tuple(dataclasses.replace(b, mass=b.mass * 1.0001) if b.name == "rocker"
+                                                   else b for b in spec.bodies))
+    m, stages, _ = _driven(fourbar, 1e-3, 100)
+    act = list(fourbar.actuated)
+    wrong = _pinocchio_as_a_model(fourbar, pin_engine.build_model(heavy, GRAVITY_W))
+    q = chain_forward.rollout(fourbar, wrong, m.q[:1], m.qd[:1, act], stages[None][..., act], 1e-3)
+    rocker = spec.joint_names.index("rocker")
+    assert np.abs(q[0, :, rocker] - m.q[::2, rocker]).max() > 1e-5 * np.ptp(m.q[:, rocker])
+
+
+def test_a_model_without_inertia_is_refused_in_one_line(fourbar):
+    """A model whose torques do not depend on q'' has no actuated mass matrix: refused, not integrated."""
+    from harness.model import chain_forward
+
+    def gravity_only(q, qd, qdd):
+        return np.ones((len(q), len(fourbar.actuated)))
+
+    with pytest.raises(chain_forward.ChainForwardError, match="actuated mass matrix is singular") as info:
+        chain_forward.rollout(fourbar, gravity_only, np.zeros((1, fourbar.n)), np.zeros((1, 1)),
+                              np.zeros((1, 2, 4, 1)), 1e-3)
+    assert "\n" not in str(info.value)
 
 
 # --- the first seed's method -----------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """Numbers every layer defines the same way, written once: relative errors and their floor, the
 relative residual of a fit (||tau_pred - tau||_F / ||tau||_F), column scaling of a regressor and its
-equilibrated condition number, consecutive blocks of samples, the normal quantile of a 95 % interval,
-and how a number goes into results.json.
+equilibrated condition number, the classical RK4 tableau, consecutive blocks of samples, the normal
+quantile of a 95 % interval, and how a number goes into results.json.
 
 Relative error. A difference is reported relative to a scale that says how large the quantity
 is where it is measured, never to the quantity at the same sample (a torque through zero would
@@ -28,6 +28,8 @@ import numpy as np
 
 PARAMETER_FLOOR = 1e-6  # relative errors of parameters near zero are taken against 1e-6 of the largest
 ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off (see above)
+RK4_A = (0.5, 0.5, 1.0)  # the classical Runge-Kutta tableau: stage i + 1 from stage i's rates, that far into the step
+RK4_B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)  # and the four stages' weights
 NORMAL_975 = 1.959963984540054  # the standard normal's 97.5 % quantile: a 95 % interval where no degrees of
 # freedom are stated (an estimate's own intervals take Student's t: harness/identify/lstsq.py)
 

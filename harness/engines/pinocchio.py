@@ -162,8 +162,8 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
     """A closed chain's rigid forward dynamics, Pinocchio's constraintDynamics with every loop of the
     spec a RigidConstraintModel (a connect CONTACT_3D at its joined points, a weld CONTACT_6D at its
     joined frames; PROXIMAL settings), integrated by RK4 from (q0, v0) (n,) under the joint torques
-    given at each of its four stages, stage_tau (steps, 4, n) (the bench's drive stages): q every
-    `every` steps, (steps // every + 1, n), spec joint order."""
+    given at each of its four stages, stage_tau (steps, 4, n) (the bench's drive stages): q and q'
+    every `every` steps, each (steps // every + 1, n), spec joint order."""
     model = pm.model
     data = model.createData()
     pin.forwardKinematics(model, data, np.zeros(model.nq))
@@ -190,7 +190,7 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
 
     h = timestep
     q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)
-    out = [q.copy()]
+    out, out_v = [q.copy()], [v.copy()]
     for k, s in enumerate(stage_tau):
         a1 = qdd(q, v, s[0])
         v2 = v + h / 2 * a1
@@ -202,5 +202,5 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
         q = q + h / 6 * (v + 2 * v2 + 2 * v3 + v4)
         v = v + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
         if (k + 1) % every == 0:
-            out.append(q.copy())
-    return np.array(out)
+            out.append(q.copy()), out_v.append(v.copy())
+    return np.array(out), np.array(out_v)

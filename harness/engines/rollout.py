@@ -21,15 +21,13 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mujoco_rollout
 
-from harness.base.numerics import sampled
+from harness.base.numerics import RK4_A, RK4_B, sampled
 from harness.engines.mujoco import ACCELERATION_STEP, acceleration_model, controlled
 from harness.model import drives as drive_law
 from harness.model import friction
 from harness.model.spec import RobotSpec
 
 PREDICTION_TIMESTEP = 0.001  # s: RK4 steps of a prediction (the log's torques read at every stage)
-RK4_A = (0.5, 0.5, 1.0)  # the classical tableau: stage i + 1 from stage i's rates, that far into the step
-RK4_B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)
 ROWS_PER_THREAD = 64  # states a thread of the pool is given at least
 _CLOCK = 1.0  # s: the time of every state sent; MuJoCo's reset of a non-finite one sets it to 0
 

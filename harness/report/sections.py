@@ -232,9 +232,20 @@ def _closed_chain(cc: dict | None) -> str:
         + (f"; against rigid loops (Pinocchio's constraintDynamics under the same torques) the run moves "
            f"by up to {num(cc['mujoco_vs_rigid_loops']['max_rel_range'])} of a joint's range "
            f"({esc(cc['mujoco_vs_rigid_loops']['max_rel_joint'])})" if cc.get("mujoco_vs_rigid_loops") else "")
-        + ".</p>"
+        + ".</p>" + _forward_of_models(cc.get("forward"))
         + table(["loop", "type", "body 1", "body 2", "largest gap [m]"], loops)
     )
+
+
+def _forward_of_models(fw: dict | None) -> str:
+    """The closed-chain models' forward runs against Pinocchio's rigid loops, a sentence each."""
+    if not fw:
+        return ""
+    said = [f"{esc(name)}: failed ({esc(v['failed'])})" if "failed" in v else
+            f"{esc(name)}: within {num(v['max_rel_range'])} of a joint's range ({esc(v['max_rel_joint'])})"
+            for name, v in fw.items() if isinstance(v, dict)]
+    return (f"<p>Forward dynamics of each model under test, {fw['segments']} runs of {num(fw['segment_s'])} s: "
+            f"{esc(fw['definition'])}. " + "; ".join(said) + ".</p>")
 
 
 def torques(r: dict) -> str:

@@ -280,6 +280,7 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
     info = {
         "actuated": actuated, "passive": passive,
         "mujoco_vs_rigid_loops": _against_rigid_loops(pm, robot, rec),
+        "forward": _forward_of_models(ctx, pm, chain, rec),
         "loops": {lp.name: {"type": lp.kind, "body1": lp.body_a, "body2": lp.body_b} for lp in chain.loops},
         "projection": PROJECTION,
         "raw_tree_vs_actuated_max_rel_error": float(np.max(raw)),
@@ -314,7 +315,8 @@ def _against_rigid_loops(pm, robot, rec) -> dict | None:
         return None
     cols = [rec.joint_index(j) for j in robot.joint_names]
     q_rec = rec.q[:, cols]
-    q = constrained_rollout(pm, robot, q_rec[0], rec.qd[0, cols], stages, rec.meta["timestep"], rec.meta["substeps"])
+    q, _ = constrained_rollout(pm, robot, q_rec[0], rec.qd[0, cols], stages, rec.meta["timestep"],
+                               rec.meta["substeps"])
     span = np.ptp(q_rec, axis=0)
     rel = relative_error(q, q_rec[: len(q)], np.where(span > 0, span, 1.0)).max(axis=0)
     return {"max_rel_range": float(rel.max()), "max_rel_joint": robot.joint_names[int(np.argmax(rel))],
@@ -323,6 +325,74 @@ def _against_rigid_loops(pm, robot, rec) -> dict | None:
                           "under the torques MuJoCo was given at every stage, from the recording's first state) "
                           "against the recording: largest |q - q_MuJoCo| / the joint's range of motion over the run; "
                           "what MuJoCo's soft loops make of the motion"}
+
+
+FORWARD_STEP = 1e-3  # s: the longest RK4 step of a closed chain's model's forward simulation: two RK4 schemes (in
+# the actuated joints and in all) differ by their truncation errors, 3e-10 of the range on the built-in four-bar
+# at 1 ms over SEGMENT (4.8e-9 at 2 ms, 7.7e-8 at 4 ms: as the step's fourth power), the gate being 1e-6
+SEGMENT = 0.1  # s: each of the model's rollouts (below)
+
+
+def coarser(stages: np.ndarray, m: int) -> np.ndarray:
+    """A bench's RK4 stage torques (steps, 4, n) read at a step m times as long (m even, or 1): each long
+    step's start, middle (twice) and end are a bench step's start (the drive's torque at that state) and
+    the last bench step's end stage, (steps // m, 4, n)."""
+    if m == 1:
+        return stages
+    k = np.arange(len(stages) // m) * m
+    return np.stack([stages[k, 0], stages[k + m // 2, 0], stages[k + m // 2, 0], stages[k + m - 1, 3]], axis=1)
+
+
+def _forward_of_models(ctx, pm, chain, rec) -> dict | None:
+    """Each closed-chain model under test forward-simulated (harness/model/chain_forward.py: its actuated
+    mass matrix and bias read off its own inverse dynamics, RK4 in the actuated coordinates, the loops
+    closed at every stage) against Pinocchio's rigid loops (constraintDynamics, RK4) under the torques
+    MuJoCo was given, both at the longest step within FORWARD_STEP that is an even multiple of the
+    bench's (or the bench's). Pinocchio's run goes from the recording's first state (its loops closed)
+    to the end; the model's runs go from its states every SEGMENT s, all at once, each over SEGMENT s
+    (an open-loop run of a chain under gravity carries any difference on, growing: the built-in
+    four-bar's grows about 5,000-fold over 1.5 s). Per joint the largest |q_model - q_Pinocchio| relative
+    to the joint's range of motion over the run. None where the bench did not integrate by RK4 or no
+    model is under test."""
+    from harness.engines.pinocchio import constrained_rollout
+    from harness.model import chain_forward
+    from harness.model.closure import ClosureError, close, projection
+
+    sc, robot = ctx.scenario, chain.spec
+    stages = rec.meta.get("drive_stages")
+    if not sc.models or stages is None or rec.meta.get("integrator") != "RK4" or stages.shape[1] != 4:
+        return None
+    m = max(1, int(FORWARD_STEP / rec.meta["timestep"] + 1e-9) // 2 * 2)
+    h, taus = m * rec.meta["timestep"], coarser(stages, m)
+    joints, actuated = robot.joint_names, list(robot.actuated)
+    a_cols = [joints.index(a) for a in actuated]
+    q0 = close(chain, rec.q[0, [rec.joint_index(j) for j in joints]], "the recording's first row", numbered=False)
+    qd0 = projection(chain, q0)[0] @ rec.qd[0, [rec.joint_index(a) for a in actuated]]
+    q_ref, v_ref = constrained_rollout(pm, robot, q0[0], qd0, taus, h, 1)
+    span = np.ptp(q_ref, axis=0)
+    s = max(1, min(round(SEGMENT / h), len(taus)))
+    starts = np.arange(0, len(taus) - s + 1, s)
+    out = {"step_s": h, "segment_s": s * h, "segments": len(starts), "definition": (
+        "the model's forward dynamics (its actuated mass matrix and bias read off its own inverse dynamics, "
+        "RK4 in the actuated joints, the passive ones closing the loops at every stage) against Pinocchio's "
+        f"rigid loops (constraintDynamics, RK4), both at a {h * 1e3:g} ms step under the torques MuJoCo was "
+        f"given; the model from Pinocchio's state every {s * h:g} s over {s * h:g} s: largest |q_model - "
+        "q_Pinocchio| / the joint's range of motion over the run")}
+    window = starts[:, None] + np.arange(s + 1)
+    for e in sc.models:
+        def inverse(q, qd, qdd, e=e):
+            return plugin_actuated_torques(e.reference, "inverse_dynamics (forward simulation)", e.instance, joints,
+                                           actuated, q, qd, qdd)
+        try:
+            q = chain_forward.rollout(chain, inverse, q_ref[starts], v_ref[starts][:, a_cols],
+                                      taus[window[:, :-1]][..., a_cols], h)
+        except (chain_forward.ChainForwardError, ClosureError) as exc:
+            out[e.name] = {"failed": str(exc)}
+            continue
+        rel = (np.abs(q - q_ref[window]) / np.where(span > 0, span, 1.0)).max(axis=(0, 1))
+        out[e.name] = {"max_rel_range": float(rel.max()), "max_rel_joint": joints[int(np.argmax(rel))],
+                       "per_joint": dict(zip(joints, floats(rel), strict=True))}
+    return out
 
 
 DIFFERENCE_TOL = 1e-12  # relative: parameters that differ by less are the same number written twice
