@@ -20,7 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 from harness.base.series import TimeSeries
-from harness.model import drives
+from harness.model import drives, friction
 from harness.model.drives import Transmission
 from harness.model.friction import JointFriction
 from harness.model.spec import WORLD, RobotSpec
@@ -158,13 +158,28 @@ PROXIMAL = (1e-12, 1e-8, 20)  # accuracy, mu, iterations: mu > 0 keeps the const
 
 
 def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0: np.ndarray,
-                        stage_tau: np.ndarray, timestep: float, every: int) -> np.ndarray:
+                        stage_tau: np.ndarray, timestep: float, every: int) -> tuple[np.ndarray, np.ndarray]:
     """A closed chain's rigid forward dynamics, Pinocchio's constraintDynamics with every loop of the
     spec a RigidConstraintModel (a connect CONTACT_3D at its joined points, a weld CONTACT_6D at its
     joined frames; PROXIMAL settings), integrated by RK4 from (q0, v0) (n,) under the joint torques
-    given at each of its four stages, stage_tau (steps, 4, n) (the bench's drive stages): q and q'
-    every `every` steps, each (steps // every + 1, n), spec joint order."""
+    given at each of its four stages, stage_tau (steps, 4, n) (the bench's drive stages), less each
+    joint's friction at the stage's velocity (viscous, Coulomb, offset), its rotor inertia Pinocchio's
+    armature: q and q' every `every` steps, each (steps // every + 1, n), spec joint order. Raises
+    ValueError for friction that depends on the load (it would need the rigid-body torque the solve
+    gives) and for drives through a transmission."""
     model = pm.model
+    law = pm.frictions if any(not f.none for f in pm.frictions) else ()
+    if law:
+        if pm.transmission is not None:
+            raise ValueError("drives through a transmission are not simulated with rigid loops")
+        dry = friction.Dry.of(law)
+        if dry.needs_load:
+            raise ValueError("a joint's friction depends on its load, which the rigid loops' solve gives: not "
+                             "simulated with rigid loops")
+        model = pin.Model(model)  # the armature set on a copy
+        values = friction.values(law)
+        model.armature[pm.q_index] = values[:, 0]
+        viscous = values[:, 1]
     data = model.createData()
     pin.forwardKinematics(model, data, np.zeros(model.nq))
     cmodels, cdatas = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
@@ -185,7 +200,7 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
     idx = pm.q_index
 
     def qdd(q, v, tau):
-        qq[idx], vv[idx], tt[idx] = q, v, tau
+        qq[idx], vv[idx], tt[idx] = q, v, (tau - viscous * v - dry(v)) if law else tau
         return pin.constraintDynamics(model, data, qq, vv, tt, cmodels, cdatas, prox)[idx]
 
     h = timestep

@@ -215,9 +215,11 @@ class KinematicsBuffers:
 
 
 def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                       velocities: bool = True, buffers: KinematicsBuffers | None = None) -> TreeKinematics:
+                       velocities: bool = True, buffers: KinematicsBuffers | None = None,
+                       accelerations: bool = True) -> TreeKinematics:
     """(q, q', q'') of shape (N, n_joints) in spec joint order -> TreeKinematics (`velocities` False:
-    the centres of mass' velocities left out, NaN: Newton-Euler does not read them).
+    the centres of mass' velocities left out, NaN: Newton-Euler does not read them; `accelerations`
+    False: the bodies' accelerations and angular accelerations left out, NaN, for positions alone).
 
     Computed component-major with the samples last, every quantity a (3, N) or (3, 3, N) array
     written into one array per kind, (3, n_bodies, N) or (3, 3, n_bodies, N) (those of `buffers`
@@ -247,7 +249,7 @@ def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.n
             u = _turned(R_P, st.u0)
             O_J = _turned(R_P, st.p0)
             O_J += t[P]
-            a_O = point_acceleration(a[:, P], wd_P, w_P, O_J - c_P)  # the parent's point at O_J
+            a_O = point_acceleration(a[:, P], wd_P, w_P, O_J - c_P) if accelerations else None  # parent's, at O_J
         w_B, wd_B = w[:, i], wd[:, i]
         if st.revolute:
             angle = s * st.norm
@@ -261,35 +263,41 @@ def forward_kinematics(spec: RobotSpec, q: np.ndarray, qd: np.ndarray, qdd: np.n
             np.subtract(O_J, _turned(R_B, st.p0), out=t_B)
             np.add(O_J, r, out=c[:, i])
             np.multiply(u, sd, out=w_B)
-            np.multiply(u, sdd, out=wd_B)
             if P >= 0:
                 w_B += w_P
-                wd_B += wd_P
-                wd_B += cross(w_P, u, axis=0) * sd
             if velocities:
                 v[:, i] = cross(w_B, r, axis=0) + (0.0 if P < 0 else v_P + cross(w_P, O_J - c_P, axis=0))
-            a[:, i] = point_acceleration(a_O, wd_B, w_B, r)
+            if accelerations:
+                np.multiply(u, sdd, out=wd_B)
+                if P >= 0:
+                    wd_B += wd_P
+                    wd_B += cross(w_P, u, axis=0) * sd
+                a[:, i] = point_acceleration(a_O, wd_B, w_B, r)
         else:
             R_B[...] = R_P
             np.multiply(u, s, out=t_B)
             if P >= 0:
                 t_B += t[P]
             np.add(_turned(R_B, st.r0), t_B, out=c[:, i])
-            acc = u * sdd
             if P < 0:
                 w_B[...], wd_B[...] = 0.0, 0.0
                 if velocities:
                     v[:, i] = u * sd
-                a[:, i] = acc
+                if accelerations:
+                    a[:, i] = u * sdd
             else:
                 w_B[...], wd_B[...] = w_P, wd_P
                 if velocities:
                     v[:, i] = v_P + cross(w_P, c[:, i] - c_P, axis=0) + u * sd
-                acc += 2.0 * cross(w_P, u, axis=0) * sd
-                acc += point_acceleration(a_O, wd_P, w_P, c[:, i] - O_J)
-                a[:, i] = acc
+                if accelerations:
+                    acc = u * sdd
+                    acc += 2.0 * cross(w_P, u, axis=0) * sd
+                    acc += point_acceleration(a_O, wd_P, w_P, c[:, i] - O_J)
+                    a[:, i] = acc
         _times_constant(R_B, st.R_WB0_T, out=R_WB[:, :, i])
         axes[:, k], points[:, k] = u, O_J
     vec = lambda x: x.transpose(2, 1, 0)  # noqa: E731  (3, n, N) -> (N, n, 3), a view
+    if not accelerations:
+        a = wd = np.broadcast_to(np.nan, (3, nb, N))
     return TreeKinematics(tuple(b.name for b in spec.bodies), R_WB.transpose(3, 2, 0, 1), vec(c), vec(v),
                           vec(a), vec(w), vec(wd), vec(axes), vec(points))

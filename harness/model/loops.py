@@ -69,9 +69,10 @@ def _rotation_vector(R: np.ndarray) -> np.ndarray:
 
 
 def _at(spec: RobotSpec, q: np.ndarray) -> TreeKinematics:
-    """The tree's positions at q (N, n) (velocities and accelerations zero)."""
+    """The tree's positions at q (N, n) (its joints' axes and points; velocities zero, accelerations
+    left out)."""
     zero = np.zeros_like(q)
-    return forward_kinematics(spec, q, zero, zero, velocities=False)
+    return forward_kinematics(spec, q, zero, zero, velocities=False, accelerations=False)
 
 
 def residual(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> np.ndarray:

@@ -229,20 +229,31 @@ def _closed_chain(cc: dict | None) -> str:
         f"({esc(cc['loop_forces_definition'])}). MuJoCo's loops are soft constraints (solref "
         f"{esc(' '.join(num(x) for x in settings.get('solref', [])))}, solimp "
         f"{esc(' '.join(num(x) for x in settings.get('solimp', [])))}): each stays open by its gap"
-        + (f"; against rigid loops (Pinocchio's constraintDynamics under the same torques) the run moves "
-           f"by up to {num(cc['mujoco_vs_rigid_loops']['max_rel_range'])} of a joint's range "
-           f"({esc(cc['mujoco_vs_rigid_loops']['max_rel_joint'])})" if cc.get("mujoco_vs_rigid_loops") else "")
+        + _against_rigid_loops(cc.get("mujoco_vs_rigid_loops"))
         + ".</p>" + _forward_of_models(cc.get("forward"))
         + table(["loop", "type", "body 1", "body 2", "largest gap [m]"], loops)
     )
+
+
+def _against_rigid_loops(rigid: dict | None) -> str:
+    if not rigid:
+        return ""
+    if "skipped" in rigid:
+        return f"; not compared with rigid loops ({esc(rigid['skipped'])})"
+    return (f"; against rigid loops (Pinocchio's constraintDynamics under the same torques) the run moves by up to "
+            f"{num(rigid['max_rel_range'])} of a joint's range ({esc(rigid['max_rel_joint'])})")
 
 
 def _forward_of_models(fw: dict | None) -> str:
     """The closed-chain models' forward runs against Pinocchio's rigid loops, a sentence each."""
     if not fw:
         return ""
+    if "definition" not in fw:  # skipped, each model saying why
+        return "<p>Forward dynamics of the models under test: not compared (" + "; ".join(
+            f"{esc(name)}: {esc(v['skipped'])}" for name, v in fw.items()) + ").</p>"
     said = [f"{esc(name)}: failed ({esc(v['failed'])})" if "failed" in v else
-            f"{esc(name)}: within {num(v['max_rel_range'])} of a joint's range ({esc(v['max_rel_joint'])})"
+            f"{esc(name)}: within {num(v['max_rel_range'])} of a joint's range ({esc(v['max_rel_range_joint'])} at "
+            f"t = {num(v['max_rel_range_t'])} s)"
             for name, v in fw.items() if isinstance(v, dict)]
     return (f"<p>Forward dynamics of each model under test, {fw['segments']} runs of {num(fw['segment_s'])} s: "
             f"{esc(fw['definition'])}. " + "; ".join(said) + ".</p>")
