@@ -482,8 +482,10 @@ def test_friction_on_a_closed_chain_is_simulated_judged_and_identified(tmp_path)
     """The four-bar with rotor inertia and friction on its crank and friction on its passive rocker: MuJoCo
     applies the laws on every joint and the drive's computed torque, projected by G, compensates them;
     the engines' actuated torques agree to 1e-9 (the passive joint's friction reaching the crank through
-    G^T), Pinocchio's rigid loops carry the laws (the run against them within 1e-6 of the range: 2.9e-8
-    measured; 6.8e-4 without friction, which damps the open-loop run), and [torque_identification] with
+    G^T), and so does the graph-theory model (the rocker's friction in its loop equations) along the
+    motion and at random states; Pinocchio's rigid loops carry the laws (MuJoCo's run against them within
+    1e-6 of the range: 2.9e-8 measured; 6.8e-4 without friction, which damps the open-loop run), the graph
+    model's forward run meets the scenario's gate against them, and [torque_identification] with
     friction finds each joint's viscous and Coulomb coefficients through G^T Y within 2e-3 (1.9e-4 to
     3.8e-4 measured: the soft loops' reference acceleration, docs/closed_chains.md), the passive rocker's
     as well as the crank's."""
@@ -492,16 +494,14 @@ def test_friction_on_a_closed_chain_is_simulated_judged_and_identified(tmp_path)
     (tmp_path / "fourbar_friction.toml").write_text(FOURBAR_FRICTION.format(xml=MODELS / "fourbar.xml"))
 
     def edit(text):
-        text = text.replace('model = "../models/fourbar.toml"', f'model = "{tmp_path / "fourbar_friction.toml"}"')
-        text = text[:text.index("[model_under_test]")] + text[text.index("[simulation]"):]
-        return text[:text.index("# The graph-theory model agrees")]
+        return text.replace('model = "../models/fourbar.toml"', f'model = "{tmp_path / "fourbar_friction.toml"}"')
 
     _scenario(tmp_path, "fourbar", lambda t: edit(t).replace("sin = [[1.5, 2.0]]", "sin = [[1.2, 2.6]]"))
     (tmp_path / "validation.toml").write_text((tmp_path / "fourbar.toml").read_text())
     sc = _scenario(tmp_path, "fourbar",
                    lambda t: edit(t) + '\n[torque_identification]\nfriction = true\nvalidation = "validation.toml"\n')
     result = harness.run(sc)
-    assert result.passed and len(result.gates) == 6
+    assert result.passed and len(result.gates) == 10, [g for g in result.gates if not g.passed]
     cc = result.results["torques"]["closed_chain"]
     assert cc["mujoco_vs_rigid_loops"]["max_rel_range"] <= 1e-6
     found = result.results["torque_identification"]["friction"]["joints"]
@@ -730,3 +730,31 @@ def test_the_graph_theory_method_closes_the_loops_with_its_incidence_matrices(na
     assert all(spec.joints[p].revolute for p in passive)
     along = np.einsum("npa,npa->np", graph.M_W[:, passive], axes[:, passive])
     assert np.abs(along).max() <= 1e-9 * np.abs(tau_a).max()
+
+
+def test_the_graph_theory_method_carries_every_joints_friction_through_the_loops(fourbar):
+    """With a law on every joint (rotor inertia, viscous, smooth Coulomb and a load-dependent term on the
+    crank; friction on the passive rocker and an offset on the coupler's joint): a passive joint's
+    equation is tau_p + f_p = 0, so its friction enters the loops' forces. The graph-theory model's
+    actuated torques and multipliers against G^T (rnea + the laws), Pinocchio's tree torques with the
+    same laws (read at the tree's rigid-body torque), at 100 random consistent states: within 1e-9 of
+    their largest; without the passive rocker's friction they differ by more than 1e-3."""
+    from harness.model.friction import JointFriction
+    from harness.papers.graph_theory_2021.closed import closed_chain_inverse
+    from harness.papers.graph_theory_2021.dynamics import build_graph_model
+
+    laws = {"crank": JointFriction(armature=0.02, viscous=0.3, coulomb=0.5, coulomb_velocity=0.05, load_coulomb=0.01),
+            "rocker": JointFriction(viscous=0.2, coulomb=0.3, coulomb_velocity=0.05),
+            "coupler": JointFriction(offset=0.1)}
+    spec = fourbar.spec.with_frictions(tuple(laws[j] for j in fourbar.spec.joint_names))
+    m = closure.random_motion(fourbar, *_bounds(fourbar), count=100, seed=37)
+    graph = closed_chain_inverse(spec, build_graph_model(spec, GRAVITY_W), m.q, m.qd, m.qdd)
+    tree = pin_engine.rnea(pin_engine.build_model(spec, GRAVITY_W), m.q, m.qd, m.qdd).tau
+    tau_a = closure.actuated_torques(m.G, tree)
+    lam = closure.multipliers(fourbar, m.J, tree, tau_a)
+    act = list(fourbar.actuated)
+    assert np.abs(graph.tau[:, act] - tau_a).max() <= 1e-9 * np.abs(tau_a).max()
+    assert np.abs(graph.lam - lam).max() <= 1e-9 * np.abs(lam).max()
+    no_rocker = spec.with_frictions(tuple(JointFriction() if j == "rocker" else laws[j] for j in spec.joint_names))
+    other = closed_chain_inverse(no_rocker, build_graph_model(no_rocker, GRAVITY_W), m.q, m.qd, m.qdd)
+    assert np.abs(other.tau[:, act] - tau_a).max() > 1e-3 * np.abs(tau_a).max()

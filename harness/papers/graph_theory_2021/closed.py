@@ -16,6 +16,12 @@ equations for the loops' 3 (connect) or 6 (weld) components each, solved by leas
 where a planar loop leaves its out-of-plane force to no equation); the actuated joints' drives follow.
 These are the first seed's Lagrange multipliers of the loops, from its incidence matrices rather than
 from a constraint Jacobian, and independent of harness/model/closure.py's projection.
+
+Joint friction and rotor inertia (harness/model/friction.py) act between a joint's bodies and its
+drive: a joint's drive gives tau_j + f_j, f_j its law at (q'_j, q''_j) and at the tree's rigid-body
+torque tau_j^0 where the law reads the load. A passive joint has no drive, so its equation is
+tau_p + f_p = 0: its friction enters the loops' forces, and the actuated joints' drives carry
+tau_a + f_a.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.model import friction
 from harness.model.kinematics import KinematicsBuffers, cross
 from harness.model.spec import WORLD, RobotSpec
 from harness.papers.graph_theory_2021.dynamics import GraphModel
@@ -40,7 +47,8 @@ class ClosedChainInverse:
 
 def closed_chain_inverse(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: np.ndarray,
                          qdd: np.ndarray) -> ClosedChainInverse:
-    """From every joint's (q, q', q'') (N, n, spec order) of a closed chain's consistent motion."""
+    """From every joint's (q, q', q'') (N, n, spec order) of a closed chain's consistent motion; the
+    spec's joint friction and rotor inertia included (module docstring)."""
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
     N = len(q)
     top = model.topology
@@ -81,8 +89,9 @@ def closed_chain_inverse(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: 
     act = [spec.joint_names.index(j) for j in spec.actuated]
     passive = [k for k in range(len(spec.joints)) if k not in act]
     T_p = t[passive].transpose(1, 0, 2)  # (N, n_p, rows)
-    lam = -(np.linalg.pinv(T_p, rcond=1e-9) @ tau0[passive].T[:, :, None])[:, :, 0]  # (N, rows)
-    tau = tau0 + np.einsum("jnr,nr->jn", t, lam)
+    f = friction.torque(spec.frictions, qd, qdd, tau0.T).T  # (n, N): each joint's law, zero where it has none
+    lam = -(np.linalg.pinv(T_p, rcond=1e-9) @ (tau0[passive] + f[passive]).T[:, :, None])[:, :, 0]  # (N, rows)
+    tau = tau0 + f + np.einsum("jnr,nr->jn", t, lam)
     tau[passive] = 0.0  # what the least squares leaves there is round-off (tests: the wrenches carry none)
     F = F0 + np.einsum("ajnr,nr->ajn", np.stack([col[1] for col in columns], axis=-1), lam)
     M = M0 + np.einsum("ajnr,nr->ajn", np.stack([col[2] for col in columns], axis=-1), lam)

@@ -26,9 +26,6 @@ class GraphTheoryModel:
         self.joint_names = list(spec.joint_names)
         if spec.loops:  # a closed chain: its actuated joints' drives (closed.py)
             self.actuated_joints = list(spec.actuated)
-            if not all(f.none for f in spec.frictions):
-                raise ValueError("the graph-theory model of a closed chain carries no joint friction (its passive "
-                                 "joints' friction would enter the loops' equations)")
 
     def solve(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> GraphInverse:
         if self.spec.loops:
@@ -39,7 +36,7 @@ class GraphTheoryModel:
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """The drive torques: the joint wrenches' components along the axes, plus the drives' own
         rotor inertia and friction (harness/model/friction.py); of a closed chain, the actuated
-        joints' (harness/papers/graph_theory_2021/closed.py)."""
+        joints' (harness/papers/graph_theory_2021/closed.py: every joint's law in its equations)."""
         tau = self.solve(q, qd, qdd).tau
         if self.spec.loops:
             return tau[:, [self.joint_names.index(a) for a in self.actuated_joints]]
