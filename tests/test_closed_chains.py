@@ -17,6 +17,7 @@ from harness.base.tomlio import InputError
 from harness.engines import mujoco as mj_engine
 from harness.engines import pinocchio as pin_engine
 from harness.model import closure, loops
+from harness.model.friction import JointFriction
 from harness.model.load import load_spec, spec_from_data
 
 from .conftest import MODELS
@@ -460,21 +461,6 @@ def json_of(folder):
 
 # --- identification ------------------------------------------------------------------------------------
 
-FOURBAR_FRICTION = """
-[model]
-name = "fourbar_friction"
-[mjcf]
-file = "{xml}"
-[joints.crank]
-armature = 0.02
-viscous = 0.3
-coulomb = 0.5
-coulomb_velocity = 0.05
-[joints.rocker]
-viscous = 0.2
-coulomb = 0.3
-coulomb_velocity = 0.05
-"""
 
 
 @pytest.mark.slow
@@ -489,9 +475,15 @@ def test_friction_on_a_closed_chain_is_simulated_judged_and_identified(tmp_path)
     friction finds each joint's viscous and Coulomb coefficients through G^T Y within 2e-3 (1.9e-4 to
     3.8e-4 measured: the soft loops' reference acceleration, docs/closed_chains.md), the passive rocker's
     as well as the crank's."""
+    import dataclasses
+
+    import tomli_w
+
     import harness
 
-    (tmp_path / "fourbar_friction.toml").write_text(FOURBAR_FRICTION.format(xml=MODELS / "fourbar.xml"))
+    laws = {j: {k: v for k, v in dataclasses.asdict(f).items() if v} for j, f in FOURBAR_LAWS.items()}
+    (tmp_path / "fourbar_friction.toml").write_text(tomli_w.dumps(
+        {"model": {"name": "fourbar_friction"}, "mjcf": {"file": str(MODELS / "fourbar.xml")}, "joints": laws}))
 
     def edit(text):
         return text.replace('model = "../models/fourbar.toml"', f'model = "{tmp_path / "fourbar_friction.toml"}"')
@@ -587,6 +579,12 @@ def test_pinocchios_rigid_loops_move_the_chain_as_its_actuated_torques_say(name,
     assert np.all(np.abs(q - truth).max(axis=0) <= 1e-8 * span)
 
 
+FOURBAR_LAWS = {  # a law on every joint of the four-bar: the actuated crank's, the passive rocker's and coupler's
+    "crank": JointFriction(armature=0.02, viscous=0.3, coulomb=0.5, coulomb_velocity=0.05),
+    "rocker": JointFriction(viscous=0.2, coulomb=0.3, coulomb_velocity=0.05),
+    "coupler": JointFriction(offset=0.1)}
+
+
 def test_pinocchios_rigid_loops_carry_the_joints_friction_and_rotor_inertia(fourbar):
     """With friction on every joint (rotor inertia on the crank, viscous and smooth Coulomb friction on the
     crank and the passive rocker, an offset on the coupler's joint), tau_a = G^T rnea (the laws included)
@@ -596,13 +594,7 @@ def test_pinocchios_rigid_loops_carry_the_joints_friction_and_rotor_inertia(four
     have to give the rigid-body torque it reads)."""
     import dataclasses
 
-    from harness.model.friction import JointFriction
-
-    laws = {"crank": JointFriction(armature=0.02, viscous=0.3, coulomb=0.5, coulomb_velocity=0.05),
-            "rocker": JointFriction(viscous=0.2, coulomb=0.3, coulomb_velocity=0.05),
-            "coupler": JointFriction(offset=0.1)}
-    spec = fourbar.spec.with_frictions(tuple(laws.get(j, JointFriction()) for j in fourbar.spec.joint_names))
-    assert len(laws) == len(spec.joints)
+    spec = fourbar.spec.with_frictions(tuple(FOURBAR_LAWS[j] for j in fourbar.spec.joint_names))
     m, stages, pm = _driven(fourbar, 1e-3, 500, spec)
     q, _ = pin_engine.constrained_rollout(pm, spec, m.q[0], m.qd[0], stages, 1e-3, 10)
     truth = m.q[::20]
@@ -710,19 +702,9 @@ def test_the_graph_theory_method_closes_the_loops_with_its_incidence_matrices(na
     J^T lambda = tau - S^T tau_a), two derivations sharing no code, at 100 random consistent states:
     actuated torques and multipliers to 1e-9 of their largest (round-off ~1e-15); with the multipliers
     its passive joints transmit no moment along their axes."""
-    from harness.papers.graph_theory_2021.closed import closed_chain_inverse
-    from harness.papers.graph_theory_2021.dynamics import build_graph_model
-
     chain = request.getfixturevalue(name)
     spec = chain.spec
-    m = closure.random_motion(chain, *_bounds(chain), count=100, seed=31)
-    graph = closed_chain_inverse(spec, build_graph_model(spec, GRAVITY_W), m.q, m.qd, m.qdd)
-    tree = pin_engine.rnea(pin_engine.build_model(spec, GRAVITY_W), m.q, m.qd, m.qdd).tau
-    tau_a = closure.actuated_torques(m.G, tree)
-    lam = closure.multipliers(chain, m.J, tree, tau_a)
-    act = list(chain.actuated)
-    assert np.abs(graph.tau[:, act] - tau_a).max() <= 1e-9 * np.abs(tau_a).max()
-    assert np.abs(graph.lam - lam).max() <= 1e-9 * np.abs(lam).max()
+    m, graph, tau_a = _graph_against_constraint_jacobian(chain, spec, seed=31)
     from harness.model.kinematics import forward_kinematics
 
     axes = forward_kinematics(spec, m.q, m.qd, m.qdd).axis_W
@@ -739,22 +721,33 @@ def test_the_graph_theory_method_carries_every_joints_friction_through_the_loops
     actuated torques and multipliers against G^T (rnea + the laws), Pinocchio's tree torques with the
     same laws (read at the tree's rigid-body torque), at 100 random consistent states: within 1e-9 of
     their largest; without the passive rocker's friction they differ by more than 1e-3."""
-    from harness.model.friction import JointFriction
+    import dataclasses
+
     from harness.papers.graph_theory_2021.closed import closed_chain_inverse
     from harness.papers.graph_theory_2021.dynamics import build_graph_model
 
-    laws = {"crank": JointFriction(armature=0.02, viscous=0.3, coulomb=0.5, coulomb_velocity=0.05, load_coulomb=0.01),
-            "rocker": JointFriction(viscous=0.2, coulomb=0.3, coulomb_velocity=0.05),
-            "coupler": JointFriction(offset=0.1)}
+    laws = {**FOURBAR_LAWS, "crank": dataclasses.replace(FOURBAR_LAWS["crank"], load_coulomb=0.01)}
     spec = fourbar.spec.with_frictions(tuple(laws[j] for j in fourbar.spec.joint_names))
-    m = closure.random_motion(fourbar, *_bounds(fourbar), count=100, seed=37)
+    m, _, tau_a = _graph_against_constraint_jacobian(fourbar, spec, seed=37)
+    no_rocker = spec.with_frictions(tuple(JointFriction() if j == "rocker" else laws[j] for j in spec.joint_names))
+    other = closed_chain_inverse(no_rocker, build_graph_model(no_rocker, GRAVITY_W), m.q, m.qd, m.qdd)
+    act = list(fourbar.actuated)
+    assert np.abs(other.tau[:, act] - tau_a).max() > 1e-3 * np.abs(tau_a).max()
+
+
+def _graph_against_constraint_jacobian(chain, spec, seed: int):
+    """The graph-theory model of `spec` (the chain's, or with other laws) and the constraint-Jacobian
+    route at 100 random consistent states: actuated torques and multipliers within 1e-9 of their
+    largest. Returns the states, the graph model's answer and tau_a."""
+    from harness.papers.graph_theory_2021.closed import closed_chain_inverse
+    from harness.papers.graph_theory_2021.dynamics import build_graph_model
+
+    m = closure.random_motion(chain, *_bounds(chain), count=100, seed=seed)
     graph = closed_chain_inverse(spec, build_graph_model(spec, GRAVITY_W), m.q, m.qd, m.qdd)
     tree = pin_engine.rnea(pin_engine.build_model(spec, GRAVITY_W), m.q, m.qd, m.qdd).tau
     tau_a = closure.actuated_torques(m.G, tree)
-    lam = closure.multipliers(fourbar, m.J, tree, tau_a)
-    act = list(fourbar.actuated)
+    lam = closure.multipliers(chain, m.J, tree, tau_a)
+    act = list(chain.actuated)
     assert np.abs(graph.tau[:, act] - tau_a).max() <= 1e-9 * np.abs(tau_a).max()
     assert np.abs(graph.lam - lam).max() <= 1e-9 * np.abs(lam).max()
-    no_rocker = spec.with_frictions(tuple(JointFriction() if j == "rocker" else laws[j] for j in spec.joint_names))
-    other = closed_chain_inverse(no_rocker, build_graph_model(no_rocker, GRAVITY_W), m.q, m.qd, m.qdd)
-    assert np.abs(other.tau[:, act] - tau_a).max() > 1e-3 * np.abs(tau_a).max()
+    return m, graph, tau_a

@@ -9,10 +9,11 @@ motion in the actuated coordinates,
 
 are read off the model itself, one call of n_a + 1 rows at each evaluation: h_a is its answer at
 q''_a = 0 and column i of M_a its answer at q''_a = e_i (1 rad/s^2 or 1 m/s^2) less h_a (the answer
-is linear in q''). Then q''_a = M_a^-1 (tau_a - h_a). The state (q_a, q'_a) is advanced by the
+is linear in q'': a friction law that reads the load is not, and the torques stage does not compare
+such a robot). Then q''_a = M_a^-1 (tau_a - h_a). The state (q_a, q'_a) is advanced by the
 classical RK4 tableau (harness/base/numerics.py, RK4_A, RK4_B) with the actuated torques given at
 each of a step's four stages; at every stage the passive joints close the loops (Newton's method
-from the step start's configuration moved along G: closure._predicted). The motion stays on the
+from the step start's configuration moved along G: closure.predicted). The motion stays on the
 loops' manifold by construction, which a rigid-loop integrator in every joint's coordinates
 (Pinocchio's constraintDynamics) leaves only by its step's error: what the two answer for the same
 torques differs by the model's error and the two schemes' truncation errors.
@@ -25,7 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 from harness.base.numerics import RK4_A, RK4_B
-from harness.model.closure import ClosedChain, _pinv_passive, _predicted, close, motion
+from harness.model.closure import ClosedChain, close, motion, pinv_passive, predicted
 from harness.model.loops import jacobian
 
 ActuatedInverseDynamics = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]  # (N, n) x3 -> (N, n_a)
@@ -70,7 +71,7 @@ def rollout(chain: ClosedChain, inverse: ActuatedInverseDynamics, q0: np.ndarray
     out = [q]
     for k in range(stage_tau_a.shape[1]):
         J = jacobian(chain.spec, chain.loops, q)
-        P = _pinv_passive(chain, J, f"step {k} of rollout")
+        P = pinv_passive(chain, J, f"step {k} of rollout")
         rates = []
         for i in range(4):
             if i == 0:
@@ -78,12 +79,12 @@ def rollout(chain: ClosedChain, inverse: ActuatedInverseDynamics, q0: np.ndarray
             else:
                 v, a = rates[-1]
                 step = RK4_A[i - 1] * h
-                q_i = close(chain, _predicted(chain, q, J, P, q[:, act] + step * v),
+                q_i = close(chain, predicted(chain, q, J, P, q[:, act] + step * v),
                             f"stage {i + 1} of step {k}, rollout")
                 qd_i = qd_a + step * a
             rates.append((qd_i, actuated_acceleration(chain, inverse, q_i, qd_i, stage_tau_a[:, k, i])))
         q_a = q[:, act] + h * sum(w * r[0] for w, r in zip(RK4_B, rates, strict=True))
         qd_a = qd_a + h * sum(w * r[1] for w, r in zip(RK4_B, rates, strict=True))
-        q = close(chain, _predicted(chain, q, J, P, q_a), f"step {k + 1} of rollout")
+        q = close(chain, predicted(chain, q, J, P, q_a), f"step {k + 1} of rollout")
         out.append(q)
     return np.stack(out, axis=1)

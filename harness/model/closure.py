@@ -87,7 +87,7 @@ class ClosedChain:
         return np.concatenate([[self.size] * 3 + ([1.0] * 3 if lp.kind == "weld" else []) for lp in self.loops])
 
 
-def _pinv_passive(chain: ClosedChain, J: np.ndarray, where: str, numbered: bool = True) -> np.ndarray:
+def pinv_passive(chain: ClosedChain, J: np.ndarray, where: str, numbered: bool = True) -> np.ndarray:
     """J_p^+ (N, n_p, rows) from one SVD of J_p (singular values under RANK of the largest dropped, as
     numpy's pinv with rcond=RANK drops them), refused where J_p lacks full column rank."""
     N, rows, n_p = len(J), J.shape[1], len(chain.passive)
@@ -106,7 +106,7 @@ def _pinv_passive(chain: ClosedChain, J: np.ndarray, where: str, numbered: bool 
 
 
 def _G(chain: ClosedChain, J: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """G (N, n, n_a) from J and J_p^+ (`_pinv_passive`): the identity on the actuated rows, -J_p^+ J_a on
+    """G (N, n, n_a) from J and J_p^+ (`pinv_passive`): the identity on the actuated rows, -J_p^+ J_a on
     the passive ones."""
     G = np.zeros((len(J), chain.n, len(chain.actuated)))
     G[:, chain.actuated, np.arange(len(chain.actuated))] = 1.0
@@ -122,7 +122,7 @@ def projection(chain: ClosedChain, q: np.ndarray, J: np.ndarray | None = None,
     out-of-plane row is not quite zero and J G is of the gap's order)."""
     q = np.atleast_2d(q)
     J = jacobian(chain.spec, chain.loops, q) if J is None else J
-    G = _G(chain, J, _pinv_passive(chain, J, where, numbered))
+    G = _G(chain, J, pinv_passive(chain, J, where, numbered))
     if closed:
         _check_null_space(chain, J, G, where, numbered)
     return G
@@ -139,7 +139,7 @@ def _check_null_space(chain: ClosedChain, J: np.ndarray, G: np.ndarray, where: s
                            f"|J G| = {JG[bad[0]]:.1e} (the loops forbid some actuated motions)")
 
 
-def _predicted(chain: ClosedChain, q: np.ndarray, J: np.ndarray, P: np.ndarray, target: np.ndarray) -> np.ndarray:
+def predicted(chain: ClosedChain, q: np.ndarray, J: np.ndarray, P: np.ndarray, target: np.ndarray) -> np.ndarray:
     """q (N, n) moved to the actuated values `target` (N, n_a) to first order along the loops:
     q_p - J_p^+ J_a (target - q_a), P = J_p^+ at q: the guess Newton's method starts from."""
     act = list(chain.actuated)
@@ -197,15 +197,15 @@ def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.nd
     for s, target in enumerate(stations):
         k = min(int(np.searchsorted(travel[1:], stations_travel[s])), len(q_a) - 1)
         where = f"sample {k} of the motion (q_a = {np.array2string(target, precision=4)}, reached from the one before)"
-        P = _pinv_passive(chain, J, where, numbered=False)
-        q = close(chain, _predicted(chain, q, J, P, target[None]), where, numbered=False)
+        P = pinv_passive(chain, J, where, numbered=False)
+        q = close(chain, predicted(chain, q, J, P, target[None]), where, numbered=False)
         J_before, J = J, jacobian(chain.spec, chain.loops, q)
         _no_fold(chain, J_before[0], J[0], where)
         solved[s] = q[0]
     nearest = np.clip(np.searchsorted(stations_travel, travel[1:], side="right") - 1, 0, len(stations) - 1)
     guess = solved[nearest]
     J = jacobian(chain.spec, chain.loops, guess)
-    return close(chain, _predicted(chain, guess, J, _pinv_passive(chain, J, "sample"), q_a))
+    return close(chain, predicted(chain, guess, J, pinv_passive(chain, J, "sample"), q_a))
 
 
 def _no_fold(chain: ClosedChain, J_before: np.ndarray, J_now: np.ndarray, where: str) -> None:
@@ -239,7 +239,7 @@ def motion(chain: ClosedChain, q: np.ndarray, qd_a: np.ndarray, qdd_a: np.ndarra
     """The velocity and acceleration levels at closed configurations q (N, n): q' = G q'_a and
     q'' = G q''_a - J_p^+ b on the passive rows (module docstring)."""
     J = jacobian(chain.spec, chain.loops, q)
-    P = _pinv_passive(chain, J, "sample")
+    P = pinv_passive(chain, J, "sample")
     G = _G(chain, J, P)
     _check_null_space(chain, J, G, "sample", numbered=True)
     qd = (G @ np.atleast_2d(qd_a)[:, :, None])[:, :, 0]
@@ -290,7 +290,7 @@ def reach(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> tuple[np.
         target = q0[act] + (q_a - q0[act]) * (s / steps)
         J = jacobian(chain.spec, chain.loops, q[ok])
         P = np.linalg.pinv(J[:, :, chain.passive], rcond=RANK)  # a row that cannot be followed is dropped, not refused
-        closed, err = _newton(chain, _predicted(chain, q[ok], J, P, target[ok]))
+        closed, err = _newton(chain, predicted(chain, q[ok], J, P, target[ok]))
         q[ok] = closed
         ok[np.flatnonzero(ok)[~(err <= CLOSED)]] = False
     return q, ok
