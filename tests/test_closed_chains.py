@@ -624,16 +624,16 @@ def _pinocchio_as_a_model(chain, pm):
 def test_a_models_forward_dynamics_read_off_its_inverse_dynamics_follows_the_motion(parallelogram):
     """harness/model/chain_forward.py: the actuated mass matrix (3 x 3 here) and bias read off G^T rnea,
     RK4 in the actuated joints with the loops closed at every stage, two rollouts at once (from t = 0
-    and t = 0.1 s) under the torques of a smooth consistent motion: each follows the motion within 1e-8
-    of each joint's range over 0.1 s (RK4's error at 1 ms, as for Pinocchio's rigid loops above). The
+    and t = 0.05 s) under the torques of a smooth consistent motion: each follows the motion within 1e-8
+    of each joint's range over 0.05 s (RK4's error at 1 ms, as for Pinocchio's rigid loops above). The
     four-bar's is checked against Pinocchio's rigid loops below."""
     from harness.model import chain_forward
 
     chain = parallelogram
-    m, stages, pm = _driven(chain, 1e-3, 200)
+    m, stages, pm = _driven(chain, 1e-3, 100)
     act = list(chain.actuated)
-    starts = np.array([0, 100])
-    window = starts[:, None] + np.arange(101)
+    starts = np.array([0, 50])
+    window = starts[:, None] + np.arange(51)
     q = chain_forward.rollout(chain, _pinocchio_as_a_model(chain, pm), m.q[2 * starts], m.qd[2 * starts][:, act],
                               stages[window[:, :-1]][..., act], 1e-3)
     truth = m.q[::2][window]
@@ -645,12 +645,12 @@ def test_a_models_forward_dynamics_read_off_its_inverse_dynamics_follows_the_mot
 def test_the_graph_theory_models_forward_run_agrees_with_pinocchios_rigid_loops(fourbar):
     """The first seed's closed-chain model (its incidence matrices, the loops' forces as unknowns) forward-
     simulated from its own inverse dynamics against Pinocchio's constraintDynamics under the same
-    torques, both RK4 at 1 ms over 0.1 s: two schemes in different coordinates, whose truncation errors
-    differ by ~1e-10 of the range (the scenario's figure, 3e-10); within 1e-8."""
+    torques, both RK4 at 1 ms over 0.05 s: two schemes in different coordinates, whose truncation errors
+    differ by ~1e-10 of the range (the scenario's figure over 0.1 s, 3e-10); within 1e-8."""
     from harness.model import chain_forward
     from harness.papers.graph_theory_2021.model import make
 
-    m, stages, pm = _driven(fourbar, 1e-3, 100)
+    m, stages, pm = _driven(fourbar, 1e-3, 50)
     act = list(fourbar.actuated)
     q_ref, _ = pin_engine.constrained_rollout(pm, fourbar.spec, m.q[0], m.qd[0], stages, 1e-3, 1)
     graph = make(fourbar.spec, gravity_W=GRAVITY_W)

@@ -59,7 +59,7 @@ def test_a_span_regressor_over_the_size_held_whole_is_made_on_demand(monkeypatch
 
 
 def test_a_least_squares_fit_on_rows_on_demand_is_the_fit_on_the_whole_and_its_memory_does_not_grow_with_it():
-    """The UR5 with friction at 20,000 and 40,000 random samples (81 and 161 MiB of regressor): the base
+    """The UR5 with friction at 10,000 and 20,000 random samples (40 and 81 MiB of regressor): the base
     parameters and their standard deviations on demand equal those on the whole regressor to 1e-9;
     what the fit on demand allocates at its peak (traced) is the same for both lengths within 10 %
     (a few chunks of rows: the fit reads 32,768 rows at a time, and a product 8,192 samples), where
@@ -69,7 +69,7 @@ def test_a_least_squares_fit_on_rows_on_demand_is_the_fit_on_the_whole_and_its_m
     base = structural_base(pm, spec.limits, with_friction=True)
     x = np.random.default_rng(8).standard_normal(84)
     peaks = []
-    for N in (20_000, 40_000):
+    for N in (10_000, 20_000):
         q, qd, qdd = _states(6, N, seed=7)
         lazy = SideBySide(((RowsOnDemand(pm, q, qd, qdd), base.independent),))
         tau = (lazy @ x[base.independent]).reshape(N, 6) + 0.01 * np.random.default_rng(9).standard_normal((N, 6))
@@ -79,7 +79,7 @@ def test_a_least_squares_fit_on_rows_on_demand_is_the_fit_on_the_whole_and_its_m
             peaks.append(tracemalloc.get_traced_memory()[1])
         finally:
             tracemalloc.stop()
-        if N == 20_000:
+        if N == 10_000:
             held = fit_base(SideBySide(((regressor(pm, q, qd, qdd, with_friction=True), base.independent),)), tau,
                             base.of(x))
             np.testing.assert_allclose(made.beta, held.beta, rtol=1e-9, atol=1e-9 * np.abs(held.beta).max())
