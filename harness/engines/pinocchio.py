@@ -157,6 +157,11 @@ PROXIMAL = (1e-12, 1e-8, 20)  # accuracy, mu, iterations: mu > 0 keeps the const
 # built-in four-bar as well: its acceleration equals harness/model/closure.py's to 2e-13 either way)
 
 
+class NotSimulated(ValueError):
+    """What Pinocchio's rigid loops do not simulate (constrained_rollout): friction that depends on the
+    load, drives through a transmission."""
+
+
 def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0: np.ndarray,
                         stage_tau: np.ndarray, timestep: float, every: int) -> tuple[np.ndarray, np.ndarray]:
     """A closed chain's rigid forward dynamics, Pinocchio's constraintDynamics with every loop of the
@@ -165,16 +170,16 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
     given at each of its four stages, stage_tau (steps, 4, n) (the bench's drive stages), less each
     joint's friction at the stage's velocity (viscous, Coulomb, offset), its rotor inertia Pinocchio's
     armature: q and q' every `every` steps, each (steps // every + 1, n), spec joint order. Raises
-    ValueError for friction that depends on the load (it would need the rigid-body torque the solve
+    NotSimulated for friction that depends on the load (it would need the rigid-body torque the solve
     gives) and for drives through a transmission."""
     model = pm.model
     law = pm.frictions if any(not f.none for f in pm.frictions) else ()
     if law:
         if pm.transmission is not None:
-            raise ValueError("drives through a transmission are not simulated with rigid loops")
+            raise NotSimulated("drives through a transmission are not simulated with rigid loops")
         dry = friction.Dry.of(law)
         if dry.needs_load:
-            raise ValueError("a joint's friction depends on its load, which the rigid loops' solve gives: not "
+            raise NotSimulated("a joint's friction depends on its load, which the rigid loops' solve gives: not "
                              "simulated with rigid loops")
         model = pin.Model(model)  # the armature set on a copy
         values = friction.values(law)

@@ -60,10 +60,11 @@ def actuated_acceleration(chain: ClosedChain, inverse: ActuatedInverseDynamics, 
 def rollout(chain: ClosedChain, inverse: ActuatedInverseDynamics, q0: np.ndarray, qd_a0: np.ndarray,
             stage_tau_a: np.ndarray, timestep: float) -> np.ndarray:
     """B forward simulations of the closed chain by the model `inverse` (actuated_acceleration),
-    advanced together: rollout b from the closed configuration nearest q0[b] (B, n) with actuated
-    velocities qd_a0[b] (B, n_a), by RK4 at `timestep` under the actuated torques given at each of a
-    step's four stages, stage_tau_a[b] (B, steps, 4, n_a). Returns every joint's q at the start and
-    after each step, (B, steps + 1, n), the spec's joint order."""
+    advanced together: rollout b from the closed configuration Newton's method reaches from q0[b]
+    (B, n), its actuated joints held, with actuated velocities qd_a0[b] (B, n_a), by RK4 at `timestep`
+    under the actuated torques given at each of a step's four stages, stage_tau_a[b] (B, steps, 4,
+    n_a). Returns every joint's q at the start and after each step, (B, steps + 1, n), the spec's
+    joint order."""
     act = list(chain.actuated)
     q = close(chain, np.asarray(q0, dtype=float), "the start of rollout")
     qd_a = np.array(qd_a0, dtype=float)

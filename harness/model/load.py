@@ -158,6 +158,11 @@ def _closed_chain(spec: RobotSpec, from_file: tuple | None, t: Table | None, fil
     if spec.transmission is not None:
         raise where.error(key, f"{origin}loop {loops[0].name!r}: a closed chain with drives ([drives]) is not "
                                "supported")
+    loaded = [j.name for j, f in zip(spec.joints, spec.frictions, strict=True) if f.load_coulomb]
+    if loaded:  # tests/test_closed_chains.py: MuJoCo's drive reads it at the commanded accelerations, 3.6e-6 apart
+        raise InputError(file_table.file, f"joints.{loaded[0]}.load_coulomb",
+                         "a closed chain's friction cannot depend on the load: which load a joint in a loop "
+                         "carries (the tree's rigid-body torque, or with the loops' forces) the law does not say")
     for loop in loops:
         for body in (loop.body_a, loop.body_b):
             if body != WORLD and spec.body(body).massless:

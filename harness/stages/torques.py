@@ -308,7 +308,7 @@ def _against_rigid_loops(pm, robot, rec) -> dict | None:
     the bench's step under the torques MuJoCo was given at every stage (harness/engines/pinocchio.py,
     constrained_rollout), from the recording's first state; per joint the largest |q - q_MuJoCo| over
     the run relative to the joint's range of motion. None where the bench did not integrate by RK4."""
-    from harness.engines.pinocchio import constrained_rollout
+    from harness.engines.pinocchio import NotSimulated, constrained_rollout
 
     stages = rec.meta.get("drive_stages")
     if stages is None or rec.meta.get("integrator") != "RK4" or stages.shape[1] != 4:
@@ -318,7 +318,7 @@ def _against_rigid_loops(pm, robot, rec) -> dict | None:
     try:
         q, _ = constrained_rollout(pm, robot, q_rec[0], rec.qd[0, cols], stages, rec.meta["timestep"],
                                    rec.meta["substeps"])
-    except ValueError as exc:  # friction that depends on the load
+    except NotSimulated as exc:  # friction that depends on the load
         return {"skipped": str(exc)}
     span = np.ptp(q_rec, axis=0)
     rel = relative_error(q, q_rec[: len(q)], np.where(span > 0, span, 1.0)).max(axis=0)
@@ -359,7 +359,7 @@ def _forward_of_models(ctx, pm, chain, rec) -> dict | None:
     not integrate by RK4 (no stage torques to read) or the rigid loops cannot carry the robot's friction
     (a law that depends on the load), each model's entry says why (`skipped`: its gates are neither
     passed nor failed)."""
-    from harness.engines.pinocchio import constrained_rollout
+    from harness.engines.pinocchio import NotSimulated, constrained_rollout
     from harness.model import chain_forward
     from harness.model.closure import ClosureError, close, projection
 
@@ -379,7 +379,7 @@ def _forward_of_models(ctx, pm, chain, rec) -> dict | None:
     qd0 = projection(chain, q0)[0] @ rec.qd[0, [rec.joint_index(a) for a in actuated]]
     try:
         q_ref, v_ref = constrained_rollout(pm, robot, q0[0], qd0, taus, h, 1)
-    except ValueError as exc:  # friction that depends on the load
+    except NotSimulated as exc:  # friction that depends on the load
         return {e.name: {"skipped": str(exc)} for e in sc.models}
     span = np.ptp(q_ref, axis=0)
     s = max(1, min(round(SEGMENT / h), len(taus)))

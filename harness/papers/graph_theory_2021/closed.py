@@ -92,7 +92,7 @@ def closed_chain_inverse(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: 
     f = friction.torque(spec.frictions, qd, qdd, tau0.T).T  # (n, N): each joint's law, zero where it has none
     lam = -(np.linalg.pinv(T_p, rcond=1e-9) @ (tau0[passive] + f[passive]).T[:, :, None])[:, :, 0]  # (N, rows)
     tau = tau0 + f + np.einsum("jnr,nr->jn", t, lam)
-    tau[passive] = 0.0  # what the least squares leaves there is round-off (tests: the wrenches carry none)
+    tau[passive] = 0.0  # what the least squares leaves there is round-off (tests)
     F = F0 + np.einsum("ajnr,nr->ajn", np.stack([col[1] for col in columns], axis=-1), lam)
     M = M0 + np.einsum("ajnr,nr->ajn", np.stack([col[2] for col in columns], axis=-1), lam)
     return ClosedChainInverse(tau.T, lam, F.transpose(2, 1, 0), M.transpose(2, 1, 0))
