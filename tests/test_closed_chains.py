@@ -726,7 +726,8 @@ def test_the_graph_theory_method_closes_the_loops_with_its_incidence_matrices(na
 def test_the_graph_theory_method_carries_every_joints_friction_through_the_loops(fourbar):
     """With a law on every joint (rotor inertia, viscous, smooth Coulomb and a load-dependent term on the
     crank; friction on the passive rocker and an offset on the coupler's joint): a passive joint's
-    equation is tau_p + f_p = 0, so its friction enters the loops' forces. The graph-theory model's
+    equation is tau_p + f_p = 0, so its friction enters the loops' forces and its bearing transmits it
+    (its wrench's moment along its axis is -f_p). The graph-theory model's
     actuated torques and multipliers against G^T (rnea + the laws), Pinocchio's tree torques with the
     same laws (read at the tree's rigid-body torque), at 100 random consistent states: within 1e-9 of
     their largest; without the passive rocker's friction they differ by more than 1e-3."""
@@ -737,7 +738,16 @@ def test_the_graph_theory_method_carries_every_joints_friction_through_the_loops
 
     laws = {**FOURBAR_LAWS, "crank": dataclasses.replace(FOURBAR_LAWS["crank"], load_coulomb=0.01)}
     spec = fourbar.spec.with_frictions(tuple(laws[j] for j in fourbar.spec.joint_names))
-    m, _, tau_a = _graph_against_constraint_jacobian(fourbar, spec, seed=37)
+    m, graph, tau_a = _graph_against_constraint_jacobian(fourbar, spec, seed=37)
+    # a passive joint's bearing transmits its friction: its wrench's moment along its axis is -f_p
+    from harness.model.friction import torque
+    from harness.model.kinematics import forward_kinematics
+
+    passive = list(fourbar.passive)
+    axes = forward_kinematics(spec, m.q, m.qd, m.qdd).axis_W[:, passive]
+    f_p = torque(spec.frictions, m.qd, m.qdd, np.zeros_like(m.q))[:, passive]  # no load term on a passive joint
+    along = np.einsum("npa,npa->np", graph.M_W[:, passive], axes)
+    assert np.abs(f_p).min() > 0 and np.abs(along + f_p).max() <= 1e-9 * np.abs(tau_a).max()
     no_rocker = spec.with_frictions(tuple(JointFriction() if j == "rocker" else laws[j] for j in spec.joint_names))
     other = closed_chain_inverse(no_rocker, build_graph_model(no_rocker, GRAVITY_W), m.q, m.qd, m.qdd)
     act = list(fourbar.actuated)
