@@ -303,6 +303,13 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
                             wrench_joints=joints, closed_chain=info)
 
 
+def _rk4_stages(rec) -> np.ndarray | None:
+    """The torques the bench's drive gave at each of its RK4 steps' four stages, (steps, 4, n); None where
+    it integrated otherwise (its recording keeps one torque per step)."""
+    stages = rec.meta.get("drive_stages")
+    return stages if stages is not None and rec.meta.get("integrator") == "RK4" and stages.shape[1] == 4 else None
+
+
 def _against_rigid_loops(pm, robot, rec) -> dict | None:
     """The bench's simulation against rigid loops: Pinocchio's constraintDynamics integrated by RK4 at
     the bench's step under the torques MuJoCo was given at every stage (harness/engines/pinocchio.py,
@@ -310,8 +317,8 @@ def _against_rigid_loops(pm, robot, rec) -> dict | None:
     the run relative to the joint's range of motion. None where the bench did not integrate by RK4."""
     from harness.engines.pinocchio import NotSimulated, constrained_rollout
 
-    stages = rec.meta.get("drive_stages")
-    if stages is None or rec.meta.get("integrator") != "RK4" or stages.shape[1] != 4:
+    stages = _rk4_stages(rec)
+    if stages is None:
         return None
     cols = [rec.joint_index(j) for j in robot.joint_names]
     q_rec = rec.q[:, cols]
@@ -364,10 +371,10 @@ def _forward_of_models(ctx, pm, chain, rec) -> dict | None:
     from harness.model.closure import ClosureError, close, projection
 
     sc, robot = ctx.scenario, chain.spec
-    stages = rec.meta.get("drive_stages")
     if not sc.models:
         return None
-    if stages is None or rec.meta.get("integrator") != "RK4" or stages.shape[1] != 4:
+    stages = _rk4_stages(rec)
+    if stages is None:
         why = (f"the bench integrated by {rec.meta.get('integrator')}, not RK4: the torques at an RK4 step's "
                "stages, which the comparison drives both runs with, were not recorded")
         return {e.name: {"skipped": why} for e in sc.models}
