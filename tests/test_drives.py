@@ -101,6 +101,16 @@ def coupled_bench(tmp_path_factory):
     return folder, sc
 
 
+def test_the_torques_alone_are_rneas_torques_with_drives_to_the_bit(tmp_path):
+    """joint_torques (the torques without the joint wrenches, which the closed chain's forward runs ask
+    thousands of times) is rnea's tau bit for bit, drives, coupling and dry friction included."""
+    from harness.engines.pinocchio import joint_torques
+
+    pm = build_model(load_spec(tmp_path / _drives_model(tmp_path)), G)
+    q, qd, qdd = _states()
+    assert np.array_equal(joint_torques(pm, q, qd, qdd), rnea(pm, q, qd, qdd).tau)
+
+
 def test_a_coupled_drive_in_mujoco_is_the_law_of_drives_in_pinocchio(coupled_bench):
     """The bench's torques (MuJoCo: tendons and the dry friction through N) against Pinocchio's RNEA with
     drives.torque, every step, to 1e-9 of each joint's load; MuJoCo's mass matrix with the tendons'

@@ -132,6 +132,20 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
     return InverseDynamics(tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau), F, M)
 
 
+def joint_torques(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """(N, n): `rnea`'s joint torques alone (Pinocchio's rnea at every sample, the drives' friction and
+    rotor inertia added), without the joint wrenches, whose forward kinematics cost twenty times the torques."""
+    model = pm.model
+    data = model.createData()
+    qq, vv, aa = (np.zeros((len(q), model.nq)) for _ in range(3))
+    qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    tau = np.empty((len(q), model.nv))
+    for k in range(len(q)):
+        tau[k] = pin.rnea(model, data, qq[k], vv[k], aa[k])
+    tau = tau[:, pm.q_index]
+    return tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau)
+
+
 def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: TimeSeries) -> InverseDynamics:
     pm = build_model(spec, gravity_W)
     cols = [rec.joint_index(j) for j in spec.joint_names]

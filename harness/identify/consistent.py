@@ -225,26 +225,30 @@ ASYMMETRY = {key: IDENTIFIED_KEYS.index(bound) for key, bound in BOUNDED_BY.item
 
 
 def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law, ...], theta_model: np.ndarray,
-                   friction_model: np.ndarray, extra_model: np.ndarray, transmission: Transmission | None = None
-                   ) -> tuple[ConsistentFit, tuple[JointFriction, ...]]:
-    """The physically consistent fit (`fit`) of the torques tau (N, n) on the
-    regressor W (N n, 14 n: every link's ten parameters, every joint's four drive terms at its law's
-    velocities) and the families' columns E (N n, e, extra_terms(laws)), pulled towards the model's
+                   friction_model: np.ndarray, extra_model: np.ndarray, transmission: Transmission | None = None,
+                   reach: np.ndarray | None = None) -> tuple[ConsistentFit, tuple[JointFriction, ...]]:
+    """The physically consistent fit (`fit`) of the torques tau (N, m) on the
+    regressor W (N m, 14 n: every link's ten parameters, every joint's four drive terms at its law's
+    velocities) and the families' columns E (N m, e, extra_terms(laws)), pulled towards the model's
     own values (theta_model (n, 10), friction_model (n, 4), extra_model (e,)) where the data cannot
-    tell; and each drive's identified friction law (each joint's, or with a transmission each motor's)."""
-    N, n = tau.shape
+    tell; and each drive's identified friction law (each joint's, or with a transmission each motor's).
+    The torques' rows are every joint's (m = n), or `reach` (drives, m) says which of them each drive's
+    columns reach: a transmission's (N != 0), a closed chain's actuated joints (every one)."""
+    N, m = tau.shape
+    n = len(theta_model)
     terms = extra_terms(laws)
+    if transmission is not None:
+        reach = transmission.N != 0  # (motors, joints)
     # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
     # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
-    if transmission is None:
+    if reach is None:
         rms_cols = np.sqrt(_friction_squares(W, N, n, over_joints=False)).reshape(n, n, 4)
         cols = rms_cols[np.arange(n), np.arange(n)]  # joint j's own four columns, on its own rows
         rms_tau = np.sqrt(np.mean(tau**2, axis=0))
         extra_rms = np.sqrt(np.mean(E.reshape(N, n, -1) ** 2, axis=0))  # (n, e): each column's RMS on each joint's rows
         extra_rms = np.array([extra_rms[k, c] for c, (k, _) in enumerate(terms)])
-    else:  # a motor's columns over every row they reach, against the torque of the joints it turns with
-        reach = transmission.N != 0  # (motors, joints)
-        cols = np.sqrt(_friction_squares(W, N, n, over_joints=True))
+    else:  # a drive's columns over every row they reach, against the torque of the rows they reach
+        cols = np.sqrt(_friction_squares(W, N, n, over_joints=True, rows=m))
         rms_tau = np.sqrt(((tau**2).mean(axis=0) @ reach.T) / np.maximum(reach.sum(axis=1), 1))
         extra_rms = np.sqrt(np.sum(E**2, axis=0) / N)
     carry = rms_tau[:, None] / np.where(cols > 0, cols, 1.0)
@@ -263,13 +267,14 @@ def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law
     return result, frictions
 
 
-def _friction_squares(W, N: int, n: int, over_joints: bool) -> np.ndarray:
+def _friction_squares(W, N: int, n: int, over_joints: bool, rows: int | None = None) -> np.ndarray:
     """The mean over the N samples of each friction column's square: on each joint's rows (n, 4 n), or
-    `over_joints` summed over them (n, 4); of a regressor held whole (numpy's reductions of the squares,
-    as ever), or made on demand (summed a chunk of samples at a time: harness/identify/span_rows.py)."""
+    `over_joints` summed over them (n, 4; `rows` per sample where they are not the n joints'); of a
+    regressor held whole (numpy's reductions of the squares, as ever), or made on demand (summed a
+    chunk of samples at a time: harness/identify/span_rows.py)."""
     if isinstance(W, np.ndarray):
         if over_joints:
-            return np.sum(W[:, 10 * n:].reshape(N, n, n, 4) ** 2, axis=(0, 1)) / N
+            return np.sum(W[:, 10 * n:].reshape(N, rows or n, n, 4) ** 2, axis=(0, 1)) / N
         return np.mean(W[:, 10 * n:].reshape(N, n, -1) ** 2, axis=0)
     total = np.zeros((n, 4 * n))
     for a in range(0, N, SAMPLES_AT_A_TIME):

@@ -41,7 +41,8 @@ def actuated_acceleration(chain: ClosedChain, inverse: ActuatedInverseDynamics, 
     """q''_a (B, n_a) at closed configurations q (B, n) with actuated velocities qd_a (B, n_a) under the
     actuated torques tau_a (B, n_a), from `inverse` (every joint's (q, q', q'') rows -> the actuated
     joints' torques): M_a q''_a = tau_a - h_a (module docstring), the model called once for all B
-    states and their n_a + 1 accelerations."""
+    states and their n_a + 1 accelerations, state b's n_a + 1 rows together and the states in order
+    (an inverse for a batch of several models reads whose rows are whose from that)."""
     B, n_a = len(q), len(chain.actuated)
     base = motion(chain, q, qd_a, np.zeros((B, n_a)))
     rows = n_a + 1
@@ -65,11 +66,17 @@ def rollout(chain: ClosedChain, inverse: ActuatedInverseDynamics, q0: np.ndarray
     under the actuated torques given at each of a step's four stages, stage_tau_a[b] (B, steps, 4,
     n_a). Returns every joint's q at the start and after each step, (B, steps + 1, n), the spec's
     joint order."""
+    return rollout_states(chain, inverse, q0, qd_a0, stage_tau_a, timestep)[0]
+
+
+def rollout_states(chain: ClosedChain, inverse: ActuatedInverseDynamics, q0: np.ndarray, qd_a0: np.ndarray,
+                   stage_tau_a: np.ndarray, timestep: float) -> tuple[np.ndarray, np.ndarray]:
+    """`rollout`, and the actuated velocities at the start and after each step, (B, steps + 1, n_a)."""
     act = list(chain.actuated)
     q = close(chain, np.asarray(q0, dtype=float), "the start of rollout")
     qd_a = np.array(qd_a0, dtype=float)
     h = timestep
-    out = [q]
+    out, out_qd = [q], [qd_a]
     for k in range(stage_tau_a.shape[1]):
         J = jacobian(chain.spec, chain.loops, q)
         P = pinv_passive(chain, J, f"step {k} of rollout")
@@ -88,4 +95,5 @@ def rollout(chain: ClosedChain, inverse: ActuatedInverseDynamics, q0: np.ndarray
         qd_a = qd_a + h * sum(w * r[1] for w, r in zip(RK4_B, rates, strict=True))
         q = close(chain, predicted(chain, q, J, P, q_a), f"step {k + 1} of rollout")
         out.append(q)
-    return np.stack(out, axis=1)
+        out_qd.append(qd_a)
+    return np.stack(out, axis=1), np.stack(out_qd, axis=1)

@@ -129,11 +129,15 @@ def from_log(scenario: DataScenario, timed: _Timed) -> Sourced:
     """A measured log (harness/sources/log/) read, conditioned and split once; a known-payload log
     beside it conditioned the same way."""
     from harness.sources.log import load, load_payload
+    from harness.sources.log.closed import closed, logged
 
     timed("reading and conditioning the log", None)
-    split = load(scenario.data, scenario.robot)
-    validation = {} if split.validation is None else {VALIDATION_SPAN: split.validation}
-    return Sourced(None, split.training, validation, split.whole, load_payload(split.source, scenario.robot))
+    robot = scenario.robot
+    split = load(scenario.data, logged(robot))  # a closed chain's log: its actuated joints, the others from its loops
+    training, validation_span, whole = (closed(s, robot, scenario.data.file)
+                                        for s in (split.training, split.validation, split.whole))
+    validation = {} if validation_span is None else {VALIDATION_SPAN: validation_span}
+    return Sourced(None, training, validation, whole, load_payload(split.source, robot))
 
 
 def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,

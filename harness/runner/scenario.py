@@ -46,6 +46,7 @@ from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate, read_gates
 from harness.sources.log import DataSource, check_columns, read_source
+from harness.sources.log.closed import closed_chain_source, logged
 from harness.sources.measurement import Measurement, read_measurement
 from harness.sources.motion import Motion, read_motion
 
@@ -273,12 +274,11 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     robot = load_spec(_relative_file(s, "model", model_rel, path))
     if not robot.joints:
         raise s.error("model", f"model {robot.name!r} has no moving joint: nothing to simulate or identify")
-    if robot.loops:
-        raise s.error("model", f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r}): a "
-                               "measured log of a closed chain is not supported")
     gravity = _gravity(gravity, robot)
     dt = root.table("data")
-    source = read_source(dt, path, len(robot.joints), robot.joint_names)
+    read_as = logged(robot)  # a closed chain's log holds its actuated joints' channels (sources/log/closed.py)
+    source = read_source(dt, path, len(read_as.joints), read_as.joint_names)
+    source = closed_chain_source(root, dt, robot, source) if robot.loops else source  # what it does not read yet
     if source.side == "motor" and robot.transmission is None:
         raise dt.error("side", f'"motor": the log is mapped to the joints through the model\'s drives, and '
                                f"{robot.source} states none ([drives])")
@@ -287,7 +287,7 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
                        "the torque constants are identified joint by joint, and a coupled motor "
                        f"({', '.join(robot.transmission.motors[k] for k, _ in robot.transmission.coupled)}) "
                        "drives more than one joint: give each motor's torque_constant")
-    check_columns(source, robot, dt)
+    check_columns(source, read_as, dt)
     if source.payload is not None and source.payload.body not in {b.name for b in robot.massive_bodies}:
         raise dt.error("payload.body", f"no body {source.payload.body!r} with mass in {robot.name!r}")
     truth = None
@@ -295,6 +295,8 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
         truth = load_spec(source.truth)
         if truth.joint_names != robot.joint_names:
             raise dt.error("truth", f"model {truth.name!r} has other joints than {robot.name!r}")
+        if (truth.actuated, [lp.name for lp in truth.loops]) != (robot.actuated, [lp.name for lp in robot.loops]):
+            raise dt.error("truth", f"model {truth.name!r} has other loops or actuated joints than {robot.name!r}")
     gates = _read_all_gates(root, gate_files)
     if START_GATE.metric not in {g.metric for g in gates}:  # every log is read against its model: a scenario's own
         gates += (START_GATE,)  # gate on the metric replaces it

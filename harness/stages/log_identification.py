@@ -35,7 +35,7 @@ from harness.base.numerics import SideBySide, column_scale, triangle
 from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
 from harness.engines.pinocchio import PinocchioModel, build_model, rnea
-from harness.identify import consistent, delay, filtered, friction_law, scale
+from harness.identify import chain_law, consistent, delay, filtered, friction_law, scale
 from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
 from harness.identify.ls_model import LeastSquaresFit, extra_terms_names
 from harness.identify.repeat import Repeatability, repeat
@@ -43,6 +43,7 @@ from harness.identify.span_rows import RowsOnDemand, rows_by_sample, span_regres
 from harness.identify.torque_id import (
     BaseFit,
     BaseParameters,
+    chain_regressor,
     describe_base,
     fit_base,
     links_weights,
@@ -52,6 +53,7 @@ from harness.identify.torque_id import (
     true_parameters,
     with_structure,
 )
+from harness.model.closure import ClosedChain, actuated_torques, projection
 from harness.model.export import (
     LEAST_SQUARES_FILE,
     MJCF_FILE,
@@ -76,12 +78,59 @@ LAG_WARNING = 0.001  # s: an estimated delay beyond 1 ms, left uncorrected, is s
 @dataclass(frozen=True, eq=False)
 class LogModel:
     """The model as the fit reads it: its Pinocchio model, its structural base parameters with each
-    joint's friction and rotor inertia, and its own values of all of them."""
+    joint's friction and rotor inertia, and its own values of all of them. Of a closed chain (`chain`,
+    harness/model/closure.py) the log's torques are its actuated joints' and a regressor's rows are
+    the tree's projected onto them, G^T Y (docs/closed_chains.md)."""
 
     pm: PinocchioModel
     base: BaseParameters
     x_model: np.ndarray  # (14 n,) every link's ten parameters, then every joint's four drive terms
     link_part: tuple[np.ndarray, np.ndarray]  # BaseParameters.link_part at the model's values
+    joints: list[str]  # every joint, in the spec's order
+    chain: ClosedChain | None = None
+
+    @property
+    def torque_joints(self) -> list[str]:
+        """The joints whose torques the log holds: every joint, or a closed chain's actuated ones."""
+        return self.joints if self.chain is None else list(self.chain.spec.actuated)
+
+    @property
+    def reach(self) -> np.ndarray | None:
+        """(joints, actuated joints) of a closed chain: every joint's drive terms reach every actuated
+        torque through G^T (consistent.fit_with_laws); None: each joint its own."""
+        return None if self.chain is None else np.ones((len(self.joints), len(self.chain.actuated)), dtype=bool)
+
+    def data(self, series: TimeSeries) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """A span's (q, q', q'') of every joint and its torques (N, torque joints)."""
+        q, qd, qdd, tau = series.joint_data(self.joints)
+        return q, qd, qdd, tau if self.chain is None else tau[:, list(self.chain.actuated)]
+
+    def rows(self, pm: PinocchioModel, q, qd, qdd, coulomb=None) -> np.ndarray | RowsOnDemand:
+        """The span's regressor with friction: (N n, 14 n), or a closed chain's G^T Y (N n_a, 14 n)."""
+        if self.chain is None:
+            return span_regressor(pm, q, qd, qdd, coulomb)
+        return chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True)
+
+    def projected(self, q: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Per-joint rows (N n, c) as the log's torques read them: a closed chain's projected onto its
+        actuated joints by G^T, (N n_a, c)."""
+        if self.chain is None:
+            return rows
+        N, n = q.shape
+        G = projection(self.chain, q)
+        return np.einsum("nja,njc->nac", G, rows.reshape(N, n, -1)).reshape(N * G.shape[2], -1)
+
+    def torques(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
+        """(N, torque joints): the model pm's joint torques at the states, a closed chain's G^T rnea."""
+        tau = rnea(pm, q, qd, qdd).tau
+        return tau if self.chain is None else actuated_torques(projection(self.chain, q), tau)
+
+    def families(self, laws: tuple[Law, ...], q, qd, rigid, transmission, columns, t) -> np.ndarray:
+        """The families' columns (extra_regressor) on a span's rows; a closed chain's from every joint's
+        law projected by G^T (no law of a closed chain reads the load: harness/model/load.py)."""
+        if self.chain is None:
+            return extra_regressor(laws, qd, rigid, transmission, columns, t)
+        return self.projected(q, extra_regressor(laws, qd, None))
 
     @property
     def n(self) -> int:
@@ -95,9 +144,10 @@ class LogModel:
 
 def log_model(robot, gravity_W: np.ndarray) -> LogModel:
     pm = build_model(robot, gravity_W)
-    base = structural_base(pm, robot.limits, with_friction=True)
+    chain = ClosedChain.of(robot) if robot.loops else None
+    base = structural_base(pm, robot.limits, with_friction=True, chain=chain)
     x_model = true_parameters(pm, with_friction=True)
-    return LogModel(pm, base, x_model, base.link_part(x_model, 10 * len(robot.joints)))
+    return LogModel(pm, base, x_model, base.link_part(x_model, 10 * len(robot.joints)), robot.joint_names, chain)
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,7 +166,7 @@ class Delayed:
 def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
            validation: TimeSeries | None) -> Delayed:
     def rows(series: TimeSeries) -> np.ndarray | RowsOnDemand:
-        return span_regressor(model.pm, *series.joint_data(joints)[:3])
+        return model.rows(model.pm, *model.data(series)[:3])
 
     W = rows(training)
     if mode == "none":
@@ -183,6 +233,8 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
     """The search reads the training span's regressor at the model's velocities a chunk of samples at a
     time (its fixed columns do not depend on a law's), never whole."""
     choice, note = None, None
+    if config.choose and model.chain is not None:
+        return _chain_laws(config, robot, model, training)
     if config.choose:
         q, qd, qdd, tau = training.joint_data(joints)
 
@@ -198,6 +250,25 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
             note = f"friction law not chosen, the model's kept: {exc}"
     laws = choice.laws if choice is not None else tuple(Law.of(f) for f in robot.frictions)
     return LawChoice(laws, choice, note)
+
+
+def _chain_laws(config: FrictionLawConfig, robot, model: LogModel, training: TimeSeries) -> LawChoice:
+    """A closed chain's: one smoothing velocity for every joint's viscous and Coulomb law
+    (harness/identify/chain_law.py), where the model states no other family."""
+    kept = tuple(Law.of(f) for f in robot.frictions)
+    other = next((j for j, law in zip(robot.joint_names, kept, strict=True) if law.family != chain_law.FAMILY), None)
+    if other is not None:
+        return LawChoice(kept, None, f"friction law not chosen, the model's kept: a closed chain's search tries "
+                                     f"viscous and Coulomb friction, and the model states {other}'s as "
+                                     f"{robot.joint(other).friction.family}")
+    q, qd, qdd, tau = model.data(training)
+    try:
+        choice = chain_law.choose(model.rows(model.pm, q, qd, qdd), projection(model.chain, q), qd, tau,
+                                  model.base.independent, model.link_part, training.t, config.folds,
+                                  training.meta.get("reach_s", 0.0), np.array([law.coulomb_velocity for law in kept]))
+    except ValueError as exc:
+        return LawChoice(kept, None, f"friction law not chosen, the model's kept: {exc}")
+    return LawChoice(choice.laws, choice, None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -219,17 +290,17 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
     """On the training span's regressor at the laws' velocities (the chosen ones, or the model's own),
     made here, its Coulomb columns the filtered ones on a filtered log; a long span's made where it is
     read, never whole (harness/identify/span_rows.py)."""
-    q, qd, qdd, tau = training.joint_data(joints)
-    columns = filtered_columns(training)
+    q, qd, qdd, tau = model.data(training)
+    columns = filtered_columns(training) if model.chain is None else None  # a closed chain's: docs/closed_chains.md
     # the Coulomb columns filtered as the torques were, on a filtered log
     coulomb = None if columns is None else filtered.coulomb(columns, training.t, laws.laws, robot.transmission)
     pm = model.pm if laws.choice is None else build_model(  # the chosen smoothing velocities
         robot.with_frictions(laws.choice.frictions(robot.frictions)), gravity_W)
-    W = span_regressor(pm, q, qd, qdd, coulomb)
+    W = model.rows(pm, q, qd, qdd, coulomb)
     rigid = laws.choice.tau_rigid if laws.choice is not None else links_torque(W, model.theta, tau.shape)
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws.laws)])
     beta_model = np.concatenate([model.base.of(model.x_model), extra_model])
-    E = extra_regressor(laws.laws, qd, rigid, robot.transmission, columns, training.t)
+    E = model.families(laws.laws, q, qd, rigid, robot.transmission, columns, training.t)
     W_ls = SideBySide(((W, model.base.independent), E))  # never joined: a long log's regressor is large
     ls = with_structure(fit_base(W_ls, tau, beta_model), model.base)
     repeated, note = None, None
@@ -269,21 +340,22 @@ def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], 
     pm_identified = build_model(identified, sc.gravity_W)
     out = Judged({}, {}, {}, {}, {}, None)
     for name, series in spans.items():
-        q, qd, qdd, tau = series.joint_data(joints)
-        W = fitted.W if name == "training" else span_regressor(pm_identified, q, qd, qdd)
+        q, qd, qdd, tau = model.data(series)
+        W = fitted.W if name == "training" else model.rows(pm_identified, q, qd, qdd)
         base = (W, model.base.independent)  # the base parameters' columns, never copied out
         rigid_ls = (SideBySide((base,)) @ links_weights(fitted.ls.beta[:r], model.link_part)).reshape(tau.shape)
-        columns = filtered_columns(series) if name == "training" else None  # as the fit read it
-        W_span = SideBySide((base, extra_regressor(laws, qd, rigid_ls, sc.robot.transmission, columns, series.t)))
+        # as the fit read it
+        columns = filtered_columns(series) if name == "training" and model.chain is None else None
+        W_span = SideBySide((base, model.families(laws, q, qd, rigid_ls, sc.robot.transmission, columns, series.t)))
         out.states[name], out.measured[name], out.t[name] = (q, qd, qdd), tau, series.t
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
-                                 "consistent": rnea(pm_identified, q, qd, qdd).tau,
-                                 "model as given": rnea(model.pm, q, qd, qdd).tau}
+                                 "consistent": model.torques(pm_identified, q, qd, qdd),
+                                 "model as given": model.torques(model.pm, q, qd, qdd)}
         if name == "validation":  # the model class's floor there: its least squares on that span itself
             floor = triangle(W_span, tau.ravel(), column_scale(W_span))[2]  # its residual, from its rows' QR
             out = _with_floor(out, floor / float(np.linalg.norm(tau)))
         if pm_truth is not None:  # what the robot that made the log needs at these states
-            out.truth[name] = rnea(pm_truth, q, qd, qdd).tau
+            out.truth[name] = model.torques(pm_truth, q, qd, qdd)
     return out
 
 
@@ -303,7 +375,10 @@ class Exported:
 
 def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], theta: np.ndarray,
                  training: TimeSeries, W: np.ndarray | RowsOnDemand, ls: LeastSquaresFit) -> Exported:
-    _, qd, _, tau = training.joint_data(robot.joint_names)
+    """A closed chain's friction mapping is judged against each joint's torque in the identified tree
+    (rnea at the training span's states: what each joint carries, the loops' forces included, its
+    drive's or its bearing's), a passive joint having no measured torque of its own."""
+    q, qd, qdd, tau = training.joint_data(robot.joint_names)
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    "physically consistent inertial parameters, friction and rotor inertia")
     files = export(robot, theta, frictions, description)
@@ -311,7 +386,10 @@ def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], th
         f"{robot.name}: the least-squares fit of its base parameters from {sc.data.file.name} by harness (scenario "
         f"{sc.name}).\nFormat: docs/reference.md, 'The least-squares fit'; harness.identified_model(folder, "
         "fit=\"least squares\") evaluates it.")
-    mapping = coulomb_mapping(identified, qd, tau, links_torque(W, theta, tau.shape))
+    if robot.loops:
+        mapping = coulomb_mapping(identified, qd, rnea(build_model(identified, sc.gravity_W), q, qd, qdd).tau)
+    else:
+        mapping = coulomb_mapping(identified, qd, tau, links_torque(W, theta, tau.shape))
     worst = max(mapping, key=lambda j: mapping[j]["rms"])
     refused = None
     try:  # MuJoCo's compiler has checks of its own: what it refuses is said, not a crash
@@ -392,20 +470,20 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     laws = friction_laws(config, robot, model, joints, scaled.training)
     fitted = least_squares(robot, sc.gravity_W, model, joints, scaled.training, laws, sc.data.repeat)
     ctx.progress("physically consistent parameters (semidefinite program)", None)
-    tau = scaled.training.joint_data(joints)[3]
+    tau = model.data(scaled.training)[3]
     fit, frictions = consistent.fit_with_laws(fitted.W, fitted.E, tau, laws.laws, model.theta,
                                               friction_values(robot.frictions), fitted.extra_model,
-                                              robot.transmission)
+                                              robot.transmission, model.reach)
     identified = identified_spec(robot, fit.theta, frictions)
     spans = {"training": scaled.training, **({"validation": scaled.validation} if scaled.validation else {})}
     judged = judge(sc, model, joints, spans, fitted, laws.laws, identified)
-    started = start(judged.predictions["training"]["model as given"], delayed.training.joint_data(joints)[3], joints)
+    started = start(judged.predictions["training"]["model as given"], model.data(delayed.training)[3],
+                    model.torque_joints)
     ctx.progress("the models forward-simulated under the measured torques", None)
     span = "validation" if "validation" in spans else "training"
     q, qd, _ = judged.states[span]
-    predicted = prediction(sc.gravity_W, {"consistent": identified, "model as given": robot,
-                                          **({"truth": sc.truth} if sc.truth else {})},
-                           judged.t[span], q, qd, judged.measured[span], span, joints)
+    models = {"consistent": identified, "model as given": robot, **({"truth": sc.truth} if sc.truth else {})}
+    predicted = prediction(sc.gravity_W, models, judged.t[span], q, qd, judged.measured[span], span, joints)
     names = parameter_names(joints, True, robot.drive_names)
     exported = export_model(sc, robot, identified, frictions, fit.theta, scaled.training, fitted.W,
                             least_squares_fit(model, fitted, names, laws.laws, robot.drive_names))
@@ -474,7 +552,10 @@ def delay_warnings(lags: delay.Delays | None, joints: list[str], mode: str) -> l
 def configure(t, scenario) -> FrictionLawConfig:
     """`[friction_law] choose = true, folds = 5, families = [...]`, validated (one-line errors
     naming the key). Only a `[data]` scenario reads it (runner/scenario.py refuses the table
-    elsewhere, stages.LOG_TABLES)."""
+    elsewhere, stages.LOG_TABLES). A closed chain's search has no families to choose from."""
+    if scenario.robot.loops and t.has("families"):
+        raise t.error("families", f"model {scenario.robot.name!r} is a closed chain: its search tries viscous and "
+                                  "Coulomb friction alone (harness/identify/chain_law.py)")
     return FrictionLawConfig(
         t.boolean("choose", default=FrictionLawConfig.choose),
         t.integer("folds", default=FrictionLawConfig.folds, minimum=2),

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import evenly_spaced, finite_or_null
+from harness.base.numerics import evenly_spaced, finite_or_null, sampled
 from harness.base.series import room
-from harness.engines.rollout import PREDICTION_TIMESTEP, predict
+from harness.engines.rollout import PREDICTION_TIMESTEP, log_drives, predict
 
 HORIZONS = (0.02, 0.05, 0.1, 0.2)  # s: how far ahead a model is judged by forward simulation
 PREDICTION_STARTS = 20  # starts spread evenly over the span
@@ -42,9 +42,13 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
     if not len(starts):
         out["note"] = f"no stretch of the {span} span is {HORIZONS[-1]:g} s long"
         return out
+    chains = {name: spec for name, spec in models.items() if spec.loops}
+    if chains:
+        out["definition"] = CHAIN_PREDICTION + out["definition"].split("; at each horizon", 1)[1]
+        chains = predict_chains(chains, gravity_W, t, q, qd, tau, starts, HORIZONS)
     for name, spec in models.items():
-        q_err, qd_err = predict(spec, gravity_W, t, q, qd, tau, starts, HORIZONS,
-                                delay=(delays or {}).get(name))
+        q_err, qd_err = chains[name] if spec.loops else predict(spec, gravity_W, t, q, qd, tau, starts, HORIZONS,
+                                                                delay=(delays or {}).get(name))
         per = {}
         for h, horizon in enumerate(HORIZONS):
             e, ed = q_err[:, h], qd_err[:, h]
@@ -57,6 +61,87 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
                                     for k, j in enumerate(joints)},
                 "diverged": diverged}
         out["models"][name] = per
+    return out
+
+
+CHAIN_PREDICTION = (
+    "from measured states along the span, each closed-chain model forward-simulated by its own inverse "
+    "dynamics (G^T rnea with every joint's friction law) in the actuated coordinates, the loops rigid and closed "
+    "at every stage (harness/model/chain_forward.py; RK4, 1 ms) under the measured actuated torques")
+
+
+def _geometry(spec) -> bytes:
+    """What a closed chain's kinematics read of its spec: its joints' and loops' placements."""
+    parts = [f"{j.name}|{j.type}|{j.parent}|{j.child}".encode() + j.p_W0.tobytes() + j.axis_W0.tobytes()
+             for j in spec.joints]
+    parts += [f"{lp.name}|{lp.kind}|{lp.body_a}|{lp.body_b}".encode() + np.asarray(lp.point_a_W0).tobytes()
+              + np.asarray(lp.point_b_W0).tobytes() for lp in spec.loops]
+    return b"/".join(parts) + "/".join(spec.actuated).encode()
+
+
+def _stacked(chain, pms: list, owners: np.ndarray):
+    """The actuated inverse dynamics of a batch of runs, run r by the model pms[owners[r]]: each run's
+    rows come together, in run order (harness/model/chain_forward.py, actuated_acceleration)."""
+    from harness.engines.pinocchio import joint_torques
+    from harness.model.closure import actuated_torques, projection
+
+    def inverse(qq: np.ndarray, vv: np.ndarray, aa: np.ndarray) -> np.ndarray:
+        of_row = np.repeat(owners, len(qq) // len(owners))
+        tau = np.empty_like(qq)
+        for m in np.unique(owners):
+            rows = of_row == m
+            tau[rows] = joint_torques(pms[m], qq[rows], vv[rows], aa[rows])
+        return actuated_torques(projection(chain, qq), tau)
+
+    return inverse
+
+
+def predict_chains(specs: dict, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                   tau_a: np.ndarray, starts: np.ndarray, horizons: tuple[float, ...],
+                   timestep: float = PREDICTION_TIMESTEP) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """`predict` of closed chains, per model: from each start row every joint's measured (q, q')
+    (consistent: the passive joints' from the loops), its actuated torques tau_a (N, n_a) read from the
+    log at every stage (linear interpolation), the model's forward dynamics (chain_forward.rollout_states,
+    its inverse dynamics Pinocchio's with its friction laws, projected by G); at each horizon q_sim -
+    q_meas and q'_sim - q'_meas of every joint, (starts, horizons, n), NaN for a start whose run left
+    the loops' reach or met a singular mass matrix. Models of one geometry (joints and loops) run as one
+    batch: their kinematics are shared, only their inverse dynamics differ."""
+    from harness.engines.pinocchio import build_model
+    from harness.model import chain_forward
+    from harness.model.closure import ClosedChain, ClosureError, motion
+
+    steps = np.array([round(h / timestep) for h in horizons])
+    drives = log_drives(t, tau_a, t[starts], int(steps[-1]), timestep)  # (B, 2 S + 1, n_a)
+    k = np.arange(steps[-1])
+    stage_tau = drives[:, np.stack([2 * k, 2 * k + 1, 2 * k + 1, 2 * k + 2], axis=1)]  # (B, S, 4, n_a)
+    at = t[starts][:, None] + steps * timestep
+    B, n = len(starts), q.shape[1]
+    groups: dict[bytes, list[str]] = {}
+    for name, spec in specs.items():
+        groups.setdefault(_geometry(spec), []).append(name)
+    out = {}
+    for names in groups.values():
+        chain = ClosedChain.of(specs[names[0]])
+        pms = [build_model(specs[name], gravity_W) for name in names]
+        act = list(chain.actuated)
+        model_of = np.repeat(np.arange(len(names)), B)  # rollout r: model model_of[r], start r % B
+        q_h, qd_h = (np.full((len(names) * B, len(steps), n), np.nan) for _ in range(2))
+        batches = [np.arange(len(names) * B)]
+        while batches:  # all at once; where one run fails, each on its own
+            runs = batches.pop()
+            first = starts[runs % B]
+            try:
+                q_sim, qd_a = chain_forward.rollout_states(chain, _stacked(chain, pms, model_of[runs]), q[first],
+                                                           qd[first][:, act], stage_tau[runs % B], timestep)
+            except (chain_forward.ChainForwardError, ClosureError):
+                batches += [runs[i:i + 1] for i in range(len(runs))] if len(runs) > 1 else []
+                continue
+            q_h[runs] = q_sim[:, steps]
+            qd_h[runs] = motion(chain, q_h[runs].reshape(-1, n), qd_a[:, steps].reshape(-1, len(act)),
+                                np.zeros((len(runs) * len(steps), len(act)))).qd.reshape(len(runs), len(steps), n)
+        q_ref, qd_ref = sampled(t, q, at), sampled(t, qd, at)
+        for m, name in enumerate(names):
+            out[name] = (q_h[m * B:(m + 1) * B] - q_ref, qd_h[m * B:(m + 1) * B] - qd_ref)
     return out
 
 

@@ -50,8 +50,8 @@ def serialise(li, ctx, config) -> dict:
         "least_squares": _least_squares_section(li),
         **({"truth": _against_truth(li, ctx)} if li.judged.truth else {}),
         "prediction": li.prediction,
-        "delays": _delay_section(li.delayed, ctx.scenario.data.delay, li.joints),
-        "torque_constants": _constants_section(li.constants.scales, ctx.scenario.data, li.joints),
+        "delays": _delay_section(li.delayed, ctx.scenario.data.delay, li.model.torque_joints),
+        "torque_constants": _constants_section(li.constants.scales, ctx.scenario.data, li.model.torque_joints),
         "repeatability": _repeat_section(li),
         "plausibility": li.plausible,
         "warnings": li.warnings,
@@ -64,6 +64,7 @@ def serialise(li, ctx, config) -> dict:
             **li.exported.mjcf_friction},
         "export_mjcf_not_written": li.exported.refused,
         "joints": len(li.joints),
+        "torque_joints": li.model.torque_joints,
         "series": _series(li),
     }
 
@@ -144,6 +145,14 @@ def _against_truth(li, ctx) -> dict:
             "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()}, "errors": errors}
 
 
+CHAIN_LAW_DEFINITION = (
+    "A closed chain's (harness/identify/chain_law.py): viscous and Coulomb friction at every joint, passive ones "
+    "included, with one v_c for all, through G^T Y. The training span cut into {folds} consecutive parts, each "
+    "predicted by the base parameters fitted on the others less their rows within guard_s of it (the validation "
+    "span is never seen); v_c tried at a sharp sign and over a logarithmic grid, the best refined between its "
+    "neighbours")
+
+
 def _law_section(li) -> dict:
     """results.json's `friction_law`: the law, and per joint the family and velocities chosen with
     every family's held-out figure (harness/identify/friction_law.py)."""
@@ -157,15 +166,17 @@ def _law_section(li) -> dict:
     if c is None:
         out["definition"] = "The model's own law per joint ([friction_law] choose = false, or see warnings)"
         return out
+    chain = li.model.chain is not None
     out |= {
-        "definition": (f"The training span cut into {c.folds} consecutive parts, each predicted by the base "
-                       "parameters fitted on the others less their rows within guard_s of it (the conditioning's "
-                       "reach; the validation span is never seen); the held-out error "
-                       "||tau_pred - tau||_F / ||tau||_F over the training span. Joint by joint (two passes), v_c "
-                       f"searched for every family ({', '.join(FAMILIES)}) over a logarithmic grid "
-                       f"{friction_law.VELOCITY_GRID[0]:g} to {friction_law.VELOCITY_GRID[-1]:g} and a sharp "
-                       "sign, then refined; the simplest family within one standard error (over the parts) of the best "
-                       "chosen (harness/identify/friction_law.py)"),
+        "definition": CHAIN_LAW_DEFINITION.format(folds=c.folds) if chain else (
+            f"The training span cut into {c.folds} consecutive parts, each predicted by the base "
+            "parameters fitted on the others less their rows within guard_s of it (the conditioning's "
+            "reach; the validation span is never seen); the held-out error "
+            "||tau_pred - tau||_F / ||tau||_F over the training span. Joint by joint (two passes), v_c "
+            f"searched for every family ({', '.join(FAMILIES)}) over a logarithmic grid "
+            f"{friction_law.VELOCITY_GRID[0]:g} to {friction_law.VELOCITY_GRID[-1]:g} and a sharp "
+            "sign, then refined; the simplest family within one standard error (over the parts) of the best "
+            "chosen (harness/identify/friction_law.py)"),
         "folds": c.folds,
         "guard_s": c.guard_s,
         "held_out_rel_error": {"model's law": c.model_error, "chosen": c.chosen_error},
@@ -217,22 +228,22 @@ def _constants_section(constants, source, joints: list[str]) -> dict | None:
 
 def _truth_errors(li, span: str) -> dict:
     """Each model's torques, and the measured ones, against the truth's at the span's states."""
-    ref = li.judged.truth[span]
-    return {**{model: torque_errors(pred, ref, li.joints) for model, pred in li.judged.predictions[span].items()},
-            "measured": torque_errors(li.judged.measured[span], ref, li.joints)}
+    ref, joints = li.judged.truth[span], li.model.torque_joints
+    return {**{model: torque_errors(pred, ref, joints) for model, pred in li.judged.predictions[span].items()},
+            "measured": torque_errors(li.judged.measured[span], ref, joints)}
 
 
 def _span_errors(li, span: str) -> dict:
-    return {model: torque_errors(pred, li.judged.measured[span], li.joints)
+    return {model: torque_errors(pred, li.judged.measured[span], li.model.torque_joints)
             for model, pred in li.judged.predictions[span].items()}
 
 
 def _series(li) -> dict:
     """The validation span's measured and predicted torques, thinned to SERIES_POINTS, for the plot."""
-    j = li.judged
+    j, joints = li.judged, li.model.torque_joints
     span = "validation" if "validation" in j.t else "training"
     rows = evenly_spaced(len(j.t[span]), SERIES_POINTS)
     return {"span": span, "t": [float(x) for x in j.t[span][rows]],
-            "measured": {name: [float(x) for x in j.measured[span][rows, k]] for k, name in enumerate(li.joints)},
-            **{model: {name: [float(x) for x in pred[rows, k]] for k, name in enumerate(li.joints)}
+            "measured": {name: [float(x) for x in j.measured[span][rows, k]] for k, name in enumerate(joints)},
+            **{model: {name: [float(x) for x in pred[rows, k]] for k, name in enumerate(joints)}
                for model, pred in j.predictions[span].items()}}

@@ -52,7 +52,9 @@ also printed once on the terminal:
 6. `trim` seconds dropped at both ends of the stretch (filter and difference transients: the guard
    band at every gap and at the split), then decimation.
 Nothing of the validation span reaches the training span; the two are checked disjoint. The file's
-sha256 is recorded.
+sha256 is recorded. A closed chain's log holds its actuated joints' channels: they are read and
+conditioned as above, and every other joint's motion follows from the loops at every conditioned
+row (`closed`).
 """
 
 from harness.sources.log.read import check_columns

@@ -1,0 +1,80 @@
+"""A measured log of a closed chain (docs/closed_chains.md): its actuated joints' channels read as an
+open chain's are (positions, velocities, torques; checked, cut at gaps, conditioned, split), then every
+other joint's motion from the loops (harness/model/closure.py) at every conditioned row.
+
+A closed chain's drives move its actuated joints; their encoders and torques are what its log holds.
+The passive joints follow: q_p from Phi(q_a, q_p) = 0 (Newton's method, followed in sample order from
+the model's q = 0, so that the log and the bench find the same assembly of the mechanism), q'_p =
+-J_p^+ J_a q'_a and q''_p = -J_p^+ (J_a q''_a + b), from the conditioned actuated channels. A passive
+joint has no drive: its torque column is zero."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from harness.base.series import TimeSeries
+from harness.base.tomlio import InputError, Table
+from harness.model.closure import ClosedChain, ClosureError, motion, positions
+from harness.model.spec import RobotSpec
+from harness.sources.log.schema import DataSource
+
+# what a closed chain's log does not support yet (docs/closed_chains.md), with the one value that changes
+# nothing; motor currents (and with them a known payload's torque constants) are refused apart
+REFUSED = {
+    "delay": ("none", "the torque channels' delays are estimated on an open chain's regressor"),
+    "side": ("joint", "a closed chain's log is read at its actuated joints")}
+
+
+def closed_chain_source(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
+    """A closed chain's `[data]` (dt, read as `source`, in the scenario `root`): what its log path does
+    not support refused in one line naming the key (only a value that changes nothing is accepted), as
+    are the scenario's tables that read an open tree; its delays not estimated (the default "estimate"
+    is an open chain's)."""
+    where = f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r})"
+    for table in (table for table in ("identification", "refinement") if root.has(table)):
+        raise root.error(table, f"{where}: [{table}] on its log is not supported (it reads an open tree: "
+                                "docs/closed_chains.md)")
+    for key, (accepted, why) in REFUSED.items():
+        if dt.has(key) and dt.data[key] != accepted:
+            raise dt.error(key, f"{where}: not supported on a closed chain's log ({why})")
+    if source.units["tau"] == "current":
+        raise dt.error("units", f"{where}: motor currents are not supported on a closed chain's log (their "
+                                "constants are identified on an open chain's regressor): give joint torques")
+    return dataclasses.replace(source, delay="none")
+
+
+def logged(robot: RobotSpec) -> RobotSpec:
+    """The robot as its log is read: of a closed chain, its actuated joints alone (in the chain's
+    order, with their limits), whose channels the log holds; an open chain as it is."""
+    if not robot.loops:
+        return robot
+    joints = tuple(robot.joint(name) for name in robot.actuated)
+    limits = None if robot.limits is None else {j: v for j, v in robot.limits.items() if j in robot.actuated}
+    return dataclasses.replace(robot, name=f"{robot.name} (its actuated joints)", joints=joints, limits=limits,
+                               loops=(), actuated=())
+
+
+def closed(series: TimeSeries | None, robot: RobotSpec, file) -> TimeSeries | None:
+    """A conditioned span of the actuated joints' channels with every joint's (q, q', q'') from the
+    loops, in the robot's joint order; the passive joints' torques zero. A row the loops cannot reach
+    (or a motion across a singular configuration) is refused, naming the file."""
+    if series is None or not robot.loops:
+        return series
+    chain = ClosedChain.of(robot)
+    order = [series.joint_index(name) for name in robot.actuated]
+    try:
+        q = positions(chain, series.q[:, order], np.zeros(chain.n))
+        m = motion(chain, q, series.qd[:, order], series.qdd[:, order])
+    except ClosureError as exc:
+        raise InputError(file, "columns", f"the actuated joints' logged motion cannot be followed by the loops: "
+                                          f"{exc}") from None
+    tau = np.zeros_like(m.q)
+    tau[:, list(chain.actuated)] = series.tau[:, order]
+    meta = {**series.meta, "passive_joints": {
+        "joints": [robot.joint_names[k] for k in chain.passive],
+        "from": "the loops at every conditioned row (harness/sources/log/closed.py): q_p from Phi = 0 by Newton's "
+                "method followed from q = 0, q'_p = -J_p^+ J_a q'_a, q''_p = -J_p^+ (J_a q''_a + b); torque 0"}}
+    return dataclasses.replace(series, joints=tuple(robot.joint_names), q=m.q, qd=m.qd, qdd=m.qdd, tau=tau,
+                               meta=meta)
