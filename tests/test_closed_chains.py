@@ -723,6 +723,51 @@ def test_the_graph_theory_method_closes_the_loops_with_its_incidence_matrices(na
     assert np.abs(along).max() <= 1e-9 * np.abs(tau_a).max()
 
 
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+def test_the_graph_theory_multipliers_are_pinocchios_own_constraint_forces(name, request):
+    """The first seed's multipliers against Pinocchio's constraintDynamics, which knows nothing of them:
+    driven by the graph-theory model's actuated torques at 20 random consistent states, Pinocchio's rigid
+    loops (RigidConstraintModel, proximal mu = 1e-8) accelerate as the motion does (1e-7: mu's
+    regularisation) and their contact force, turned from its frame on body a to the world, is the
+    model's lambda where a force moves the chain: in J's range, to 1e-9 of its size (measured 1e-13).
+    Along the planar loop's normal, which moves nothing, the model's is zero (least norm) and
+    Pinocchio's what its proximal iterations leave (1.7e-7 of the force after 50 iterations on the
+    parallelogram, 1.7e-6 after 500): not comparable, and not compared."""
+    import pinocchio as pin
+
+    from harness.papers.graph_theory_2021.closed import closed_chain_inverse
+    from harness.papers.graph_theory_2021.dynamics import build_graph_model
+
+    chain = request.getfixturevalue(name)
+    spec, act = chain.spec, list(chain.actuated)
+    (loop,) = spec.loops
+    m = closure.random_motion(chain, *_bounds(chain), count=20, seed=41)
+    graph = closed_chain_inverse(spec, build_graph_model(spec, GRAVITY_W), m.q, m.qd, m.qdd)
+    pm = pin_engine.build_model(spec, GRAVITY_W)
+    model, data = pm.model, pm.model.createData()
+    pin.forwardKinematics(model, data, np.zeros(model.nq))
+    ends = []
+    for body, p in ((loop.body_a, loop.point_a_W0), (loop.body_b, loop.point_b_W0)):
+        jid = 0 if body == "world" else pm.joint_ids[spec.joint_names.index(spec.inner_joint(body).name)]
+        ends += [jid, data.oMi[jid].actInv(pin.SE3(np.eye(3), np.asarray(p)))]
+    cm = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, model, *ends, pin.ReferenceFrame.LOCAL)
+    cmodels, cdatas = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
+    cmodels.append(cm), cdatas.append(cm.createData())
+    pin.initConstraintDynamics(model, data, cmodels, cdatas)
+    settings = pin.ProximalSettings(1e-12, 1e-8, 50)
+    idx = pm.q_index
+    for k in range(len(m.q)):
+        qq, vv, tt = np.zeros(model.nq), np.zeros(model.nv), np.zeros(model.nv)
+        qq[idx], vv[idx] = m.q[k], m.qd[k]
+        tt[idx[act]] = graph.tau[k, act]
+        a = pin.constraintDynamics(model, data, qq, vv, tt, cmodels, cdatas, settings)[idx]
+        np.testing.assert_allclose(a, m.qdd[k], atol=1e-7 * np.abs(m.qdd[k]).max())
+        lam_W = (data.oMi[ends[0]] * ends[1]).rotation @ cdatas[0].contact_force.linear
+        U, S, _ = np.linalg.svd(m.J[k], full_matrices=False)
+        moving = U[:, S > 1e-9 * S[0]]  # the loop's force directions that move a joint: J's range
+        np.testing.assert_allclose(moving.T @ lam_W, moving.T @ graph.lam[k], atol=1e-9 * np.abs(graph.lam[k]).max())
+
+
 def test_the_graph_theory_method_carries_every_joints_friction_through_the_loops(fourbar):
     """With a law on every joint (rotor inertia, viscous, smooth Coulomb and a load-dependent term on the
     crank; friction on the passive rocker and an offset on the coupler's joint): a passive joint's

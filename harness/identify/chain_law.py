@@ -16,6 +16,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from harness.base.numerics import relative_residual_of_sums
+from harness.identify import filtered
 from harness.identify.friction_law import VELOCITY_GRID, FrictionChoice, Law, blocked_folds
 from harness.identify.torque_id import drive_column, links_weights
 from harness.model import friction
@@ -24,11 +25,14 @@ FAMILY = "viscous_coulomb"
 REFINE_TOLERANCE = 0.02  # in log(v_c): the bounded search around the best grid point stops at 2 %
 
 
-def _with_velocity(W3: np.ndarray, G: np.ndarray, qd: np.ndarray, v) -> np.ndarray:
+def _with_velocity(W3: np.ndarray, G: np.ndarray, qd: np.ndarray, v, columns=None, t=None) -> np.ndarray:
     """W3 (N, m, p), a closed chain's regressor G^T Y by sample, with every joint's Coulomb column at
-    v_c = v (one for all, or (n,) per joint)."""
+    v_c = v (one for all, or (n,) per joint); on a filtered span (`columns` at its times t), the shape
+    filtered as the torques were (harness/identify/filtered.py) before G carries it."""
     n = qd.shape[1]
-    s = friction.coulomb_shape(qd, np.broadcast_to(np.asarray(v, dtype=float), (n,)))  # (N, n)
+    v = np.broadcast_to(np.asarray(v, dtype=float), (n,))
+    s = friction.coulomb_shape(qd, v) if columns is None else filtered.coulomb(
+        columns, t, tuple(Law(FAMILY, float(x)) for x in v), None)  # (N, n)
     out = W3.copy()
     for j in range(n):
         out[:, :, drive_column(n, j, "coulomb")] = G[:, j, :] * s[:, j, None]
@@ -37,13 +41,14 @@ def _with_velocity(W3: np.ndarray, G: np.ndarray, qd: np.ndarray, v) -> np.ndarr
 
 def choose(W: np.ndarray, G: np.ndarray, qd: np.ndarray, tau: np.ndarray, independent: np.ndarray,
            link_part: tuple[np.ndarray, np.ndarray], t: np.ndarray, folds: int, reach_s: float,
-           model_velocity: np.ndarray) -> FrictionChoice:
+           model_velocity: np.ndarray, columns=None) -> FrictionChoice:
     """The smoothing velocity of every joint of a closed chain: W (N m, 14 n) its regressor G^T Y with
     friction on the training span, G (N, n, m), qd (N, n) every joint's, tau (N, m) the actuated
     torques, `independent` the base parameters' columns (`link_part`: BaseParameters.link_part);
     `folds` consecutive parts of the span, each predicted by the fit on the others less their rows
     within `reach_s` of it. Tried: a sharp sign (0) and VELOCITY_GRID, the best refined between its
-    grid neighbours; the model's own velocities (n,) scored beside them."""
+    grid neighbours; the model's own velocities (n,) scored beside them. `columns`: a filtered span's
+    (every joint's velocities at the full rate: harness/sources/log/closed.py)."""
     N, m = tau.shape
     step = float(np.median(np.diff(t))) if N > 1 else 0.0
     split = blocked_folds(N, folds, int(np.ceil(reach_s / step - 1e-9)) if reach_s > 0 and step > 0 else 0)
@@ -54,7 +59,7 @@ def choose(W: np.ndarray, G: np.ndarray, qd: np.ndarray, tau: np.ndarray, indepe
         piece_of[piece] = i
 
     def held_out(v) -> float:
-        A = _with_velocity(W3, G, qd, v)[:, :, independent]
+        A = _with_velocity(W3, G, qd, v, columns, t)[:, :, independent]
         sse = 0.0
         for k, fold in enumerate(split.folds):
             fitted = split.left_out[k][piece_of] == 0  # the samples this fold's fit reads
@@ -79,7 +84,7 @@ def choose(W: np.ndarray, G: np.ndarray, qd: np.ndarray, tau: np.ndarray, indepe
             scores[best] = float(found.fun)
     n = qd.shape[1]
     score = {FAMILY: {"held_out_rel_error": scores[best], "coulomb_velocity": best}}
-    A = _with_velocity(W3, G, qd, best)[:, :, independent].reshape(N * m, -1)
+    A = _with_velocity(W3, G, qd, best, columns, t)[:, :, independent].reshape(N * m, -1)
     beta = np.linalg.lstsq(A, tau.ravel(), rcond=None)[0]
     return FrictionChoice(tuple(Law(FAMILY, best) for _ in range(n)), tuple(score for _ in range(n)),
                           held_out(model_velocity), scores[best], folds,

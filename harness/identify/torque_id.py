@@ -68,15 +68,18 @@ SAMPLES_AT_A_TIME = 8192  # samples of the regressor made at a time (`regressor`
 
 
 def chain_regressor(pm: PinocchioModel, chain, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                    with_friction: bool = False, closed: bool = False) -> np.ndarray:
+                    with_friction: bool = False, closed: bool = False, coulomb: np.ndarray | None = None) -> np.ndarray:
     """(N * n_a, p): a closed chain's actuated-torque regressor G^T Y (harness/model/closure.py): the
     tree's regressor (`regressor`, every joint's row) projected onto the actuated joints, rows sample
     by sample in the chain's actuated order. Exact where the tree's torques are Y theta: tau_a = G^T Y
-    theta. `closed`: q closes every loop (G's null-space check is then made)."""
+    theta. `closed`: q closes every loop (G's null-space check is then made). `coulomb` (N, n): every
+    joint's Coulomb column where it is not the law's at q' (a filtered log's: harness/identify/filtered.py)."""
     from harness.model.closure import projection
 
     N, n = len(q), len(pm.joint_ids)
     W = regressor(pm, q, qd, qdd, with_friction).reshape(N, n, -1)
+    for j in range(n if coulomb is not None else 0):  # joint j's Coulomb column acts on its own row
+        W[:, j, drive_column(n, j, "coulomb")] = coulomb[:, j]
     G = projection(chain, q, closed=closed)
     return np.einsum("nja,njp->nap", G, W).reshape(N * len(chain.actuated), -1)
 

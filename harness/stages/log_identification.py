@@ -109,7 +109,7 @@ class LogModel:
         """The span's regressor with friction: (N n, 14 n), or a closed chain's G^T Y (N n_a, 14 n)."""
         if self.chain is None:
             return span_regressor(pm, q, qd, qdd, coulomb)
-        return chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True)
+        return chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True, coulomb=coulomb)
 
     def projected(self, q: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Per-joint rows (N n, c) as the log's torques read them: a closed chain's projected onto its
@@ -130,7 +130,7 @@ class LogModel:
         law projected by G^T (no law of a closed chain reads the load: harness/model/load.py)."""
         if self.chain is None:
             return extra_regressor(laws, qd, rigid, transmission, columns, t)
-        return self.projected(q, extra_regressor(laws, qd, None))
+        return self.projected(q, extra_regressor(laws, qd, None, None, columns, t))
 
     @property
     def n(self) -> int:
@@ -168,6 +168,8 @@ def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
     def rows(series: TimeSeries) -> np.ndarray | RowsOnDemand:
         return model.rows(model.pm, *model.data(series)[:3])
 
+    if mode == "none" and model.chain is not None:  # nothing reads it: a closed chain's log has no currents
+        return Delayed(None, None, training, validation, None)
     W = rows(training)
     if mode == "none":
         return Delayed(None, None, training, validation, W)
@@ -265,7 +267,8 @@ def _chain_laws(config: FrictionLawConfig, robot, model: LogModel, training: Tim
     try:
         choice = chain_law.choose(model.rows(model.pm, q, qd, qdd), projection(model.chain, q), qd, tau,
                                   model.base.independent, model.link_part, training.t, config.folds,
-                                  training.meta.get("reach_s", 0.0), np.array([law.coulomb_velocity for law in kept]))
+                                  training.meta.get("reach_s", 0.0), np.array([law.coulomb_velocity for law in kept]),
+                                  filtered_columns(training))
     except ValueError as exc:
         return LawChoice(kept, None, f"friction law not chosen, the model's kept: {exc}")
     return LawChoice(choice.laws, choice, None)
@@ -291,7 +294,7 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
     made here, its Coulomb columns the filtered ones on a filtered log; a long span's made where it is
     read, never whole (harness/identify/span_rows.py)."""
     q, qd, qdd, tau = model.data(training)
-    columns = filtered_columns(training) if model.chain is None else None  # a closed chain's: docs/closed_chains.md
+    columns = filtered_columns(training)
     # the Coulomb columns filtered as the torques were, on a filtered log
     coulomb = None if columns is None else filtered.coulomb(columns, training.t, laws.laws, robot.transmission)
     pm = model.pm if laws.choice is None else build_model(  # the chosen smoothing velocities
@@ -331,8 +334,8 @@ class Judged:
     floor: float | None  # the least-squares columns fitted on the validation span itself: its error there
 
 
-def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], fitted: LeastSquares,
-          laws: tuple[Law, ...], identified) -> Judged:
+def judge(sc, model: LogModel, spans: dict[str, TimeSeries], fitted: LeastSquares, laws: tuple[Law, ...],
+          identified) -> Judged:
     """Each span predicted by the least-squares fit, the consistent fit (`identified`, a RobotSpec)
     and the model as given."""
     r = len(model.base.independent)
@@ -344,8 +347,7 @@ def judge(sc, model: LogModel, joints: list[str], spans: dict[str, TimeSeries], 
         W = fitted.W if name == "training" else model.rows(pm_identified, q, qd, qdd)
         base = (W, model.base.independent)  # the base parameters' columns, never copied out
         rigid_ls = (SideBySide((base,)) @ links_weights(fitted.ls.beta[:r], model.link_part)).reshape(tau.shape)
-        # as the fit read it
-        columns = filtered_columns(series) if name == "training" and model.chain is None else None
+        columns = filtered_columns(series) if name == "training" else None  # as the fit read it
         W_span = SideBySide((base, model.families(laws, q, qd, rigid_ls, sc.robot.transmission, columns, series.t)))
         out.states[name], out.measured[name], out.t[name] = (q, qd, qdd), tau, series.t
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
@@ -476,7 +478,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
                                               robot.transmission, model.reach)
     identified = identified_spec(robot, fit.theta, frictions)
     spans = {"training": scaled.training, **({"validation": scaled.validation} if scaled.validation else {})}
-    judged = judge(sc, model, joints, spans, fitted, laws.laws, identified)
+    judged = judge(sc, model, spans, fitted, laws.laws, identified)
     started = start(judged.predictions["training"]["model as given"], model.data(delayed.training)[3],
                     model.torque_joints)
     ctx.progress("the models forward-simulated under the measured torques", None)

@@ -18,6 +18,7 @@ from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError, Table
 from harness.model.closure import ClosedChain, ClosureError, motion, positions
 from harness.model.spec import RobotSpec
+from harness.sources.log.condition import FULL_RATE, FilteredColumns
 from harness.sources.log.schema import DataSource
 
 # what a closed chain's log does not support yet (docs/closed_chains.md), with the one value that changes
@@ -72,9 +73,27 @@ def closed(series: TimeSeries | None, robot: RobotSpec, file) -> TimeSeries | No
                                           f"{exc}") from None
     tau = np.zeros_like(m.q)
     tau[:, list(chain.actuated)] = series.tau[:, order]
-    meta = {**series.meta, "passive_joints": {
+    meta = {**series.meta, **({FULL_RATE: _every_joint(series.meta[FULL_RATE], order, m.G)}
+                              if FULL_RATE in series.meta else {}), "passive_joints": {
         "joints": [robot.joint_names[k] for k in chain.passive],
         "from": "the loops at every conditioned row (harness/sources/log/closed.py): q_p from Phi = 0 by Newton's "
                 "method followed from q = 0, q'_p = -J_p^+ J_a q'_a, q''_p = -J_p^+ (J_a q''_a + b); torque 0"}}
     return dataclasses.replace(series, joints=tuple(robot.joint_names), q=m.q, qd=m.qd, qdd=m.qdd, tau=tau,
                                meta=meta)
+
+
+def _every_joint(columns: FilteredColumns, order: list[int], G: np.ndarray) -> FilteredColumns:
+    """A filtered span's full-rate velocities (harness/identify/filtered.py) of every joint: the passive
+    joints' q' = G q'_a at every full-rate row, G (N, n, n_a) at the kept rows interpolated linearly
+    between them (G is a smooth function of the configuration; held at the first and last kept row
+    over the trimmed ends, the filter's guard band), so that every joint's friction columns are
+    filtered as the torques were."""
+    stretches, at = [], 0
+    for qd_a, rows in columns.stretches:
+        G_s, full = G[at: at + len(rows)], np.arange(len(qd_a))
+        G_full = np.stack([np.interp(full, rows, g) for g in G_s.reshape(len(rows), -1).T], axis=-1)
+        stretches.append((np.einsum("mja,ma->mj", G_full.reshape(len(full), *G.shape[1:]), qd_a[:, order]), rows))
+        at += len(rows)
+    if at != len(G):  # the span's rows are its stretches' kept rows (sources/log/condition.py): else a harness bug
+        raise RuntimeError(f"the filtered columns hold {at} rows of a span of {len(G)}")
+    return dataclasses.replace(columns, stretches=tuple(stretches))
