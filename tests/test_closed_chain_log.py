@@ -34,10 +34,10 @@ DURATION = 8.0  # s
 SINES = (((0.9, 1.3), (0.25, 3.7)), ((0.3, 1.7), (0.1, 4.1)), ((0.25, 2.1), (0.1, 3.3)))
 
 
-def _actuated(t: np.ndarray):
-    """(q_a, q'_a, q''_a), each (len(t), 3), of SINES: a motion the test knows exactly."""
-    q, qd, qdd = (np.zeros((len(t), len(SINES))) for _ in range(3))
-    for k, sines in enumerate(SINES):
+def _actuated(t: np.ndarray, of=SINES):
+    """(q_a, q'_a, q''_a), each (len(t), n_a), of sines `of` (SINES): a motion the test knows exactly."""
+    q, qd, qdd = (np.zeros((len(t), len(of))) for _ in range(3))
+    for k, sines in enumerate(of):
         for a, w in sines:
             q[:, k] += a * np.sin(w * t)
             qd[:, k] += a * w * np.cos(w * t)
@@ -52,32 +52,43 @@ def exact(tmp_path_factory):
     law; the log holds t and the actuated joints' q, q', tau (no accelerations: the harness differences
     q'). Its folder, the truth's consistent motion and torques."""
     folder = tmp_path_factory.mktemp("exact_log")
-    spec = load_spec(TRUTH)
+    chain, states, tau_a = _exact_log(folder / "log.csv", TRUTH, SINES, RATE, DURATION)
+    (folder / "s.toml").write_text(_scenario_text(folder / "log.csv"))
+    return folder, chain, states, tau_a
+
+
+def _exact_log(path, truth, sines, rate: float, duration: float, noise: float = 0.0, cut=None):
+    """The log of `truth` moved by `sines`, made from its rigid loops at `rate` for `duration` s, each
+    actuated torque with `noise` times its RMS of seeded Gaussian noise, the rows of times in `cut`
+    (a, b) dropped (a gap): the chain, every joint's exact states and the actuated torques."""
+    spec = load_spec(truth)
     chain = closure.ClosedChain.of(spec)
-    t = np.arange(0.0, DURATION, 1.0 / RATE)
-    q, qd, qdd = closure.along(chain, t, _actuated)
+    t = np.arange(0.0, duration, 1.0 / rate)
+    q, qd, qdd = closure.along(chain, t, lambda times: _actuated(times, sines))
     tau = pin_engine.rnea(pin_engine.build_model(spec, spec.gravity_W), q, qd, qdd).tau
     tau_a = closure.actuated_torques(closure.projection(chain, q), tau)
+    read = tau_a + noise * np.sqrt(np.mean(tau_a**2, axis=0)) * np.random.default_rng(7).standard_normal(tau_a.shape)
     act = list(chain.actuated)
     columns = {"t": t}
     for k in range(len(act)):
-        columns |= {f"q{k + 1}": q[:, act[k]], f"qd{k + 1}": qd[:, act[k]], f"tau{k + 1}": tau_a[:, k]}
-    pd.DataFrame(columns).to_csv(folder / "log.csv", index=False, float_format="%.17g")
-    (folder / "s.toml").write_text(_scenario_text(folder / "log.csv"))
-    return folder, chain, (q, qd, qdd), tau_a
+        columns |= {f"q{k + 1}": q[:, act[k]], f"qd{k + 1}": qd[:, act[k]], f"tau{k + 1}": read[:, k]}
+    kept = np.ones(len(t), dtype=bool) if cut is None else (t < cut[0]) | (t > cut[1])
+    pd.DataFrame(columns)[kept].to_csv(path, index=False, float_format="%.17g")
+    return chain, (q, qd, qdd), tau_a
 
 
-def _scenario_text(log, extra_data: str = "", extra: str = "") -> str:
+def _scenario_text(log, extra_data: str = "", extra: str = "", model=MODELS / "parallelogram.toml",
+                   truth=TRUTH) -> str:
     return f'''
 [scenario]
 description = "a closed chain's exact log"
-model = "{MODELS / 'parallelogram.toml'}"
+model = "{model}"
 
 [data]
 file = "{log}"
 columns = {{ t = "t", q = "q{{j}}", qd = "qd{{j}}", tau = "tau{{j}}" }}
 units = {{ q = "rad", qd = "rad/s", tau = "N m" }}
-truth = "{TRUTH}"
+truth = "{truth}"
 validation = {{ from = 0.7 }}
 {extra_data}
 
@@ -185,6 +196,47 @@ def test_a_filtered_log_s_friction_columns_are_filtered_as_its_torques_every_joi
     truth = li["truth"]["validation_rel_error"]
     assert truth["consistent"] <= 5e-4 and truth["least squares"] <= 5e-4
     assert abs(li["friction_law"]["coulomb_velocity"]["elbow"] / 0.02 - 1) <= 0.05
+
+
+FOURBAR_TRUTH = """
+[model]
+name = "fourbar_friction"
+[mjcf]
+file = "{xml}"
+[joints.crank]
+armature = 0.02
+viscous = 0.3
+coulomb = 0.5
+offset = 0.1
+coulomb_velocity = 0.05
+[joints.rocker]
+viscous = 0.2
+coulomb = 0.3
+coulomb_velocity = 0.05
+"""
+
+
+@pytest.mark.parametrize("duration", [6.0, 12.0])
+def test_a_four_bar_s_one_torque_channel_gives_its_friction_law_with_a_gap_and_a_filter(tmp_path, duration):
+    """The four-bar's crank log (one torque channel, 18 base parameters with every joint's friction,
+    condition number 1e4) at 200 Hz with 1 % torque noise, a 0.3 s gap, a 15 Hz low-pass: the smoothing
+    velocity found within 5 % of the truth's 0.05 rad/s, estimated with the parameters (of 6 s a choice
+    by the folds' held-out error, which extrapolate, took 0.024). Of 12 s the held-out torques are within
+    0.5 % of the truth's (measured 0.10 % and 0.16 %, the filtered torques themselves 1.7 % off); of 6 s
+    they are 3 to 5 % off: one channel's 18 parameters from 4 s of motion extrapolate to the last 30 %."""
+    (tmp_path / "truth.toml").write_text(FOURBAR_TRUTH.format(xml=MODELS / "fourbar.xml"))
+    _exact_log(tmp_path / "log.csv", tmp_path / "truth.toml", (((3.0, 0.9), (1.0, 2.3), (0.5, 3.7)),), 200.0,
+               duration, noise=0.01, cut=(2.5, 2.8))
+    (tmp_path / "s.toml").write_text(_scenario_text(tmp_path / "log.csv", "cutoff = 15.0", "",
+                                                    MODELS / "fourbar.toml", tmp_path / "truth.toml"))
+    code, results = _run(tmp_path / "s.toml", tmp_path / "out")
+    assert code == 0
+    li = results["log_identification"]
+    assert len(results["data"]["conditioning"]["segments"]["stretches"]) == 2
+    assert abs(li["friction_law"]["coulomb_velocity"]["crank"] / 0.05 - 1) <= 0.05
+    truth = li["truth"]["validation_rel_error"]
+    if duration >= 12.0:
+        assert truth["consistent"] <= 0.005 and truth["least squares"] <= 0.005
 
 
 def test_the_identified_closed_chain_is_exported_as_mjcf_with_its_loop(exact_run):

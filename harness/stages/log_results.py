@@ -147,10 +147,11 @@ def _against_truth(li, ctx) -> dict:
 
 CHAIN_LAW_DEFINITION = (
     "A closed chain's (harness/identify/chain_law.py): viscous and Coulomb friction at every joint, passive ones "
-    "included, with one v_c for all, through G^T Y. The training span cut into {folds} consecutive parts, each "
-    "predicted by the base parameters fitted on the others less their rows within guard_s of it (the validation "
-    "span is never seen); v_c tried at a sharp sign and over a logarithmic grid, the best refined between its "
-    "neighbours")
+    "included, with one v_c for all, through G^T Y; v_c estimated with the parameters, the least-squares residual "
+    "over the training span as its function (a sharp sign and a logarithmic grid, the best refined between its "
+    "neighbours). The held-out errors: the training span cut into {folds} consecutive parts, each predicted by "
+    "the base parameters fitted on the others less their rows within guard_s of it (the validation span is never "
+    "seen)")
 
 
 def _law_section(li) -> dict:
