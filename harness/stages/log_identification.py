@@ -163,8 +163,10 @@ class Delayed:
     W: np.ndarray | RowsOnDemand | None  # (N n, 14 n); None once the delays and the constants have read it (`run`)
 
 
-def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
-           validation: TimeSeries | None) -> Delayed:
+def delays(mode: str, model: LogModel, training: TimeSeries, validation: TimeSeries | None) -> Delayed:
+    """Each torque channel's lag (every joint's, or a closed chain's actuated joints': its rows of G^T Y)."""
+    joints = model.torque_joints
+
     def rows(series: TimeSeries) -> np.ndarray | RowsOnDemand:
         return model.rows(model.pm, *model.data(series)[:3])
 
@@ -175,8 +177,7 @@ def delays(mode: str, model: LogModel, joints: list[str], training: TimeSeries,
         return Delayed(None, None, training, validation, W)
     try:
         filtered = FULL_RATE in training.meta  # a low-passed span keeps its full rate (sources/log/condition.py)
-        lags = delay.estimate(training.t, training.joint_data(joints)[3], rows_by_sample(W, len(joints)),
-                              filtered=filtered)
+        lags = delay.estimate(training.t, model.data(training)[3], rows_by_sample(W, len(joints)), filtered=filtered)
     except ValueError as exc:
         return Delayed(None, f"delays not estimated: {exc}", training, validation, W)
     if mode != "correct":
@@ -459,7 +460,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     model = log_model(robot, sc.gravity_W)
     if sc.data.delay != "none":
         ctx.progress("the torque channels' delays behind the encoders", None)
-    delayed = delays(sc.data.delay, model, joints, ctx.training, ctx.validation.get(VALIDATION_SPAN))
+    delayed = delays(sc.data.delay, model, ctx.training, ctx.validation.get(VALIDATION_SPAN))
     if sc.data.units["tau"] == "current" and sc.data.identify_constants:
         ctx.progress("torque constants (motor currents)", None)
     scaled = constants(sc.data, robot, model, joints, delayed, ctx.payload)
@@ -513,7 +514,7 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
     if p["on_margin"]:
         out.append(f"{len(p['on_margin'])} link(s) on the fit's positive-definiteness margin (the data push them past "
                    f"physical): {', '.join(p['on_margin'])}")
-    out += delay_warnings(lags, li.joints, mode)
+    out += delay_warnings(lags, li.model.torque_joints, mode)
     out += [note for note in (li.delayed.note, li.laws.note, li.fitted.note) if note]
     repeated = li.fitted.repeated
     moved = [] if repeated is None else list(np.flatnonzero(~repeated.overlap))

@@ -23,16 +23,13 @@ from harness.sources.log.schema import DataSource
 
 # what a closed chain's log does not support yet (docs/closed_chains.md), with the one value that changes
 # nothing; motor currents (and with them a known payload's torque constants) are refused apart
-REFUSED = {
-    "delay": ("none", "the torque channels' delays are estimated on an open chain's regressor"),
-    "side": ("joint", "a closed chain's log is read at its actuated joints")}
+REFUSED = {"side": ("joint", "a closed chain's log is read at its actuated joints")}
 
 
 def closed_chain_source(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
     """A closed chain's `[data]` (dt, read as `source`, in the scenario `root`): what its log path does
     not support refused in one line naming the key (only a value that changes nothing is accepted), as
-    are the scenario's tables that read an open tree; its delays not estimated (the default "estimate"
-    is an open chain's)."""
+    are the scenario's tables that read an open tree."""
     where = f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r})"
     for table in (table for table in ("identification", "refinement") if root.has(table)):
         raise root.error(table, f"{where}: [{table}] on its log is not supported (it reads an open tree: "
@@ -43,7 +40,7 @@ def closed_chain_source(root: Table, dt: Table, robot: RobotSpec, source: DataSo
     if source.units["tau"] == "current":
         raise dt.error("units", f"{where}: motor currents are not supported on a closed chain's log (their "
                                 "constants are identified on an open chain's regressor): give joint torques")
-    return dataclasses.replace(source, delay="none")
+    return source
 
 
 def logged(robot: RobotSpec) -> RobotSpec:
