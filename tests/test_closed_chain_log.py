@@ -138,7 +138,7 @@ def test_the_passive_joints_are_the_consistent_motion_the_log_was_made_from(exac
     """Every joint's q and q' at the conditioned rows equal the motion the log was made from (1e-10
     rad, 1e-9 rad/s), and q'' within 1e-3 of its largest (the harness differences q' at 500 Hz:
     second-order central differences of sines up to 4.1 rad/s, h^2 w^2 / 6 = 1e-5, the span's ends
-    trimmed)."""
+    trimmed); the passive joints' torques are zero, and the report says where they came from."""
     _, chain, _, _ = exact
     data = pd.read_csv(exact_run[2] / "data.csv")
     t = data["t"].to_numpy()
@@ -149,6 +149,8 @@ def test_the_passive_joints_are_the_consistent_motion_the_log_was_made_from(exac
     assert np.abs(data[[f"qdd_{j}" for j in names]].to_numpy() - qdd).max() <= 1e-3 * np.abs(qdd).max()
     passive = [names[k] for k in chain.passive]
     assert np.all(data[[f"tau_{j}" for j in passive]].to_numpy() == 0.0)
+    assert f"Passive joints {', '.join(passive)}: the loops at every conditioned row" in \
+        (exact_run[2] / "report.html").read_text()
 
 
 def test_an_exact_closed_chain_log_is_identified_to_its_truth(exact_run):
@@ -207,8 +209,9 @@ def _refused(tmp_path, log, extra_data: str = "", extra: str = "") -> InputError
 
 
 REFUSED = {  # what a closed chain's log path does not read yet: its key, and why
-    "motor currents": ('units = { q = "rad", qd = "rad/s", tau = "current" }\ntorque_constant = [0.1, 0.1, 0.1]\n'
-                       "gear_ratio = [100, 100, 100]", "", "data.units", "currents"),
+    "a known payload": ('units = { q = "rad", qd = "rad/s", tau = "current" }\ntorque_constant = [0.1, 0.1, 0.1]\n'
+                        "gear_ratio = [100, 100, 100]\npayload = { file = \"LOG\", body = \"forearm\", mass = 1.0, "
+                        "com = [0, 0, 0], inertia = [0, 0, 0, 0, 0, 0] }", "", "data.payload", "payload"),
     "the motor side": ('side = "motor"', "", "data.side", "actuated joints"),
     "a refinement": ("", '[refinement]\nadjust = ["delay"]', "refinement", "open tree"),
     "a method beside the fit": ("", '[[identification]]\nname = "f"\nplugin = "figaroh"', "identification",
@@ -223,7 +226,8 @@ def test_what_a_closed_chain_s_log_cannot_read_yet_is_refused_naming_the_key(exa
     extra_data, extra, key, message = REFUSED[case]
     text = _scenario_text(exact[0] / "log.csv", "", extra)
     if extra_data.startswith("units"):
-        text = text.replace('units = { q = "rad", qd = "rad/s", tau = "N m" }', extra_data)
+        text = text.replace('units = { q = "rad", qd = "rad/s", tau = "N m" }',
+                            extra_data.replace("LOG", str(exact[0] / "log.csv")))
     else:
         text = text.replace("validation = { from = 0.7 }", f"validation = {{ from = 0.7 }}\n{extra_data}")
     (tmp_path / "s.toml").write_text(text)

@@ -34,10 +34,14 @@ def data(r: dict, log) -> str:
     val = c.get("validation")
     split = (f"<p>Training: t &lt; {num(val['t_split'])} s ({val['training_samples']} samples); validation, never "
              f"seen by the fit: the rest ({val['validation_samples']} samples).</p>") if val else ""
+    passive = c.get("passive_joints")  # a closed chain's: from its loops, no torque of their own
+    if passive:
+        split += f"<p>Passive joints {esc(', '.join(passive['joints']))}: {esc(passive['from'])}.</p>"
     t = log.t
     figs = [figure(plots.lines(t, {j: log.q[:, k] for k, j in enumerate(log.joints)}, "q [rad]", "Joint positions"),
                    "Conditioned joint positions."),
-            figure(plots.lines(t, {j: log.tau[:, k] for k, j in enumerate(log.joints)}, "tau [N m]",
+            figure(plots.lines(t, {j: log.tau[:, k] for k, j in enumerate(log.joints)
+                                   if not passive or j not in passive["joints"]}, "tau [N m]",
                                "Measured joint torques"), "Conditioned (filtered) joint torques."),
             figure(plots.lines(t, {j: log.qdd[:, k] for k, j in enumerate(log.joints)}, "q'' [rad/s^2]",
                                "Joint accelerations"), "Accelerations by differences of the filtered velocities.")]

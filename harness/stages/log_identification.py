@@ -170,8 +170,6 @@ def delays(mode: str, model: LogModel, training: TimeSeries, validation: TimeSer
     def rows(series: TimeSeries) -> np.ndarray | RowsOnDemand:
         return model.rows(model.pm, *model.data(series)[:3])
 
-    if mode == "none" and model.chain is not None:  # nothing reads it: a closed chain's log has no currents
-        return Delayed(None, None, training, validation, None)
     W = rows(training)
     if mode == "none":
         return Delayed(None, None, training, validation, W)
@@ -197,18 +195,20 @@ class Constants:
     validation: TimeSeries | None
 
 
-def constants(data, robot, model: LogModel, joints: list[str], d: Delayed, payload: TimeSeries | None) -> Constants:
+def constants(data, robot, model: LogModel, d: Delayed, payload: TimeSeries | None) -> Constants:
     """The factors are read from the training span with every found delay corrected, whatever `delay`
-    says of the fit (a 5 ms lag left in moved them by 6 to 16 % on a UR5 bench; corrected, under 1 %)."""
+    says of the fit (a 5 ms lag left in moved them by 6 to 16 % on a UR5 bench; corrected, under 1 %).
+    Each torque channel's: a closed chain's actuated joints', on their rows of G^T Y."""
     if data.units["tau"] != "current" or not data.identify_constants:
         return Constants(None, d.training, d.validation)
+    joints = model.torque_joints
     training, W = d.training, d.W
     if d.lags is not None and data.delay == "estimate" and np.any(d.lags.found):
         training = delay.corrected(d.training, d.lags, joints)
-        W = regressor(model.pm, *training.joint_data(joints)[:3], with_friction=True)
+        W = model.rows(model.pm, *model.data(training)[:3])
     if isinstance(W, RowsOnDemand):  # the torque constants' fit reads it whole
         W = W.whole()
-    tau = training.joint_data(joints)[3]
+    tau = model.data(training)[3]
     found = scale.torque_constants(model.pm, model.base, W, tau, model.base.of(model.x_model), robot, data.payload,
                                    payload)
     return Constants(found, *(None if s is None else scale.scaled(s, found.factor, joints)
@@ -463,7 +463,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     delayed = delays(sc.data.delay, model, ctx.training, ctx.validation.get(VALIDATION_SPAN))
     if sc.data.units["tau"] == "current" and sc.data.identify_constants:
         ctx.progress("torque constants (motor currents)", None)
-    scaled = constants(sc.data, robot, model, joints, delayed, ctx.payload)
+    scaled = constants(sc.data, robot, model, delayed, ctx.payload)
     config = config or FrictionLawConfig()
     if config.choose:
         ctx.progress("the friction law of every joint (cross-validated within the training span)", None)

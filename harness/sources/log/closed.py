@@ -22,8 +22,9 @@ from harness.sources.log.condition import FULL_RATE, FilteredColumns
 from harness.sources.log.schema import DataSource
 
 # what a closed chain's log does not support yet (docs/closed_chains.md), with the one value that changes
-# nothing; motor currents (and with them a known payload's torque constants) are refused apart
-REFUSED = {"side": ("joint", "a closed chain's log is read at its actuated joints")}
+# nothing
+REFUSED = {"side": ("joint", "a closed chain's log is read at its actuated joints"),
+           "payload": (None, "a known payload's torques are an open chain's regressor's")}
 
 
 def closed_chain_source(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
@@ -37,9 +38,6 @@ def closed_chain_source(root: Table, dt: Table, robot: RobotSpec, source: DataSo
     for key, (accepted, why) in REFUSED.items():
         if dt.has(key) and dt.data[key] != accepted:
             raise dt.error(key, f"{where}: not supported on a closed chain's log ({why})")
-    if source.units["tau"] == "current":
-        raise dt.error("units", f"{where}: motor currents are not supported on a closed chain's log (their "
-                                "constants are identified on an open chain's regressor): give joint torques")
     return source
 
 
