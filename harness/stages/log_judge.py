@@ -74,8 +74,10 @@ def _geometry(spec) -> bytes:
     """What a closed chain's kinematics read of its spec: its joints' and loops' placements."""
     parts = [f"{j.name}|{j.type}|{j.parent}|{j.child}".encode() + j.p_W0.tobytes() + j.axis_W0.tobytes()
              for j in spec.joints]
-    parts += [f"{lp.name}|{lp.kind}|{lp.body_a}|{lp.body_b}".encode() + np.asarray(lp.point_a_W0).tobytes()
-              + np.asarray(lp.point_b_W0).tobytes() for lp in spec.loops]
+    parts += [f"{lp.name}|{lp.kind}|{lp.body_a}|{lp.body_b}".encode()
+              + b"".join(np.asarray(x, dtype=float).tobytes() for x in (lp.point_a_W0, lp.point_b_W0)
+                         + tuple(r for r in (lp.R_W_frame_a0, lp.R_W_frame_b0) if r is not None))
+              for lp in spec.loops]
     return b"/".join(parts) + "/".join(spec.actuated).encode()
 
 
