@@ -209,9 +209,6 @@ def _refused(tmp_path, log, extra_data: str = "", extra: str = "") -> InputError
 
 
 REFUSED = {  # what a closed chain's log path does not read yet: its key, and why
-    "a known payload": ('units = { q = "rad", qd = "rad/s", tau = "current" }\ntorque_constant = [0.1, 0.1, 0.1]\n'
-                        "gear_ratio = [100, 100, 100]\npayload = { file = \"LOG\", body = \"forearm\", mass = 1.0, "
-                        "com = [0, 0, 0], inertia = [0, 0, 0, 0, 0, 0] }", "", "data.payload", "payload"),
     "the motor side": ('side = "motor"', "", "data.side", "actuated joints"),
     "a refinement": ("", '[refinement]\nadjust = ["delay"]', "refinement", "open tree"),
     "a method beside the fit": ("", '[[identification]]\nname = "f"\nplugin = "figaroh"', "identification",
@@ -225,11 +222,7 @@ REFUSED = {  # what a closed chain's log path does not read yet: its key, and wh
 def test_what_a_closed_chain_s_log_cannot_read_yet_is_refused_naming_the_key(exact, tmp_path, case):
     extra_data, extra, key, message = REFUSED[case]
     text = _scenario_text(exact[0] / "log.csv", "", extra)
-    if extra_data.startswith("units"):
-        text = text.replace('units = { q = "rad", qd = "rad/s", tau = "N m" }',
-                            extra_data.replace("LOG", str(exact[0] / "log.csv")))
-    else:
-        text = text.replace("validation = { from = 0.7 }", f"validation = {{ from = 0.7 }}\n{extra_data}")
+    text = text.replace("validation = { from = 0.7 }", f"validation = {{ from = 0.7 }}\n{extra_data}")
     (tmp_path / "s.toml").write_text(text)
     with pytest.raises(InputError) as err:
         load_scenario(tmp_path / "s.toml")

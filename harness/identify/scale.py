@@ -169,19 +169,24 @@ def payload_parameters(mass: float, com_W: np.ndarray, inertia_c: np.ndarray, p_
 
 
 def torque_constants(pm, base, W: np.ndarray, tau: np.ndarray, beta_model: np.ndarray, robot, payload=None,
-                     loaded: TimeSeries | None = None) -> TorqueScales:
+                     loaded: TimeSeries | None = None, rows=None) -> TorqueScales:
     """Each joint's factor on its nominal torque constant, from the training span's regressor W (N n,
     14 n: harness/identify/torque_id.py, with friction) and torques tau (N, n) at the nominal
     constants: fixed by `loaded`, a log of the robot carrying `payload` (the scenario's
     `[data.payload]`, a harness.sources.log.KnownPayload, conditioned as the log), where given; else
-    by the model's own base parameters `beta_model` (`base` the structural base parameters)."""
+    by the model's own base parameters `beta_model` (`base` the structural base parameters). Of a
+    closed chain, each actuated channel's: `rows(q, q', q'')` its regressor G^T Y (N n_a, 14 n), tau
+    and the loaded log's torques the actuated joints' (the payload's known torque projected alike)."""
     from harness.identify.torque_id import regressor
 
     if payload is None:
         return torque_scales(W[:, base.independent], tau, beta_model)
     joints = robot.joint_names
     q2, qd2, qdd2, tau2 = loaded.joint_data(joints)
-    W2 = regressor(pm, q2, qd2, qdd2, with_friction=True)
+    if rows is None:
+        W2 = regressor(pm, q2, qd2, qdd2, with_friction=True)
+    else:
+        W2, tau2 = rows(q2, qd2, qdd2), tau2[:, [joints.index(a) for a in robot.actuated]]
     k = joints.index(robot.inner_joint(payload.body).name)
     theta_p = payload_parameters(payload.mass, payload.com_W, payload.inertia, robot.joints[k].p_W0)
     known = (W2[:, 10 * k: 10 * k + 10] @ theta_p).reshape(tau2.shape)

@@ -137,7 +137,9 @@ def from_log(scenario: DataScenario, timed: _Timed) -> Sourced:
     training, validation_span, whole = (closed(s, robot, scenario.data.file)
                                         for s in (split.training, split.validation, split.whole))
     validation = {} if validation_span is None else {VALIDATION_SPAN: validation_span}
-    return Sourced(None, training, validation, whole, load_payload(split.source, robot))
+    payload = split.source.payload
+    loaded = None if payload is None else closed(load_payload(split.source, logged(robot)), robot, payload.file)
+    return Sourced(None, training, validation, whole, loaded)
 
 
 def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,

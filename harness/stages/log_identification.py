@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -210,7 +211,7 @@ def constants(data, robot, model: LogModel, d: Delayed, payload: TimeSeries | No
         W = W.whole()
     tau = model.data(training)[3]
     found = scale.torque_constants(model.pm, model.base, W, tau, model.base.of(model.x_model), robot, data.payload,
-                                   payload)
+                                   payload, None if model.chain is None else partial(model.rows, model.pm))
     return Constants(found, *(None if s is None else scale.scaled(s, found.factor, joints)
                               for s in (d.training, d.validation)))
 

@@ -23,8 +23,7 @@ from harness.sources.log.schema import DataSource
 
 # what a closed chain's log does not support yet (docs/closed_chains.md), with the one value that changes
 # nothing
-REFUSED = {"side": ("joint", "a closed chain's log is read at its actuated joints"),
-           "payload": (None, "a known payload's torques are an open chain's regressor's")}
+REFUSED = {"side": ("joint", "a closed chain's log is read at its actuated joints")}
 
 
 def closed_chain_source(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
