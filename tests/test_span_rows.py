@@ -14,8 +14,8 @@ from harness.base.numerics import SideBySide
 from harness.cli import main
 from harness.engines.pinocchio import build_model
 from harness.identify import span_rows
-from harness.identify.span_rows import RowsOnDemand, put_coulomb, span_regressor
-from harness.identify.torque_id import fit_base, regressor, structural_base
+from harness.identify.span_rows import RowsOnDemand, span_regressor
+from harness.identify.torque_id import fit_base, put_coulomb, regressor, structural_base
 from harness.model.load import load_spec
 from tests.conftest import MODELS, numbers_of
 

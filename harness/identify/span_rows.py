@@ -18,23 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.engines.pinocchio import PinocchioModel
-from harness.identify.torque_id import SAMPLES_AT_A_TIME, drive_column, regressor
-from harness.model.drives import Transmission
+from harness.identify.torque_id import SAMPLES_AT_A_TIME, put_coulomb, regressor
 
 WHOLE_BYTES = 256 << 20  # a span's regressor up to this size is held whole (the Panda log's training span: 7 MiB)
-
-
-def put_coulomb(W3: np.ndarray, S: np.ndarray, transmission: Transmission | None) -> None:
-    """Each drive's Coulomb column of the regressor's rows W3 (N, n, 14 n) set to S (N, m), in place:
-    drive k's own row, or with a transmission every joint j it reaches, times N[k, j]
-    (harness/model/drives.py)."""
-    n = W3.shape[1]
-    for k in range(S.shape[1]):
-        c = drive_column(n, k, "coulomb")
-        if transmission is None:
-            W3[:, k, c] = S[:, k]
-        else:
-            W3[:, :, c] = S[:, k, None] * transmission.N[k][None, :]
 
 
 @dataclass(frozen=True, eq=False)

@@ -28,6 +28,7 @@ from harness.engines.pinocchio import PinocchioModel
 from harness.identify.estimators import ols_of, reduced
 from harness.identify.lstsq import sensitivity, weakly_identifiable
 from harness.model import drives, friction
+from harness.model.drives import Transmission
 from harness.model.inertia import PARAMETER_NAMES
 from harness.model.regressor import joint_torque_regressor
 from harness.model.regressor import supports as batched_supports
@@ -67,6 +68,19 @@ def regressor(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
 SAMPLES_AT_A_TIME = 8192  # samples of the regressor made at a time (`regressor`)
 
 
+def put_coulomb(W3: np.ndarray, S: np.ndarray, transmission: Transmission | None) -> None:
+    """Each drive's Coulomb column of the regressor's rows W3 (N, n, 14 n) set to S (N, m), in place:
+    drive k's own row, or with a transmission every joint j it reaches, times N[k, j]
+    (harness/model/drives.py)."""
+    n = W3.shape[1]
+    for k in range(S.shape[1]):
+        c = drive_column(n, k, "coulomb")
+        if transmission is None:
+            W3[:, k, c] = S[:, k]
+        else:
+            W3[:, :, c] = S[:, k, None] * transmission.N[k][None, :]
+
+
 def chain_regressor(pm: PinocchioModel, chain, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
                     with_friction: bool = False, closed: bool = False, coulomb: np.ndarray | None = None) -> np.ndarray:
     """(N * n_a, p): a closed chain's actuated-torque regressor G^T Y (harness/model/closure.py): the
@@ -78,8 +92,8 @@ def chain_regressor(pm: PinocchioModel, chain, q: np.ndarray, qd: np.ndarray, qd
 
     N, n = len(q), len(pm.joint_ids)
     W = regressor(pm, q, qd, qdd, with_friction).reshape(N, n, -1)
-    for j in range(n if coulomb is not None else 0):  # joint j's Coulomb column acts on its own row
-        W[:, j, drive_column(n, j, "coulomb")] = coulomb[:, j]
+    if coulomb is not None:
+        put_coulomb(W, coulomb, None)
     G = projection(chain, q, closed=closed)
     return np.einsum("nja,njp->nap", G, W).reshape(N * len(chain.actuated), -1)
 
