@@ -133,13 +133,16 @@ class IdentifiedModel(ExportedModel):
 def identified_model(folder: str | Path, fit: str = "consistent"):
     """The model a `harness run` of a measured log exported: `folder` is the run's output folder (with
     results.json, whose scenario gives the gravity) or its `identified/` folder, read from its model
-    file (identified/robot.toml: the URDF with the drives' or joints' laws). `fit = "least squares"`:
+    file (identified/robot.toml: the URDF with the drives' or joints' laws). A folder whose files are not
+    all one run's, as it wrote them (identified/manifest.json; results.json's run id beside it), is
+    refused (InputError). `fit = "least squares"`:
     the least-squares fit of the base parameters (identified/least_squares.toml, evaluated with that
     model file's kinematics and laws; harness/identify/ls_model.py), with the same `joint_names` and
     `inverse_dynamics`."""
     import json
 
     from harness.model.export import LEAST_SQUARES_FILE, MODEL_FILE
+    from harness.runner.folder import verify
 
     if fit not in ("consistent", "least squares"):
         raise ValueError(f"fit must be 'consistent' or 'least squares', not {fit!r}")
@@ -149,10 +152,15 @@ def identified_model(folder: str | Path, fit: str = "consistent"):
     if not model.is_file():
         raise InputError(model, "", "no identified model file here: a log run of a robot read from a URDF writes it "
                                     "(identified/robot.toml)")
+    run = verify(here).run  # every file of one run, as it wrote them
     gravity = (0.0, 0.0, -9.80665)
     results = here.parent / "results.json"
     if results.is_file():
-        gravity = json.loads(results.read_text()).get("scenario", {}).get("gravity", gravity)
+        written = json.loads(results.read_text())
+        if written.get("run", {}).get("id") != run:
+            raise InputError(results, "run.id", f"{written.get('run', {}).get('id')!r}, where {here.name}/ is run "
+                                                f"{run!r}'s: the two are not one run's")
+        gravity = written.get("scenario", {}).get("gravity", gravity)
     if fit == "consistent":
         return IdentifiedModel(load_spec(model), np.asarray(gravity, dtype=float))
     from harness.identify.ls_model import LeastSquaresFit, LeastSquaresModel

@@ -17,9 +17,9 @@ from tests.conftest import MODELS, SCENARIOS, copy_gate_sets
 
 def test_run_writes_recording_results_and_report(kr500_run):
     """The recording, results.json, the report, and the graph-theory study's Cardano angles beside the
-    recording (its stage's file)."""
-    assert sorted(p.name for p in kr500_run.iterdir()) == ["cardano.csv", "recording.csv", "report.html",
-                                                           "results.json"]
+    recording (its stage's file), listed in the run's manifest."""
+    assert sorted(p.name for p in kr500_run.iterdir()) == ["cardano.csv", "manifest.json", "recording.csv",
+                                                           "report.html", "results.json"]
     results = json.loads((kr500_run / "results.json").read_text())
     assert list(results)[:4] == ["schema", "passed", "gates", "run"]
     assert results["passed"] is True and all(g["passed"] for g in results["gates"])

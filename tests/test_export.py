@@ -37,13 +37,13 @@ def exported(tmp_path_factory):
                  "[friction_law]\nchoose = false\n")  # the law's export is checked in test_friction_law.py
     assert main(["run", str(folder / "s.toml"), "--out", str(folder / "out"), "--quiet"]) == 0
     identified = folder / "out" / "identified"
-    (identified / "mjcf.toml").write_text('[mjcf]\nfile = "robot.xml"\n')
+    (folder / "mjcf.toml").write_text('[mjcf]\nfile = "out/identified/robot.xml"\n')  # beside the run's folder
     spec = load_spec(identified / "robot.toml")
     n = len(spec.joints)
     lo, hi = np.array([spec.limits[j] for j in spec.joint_names]).T
     states = random_states(np.maximum(lo, -np.pi), np.minimum(hi, np.pi), np.full(n, 2.0), np.full(n, 5.0), 100, 1)
     results = json.loads((folder / "out" / "results.json").read_text())
-    return identified, spec, load_spec(identified / "mjcf.toml"), states, results
+    return identified, spec, load_spec(folder / "mjcf.toml"), states, results
 
 
 def _without_coulomb(spec):
@@ -125,3 +125,34 @@ def test_the_export_says_what_each_file_holds_and_what_the_mjcf_changes(exported
     for j in spec.joint_names:
         assert f"`{j}`: RMS {stated[j]['rms']:.3g}, largest {stated[j]['largest']:.3g}" in readme
     assert "frictionloss" in (identified / "robot.xml").read_text().split("<mujoco")[0]  # the heading comment
+
+
+def test_identified_model_reads_a_runs_folder_and_refuses_one_that_mixes_two_runs(exported, tmp_path):
+    """harness.identified_model(DIR): the model the run exported, from the run's folder or its identified/
+    folder; a folder holding another run's file (TX40's drives.toml left beside a UR5's model), a file
+    changed since the run wrote it, or a results.json of another run beside it, is refused naming the file
+    (InputError), never read as a model."""
+    import shutil
+
+    from harness.api import identified_model
+    from harness.base.tomlio import InputError
+
+    identified, spec, *_ = exported
+    assert identified_model(identified.parent).joint_names == spec.joint_names
+    assert identified_model(identified).joint_names == spec.joint_names
+    out = tmp_path / "out"
+    shutil.copytree(identified.parent, out)
+    (out / "identified" / "drives.toml").write_text('motors = ["m1"]\n')
+    with pytest.raises(InputError, match=r"identified/drives.toml: not written by run [0-9a-f]{32} \(run of 's'\)"):
+        identified_model(out)
+    (out / "identified" / "drives.toml").unlink()
+    model = out / "identified" / "robot.toml"
+    model.write_text(model.read_text().replace("armature = ", "armature = 1", 1))
+    with pytest.raises(InputError, match=r"identified/robot.toml: changed since run"):
+        identified_model(out)
+    shutil.copy(identified / "robot.toml", model)
+    results = json.loads((out / "results.json").read_text())
+    results["run"]["id"] = "0" * 32
+    (out / "results.json").write_text(json.dumps(results))
+    with pytest.raises(InputError, match=r"results.json: run.id: '0{32}', where identified/ is run '[0-9a-f]{32}'"):
+        identified_model(out / "identified")

@@ -55,14 +55,16 @@ def test_gates_fail_closed():
     assert rows[1]["reason"] == "no value (nothing was evaluated)" and not passed
 
 
-def test_same_scenario_twice_gives_the_same_results_but_for_the_time(run_scenario):
+def test_same_scenario_twice_gives_the_same_results_but_for_the_time_and_the_run_id(run_scenario):
     from harness.runner.pipeline import run
     from harness.runner.scenario import load_scenario
 
     path = SCENARIOS / "kr500_rail_7digits.toml"
     first = results_of(run_scenario(path), when="first")
     second = results_of(run(load_scenario(path)), when="second")
-    first["run"]["time"] = second["run"]["time"] = first["run"]["timings"] = second["run"]["timings"] = None
+    assert first["run"]["id"] != second["run"]["id"]
+    for r in (first, second):
+        r["run"]["time"] = r["run"]["timings"] = r["run"]["id"] = None
     assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
 
 

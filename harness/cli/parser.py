@@ -57,6 +57,7 @@ def parser() -> argparse.ArgumentParser:
                      help="output folder: with one scenario, its folder; with several, the folder that gets "
                           "one subfolder per scenario (default: reports/<scenario name>)")
     run.add_argument("--quiet", action="store_true", help="no progress messages")
+    _replace_option(run)
     _worker_options(run, "the estimators' Monte Carlo trials ([estimators])")
     _ci_options(run)
     report = sub.add_parser("report", help="re-render report.html from a results.json",
@@ -86,7 +87,9 @@ def parser() -> argparse.ArgumentParser:
     sweep.add_argument("scenario", metavar="SCENARIO", help="scenario file or name (e.g. kr500_noise)")
     sweep.add_argument("--trials", type=int, default=200, metavar="N", help="number of trials (default 200)")
     _worker_options(sweep, "the trials")
-    sweep.add_argument("--out", metavar="DIR", type=Path, default=None, help="default: reports/<scenario name>")
+    sweep.add_argument("--out", metavar="DIR", type=Path, default=None,
+                       help="default: reports/<scenario name>.sweep (beside the run's folder, not in it)")
+    _replace_option(sweep)
     excite = sub.add_parser(
         "excite", help="optimise a scenario's excitation and write the trajectory for a robot to play",
         description="Optimise the scenario's [excitation] (a Fourier series per joint, at rest at both ends, within "
@@ -112,6 +115,7 @@ def parser() -> argparse.ArgumentParser:
                        help="also identify each robot from a log of its own bench recording (4 s at 250 Hz, the "
                             "last 30 %% held out) through [data] (minutes for a collection)")
     audit.add_argument("--quiet", action="store_true", help="no progress messages")
+    _replace_option(audit)
     sub.add_parser("list", help="list the models, scenarios and installed plugins",
                    description="One line per model and per scenario found in ./models and ./scenarios and built "
                                "into the package, and per plugin (model, identification method, study) installed by "
@@ -132,6 +136,13 @@ def parser() -> argparse.ArgumentParser:
                                 "arm with a closed-form model); any of --urdf, --mjcf and --robot takes either format, "
                                 "told by its root element")
     return parser
+
+
+def _replace_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--replace", action="store_true",
+                   help="replace what an output folder holds of another run (of another scenario or command); "
+                        "without it such a folder is refused, and a run of the same scenario is replaced whole. A "
+                        "folder holding files no run wrote is never replaced")
 
 
 def _ci_options(p: argparse.ArgumentParser) -> None:

@@ -19,9 +19,11 @@ def cmd_audit(args: argparse.Namespace) -> int:
     from harness.base.progress import Progress
     from harness.report.audit import render_audit
     from harness.runner.audit import IDENTIFY_TOLERANCE, TOLERANCE, audit, resolve, totals
+    from harness.runner.folder import claim, new_id, place
 
     robots = resolve(args.robots)
     out = args.out or args.reports / "audit"
+    claim(out, "audit", "audit", args.replace)
     t0 = time.perf_counter()
     rows = []
     with closing(Progress("audit", args.quiet)) as progress, tempfile.TemporaryDirectory() as scratch:
@@ -38,9 +40,8 @@ def cmd_audit(args: argparse.Namespace) -> int:
     document, _ = with_nulls(document)
     text = render_audit(document)
     try:
-        write_atomically(out, {"audit.json": lambda p: p.write_text(json.dumps(document, indent=1, allow_nan=False)
-                                                                     + "\n"),
-                                "audit.html": lambda p: p.write_text(text)})
+        place(out, {"audit.json": lambda p: p.write_text(json.dumps(document, indent=1, allow_nan=False) + "\n"),
+                    "audit.html": lambda p: p.write_text(text)}, "audit", "audit", new_id(), args.replace)
     except OSError as exc:
         raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
     for r in rows:

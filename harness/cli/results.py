@@ -42,7 +42,12 @@ def cmd_report(args: argparse.Namespace) -> int:
     except (KeyError, TypeError) as exc:
         raise InputError(args.results, str(exc).strip("'"), "missing or malformed in results.json") from None
     try:
-        write_file_atomically(out, page)
+        if out.absolute() == (args.results.parent / REPORT_FILE).absolute():  # the run's own: its manifest too
+            from harness.runner.folder import rewrite
+
+            rewrite(args.results.parent, REPORT_FILE, lambda p: p.write_text(page))
+        else:
+            write_file_atomically(out, page)
     except OSError as exc:
         raise InputError(out, "--out", f"cannot write ({exc.strerror or exc})") from None
     print(f"wrote {out}")

@@ -1,5 +1,5 @@
-"""`harness run`: each scenario through the pipeline, its folder written whole or not at all, one
-line per gate."""
+"""`harness run`: each scenario through the pipeline, its folder written whole or not at all and never
+beside another run's files (harness/runner/folder.py), one line per gate."""
 
 from __future__ import annotations
 
@@ -20,7 +20,6 @@ from harness.cli.common import (
     print_gates,
     resolve_scenario,
     workers,
-    write_atomically,
     write_ci,
 )
 from harness.runner.gates import summary_line
@@ -79,6 +78,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         if s.name in seen:
             raise InputError(s.source, "", f"scenario {s.name!r} is named twice")
         seen.add(s.name)
+    _claim_folders(args, scenarios)
+    for s in scenarios:
         for note in s.robot.notes:  # what reading the model assumed: said before any work
             print(f"harness: warning: {s.name}: {note}", file=sys.stderr)
         for entry in s.methods:
@@ -94,19 +95,40 @@ def cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK if passed else EXIT_GATE_FAILED
 
 
+def _out(args: argparse.Namespace, name: str, several: bool) -> Path:
+    """A scenario's output folder: --out itself for one scenario, a folder of its name in --out for
+    several, reports/NAME by default."""
+    if args.out is None:
+        return args.reports / name
+    return args.out / name if several else args.out
+
+
+def _claim_folders(args: argparse.Namespace, scenarios: list) -> None:
+    """Before any work: every scenario's output folder is one it may write (harness/runner/folder.py);
+    with several, --out is no run's folder (their folders go inside it)."""
+    from harness.runner.folder import claim, held
+
+    several = len(scenarios) > 1
+    if several and args.out is not None:
+        there = held(args.out, "--out")
+        if there is not None and there.kind:
+            raise InputError(args.out, "--out", f"holds a {there.kind} of {there.name!r}: with several scenarios, "
+                                                "--out is the folder that gets one folder per scenario")
+    for s in scenarios:
+        claim(_out(args, s.name, several), "run", s.name, args.replace)
+
+
 def _run_each(args: argparse.Namespace, scenarios: list, reading: list[float], workers,
               imported: float) -> tuple[bool, list]:
     from harness.api import run
     from harness.base.progress import Progress
     from harness.report import render
+    from harness.runner.folder import place
     from harness.runner.results import RECORDING_FILE, RESULTS_FILE, write_results
 
     passed, verdicts = True, []
     for scenario, read in zip(scenarios, reading, strict=True):
-        if args.out is None:
-            out = args.reports / scenario.name
-        else:
-            out = args.out if len(scenarios) == 1 else args.out / scenario.name
+        out = _out(args, scenario.name, len(scenarios) > 1)
         progress = Progress(scenario.name, args.quiet)
         with closing(progress):  # a bar in progress ends its line before anything else is printed
             result = run(scenario, progress, workers)
@@ -125,12 +147,12 @@ def _run_each(args: argparse.Namespace, scenarios: list, reading: list[float], w
         page = render(results, result.recording, [s.stage for s in result.output.stages.values()])
         try:
             data_file = results["data"]["file"] if "data" in results else RECORDING_FILE
-            write_atomically(out, {
+            place(out, {
                 data_file: result.recording.write_csv,
                 RESULTS_FILE: lambda p, r=results: write_results(p, r),
                 REPORT_FILE: lambda p, text=page: p.write_text(text),
                 **{name: (lambda p, text=text: p.write_text(text)) for name, text in result.output.files.items()},
-            })
+            }, "run", scenario.name, results["run"]["id"], args.replace)
         except OSError as exc:
             raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
         _print_summary(results, out)

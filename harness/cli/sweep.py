@@ -8,7 +8,7 @@ import json
 from contextlib import closing
 
 from harness.base.tomlio import InputError
-from harness.cli.common import EXIT_OK, resolve_scenario, workers, write_atomically, write_file_atomically
+from harness.cli.common import EXIT_OK, resolve_scenario, workers, write_file_atomically
 
 MAX_TRIALS = 1_000_000  # a sweep holds every trial's estimates in memory
 
@@ -30,6 +30,7 @@ def _sweep_of(scenario):
 def cmd_sweep(args: argparse.Namespace) -> int:
     from harness.base.progress import Progress
     from harness.base.workers import WorkersError
+    from harness.runner.folder import claim, new_id, place
     from harness.runner.results import with_nulls
     from harness.runner.scenario import load_scenario
 
@@ -45,7 +46,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     pool = workers(args, args.scenario)
     if scenario.measurement.ideal:
         raise InputError(scenario.source, "measurement", "the scenario measures ideally: there is nothing to sweep")
-    out = args.out or args.reports / scenario.name
+    out = args.out or args.reports / f"{scenario.name}.sweep"
+    claim(out, "sweep", scenario.name, args.replace)
     try:  # the workers cannot be reached or started: the address, or dask not installed
         with pool.opened(), closing(Progress(scenario.name, after=0.0)) as progress:  # a bar ends its line
             results = sweep.run(scenario, args.trials, pool, progress)
@@ -53,11 +55,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         raise InputError(args.scenario, "--dask", str(exc)) from None
     results, not_finite = with_nulls(results)
     results.setdefault("run", {})["not_finite"] = not_finite
+    results["run"]["id"] = run = new_id()
     text = sweep.render(results)
     try:
-        write_atomically(out, {"sweep.json": lambda p: p.write_text(json.dumps(results, indent=1,
-                                                                                allow_nan=False) + "\n"),
-                                "sweep.html": lambda p: p.write_text(text)})
+        place(out, {"sweep.json": lambda p: p.write_text(json.dumps(results, indent=1, allow_nan=False) + "\n"),
+                    "sweep.html": lambda p: p.write_text(text)}, "sweep", scenario.name, run, args.replace)
     except OSError as exc:
         raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
     for line in sweep.summary(results):

@@ -2,7 +2,7 @@
 serialises its own typed result (harness/base/plugins.py, Stage.serialise), and the verdict is added by
 harness.gates.
 
-Top-level sections, in order: `schema`, `passed` and `gates` (the verdict), `run` (when, with
+Top-level sections, in order: `schema`, `passed` and `gates` (the verdict), `run` (its id, when, with
 which versions, the scenario file's text, the studies that ran, seconds per stage), `scenario`,
 `model`, `recording`, then one section per stage that ran, under the stage's key: `torques`
 (MuJoCo, Pinocchio RNEA and every model under test, joint reaction wrenches, mass matrices),
@@ -129,8 +129,10 @@ def run_section(out: RunOutput, when: str) -> dict:
     import pinocchio
 
     from harness.base.version import __version__
+    from harness.runner.folder import new_id
 
     return {
+        "id": new_id(),  # the run's: its output folder's manifests carry it (harness/runner/folder.py)
         "time": when,
         "versions": {"harness": __version__, "python": platform.python_version(), "numpy": np.__version__,
                      "mujoco": mujoco.__version__, "pinocchio": pinocchio.__version__,
@@ -147,7 +149,7 @@ def run_section(out: RunOutput, when: str) -> dict:
 
 def build_results(out: RunOutput, when: str | None = None) -> dict:
     """results.json without the verdict (harness.runner.gates.verdict adds it). `when` (ISO time) defaults
-    to now; it and `run.timings` are the only fields that differ between two runs of a scenario
+    to now; it, `run.id` and `run.timings` are the only fields that differ between two runs of a scenario
     (`run.workers` too, where the two ran their trials on different workers)."""
     when = when or datetime.now(UTC).isoformat(timespec="seconds")
     from harness.runner.scenario import DataScenario
