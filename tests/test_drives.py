@@ -235,19 +235,29 @@ def test_a_bad_motor_side_log_table_is_refused_in_one_line(coupled_bench, tmp_pa
     assert err.count("\n") == 0 and key in err and words in err and not (tmp_path / "out").exists()
 
 
-@pytest.mark.parametrize("drives, words", [
-    ("gear_ratio = [50, 0]", "not invertible"),
-    ('gear_ratio = [50, 30]\ncoupling = [{ motor = "motor_2", joint = "elbow", ratio = 3 }]', "own joint"),
-    ("transmission = [[1, 2], [2, 4]]", "not invertible"),
-    ("gear_ratio = [50, 30]\nmotors = [\"a\"]", "one distinct name"),
+@pytest.mark.parametrize("drives, key, words", [
+    ("gear_ratio = [50, 0]", "drives.gear_ratio", "not invertible (condition number inf): entry 2 (motor 'motor_2', "
+                                                  "joint 'elbow') is 0"),
+    ('gear_ratio = [50, 30]\ncoupling = [{ motor = "motor_2", joint = "elbow", ratio = 3 }]',
+     "drives.coupling[0].joint", "own joint"),
+    ('gear_ratio = [50, 30]\ncoupling = [{ motor = "motor_1", joint = "elbow", ratio = 30 }, '
+     '{ motor = "motor_2", joint = "shoulder", ratio = 50 }]', "drives.coupling[0]",
+     "ratio 30 of motor 'motor_1' on joint 'elbow' makes it so (without it N is invertible)"),
+    ("transmission = [[1, 2], [2, 4]]", "drives.transmission", "the rows of motors 'motor_1', 'motor_2' are linearly "
+                                                               "dependent"),
+    ("transmission = [[1, 2], [0, 0]]", "drives.transmission.1", "motor 'motor_2' turns with no joint"),
+    ("transmission = [[1, 0], [2, 0]]", "drives.transmission", "no motor turns joint 'elbow'"),
+    ("gear_ratio = [50, 30]\nmotors = [\"a\"]", "drives.motors", "one distinct name"),
 ])
-def test_a_bad_drives_table_is_refused_in_one_line_naming_the_key(tmp_path, capsys, drives, words):
+def test_a_bad_drives_table_is_refused_in_one_line_naming_the_key(tmp_path, capsys, drives, key, words):
+    """A transmission N that is not invertible is refused naming what makes it so: a gear ratio of 0, a
+    coupling without which N is invertible, a motor's row or a joint's column of zeros, the dependent rows."""
     (tmp_path / "m.toml").write_text(f'[model]\nname = "m"\n[urdf]\nfile = "{URDF}"\n[drives]\n{drives}\n')
     from harness.base.tomlio import InputError
 
     with pytest.raises(InputError) as e:
         load_spec(tmp_path / "m.toml")
-    assert "drives" in e.value.one_line() and words in e.value.one_line()
+    assert e.value.key == key and words in e.value.message
 
 
 def test_joint_friction_beside_drives_is_refused(tmp_path):

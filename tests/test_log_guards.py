@@ -338,3 +338,29 @@ def test_a_file_is_read_at_its_size_and_refused_past_its_limit_without_a_buffer_
     if Path("/dev/zero").exists():
         with pytest.raises(InputError, match="larger than 1 MiB"):
             read_bounded("/dev/zero", MiB)
+
+
+def test_the_start_check_diagnoses_from_robust_statistics_never_from_one_cell():
+    """The model as given against the torques as read (stages/log_judge.start): a log 10 % above the
+    model with 1 % noise has no finding; one cell 1e6 times the torques' size (under the reading's absurd
+    bound: a plausible-looking spike) leaves the factors within 1e-3 of the clean log's and is counted
+    as left out, where the plain least-squares factor read a sign flip off it; a log whose signs are all
+    flipped, or that is 50 times smaller, is still found."""
+    from harness.stages.log_judge import start
+
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 10.0, 5000)
+    model = np.stack([20 * np.sin(t), 5 * np.cos(1.3 * t) + 2], axis=1)
+    log = 1.1 * model + 0.01 * 20 * rng.standard_normal(model.shape)
+    clean = start(model, log, ["a", "b"])
+    spiked = log.copy()
+    spiked[1234, 0] = -2e7
+    plain = float(np.sum(model * spiked) / np.sum(model * model))
+    assert plain < 0  # what one cell did to the least-squares factor
+    found = start(model, spiked, ["a", "b"])
+    assert not clean.findings and not found.findings
+    assert found.factor == pytest.approx(clean.factor, rel=1e-3) and found.per_joint["a"]["outliers"] == 1
+    assert found.outliers == 1 and clean.outliers == 0
+    flipped, small = start(model, -log, ["a", "b"]), start(model, log / 50, ["a", "b"])
+    assert flipped.findings[0]["joint"] == "all joints" and "opposite sign" in flipped.findings[0]["likely"]
+    assert small.findings[0]["finding"].startswith("factor 0.022") and "far smaller" in small.findings[0]["likely"]

@@ -110,3 +110,88 @@ def test_reading_a_log_allocates_its_columns_and_little_more(tmp_path):
         tracemalloc.stop()
     assert series.q.shape == (100_000, 7)
     assert peak <= 1.75 * kept, peak / kept
+
+
+TX40 = BUILTIN / "logs" / "staubli_tx40" / "data"
+
+
+def _tx40(folder, positions: str = str(TX40 / "pos_read_data.csv"), torques: str = str(TX40 / "curr_data.csv")):
+    """folder/s.toml: the TX40's scenario as shipped (motor side, two files, no time column), on the
+    files named (relative to `folder`)."""
+    text = (SCENARIOS / "tx40.toml").read_text()
+    text = text.replace('model = "../models/tx40.toml"', f'model = "{SCENARIOS.parent / "models" / "tx40.toml"}"')
+    text = text.replace('"../logs/staubli_tx40/data/pos_read_data.csv"', f'"{positions}"')
+    (folder / "s.toml").write_text(text.replace('"../logs/staubli_tx40/data/curr_data.csv"', f'"{torques}"'))
+
+
+def _edited(folder, name: str, row: int, column: int, cell: str) -> str:
+    """A copy of the TX40's file `name` in `folder` with one cell (data row `row`, 0-based) replaced."""
+    lines = (TX40 / name).read_text().split("\n")
+    fields = lines[row + 1].split(",")
+    fields[column] = cell
+    lines[row + 1] = ",".join(fields)
+    (folder / f"edited_{name}").write_text("\n".join(lines))
+    return f"edited_{name}"
+
+
+@pytest.mark.parametrize(("name", "cell", "said"), [
+    ("curr_data.csv", "1e300", "row 20001 is 1e+300 N m: over 1000 times the largest torque the model allows there "
+                               "(5.01 N m)"),
+    ("curr_data.csv", "-1e30", "row 20001 is -1e+30 N m"),
+    ("pos_read_data.csv", "1e30", "row 20001 is 1e+30 rad: over 1000 times the largest position the model allows "
+                                  "there (287 rad)"),
+])
+def test_a_value_no_robot_of_the_models_size_measures_is_refused_naming_file_row_and_column(tmp_path, name, cell,
+                                                                                              said):
+    """One cell of the TX40's published log made absurd (at its motors: the torque bound is the joints'
+    through N^-T, 5.01 N m at motor 3 = 45 x less than joint 3's; the position's through |N|)."""
+    edited = _edited(tmp_path, name, 19999, 2, cell)
+    _tx40(tmp_path, **{"positions" if name.startswith("pos") else "torques": edited})
+    sc = load_scenario(tmp_path / "s.toml")
+    with pytest.raises(read.InputError) as caught:
+        read.read_raw(sc.data, sc.robot)
+    assert caught.value.file == str(tmp_path / edited) and caught.value.key == "Joint_3"
+    assert caught.value.message.startswith(said)
+
+
+def test_an_absurd_cell_ends_the_run_in_one_line_with_nothing_written_and_no_numpy_or_lapack_message(tmp_path, capfd):
+    """`harness run` on the TX40's log with a torque cell of 1e300 (it ended in LAPACK's 'SVD did not
+    converge', exit 3, with numpy's overflow warnings and LAPACK's own messages on the terminal)."""
+    from harness.cli import main
+
+    _tx40(tmp_path, torques=_edited(tmp_path, "curr_data.csv", 19999, 2, "1e300"))
+    capfd.readouterr()
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    captured = capfd.readouterr()
+    errors = [line for line in captured.err.splitlines() if not line.startswith("harness: warning:")]
+    assert errors == [f"harness: error: {tmp_path / 'edited_curr_data.csv'}: Joint_3: row 20001 is 1e+300 N m: over "
+                      "1000 times the largest torque the model allows there (5.01 N m), which no robot of its size "
+                      "measures: a corrupt value (1 such value in the column)"]
+    assert captured.out == "" and not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("cut", [3, 9])  # the last number shortened; the last two fields gone
+def test_a_last_line_cut_short_is_dropped_from_both_files_with_a_line_saying_so(tmp_path, cut):
+    """The torque file's last line without its line end (a logger stopped mid-line): its row dropped
+    from both files, which are read row by row, and said; every other row as pandas reads it."""
+    text = (TX40 / "curr_data.csv").read_text().rstrip("\n")
+    (tmp_path / "cut.csv").write_text(text[:-cut])
+    _tx40(tmp_path, torques="cut.csv")
+    sc = load_scenario(tmp_path / "s.toml")
+    series = read.read_raw(sc.data, sc.robot)
+    whole = pd.read_csv(TX40 / "curr_data.csv").to_numpy()[:-1]
+    assert len(series.t) == len(whole) == 44999
+    np.testing.assert_array_equal(series.tau, sc.robot.transmission.joint_torques(whole))
+    assert series.meta["read"]["warnings"] == ["cut.csv: the last line has no line end (the file cut short while "
+                                               "written?): row 45001 dropped from both files"]
+
+
+def test_a_log_that_ends_without_a_line_end_still_refuses_a_bad_cell_before_its_last_line(tmp_path):
+    """The cut line is the last one only: an empty cell before it is refused as before."""
+    lines = (TX40 / "curr_data.csv").read_text().rstrip("\n").split("\n")
+    lines[100] = lines[100].split(",", 1)[1]
+    (tmp_path / "cut.csv").write_text("\n".join(lines)[:-3])
+    _tx40(tmp_path, torques="cut.csv")
+    sc = load_scenario(tmp_path / "s.toml")
+    with pytest.raises(read.InputError, match=r"Joint_6: row 101 is empty"):
+        read.read_raw(sc.data, sc.robot)

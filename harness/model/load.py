@@ -202,9 +202,8 @@ def with_tendon_drives(spec: RobotSpec, tendons: dict, table: Table) -> RobotSpe
                                   f"tendon): {len(tendons['motors'])} drive tendons for {len(names)} joints, where "
                                   "each joint's motion must be some motor's (N square and invertible)")
     N = np.array([[row.get(j, 0.0) for j in names] for row in tendons["rows"]])
-    with np.errstate(divide="ignore"):
-        if not np.linalg.cond(N) < MAX_TRANSMISSION_CONDITION:
-            raise table.error("file", f"{spec.mjcf}: the drive tendons' transmission is not invertible")
+    if not invertible(N):
+        raise table.error("file", f"{spec.mjcf}: the drive tendons' transmission is not invertible")
     return dataclasses.replace(spec, joints=tuple(dataclasses.replace(j, friction=f) for j, f in
                                                   zip(spec.joints, tendons["laws"], strict=True)),
                                transmission=Transmission(N, np.zeros(len(names)), tuple(tendons["motors"])))
@@ -299,12 +298,8 @@ def read_drives(t: Table, joints: list[Joint]) -> tuple[list[Joint], Transmissio
         N = t.rows("transmission", n)
         if len(N) != n:
             raise t.error("transmission", f"{len(N)} rows for {n} motors: N is {n} x {n}")
-    with np.errstate(divide="ignore"):
-        condition = np.linalg.cond(N)
-    if not condition < MAX_TRANSMISSION_CONDITION:
-        raise t.error("gear_ratio" if t.has("gear_ratio") else "transmission",
-                      f"N is not invertible (condition number {condition:.3g}): every motor must turn with the "
-                      "joints in a way the joints can be told from")
+    if not invertible(N):
+        raise _singular(t, N, motors, names)
     offset = np.zeros(n)
     if t.has("offset") and t.has("joint_offset"):
         raise t.error("joint_offset", "give offset (the motors') or joint_offset, not both")
@@ -323,6 +318,41 @@ def read_drives(t: Table, joints: list[Joint]) -> tuple[list[Joint], Transmissio
     t.finish()
     return ([dataclasses.replace(j, friction=f) for j, f in zip(joints, laws, strict=True)],
             Transmission(N, offset, motors))
+
+
+def invertible(N: np.ndarray) -> bool:
+    with np.errstate(divide="ignore"):
+        return bool(np.linalg.cond(N) < MAX_TRANSMISSION_CONDITION)
+
+
+def _singular(t: Table, N: np.ndarray, motors: tuple[str, ...], joints: list[str]) -> InputError:
+    """Why `[drives]`'s N is not invertible, naming the entry that makes it so: a gear ratio of 0, a
+    coupling without which N would be invertible, a row of zeros (a motor that turns with no joint) or a
+    column (a joint no motor turns), else the motors whose rows are linearly dependent."""
+    by_ratio = t.has("gear_ratio")
+    why = f"N is not invertible (condition number {np.linalg.cond(N):.3g}): "
+    if by_ratio and not np.all(np.diag(N)):
+        k = int(np.flatnonzero(np.diag(N) == 0)[0])
+        return t.error("gear_ratio", why + f"entry {k + 1} (motor {motors[k]!r}, joint {joints[k]!r}) is 0: a motor "
+                                           "that turns with its joint has a ratio other than 0")
+    couplings = t.data.get("coupling", []) if by_ratio else []
+    for i, c in enumerate(couplings):
+        k, j = motors.index(c["motor"]), joints.index(c["joint"])
+        if invertible(np.where((np.arange(len(N))[:, None] == k) & (np.arange(len(N)) == j), 0.0, N)):
+            return t.error(f"coupling[{i}]", why + f"ratio {c['ratio']:g} of motor {c['motor']!r} on joint "
+                                                  f"{c['joint']!r} makes it so (without it N is invertible)")
+    key = "gear_ratio" if by_ratio else "transmission"
+    zero_row = np.flatnonzero(~N.any(axis=1))
+    if len(zero_row):
+        return t.error(key if by_ratio else f"transmission.{zero_row[0]}",
+                       why + f"motor {motors[zero_row[0]]!r} turns with no joint (its row of N is 0)")
+    zero_column = np.flatnonzero(~N.any(axis=0))
+    if len(zero_column):
+        return t.error(key, why + f"no motor turns joint {joints[zero_column[0]]!r} (its column of N is 0)")
+    u = np.linalg.svd(N)[0][:, -1]  # N^T u = 0: the motors' rows u combines to nothing
+    dependent = [motors[k] for k in np.flatnonzero(np.abs(u) > 1e-6 * np.max(np.abs(u)))]
+    return t.error(key, why + f"the rows of motors {', '.join(map(repr, dependent))} are linearly dependent: these "
+                              "motors turn with the joints in a way the joints cannot be told from")
 
 
 def _with_payload(bodies: list[Body], t: Table) -> list[Body]:

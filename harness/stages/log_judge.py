@@ -155,27 +155,56 @@ SHAPED = 0.5  # a joint's torques and the model's torques there have a cosine of
 # has not: its factor says nothing)
 
 
+OUTLIER = 10.0  # a row whose torque lies this many robust standard deviations (1.4826 x the median absolute
+# deviation) off the median-ratio line is left out of the factors: no single cell decides the diagnosis
+
+
 @dataclass(frozen=True)
 class Start:
-    """The model as given against the log as read on the training span: the least-squares factor
-    s = <tau_model, tau_log> / <tau_model, tau_model> over all joints and per joint, and per joint the
-    cosine of the two; the findings (a factor outside [1 / START_FACTOR, START_FACTOR] or a sign flipped,
-    over all joints or at a joint whose cosine is at least SHAPED in magnitude), each with its likely cause."""
+    """The model as given against the log as read on the training span, from robust statistics: the
+    least-squares factor s = <tau_model, tau_log> / <tau_model, tau_model> over all joints and per joint,
+    and per joint the cosine of the two, each over the rows that are not outliers (OUTLIER robust
+    standard deviations off the line of the median ratio tau_log / tau_model, taken where |tau_model| is
+    at least its median); the findings (a factor outside [1 / START_FACTOR, START_FACTOR] or a sign
+    flipped, over all joints or at a joint whose cosine is at least SHAPED in magnitude), each with its
+    likely cause."""
 
     factor: float
-    per_joint: dict[str, dict[str, float]]  # joint -> {"factor", "cosine"}
+    per_joint: dict[str, dict[str, float]]  # joint -> {"factor", "cosine", "outliers"}
     findings: list[dict[str, str]]  # {"joint" (or "all joints"), "finding", "likely"}
+    outliers: int = 0  # over all joints: the entries left out of the overall factor
 
     def as_dict(self) -> dict:
         first = self.findings[0] if self.findings else {}
         return {"definition": "the model as given against the torques as read, on the training span: the least-squares "
                               "factor s = <tau_model, tau_log> / <tau_model, tau_model> over all joints and per joint "
-                              "(tau_log = s tau_model at best), and per joint the cosine of the two; a finding is a "
-                              f"factor beyond {START_FACTOR:g} either way or a sign flipped, over all joints or at a "
-                              f"joint where the cosine is at least {SHAPED:g} in magnitude",
-                "factor": finite_or_null(self.factor), "per_joint": self.per_joint,
+                              "(tau_log = s tau_model at best), and per joint the cosine of the two, each over the "
+                              f"rows that are not outliers (over {OUTLIER:g} robust standard deviations, 1.4826 x the "
+                              "median absolute deviation, off the line of the median ratio tau_log / tau_model where "
+                              "|tau_model| is at least its median); a finding is a factor beyond "
+                              f"{START_FACTOR:g} either way or a sign flipped, over all joints or at a joint where the "
+                              f"cosine is at least {SHAPED:g} in magnitude",
+                "factor": finite_or_null(self.factor), "outliers": self.outliers, "per_joint": self.per_joint,
                 "findings": len(self.findings), "findings_joint": first.get("joint", ""),
                 "findings_likely": first.get("likely", ""), "list": self.findings}
+
+
+def robust_fit(m: np.ndarray, y: np.ndarray) -> tuple[float, float, int]:
+    """(s, cosine, outliers): the least-squares factor of y on m and their cosine over the entries that
+    are not outliers of the median-ratio line (Start's docstring), and how many were left out; NaN
+    where m carries nothing."""
+    m, y = m.ravel(), y.ravel()
+    big = np.abs(m) >= np.median(np.abs(m))
+    big &= m != 0
+    if not big.any():
+        return float("nan"), float("nan"), 0
+    r = y - float(np.median(y[big] / m[big])) * m
+    spread = np.abs(r - np.median(r))
+    keep = spread <= OUTLIER * 1.4826 * np.median(spread)
+    m, y = m[keep], y[keep]
+    mm, norms = float(m @ m), float(np.linalg.norm(m) * np.linalg.norm(y))
+    s = float(m @ y) / mm if mm > 0 else float("nan")
+    return s, float(m @ y) / norms if norms > 0 else float("nan"), int(np.sum(~keep))
 
 
 def _likely(s: float) -> str:
@@ -192,24 +221,17 @@ def _likely(s: float) -> str:
 
 def start(model: np.ndarray, log: np.ndarray, joints: list[str]) -> Start:
     """`model` (N, n) the model as given's torques at the log's states, `log` (N, n) the torques as read."""
-    def factor(m: np.ndarray, y: np.ndarray) -> float:
-        mm = float(np.sum(m * m))
-        return float(np.sum(m * y)) / mm if mm > 0 else float("nan")
-
     def off(s: float) -> bool:
         return s < 0 or not (1 / START_FACTOR <= s <= START_FACTOR)
 
-    overall = factor(model, log)
+    overall, _, left_out = robust_fit(model, log)
     findings, per_joint = [], {}
     if np.isfinite(overall) and off(overall):
         findings.append({"joint": "all joints", "finding": f"factor {overall:.3g}", "likely": _likely(overall)})
     for k, j in enumerate(joints):
-        m, y = model[:, k], log[:, k]
-        s = factor(m, y)
-        norms = float(np.linalg.norm(m) * np.linalg.norm(y))
-        cosine = float(m @ y) / norms if norms > 0 else float("nan")
-        per_joint[j] = {"factor": finite_or_null(s), "cosine": finite_or_null(cosine)}
+        s, cosine, outliers = robust_fit(model[:, k], log[:, k])
+        per_joint[j] = {"factor": finite_or_null(s), "cosine": finite_or_null(cosine), "outliers": outliers}
         if np.isfinite(s) and abs(cosine) >= SHAPED and off(s) and (s < 0 or not findings):
             findings.append({"joint": j, "finding": f"factor {s:.3g} (cosine {cosine:.2f})", "likely": _likely(s)})
-    return Start(overall, per_joint, findings)
+    return Start(overall, per_joint, findings, left_out)
 

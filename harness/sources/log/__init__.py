@@ -38,6 +38,8 @@ sign), and a grid over MAX_UPSAMPLING times finer than the log.
 
 Conditioning, in this order, each step stated in results.json (`data.conditioning`), each warning
 also printed once on the terminal:
+0. reading: a last line cut short (no line end) dropped, said; a value over ABSURD times what the
+   model's size allows (`units.plausible`) refused, naming the file, the column and the row;
 1. checks, on the whole file: every cell a finite number (else the file, the column and the row are
    named); time strictly increasing once repeated rows are dropped; the velocities against the
    positions' rate of change; rows that repeat the previous row's positions exactly (a logger's

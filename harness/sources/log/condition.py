@@ -106,7 +106,8 @@ def smooth(kept: TimeSeries, source: DataSource, robot: RobotSpec, rate: float, 
     from scipy.signal import butter, sosfiltfilt
 
     path, tk, raw = kept.meta["file"], kept.t, kept
-    steps, warnings = [*([raw.meta["read"]] if "read" in raw.meta else []), checks], list(check_warnings)
+    steps = [*([raw.meta["read"]] if "read" in raw.meta else []), checks]
+    warnings = [*raw.meta.get("read", {}).get("warnings", []), *check_warnings]
     # 2. uniform grid
     grid = tk[0] + np.arange(int(np.floor((tk[-1] - tk[0]) * rate)) + 1) / rate
 

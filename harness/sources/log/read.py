@@ -19,8 +19,8 @@ import numpy as np
 from harness.base.series import TimeSeries
 from harness.base.tomlio import MAX_DATA_BYTES, InputError, Table, too_large
 from harness.model.spec import RobotSpec
-from harness.sources.log.schema import DataSource, column_names
-from harness.sources.log.units import to_si
+from harness.sources.log.schema import SI, DataSource, column_names
+from harness.sources.log.units import plausible, refuse_absurd, to_si
 
 
 def raw_series(path: Path, sha256: str, t: np.ndarray, q: np.ndarray, qd: np.ndarray | None, tau: np.ndarray,
@@ -115,34 +115,62 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
 
         t, q, qd, tau = read_bag(path, source.topic, source.log_names(robot.joint_names))
         q, qd, tau = to_si(source, robot, q, qd, tau)
+        kinds, names = ("q", "qd", "tau"), [f"{source.topic}: {j}" for j in source.log_names(robot.joint_names)]
+        _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, dict.fromkeys(kinds, path),
+                       dict.fromkeys(kinds, names), lambda i: f"message {i + 1}")
         series = raw_series(path, digest(path), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names))
         series.meta["read"] = _read_record(source, robot, [path], f"the bag's stamps (topic {source.topic})")
         return _windowed(source, series)
     names = column_names(source, robot)
     files = [path] + ([source.torque_file] if source.torque_file is not None and file is None else [])
     digest = hashlib.sha256()  # of the files' bytes one after the other, as they are parsed
-    columns, rows = {}, []
+    columns, rows, cut, where = {}, [], [], {}
     for p in files:  # with a torque file, the torques in a file of their own, row by row
-        read, count = _csv(p, {kind: names[kind] for kind in _kinds(source, p) if kind in names}, source, robot,
-                           digest)
+        kinds = {kind: names[kind] for kind in _kinds(source, p) if kind in names}
+        read, count, short = _csv(p, kinds, source, robot, digest)
         columns.update(read)
         rows.append(count)
+        cut += [p] if short else []
+        where.update(dict.fromkeys(kinds, p))
     if len(rows) > 1 and rows[0] != rows[1]:
         raise InputError(source.torque_file, "", f"{rows[1]} rows, where {path.name} has {rows[0]}: the two files "
                                                  "are read row by row")
-    t = columns["t"][:, 0] if "t" in columns else np.arange(rows[0]) / source.sample_rate
+    notes = []
+    if cut:  # the row a logger stopped writing mid-line: its numbers may be cut short
+        columns = {kind: x[:-1] for kind, x in columns.items()}
+        notes.append(f"{', '.join(p.name for p in cut)}: the last line has no line end (the file cut short while "
+                     f"written?): row {rows[0] + 1} dropped" + (" from both files" if len(files) > 1 else ""))
+    if not len(columns["q"]):
+        raise InputError(path, "", "the log has no rows")
+    t = columns["t"][:, 0] if "t" in columns else np.arange(len(columns["q"])) / source.sample_rate
     q, qd, tau = to_si(source, robot, columns.pop("q"), columns.pop("qd", None), columns.pop("tau"))
+    _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, where, names, lambda i: f"row {i + 2}")
     series = raw_series(path, digest.hexdigest(), t, *at_joints(source, robot, q, qd, tau),
                         tuple(robot.joint_names))
     series.meta["read"] = _read_record(source, robot, files, f"column {names['t'][0]!r}" if "t" in columns
-                                       else f"row k at k / {source.sample_rate:g} s (sample_rate)")
+                                       else f"row k at k / {source.sample_rate:g} s (sample_rate)", notes)
     return _windowed(source, series)
 
 
-def _read_record(source: DataSource, robot: RobotSpec, files: list[Path], time: str) -> dict:
+def _refuse_absurd(source: DataSource, robot: RobotSpec, values: dict[str, np.ndarray | None], files: dict[str, Path],
+                   names: dict[str, list[str]], row_of) -> None:
+    """Each quantity read (SI, at the log's side) refused where a value is beyond anything the model's
+    size allows (harness/sources/log/units.py, `refuse_absurd`)."""
+    bounds = plausible(robot, source)
+    revolute = np.array([j.revolute for j in robot.joints])
+    for kind, x in values.items():
+        if x is not None:
+            refuse_absurd(kind, x, bounds[kind], files[kind], names[kind], row_of, revolute,
+                          source.units[kind] != SI[kind])
+
+
+def _read_record(source: DataSource, robot: RobotSpec, files: list[Path], time: str,
+                 warnings: list[str] | None = None) -> dict:
     """The conditioning's first step: what was read, where its time came from, and at which side of the
-    drives it was measured (a motor-side log mapped to the joints through the model's transmission)."""
-    record = {"step": "read", "files": [str(f) for f in files], "time": time, "side": source.side}
+    drives it was measured (a motor-side log mapped to the joints through the model's transmission);
+    `warnings`, what reading it did that the terminal must say (a cut last line dropped)."""
+    record = {"step": "read", "files": [str(f) for f in files], "time": time, "side": source.side,
+              "warnings": list(warnings or [])}
     if source.side == "motor":
         record["to_joints"] = {"rule": "q = N^-1 (q_m - offset), q' = N^-1 q'_m, tau = N^T tau_m",
                                **robot.transmission.describe(robot.joint_names)}
@@ -157,7 +185,7 @@ class _Digested(io.RawIOBase):
     """A file's bytes as they are read, hashed into `digest` and counted: refused beyond `limit`."""
 
     def __init__(self, f, path: Path, digest, limit: int):
-        self.f, self.path, self.digest, self.limit, self.size = f, path, digest, limit, 0
+        self.f, self.path, self.digest, self.limit, self.size, self.last = f, path, digest, limit, 0, b""
 
     def readable(self) -> bool:
         return True
@@ -169,25 +197,29 @@ class _Digested(io.RawIOBase):
             if self.size > self.limit:
                 raise too_large(self.path, self.limit)
             self.digest.update(memoryview(buffer)[:count])
+            self.last = bytes(memoryview(buffer)[count - 1:count])
         return count
 
 
 def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: RobotSpec,
-         digest) -> tuple[dict[str, np.ndarray], int]:
-    """The columns `wanted` ({kind: names}) of the CSV at `path`, {kind: (rows, len(names))}, and its row
-    count: its header checked against the scenario's columns, its rows parsed CHUNK_ROWS at a time and
-    only those columns kept (a long log's text and its other columns are never held whole), every
-    byte hashed into `digest` as it is read. A cell that is not a finite number is refused naming
-    its column, its first row and how many rows have one."""
+         digest) -> tuple[dict[str, np.ndarray], int, bool]:
+    """The columns `wanted` ({kind: names}) of the CSV at `path`, {kind: (rows, len(names))}, its row
+    count, and whether its last line was cut short (the file ends without a line end: a logger stopped
+    mid-line; that row is the caller's to drop): its header checked against the scenario's columns,
+    its rows parsed CHUNK_ROWS at a time and only those columns kept (a long log's text and its other
+    columns are never held whole), every byte hashed into `digest` as it is read. A cell that is not a
+    finite number is refused naming its column, its first row and how many rows have one (a cut last
+    line's cells aside)."""
     import pandas as pd
 
-    bad: dict[int, tuple[int, object, int]] = {}  # position -> (its first bad row, that cell, how many)
+    bad: dict[int, list] = {}  # position -> [its first bad row, that cell, how many, its last bad row]
     try:
         with open(path, "rb") as f:  # read once, from its header to its end
             info = os.fstat(f.fileno())  # a regular file refused at its size; a stream as it is read
             if stat.S_ISREG(info.st_mode) and info.st_size > MAX_DATA_BYTES:
                 raise too_large(path, MAX_DATA_BYTES)
-            stream = io.BufferedReader(_Digested(f, path, digest, MAX_DATA_BYTES), STREAM_BUFFER)
+            raw = _Digested(f, path, digest, MAX_DATA_BYTES)
+            stream = io.BufferedReader(raw, STREAM_BUFFER)
             line = stream.readline(HEADER_BYTES + 1)
             if len(line) > HEADER_BYTES:
                 raise InputError(path, "", f"no header line within its first {HEADER_BYTES >> 20} MiB: not a CSV log")
@@ -208,8 +240,8 @@ def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: Ro
                         x = pd.to_numeric(chunk[k], errors="coerce").to_numpy(dtype=float, copy=True)
                         wrong = np.flatnonzero(~np.isfinite(x))
                         if len(wrong):
-                            first = bad.get(k, (int(chunk.index[wrong[0]]) + 2, chunk[k].iloc[wrong[0]], 0))
-                            bad[k] = (first[0], first[1], first[2] + len(wrong))
+                            seen = bad.setdefault(k, [int(chunk.index[wrong[0]]) + 2, chunk[k].iloc[wrong[0]], 0, 0])
+                            seen[2:] = seen[2] + len(wrong), int(chunk.index[wrong[-1]]) + 2
                         pieces[k].append(x)
             while stream.read(STREAM_BUFFER):  # whatever follows the last row, hashed too
                 pass
@@ -223,11 +255,14 @@ def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: Ro
         said = re.sub(r"\bline (\d+)", lambda m: f"line {int(m.group(1)) + 1}", str(exc).splitlines()[0])
         raise InputError(path, "", f"not a CSV log ({said})") from None
     rows = sum(len(x) for x in pieces[positions[0]])
+    cut = rows > 0 and raw.last not in (b"\n", b"\r")
     if not rows:
         raise InputError(path, "", "the log has no rows")
     for name, k in at.items():
         if k in bad:
-            row, cell, count = bad[k]
+            row, cell, count, last = bad[k]
+            if cut and last == rows + 1 and count == 1:  # the cut line's alone: dropped with it
+                continue
             raise InputError(path, name, f"row {row} is {_cell(cell)}, not a finite number "
                                          f"({count} such row{'s' if count > 1 else ''})")
     out, kinds = {}, list(wanted.items())
@@ -238,7 +273,7 @@ def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: Ro
         later = {at[name] for _, rest in kinds[i + 1:] for name in rest}
         for k in {at[name] for name in names} - later:
             pieces[k] = []
-    return out, rows
+    return out, rows, cut
 
 
 def at_joints(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,

@@ -1,7 +1,8 @@
 """A log's values in SI units, and the checks that catch a unit, time-base or sign mistake before
-anything is fitted: degrees of revolute joints to radians, motor currents to joint torques; positions
-far beyond the joint limits (degrees read as radians?), velocities that are not the positions' rate of
-change (t in milliseconds? q' in deg/s? a column of the other sign?)."""
+anything is fitted: degrees of revolute joints to radians, motor currents to joint torques; values no
+robot of the model's size can produce (a corrupt cell: 1e30), positions far beyond the joint limits
+(degrees read as radians?), velocities that are not the positions' rate of change (t in milliseconds?
+q' in deg/s? a column of the other sign?)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,10 @@ UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more lo
 VELOCITY_FACTOR = 3.0  # the positions' rate of change and the logged velocities this far apart: a unit mistake
 TRACKING = 0.5  # a joint whose logged velocity follows its positions' changes this closely (cosine) moves
 TIME_UNITS = ((1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds"))
+ABSURD = 1e3  # a value this many times beyond what the model's size allows (`plausible`) is no measurement
+UNLIMITED_POSITION = 1e3  # rad or m: a joint without limits reaches at most ABSURD times this (160,000 turns)
+DEFAULT_SPEED = 10.0  # rad/s or m/s: a joint without a velocity limit moves at most ABSURD times this
+STANDARD_GRAVITY = 9.80665
 
 
 def to_si(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,
@@ -37,6 +42,50 @@ def to_si(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | 
         ratio = 1.0 if source.side == "motor" else np.asarray(source.gear_ratio)
         tau = tau * np.asarray(source.torque_constant) * ratio
     return q, qd, tau
+
+
+def plausible(robot: RobotSpec, source: DataSource | None = None) -> dict[str, np.ndarray]:
+    """Per column of a log (a joint's, or on a motor-side log a motor's), the largest |q|, |q'| and |tau|
+    (SI) the model's size allows, before ABSURD. At a joint: a position its limits' extent (at least
+    1 rad or m; UNLIMITED_POSITION without limits), a velocity its limit (DEFAULT_SPEED without one), a
+    torque its effort limit where given and at least the weight of every
+    body at the robot's extent, g m_total max(d, 1 m), d the largest distance between its joint points
+    and centres of mass at q = 0 (no joint's gravity torque is larger; a slide's force: g m_total). At a
+    motor, through the drives: |N| times the joints' (and |offset|) for a position and a velocity,
+    |N^-1|^T times theirs for a torque."""
+    limits, drive = robot.limits or {}, robot.drive_limits or {}
+    points = np.array([j.p_W0 for j in robot.joints] + [b.p_W_com0 for b in robot.bodies])
+    extent = max(float(np.max(np.linalg.norm(points[:, None] - points[None], axis=-1))), 1.0)
+    weight = STANDARD_GRAVITY * max(sum(b.mass for b in robot.bodies), 1.0)
+    q, qd, tau = (np.empty(len(robot.joints)) for _ in range(3))
+    for k, j in enumerate(robot.joints):
+        lo, hi = limits.get(j.name, (-np.inf, np.inf))
+        q[k] = max(abs(lo), abs(hi), hi - lo, 1.0) if np.isfinite(lo) and np.isfinite(hi) else UNLIMITED_POSITION
+        qd[k] = drive.get(j.name, {}).get("velocity") or DEFAULT_SPEED
+        tau[k] = max(drive.get(j.name, {}).get("effort") or 0.0, weight * (extent if j.revolute else 1.0))
+    out = {"q": q, "qd": qd, "tau": tau}
+    if source is not None and source.side == "motor":  # q_m = N q + o, q'_m = N q', tau_m = N^-T tau
+        t = robot.transmission
+        out = {"q": np.abs(t.N) @ q + np.abs(t.offset), "qd": np.abs(t.N) @ qd, "tau": np.abs(t.N_inv).T @ tau}
+    return out
+
+
+def refuse_absurd(kind: str, values: np.ndarray, bound: np.ndarray, path, names: list[str], row_of,
+                  revolute: np.ndarray, converted: bool) -> None:
+    """Refuse the first value of `values` (rows, columns; SI, at the log's side) beyond ABSURD times its
+    column's `bound` (`plausible`): InputError naming the file, the column and the row (`row_of(i)`: how
+    the file numbers row i). `converted`: the log's own unit was not SI (said with the value)."""
+    over = np.abs(values) > ABSURD * bound
+    if not over.any():
+        return
+    i, c = (int(x[0]) for x in np.nonzero(over))
+    what = {"q": "position", "qd": "velocity", "tau": "torque" if revolute[c] else "force"}[kind]
+    unit = {"q": ("m", "rad"), "qd": ("m/s", "rad/s"), "tau": ("N", "N m")}[kind][bool(revolute[c])]
+    count = int(over.sum())
+    raise InputError(path, names[c], f"{row_of(i)} is {values[i, c]:.4g} {unit}{' (in SI)' if converted else ''}: "
+                                     f"over {ABSURD:g} times the largest {what} the model allows there "
+                                     f"({bound[c]:.3g} {unit}), which no robot of its size measures: a corrupt "
+                                     f"value ({count} such value{'s' if count > 1 else ''} in the column)")
 
 
 def check_velocities(kept: TimeSeries, robot: RobotSpec, source: DataSource | None) -> None:
