@@ -193,3 +193,92 @@ def two_link_bench(folder: Path, model: str, duration: float, output_steps: int)
         + '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
     return load_scenario(folder / "bench.toml")
 
+
+
+HUMANOID = """<mujoco model="biped">
+  <!-- A humanoid as makers publish them: a floating pelvis (free joint), two legs and two arms, meshes in
+       a folder of their own, a keyframe, and a second body at the root on a hinge (a door beside it). -->
+  <compiler angle="radian" meshdir="assets"/>
+  <asset>
+    <mesh name="pelvis" file="pelvis.STL"/><mesh name="thigh" file="thigh.STL"/><mesh name="shin" file="shin.STL"/>
+    <mesh name="torso" file="torso.STL"/><mesh name="arm" file="arm.STL"/>
+  </asset>
+  <worldbody>
+    <body name="pelvis" pos="0 0 1.05">
+      <freejoint name="floating_base_joint"/>
+      <inertial pos="-0.0002 0 -0.04" mass="5.39" diaginertia="0.044 0.035 0.016"/>
+      <geom type="mesh" mesh="pelvis"/>
+      LEGS
+      <body name="torso_link" pos="0 0 0.1">
+        <inertial pos="0 0 0.2" mass="17.8" diaginertia="0.49 0.41 0.14"/>
+        <joint name="torso_joint" axis="0 0 1" range="-2.35 2.35"/>
+        <geom type="mesh" mesh="torso"/>
+        <body name="left_arm_link" pos="0 0.2 0.4" quat="0.9659 0.2588 0 0">
+          <inertial pos="0 0.02 -0.1" mass="1.0" diaginertia="0.004 0.004 0.001"/>
+          <joint name="left_shoulder_joint" axis="0 1 0" range="-2.87 2.87"/>
+          <geom type="mesh" mesh="arm"/>
+        </body>
+        <body name="right_arm_link" pos="0 -0.2 0.4" quat="0.9659 -0.2588 0 0">
+          <inertial pos="0 -0.02 -0.1" mass="1.1" diaginertia="0.005 0.004 0.001"/>
+          <joint name="right_shoulder_joint" axis="0 1 0" range="-2.87 2.87"/>
+          <geom type="mesh" mesh="arm"/>
+        </body>
+      </body>
+    </body>
+    <body name="door" pos="2 0 1">
+      <inertial pos="0.3 0 0" mass="3.0" diaginertia="0.1 0.2 0.12"/>
+      <joint name="door_hinge" axis="0 0 1" range="-1.5 1.5"/>
+      <geom type="box" size="0.3 0.02 0.5" pos="0.3 0 0"/>
+    </body>
+  </worldbody>
+  <keyframe>
+    <key name="home" qpos="0 0 1.05 1 0 0 0  0 -0.4 0.8  0 -0.4 0.8  0 0.3 -0.3  0.2"/>
+  </keyframe>
+</mujoco>
+"""
+LEG = """<body name="SIDE_hip_link" pos="0 Y -0.1742">
+        <inertial pos="-0.0498 Y4 0" quat="0.53 0.53 0.46 0.47" mass="2.24" diaginertia="0.0055 0.0043 0.0030"/>
+        <joint name="SIDE_hip_yaw_joint" axis="0 0 1" range="-0.43 0.43"/>
+        <geom type="mesh" mesh="thigh"/>
+        <body name="SIDE_thigh_link" pos="0 0 -0.1">
+          <inertial pos="0 0 -0.15" mass="4.15" diaginertia="0.11 0.11 0.008"/>
+          <joint name="SIDE_hip_pitch_joint" axis="0 1 0" range="-1.57 1.57"/>
+          <geom type="mesh" mesh="thigh"/>
+          <body name="SIDE_knee_link" pos="0 0 -0.4">
+            <inertial pos="0 0 -0.14" mass="1.72" diaginertia="0.012 0.012 0.002"/>
+            <joint name="SIDE_knee_joint" axis="0 1 0" range="-0.26 2.05"/>
+            <geom type="mesh" mesh="shin"/>
+          </body>
+        </body>
+      </body>"""
+
+
+def _box_stl(path: Path, size) -> None:
+    """A box of `size` (m) as a binary STL mesh: 12 triangles."""
+    import struct
+
+    import numpy as np
+
+    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * np.asarray(size) / 2
+    faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1), (2, 3, 7), (2, 7, 6), (0, 2, 6),
+             (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+    out = bytearray(80) + struct.pack("<I", len(faces))
+    for f in faces:
+        a, b, c = v[list(f)]
+        n = np.cross(b - a, c - a)
+        out += struct.pack("<12fH", *(n / np.linalg.norm(n)), *a, *b, *c, 0)
+    path.write_bytes(bytes(out))
+
+
+def humanoid_mjcf(folder: Path) -> Path:
+    """folder/biped.xml and its meshes in folder/assets/: a humanoid with a free joint, a keyframe and a
+    second root body on a hinge, written the way humanoid makers publish MJCF (H1-like masses)."""
+    (folder / "assets").mkdir(parents=True, exist_ok=True)
+    for name, size in {"pelvis": (0.2, 0.3, 0.15), "thigh": (0.1, 0.1, 0.4), "shin": (0.08, 0.08, 0.4),
+                       "torso": (0.25, 0.35, 0.45), "arm": (0.07, 0.07, 0.3)}.items():
+        _box_stl(folder / "assets" / f"{name}.STL", size)
+    legs = "\n      ".join(LEG.replace("SIDE", side).replace("Y4", y4).replace(" Y ", f" {y} ")
+                           for side, y, y4 in (("left", "0.0875", "0.0039"), ("right", "-0.0875", "-0.0039")))
+    path = folder / "biped.xml"
+    path.write_text(HUMANOID.replace("LEGS", legs))
+    return path

@@ -104,8 +104,10 @@ def parser() -> argparse.ArgumentParser:
                     "at 100 random states within the limits, torques against MuJoCo's inverse dynamics, the URDF "
                     "against MuJoCo's conversion of it to MJCF read back, every moving body's physical validity, and "
                     "the structural base-parameter count against the rank of Pinocchio's regressor. Writes "
-                    "DIR/audit.json (a row per robot) and DIR/audit.html. Exit status 1 when a robot that was read "
-                    "disagrees beyond 1e-9; a robot the harness refuses is a row, not a failure.")
+                    "DIR/audit.json (a row per robot) and DIR/audit.html. Verdicts: agrees, disagrees (the dynamics "
+                    "differ beyond 1e-9), not compared (a reference parser cannot represent the file: said which and "
+                    "why), refused. Exit status 1 when a robot that was read disagrees, 2 when a robot named here is "
+                    "refused; in the whole collection a refused robot is a row, not a failure.")
     audit.add_argument("robots", metavar="ROBOT|FILE", nargs="*",
                        help="a URDF or MJCF file, a model file (.toml: with its drives or friction, also checked "
                             "with them), or a robot of example-robot-data by name (default: every robot of the "

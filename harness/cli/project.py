@@ -30,6 +30,8 @@ def cmd_audit(args: argparse.Namespace) -> int:
         for k, (name, path) in enumerate(robots.items()):
             progress(f"robot {k + 1} of {len(robots)}: {name}", k / len(robots))
             rows.append(audit(name, path, Path(scratch) if args.identify else None))
+            if rows[-1].verdict == "refused" and args.robots:  # a robot asked for by name is bad input when refused
+                raise InputError(path, "", rows[-1].reason)
     summary = {**totals(rows), "tolerance": TOLERANCE,
                "identify_tolerance": IDENTIFY_TOLERANCE if args.identify else None,
                "seconds": round(time.perf_counter() - t0, 3)}
@@ -46,10 +48,10 @@ def cmd_audit(args: argparse.Namespace) -> int:
         raise InputError(out, "--out", f"cannot write output ({exc.strerror or exc})") from None
     for r in rows:
         if r.verdict != "agrees":
-            print(f"  {r.verdict:9s} {r.robot}: {r.reason}")
+            print(f"  {r.verdict:12s} {r.robot}: {r.reason}")
     print(f"audit: {summary['robots']} robots, {summary['read']} read, {summary['agree']} agree, "
-          f"{summary['disagree']} disagree, {summary['refused']} refused; MuJoCo's MJCF conversion read back for "
-          f"{summary['mjcf_read']} ({summary['seconds']:.1f} s)")
+          f"{summary['disagree']} disagree, {summary['not_compared']} not compared, {summary['refused']} refused; "
+          f"MuJoCo's MJCF conversion read back for {summary['mjcf_read']} ({summary['seconds']:.1f} s)")
     print(f"  report: {out / 'audit.html'}")
     return EXIT_GATE_FAILED if summary["disagree"] else EXIT_OK
 

@@ -14,15 +14,18 @@ from markupsafe import Markup, escape
 _ENV = Environment(loader=PackageLoader("harness.report", "templates"), autoescape=True,
                    trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True)
 
+LONG_CELL = 40  # characters: a cell longer than this wraps (td.text); the table scrolls inside its own box
 DASH = Markup("\u2013")  # a value that is not there: the character itself, the same escaped or not
 
 STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 1rem auto; padding: 0 1rem; color: #222; }
+body.wide { max-width: none; }
 h1 { font-size: 1.5rem; } h2 { border-bottom: 1px solid #ccc; margin-top: 2rem; } h3 { font-size: 1rem; }
 table { border-collapse: collapse; font-size: 0.8rem; margin: 0.5rem 0; }
 th, td { border: 1px solid #ddd; padding: 0.15rem 0.4rem; text-align: right; vertical-align: top; }
 th { background: #f4f4f4; } td:first-child, th:first-child { text-align: left; }
-td { white-space: nowrap; } table.wrap td, td:first-child, td small { white-space: normal; }
+td { white-space: nowrap; } table.wrap td, td:first-child, td small, td.text { white-space: normal; }
+td.text { min-width: 12rem; text-align: left; } div.table { overflow-x: auto; max-width: 100%; }
 td code { font-size: 0.7rem; }
 .verdict { font-size: 2rem; font-weight: bold; padding: 0.4rem 1rem; display: inline-block; border-radius: 0.3rem; }
 .pass { background: #d8f5d8; color: #145214; } .fail { background: #fbd9d9; color: #7a1010; }
@@ -70,7 +73,7 @@ def table(header: Sequence[str], rows: Iterable[Sequence], cls: str = "") -> str
     """Every header and cell escaped, but for cells that are markup already (`esc`, `num`, `code`,
     `mark`). The HTML it returns, like `figure`'s and `section`'s, is plain text for the renderer
     to compose (Markup + str would escape the str)."""
-    return _ENV.get_template("table.html").render(header=header, rows=rows, cls=cls)
+    return _ENV.get_template("table.html").render(header=header, rows=rows, cls=cls, long=LONG_CELL)
 
 
 def figure(svg: str, caption: str) -> str:
@@ -83,7 +86,9 @@ def section(anchor: str, title: str, body: str) -> str:
     return str(Markup('<section id="{}"><h2>{}</h2>{}</section>').format(anchor, title, Markup(body)))
 
 
-def page(title: str, heading: str, body: str, description: str = "", nav: Sequence[tuple[str, str]] = ()) -> str:
-    """A whole, self-contained page: styles inline, no scripts, nothing fetched."""
+def page(title: str, heading: str, body: str, description: str = "", nav: Sequence[tuple[str, str]] = (),
+         wide: bool = False) -> str:
+    """A whole, self-contained page: styles inline, no scripts, nothing fetched. `wide`: the page takes
+    the window's width (a page that is one wide table), where a report's prose keeps to 60rem."""
     return _ENV.get_template("page.html").render(title=title, heading=heading, description=description, nav=nav,
-                                                 body=Markup(body), style=Markup(STYLE))
+                                                 body=Markup(body), style=Markup(STYLE), wide=wide)

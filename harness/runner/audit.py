@@ -7,14 +7,16 @@ name):
 - degrees of freedom, and whether the root was fixed (a URDF's root link is the ground; an MJCF
   file's free joint is fixed to the world, said so);
 - joint torques (RNEA) and the mass matrix (CRBA) of the harness's model against Pinocchio's own
-  parser of the same file (`buildModelFromUrdf` / `buildModelFromMJCF`), at STATES random states
-  within the joint limits (q' within +-2 rad/s or m/s, q'' within +-5), rigid bodies only (the
-  drives' friction and rotor inertia are compared by the scenarios, not here); and against MuJoCo's
-  inverse dynamics (mj_inverse) of the model the harness builds for it;
-- URDF-MJCF parity: MuJoCo's compiler converts the URDF (visual and collision geometry and <mimic>
-  left out) and the harness reads MuJoCo's model back as it reads an MJCF file; the torques of the
-  two readings at the same states. MuJoCo's converted model is read from memory: its XML writer keeps
-  six digits, which would bound the parity at 1e-6. A URDF MuJoCo's compiler refuses is said so;
+  parser of the same file (harness/engines/pinocchio_file.py: `buildModelFromUrdf` /
+  `buildModelFromMJCF`, given an MJCF file with what it cannot read made readable, each said), at
+  STATES random states within the joint limits (q' within +-2 rad/s or m/s, q'' within +-5), rigid
+  bodies only (the drives' friction and rotor inertia are compared by the scenarios, not here); and
+  against MuJoCo's inverse dynamics (mj_inverse) of the model the harness builds for it;
+- MuJoCo's own reading of the file: an MJCF file compiled by MuJoCo (`file_inverse_dynamics`: its loops
+  and contacts off, a free joint held at the file's pose); a URDF converted by MuJoCo's compiler (visual
+  and collision geometry and <mimic> left out) and read back as the harness reads an MJCF file, the
+  torques of the two readings at the same states. MuJoCo's converted model is read from memory: its XML
+  writer keeps six digits, which would bound the parity at 1e-6;
 - physical validity of every moving body: mass > 0, principal moments > 0, triangle inequality;
 - the structural base-parameter count (harness/identify/torque_id.py) beside the rank of Pinocchio's
   own joint-torque regressor, of the model its parser builds, stacked over RANK_STATES random states;
@@ -26,8 +28,13 @@ A model file that fixes joints of its URDF (`fixed`) is not compared with Pinocc
 in which they move (said in its notes).
 
 Errors are relative to each joint's largest |torque| over the states (the mass matrix: to its largest
-entry over the states). A read robot agrees when every figure is within TOLERANCE and the two base
-counts are equal; `harness audit` exits 1 when one that was read disagrees.
+entry over the states). The verdicts: `agrees`, every figure within TOLERANCE and the two base counts
+equal; `disagrees`, the dynamics differ; `not compared`, a reference parser cannot represent the file
+(Pinocchio's refuses it or builds other joints; MuJoCo's URDF import drops what the file holds: the
+reason says which and why), the other readings compared and agreeing (a URDF MuJoCo's import refuses
+is said in its column: Pinocchio's parser is a URDF's reference); `refused`, the
+harness's own reader refuses the file. `harness audit` exits 1 when one that was read disagrees, and 2
+when a robot it was given by name or file is refused.
 """
 
 from __future__ import annotations
@@ -60,13 +67,14 @@ class AuditRow:
 
     robot: str
     file: str
-    verdict: str  # "agrees", "disagrees" or "refused"
-    reason: str = ""  # why refused, or what disagrees
+    verdict: str  # "agrees", "disagrees", "not compared" (a reference parser cannot represent the file) or "refused"
+    reason: str = ""  # why refused, what disagrees, and which reference could not compare and why
     dof: int | None = None
     root: str | None = None  # "fixed" or "floating (fixed to the world)"
     torques_vs_pinocchio: float | None = None
     mass_matrix_vs_pinocchio: float | None = None
     torques_vs_mujoco: float | None = None
+    torques_vs_mujoco_file: float | None = None  # an MJCF file: against MuJoCo's own model of it
     mjcf: str | None = None  # "read", or why MuJoCo's conversion or its reading failed
     torques_urdf_vs_mjcf: float | None = None
     drives_vs_pinocchio: float | None = None  # torques with the drives' law, MuJoCo's bench against Pinocchio
@@ -119,23 +127,32 @@ def resolve(arguments: list[str]) -> dict[str, Path]:
 
 
 def _against_pinocchios_parser(row: AuditRow, spec: RobotSpec, described: Path | None, states, ours: np.ndarray,
-                               M: np.ndarray) -> list[str]:
+                               M: np.ndarray) -> str:
     """The harness's torques and mass matrix against Pinocchio's own parse of the file, and its
-    regressor's rank, into `row`; what disagrees or could not be compared, as problems."""
+    regressor's rank, into `row`; why the parser could not be compared with ("" where it was): it
+    refuses the file, or reads other joints (a file it cannot represent, not a disagreement: the
+    harness's reading is still compared with MuJoCo's)."""
     if _not_the_files(spec, described):
         row.notes.append(f"not compared with Pinocchio's parser: {_not_the_files(spec, described)}")
-        return []
+        return ""
     try:
         with _CapturedStderr() as said:
             pin_model = _Pinocchio(described, spec)
-        row.notes += [f"Pinocchio's parser said: {line}" for line in said.lines]
-        theirs, M_pin = pin_model.torques_and_mass(*states)
-        row.torques_vs_pinocchio = _largest(ours, theirs)
-        row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
-        row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
+        row.notes += pin_model.notes + [f"Pinocchio's parser said: {line}" for line in said.lines]
     except Exception as exc:  # Pinocchio's parser refusing the file is a finding, not a crash
-        return [f"Pinocchio's parser: {in_one_line(str(exc)) or type(exc).__name__}"]
-    return []
+        return f"Pinocchio's {_format(described)} parser cannot read it: {in_one_line(str(exc)) or type(exc).__name__}"
+    if pin_model.other_joints:
+        return (f"Pinocchio's {_format(described)} parser builds other joints than the file's "
+                f"({', '.join(pin_model.other_joints[:4])})")
+    theirs, M_pin = pin_model.torques_and_mass(*states)
+    row.torques_vs_pinocchio = _largest(ours, theirs)
+    row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
+    row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
+    return ""
+
+
+def _format(path: Path) -> str:
+    return "MJCF" if path.suffix.lower() == ".xml" else "URDF"
 
 
 def _not_the_files(spec: RobotSpec, described: Path | None) -> str:
@@ -207,21 +224,24 @@ class _CapturedStderr:
 
 
 class _Pinocchio:
-    """Pinocchio's own parse of the file, evaluated at the harness's joint coordinates."""
+    """Pinocchio's own parse of the file (harness/engines/pinocchio_file.py: `notes`, what was done to
+    let it read an MJCF file), evaluated at the harness's joint coordinates; `other_joints`, the names
+    in one reading and not the other."""
 
     def __init__(self, path: Path, spec: RobotSpec):
         import pinocchio as pin
 
+        from harness.engines.pinocchio_file import parse
+
         self.pin = pin
-        self.model = (pin.buildModelFromMJCF(str(path)) if path.suffix.lower() == ".xml"
-                      else pin.buildModelFromUrdf(str(path)))
+        self.model, notes = parse(path)
+        self.notes = [f"Pinocchio's parser given the file with: {n}" for n in notes]
         self.model.gravity.linear = GRAVITY_W
         self.model.armature[:] = 0.0  # rigid bodies only
         names = [self.model.names[i] for i in range(1, self.model.njoints)]
-        missing = sorted(set(spec.joint_names) ^ set(names))
-        if missing:
-            raise ValueError(f"Pinocchio's parser has other joints ({', '.join(missing[:4])})")
-        self.joints = [self.model.joints[self.model.getJointId(j)] for j in spec.joint_names]
+        self.other_joints = sorted(set(spec.joint_names) ^ set(names))
+        if not self.other_joints:
+            self.joints = [self.model.joints[self.model.getJointId(j)] for j in spec.joint_names]
         self.data = self.model.createData()
 
     def configuration(self, q: np.ndarray) -> np.ndarray:
@@ -318,14 +338,12 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
         row.reason = exc.message.removeprefix(f"{path.resolve()}: ")
         row.seconds = time.perf_counter() - t0
         return row
-    is_mjcf = described is not None and described.suffix.lower() == ".xml"
     row.notes = list(spec.notes)
     row.dof = len(spec.joints)
     floating = any(note.endswith(FLOATING_BASE_FIXED) for note in spec.notes)  # an MJCF's free joint, held
     row.root = "floating (fixed to the world)" if floating else "fixed"
     row.bodies = len(spec.massive_bodies)
     row.invalid_bodies = _invalid_bodies(spec)
-    problems = []
     if not spec.joints:
         row.verdict, row.reason = "agrees", "no moving joint: nothing to compare"
         row.seconds = time.perf_counter() - t0
@@ -336,44 +354,20 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
     ours, M = rnea(pm, q, qd, qdd).tau, crba(pm, q)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        problems += _against_pinocchios_parser(row, spec, described, (q, qd, qdd), ours, M)
+        uncompared = [why for why in [_against_pinocchios_parser(row, spec, described, (q, qd, qdd), ours, M)] if why]
         row.torques_vs_mujoco = _largest(inverse_dynamics(rigid, GRAVITY_W, q, qd, qdd), ours)
         if spec.transmission is not None or any(not f.none for f in spec.frictions):
             with_drives = rnea(build_model(spec, GRAVITY_W), q, qd, qdd).tau
             row.drives_vs_pinocchio = _largest(inverse_dynamics(spec, GRAVITY_W, q, qd, qdd), with_drives)
-        if is_mjcf:
-            row.mjcf = "the file itself"
-        elif _not_the_files(spec, described):
-            row.mjcf = f"not converted: {_not_the_files(spec, described)}"
-        else:
-            try:
-                with _CapturedStderr() as said:
-                    converted = _mujoco_conversion(described, name)
-                row.notes += [f"MuJoCo's URDF import said: {line}" for line in said.lines]
-                converted = converted.rigid()
-                if sorted(converted.joint_names) != sorted(spec.joint_names):
-                    raise ValueError(f"MuJoCo's model has other joints ({', '.join(converted.joint_names[:4])}, ...)")
-                to_theirs = [spec.joint_names.index(j) for j in converted.joint_names]
-                back = [converted.joint_names.index(j) for j in spec.joint_names]
-                theirs = rnea(build_model(converted, GRAVITY_W), q[:, to_theirs], qd[:, to_theirs],
-                              qdd[:, to_theirs]).tau[:, back]
-                row.torques_urdf_vs_mjcf = _largest(ours, theirs)
-                row.mjcf = "read"
-            except (ValueError, InputError) as exc:
-                row.mjcf = exc.message if isinstance(exc, InputError) else str(exc)
+        problems = _against_mujocos_reading(row, spec, described, name, (q, qd, qdd), ours, uncompared)
     row.base_parameters = len(structural_base(pm, spec.limits).independent)
     for label, value in (("torques against Pinocchio", row.torques_vs_pinocchio),
                          ("mass matrix against Pinocchio", row.mass_matrix_vs_pinocchio),
                          ("torques against MuJoCo", row.torques_vs_mujoco),
-                         ("torques with the drives, MuJoCo against Pinocchio", row.drives_vs_pinocchio),
-                         ("torques URDF against MJCF", row.torques_urdf_vs_mjcf)):
+                         ("torques against MuJoCo's own model of the file", row.torques_vs_mujoco_file),
+                         ("torques with the drives, MuJoCo against Pinocchio", row.drives_vs_pinocchio)):
         if value is not None and not value <= TOLERANCE:
             problems.append(f"{label} {value:.2g}")
-    if row.torques_urdf_vs_mjcf is not None and not row.torques_urdf_vs_mjcf <= TOLERANCE:
-        dropped = _massless_with_inertia(described)
-        if dropped:
-            problems[-1] += (f" (MuJoCo's URDF import drops the rotational inertia of {len(dropped)} link(s) of zero "
-                             f"mass, {', '.join(dropped[:3])}, which the harness and Pinocchio's parser keep)")
     if row.pinocchio_regressor_rank is not None and row.pinocchio_regressor_rank != row.base_parameters:
         problems.append(f"{row.base_parameters} structural base parameters, Pinocchio's regressor has rank "
                         f"{row.pinocchio_regressor_rank}")
@@ -386,16 +380,68 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
         except InputError as exc:
             row.identified = {"failed": exc.one_line()}
             problems.append(f"identification from its bench log refused: {exc.message}")
-    row.verdict = "disagrees" if problems else "agrees"
-    row.reason = "; ".join(problems)
+    # a disagreement of the dynamics fails; a reference that cannot represent the file is said, and fails nothing
+    row.verdict = "disagrees" if problems else "not compared" if uncompared else "agrees"
+    row.reason = "; ".join(problems + [f"{'not compared: ' if problems else ''}{why}" for why in uncompared])
     row.seconds = time.perf_counter() - t0
     return row
 
 
+def _against_mujocos_reading(row: AuditRow, spec: RobotSpec, described: Path | None, name: str, states,
+                             ours: np.ndarray, uncompared: list[str]) -> list[str]:
+    """The harness's torques against MuJoCo's reading of the file, into `row`: an MJCF file compiled by
+    MuJoCo itself (`file_inverse_dynamics`: rigid bodies, loops off, a free joint held at the file's
+    pose), a URDF through MuJoCo's URDF import read back as an MJCF file is (a URDF it refuses is said in
+    `row.mjcf`: Pinocchio's parser is the URDF's reference). A difference its import makes by what it
+    drops (links of zero mass with an inertia) is added to `uncompared`; what disagrees is returned."""
+    from harness.engines.mujoco import file_inverse_dynamics
+    from harness.engines.pinocchio import build_model, rnea
+
+    q, qd, qdd = states
+    if described is not None and described.suffix.lower() == ".xml":
+        row.mjcf = "the file itself"
+        if not _not_the_files(spec, described):
+            try:
+                row.torques_vs_mujoco_file = _largest(
+                    file_inverse_dynamics(described, spec.joint_names, GRAVITY_W, q, qd, qdd), ours)
+            except ValueError as exc:
+                return [str(exc)]
+        return []
+    if _not_the_files(spec, described):
+        row.mjcf = f"not converted: {_not_the_files(spec, described)}"
+        return []
+    try:
+        with _CapturedStderr() as said:
+            converted = _mujoco_conversion(described, name)
+        row.notes += [f"MuJoCo's URDF import said: {line}" for line in said.lines]
+        converted = converted.rigid()
+        if sorted(converted.joint_names) != sorted(spec.joint_names):
+            raise ValueError(f"MuJoCo's model has other joints ({', '.join(converted.joint_names[:4])}, ...)")
+    except (ValueError, InputError) as exc:  # the column says why; Pinocchio's parser is the file's reference
+        row.mjcf = exc.message if isinstance(exc, InputError) else str(exc)
+        return []
+    to_theirs = [spec.joint_names.index(j) for j in converted.joint_names]
+    back = [converted.joint_names.index(j) for j in spec.joint_names]
+    theirs = rnea(build_model(converted, GRAVITY_W), q[:, to_theirs], qd[:, to_theirs], qdd[:, to_theirs]).tau[:, back]
+    row.torques_urdf_vs_mjcf = _largest(ours, theirs)
+    row.mjcf = "read"
+    if row.torques_urdf_vs_mjcf <= TOLERANCE:
+        return []
+    dropped = _massless_with_inertia(described)
+    if dropped:  # a limit of MuJoCo's import, not of the harness's reading (Pinocchio's parser keeps them too)
+        uncompared.append(f"torques URDF against MJCF {row.torques_urdf_vs_mjcf:.2g}: MuJoCo's URDF import drops the "
+                          f"rotational inertia of {len(dropped)} link(s) of zero mass, {', '.join(dropped[:3])}, which "
+                          "the harness and Pinocchio's parser keep")
+        return []
+    return [f"torques URDF against MJCF {row.torques_urdf_vs_mjcf:.2g}"]
+
+
 def totals(rows: list[AuditRow]) -> dict:
-    """How many robots were read, agree, disagree and were refused, and how many MuJoCo converted."""
+    """How many robots were read, agree, disagree, were not compared and were refused, and how many MuJoCo
+    converted."""
     return {"robots": len(rows), "read": sum(r.verdict != "refused" for r in rows),
             "agree": sum(r.verdict == "agrees" for r in rows), "disagree": sum(r.verdict == "disagrees" for r in rows),
+            "not_compared": sum(r.verdict == "not compared" for r in rows),
             "refused": sum(r.verdict == "refused" for r in rows),
             "mjcf_read": sum(r.mjcf == "read" for r in rows),
             "with_invalid_bodies": sum(bool(r.invalid_bodies) for r in rows),

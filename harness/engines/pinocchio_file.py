@@ -1,0 +1,88 @@
+"""Pinocchio's own parsers of a robot file (`buildModelFromUrdf`, `buildModelFromMJCF`): the reading
+that shares none of the harness's, which `harness audit` compares the harness's with, and the model
+`harness init`'s placeholder computes with.
+
+Pinocchio 4.1's MJCF parser reads less of a file than MuJoCo compiles, in ways that change no
+dynamics; what it is given is the file with those parts made readable, each said in the notes:
+- `<include>` files written in place (relative to the including file's folder, as MuJoCo reads them);
+- `<keyframe>` left out: its parser checks a keyframe's size against a model of its own, which
+  differs from MuJoCo's where the file has a free joint ("Keyframe size does not match model size");
+- several bodies under `<worldbody>` put under one massless body at the world's origin: its parser
+  reads the first and drops the rest (a four-bar's rocker, a humanoid's second tree);
+- a free joint held at the file's pose (Pinocchio's neutral configuration of its free-flyer), as the
+  harness holds it: the joints that remain are the harness's.
+A file it still cannot read raises its own error (a ValueError or RuntimeError with its message).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pinocchio as pin
+
+from harness.base.tomlio import MAX_XML_BYTES, read_bounded
+
+ROOT_BODY = "pinocchio_reading_root"  # the body that takes a file's root bodies (Pinocchio reads the first alone)
+MAX_INCLUDES = 100  # nested or repeated includes beyond this: a file that includes itself
+
+
+def parse(path: Path) -> tuple[pin.Model, list[str]]:
+    """Pinocchio's model of the URDF or MJCF file at `path` (told by its root element, <robot> or
+    <mujoco>), with every free joint held at the file's pose, and what was done to let its parser read
+    the file, one line each."""
+    root = ET.fromstring(read_bounded(path, MAX_XML_BYTES))
+    if root.tag != "mujoco":
+        return pin.buildModelFromUrdf(str(path)), []
+    notes = _readable(root, Path(path).parent)
+    with tempfile.TemporaryDirectory() as folder:  # meshes are not read: the model's inertias are its own
+        copy = Path(folder) / Path(path).name
+        copy.write_text(ET.tostring(root, encoding="unicode"))
+        model = pin.buildModelFromMJCF(str(copy))
+    free = [j for j in range(1, model.njoints) if model.joints[j].shortname() == "JointModelFreeFlyer"]
+    if free:
+        notes.append(f"free joint {', '.join(repr(model.names[j]) for j in free)} held at the file's pose, as the "
+                     "harness holds it")
+        model = pin.buildReducedModel(model, free, pin.neutral(model))
+    return model, notes
+
+
+def _readable(root: ET.Element, folder: Path) -> list[str]:
+    """The MJCF tree `root` made readable by Pinocchio's parser in place (the module docstring); what
+    was done, one line each."""
+    notes, count = [], 0
+    while (found := _first_include(root)) is not None:
+        parent, at, element = found
+        count += 1
+        if count > MAX_INCLUDES:
+            raise ValueError(f"over {MAX_INCLUDES} <include> elements: a file that includes itself?")
+        included = ET.fromstring(read_bounded(folder / element.get("file", ""), MAX_XML_BYTES))
+        parent.remove(element)
+        for k, child in enumerate(list(included)):
+            parent.insert(at + k, child)
+    if count:
+        notes.append(f"{count} <include> file(s) written in place")
+    for parent in [p for p in root.iter() if p.find("keyframe") is not None]:
+        for key in parent.findall("keyframe"):
+            parent.remove(key)
+        notes.append("<keyframe> left out (Pinocchio's parser sizes it against a model of its own)")
+    world = root.find("worldbody")
+    bodies = [] if world is None else world.findall("body")
+    if len(bodies) > 1:
+        holder = ET.Element("body", {"name": ROOT_BODY})
+        for b in bodies:
+            world.remove(b)
+            holder.append(b)
+        world.append(holder)
+        notes.append(f"its {len(bodies)} root bodies put under one massless body (Pinocchio's parser reads the first "
+                     "alone)")
+    return notes
+
+
+def _first_include(root: ET.Element) -> tuple[ET.Element, int, ET.Element] | None:
+    for parent in root.iter():
+        for k, child in enumerate(parent):
+            if child.tag == "include":
+                return parent, k, child
+    return None
