@@ -668,6 +668,26 @@ def test_the_graph_theory_models_forward_run_agrees_with_pinocchios_rigid_loops(
     assert np.all(np.abs(q[0] - q_ref).max(axis=0) <= 1e-8 * span)
 
 
+def test_a_spatial_four_bar_whose_passive_joint_does_not_move_passes_its_forward_gate(tmp_path):
+    """A spatial four-bar (tests/data/models/spatial_fourbar.xml: the coupler on a universal joint of two
+    hinges) whose motion leaves the passive joint u2 still (its range over the run is round-off): the
+    graph-theory model's forward run is judged against u2's floor (1e-3 of the hinges' largest range),
+    not its own range of 1e-16 (which read 4.07 and failed the gate at u2), and every gate passes; a
+    1e-6 rad error at u2 would still be 1e-3 of its floor."""
+    import json
+
+    import pandas as pd
+
+    from harness.cli import main
+    from tests.conftest import DATA
+
+    out = tmp_path / "out"
+    assert main(["run", str(DATA / "scenarios" / "spatial_fourbar.toml"), "--out", str(out), "--quiet"]) == 0
+    assert np.ptp(pd.read_csv(out / "recording.csv")["q_u2"]) < 1e-12  # still
+    forward = json.loads((out / "results.json").read_text())["torques"]["closed_chain"]["forward"]["graph"]
+    assert forward["max_rel_range"] <= 1e-6 and forward["per_joint"]["u2"] <= 1e-6
+
+
 def test_a_model_whose_rocker_is_heavier_by_a_ten_thousandth_is_seen_by_its_forward_run(fourbar):
     """The scenario's gate (1e-6 of a joint's range) can fail: a model whose rocker is 0.01 % heavier, run
     0.1 s from the motion's state under the true torques, leaves it by more than 1e-5 of the rocker's

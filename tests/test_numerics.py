@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.base.numerics import evenly_spaced
+from harness.base.numerics import RANGE_FLOOR, evenly_spaced, range_scale
 
 
 @pytest.mark.parametrize("n", [1, 2, 7, 101, 4000])
@@ -21,3 +21,14 @@ def test_evenly_spaced_rows_are_the_distinct_rounded_points_of_an_even_grid(n, c
 
 def test_evenly_spaced_of_nothing_is_empty():
     assert evenly_spaced(0, 10).size == 0 and evenly_spaced(10, 0).size == 0
+
+
+def test_a_joint_that_does_not_move_is_judged_against_its_kinds_largest_range_not_its_own():
+    """Three hinges (ranges 2 rad, 0.5 rad, 3e-16 rad: a still passive joint) and two slides (0.2 m and
+    none at all): each joint's own range where it has one, a still hinge RANGE_FLOOR of the hinges' largest
+    (2e-3 rad, not 3e-16), a still slide RANGE_FLOOR m (1 mm; no slide moves beyond it)."""
+    t = np.linspace(0.0, 1.0, 50)
+    q = np.stack([2 * t, 0.5 * t**2, 1.0 + 3e-16 * t, 0.2 * t, np.zeros_like(t)], axis=1)
+    scale = range_scale(q, [True, True, True, False, False])
+    np.testing.assert_allclose(scale, [2.0, 0.5, RANGE_FLOOR * 2.0, 0.2, RANGE_FLOOR], rtol=1e-12)
+    assert range_scale(q[:, :1] * 1e-6, [True])[0] == RANGE_FLOOR  # a small motion: 1 mrad at least

@@ -9,7 +9,11 @@ make any error infinite):
 - a joint quantity of a run: |a - b| / L_J, L_J the largest load the joint carries over the run
   (harness/stages/metrics.py, joint_load_scale);
 - a parameter: |identified - true| / max(|true|, PARAMETER_FLOOR x the largest |true| of its set)
-  (`parameter_scale`), since a parameter that is zero in truth has no size of its own.
+  (`parameter_scale`), since a parameter that is zero in truth has no size of its own;
+- a joint position of a run: |q - q_ref| / the joint's range of motion over the run, no less than
+  RANGE_FLOOR of the largest range among the joints of its kind (revolute or prismatic) nor than
+  RANGE_FLOOR rad or m (`range_scale`): a joint that does not move (a passive hinge of a spatial loop
+  that the motion leaves still, 3e-16 rad) has no range of its own to divide by.
 0/0 (a joint that carries nothing) is NaN and is reported, not hidden.
 
 Column scaling. Each regressor column is divided by its norm, so that a least-squares solve and a
@@ -28,6 +32,7 @@ import numpy as np
 
 PARAMETER_FLOOR = 1e-6  # relative errors of parameters near zero are taken against 1e-6 of the largest
 ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off (see above)
+RANGE_FLOOR = 1e-3  # a joint's range of motion is taken as at least this of its kind's largest, and 1 mrad or 1 mm
 RK4_A = (0.5, 0.5, 1.0)  # the classical Runge-Kutta tableau: stage i + 1 from stage i's rates, that far into the step
 RK4_B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)  # and the four stages' weights
 NORMAL_975 = 1.959963984540054  # the standard normal's 97.5 % quantile: a 95 % interval where no degrees of
@@ -56,6 +61,16 @@ def relative_residual_of_sums(squared_error: float, squared_reference: float) ->
 def parameter_scale(true: np.ndarray, floor: float = PARAMETER_FLOOR) -> np.ndarray:
     """What a parameter's error is relative to: |true|, at least `floor` of the largest |true|."""
     return np.maximum(np.abs(true), floor * np.max(np.abs(true), initial=0.0))
+
+
+def range_scale(q: np.ndarray, revolute) -> np.ndarray:
+    """(n,) what a joint's position error is relative to, from a run's positions `q` (N, n): each joint's
+    range of motion, floored (the module docstring) at RANGE_FLOOR of the largest range among the
+    joints of its kind (`revolute`, (n,) bool) and at RANGE_FLOOR (rad or m)."""
+    span = np.ptp(q, axis=0)
+    revolute = np.asarray(revolute, dtype=bool)
+    kind_largest = np.array([np.max(span[revolute == r]) for r in revolute])
+    return np.maximum(span, RANGE_FLOOR * np.maximum(kind_largest, 1.0))
 
 
 def live_columns(norms: np.ndarray) -> np.ndarray:

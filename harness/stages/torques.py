@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import evenly_spaced, floats, relative_error
+from harness.base.numerics import RANGE_FLOOR, evenly_spaced, floats, range_scale, relative_error
 from harness.base.plugins import PluginError, Stage, call, check_array, column_maps, inverse_dynamics, invoke
 from harness.base.plugins import actuated_torques as plugin_actuated_torques
 from harness.engines.pinocchio import build_model, crba, rnea
@@ -327,13 +327,13 @@ def _against_rigid_loops(pm, robot, rec) -> dict | None:
                                    rec.meta["substeps"])
     except NotSimulated as exc:  # friction that depends on the load
         return {"skipped": str(exc)}
-    span = np.ptp(q_rec, axis=0)
-    rel = relative_error(q, q_rec[: len(q)], np.where(span > 0, span, 1.0)).max(axis=0)
+    rel = relative_error(q, q_rec[: len(q)], range_scale(q_rec, [j.revolute for j in robot.joints])).max(axis=0)
     return {"max_rel_range": float(rel.max()), "max_rel_joint": robot.joint_names[int(np.argmax(rel))],
             "per_joint": dict(zip(robot.joint_names, floats(rel), strict=True)),
             "definition": "Pinocchio's rigid-loop forward dynamics (constraintDynamics, RK4 at the bench's step, "
                           "under the torques MuJoCo was given at every stage, from the recording's first state) "
-                          "against the recording: largest |q - q_MuJoCo| / the joint's range of motion over the run; "
+                          "against the recording: largest |q - q_MuJoCo| / the joint's range of motion over the run "
+                          f"(at least {RANGE_FLOOR:g} of its kind's largest and {RANGE_FLOOR:g} rad or m); "
                           "what MuJoCo's soft loops make of the motion"}
 
 
@@ -388,7 +388,7 @@ def _forward_of_models(ctx, pm, chain, rec) -> dict | None:
         q_ref, v_ref = constrained_rollout(pm, robot, q0[0], qd0, taus, h, 1)
     except NotSimulated as exc:  # friction that depends on the load
         return {e.name: {"skipped": str(exc)} for e in sc.models}
-    span = np.ptp(q_ref, axis=0)
+    scale = range_scale(q_ref, [j.revolute for j in robot.joints])
     s = max(1, min(round(SEGMENT / h), len(taus)))
     starts = np.arange(0, len(taus) - s + 1, s)
     out = {"step_s": h, "segment_s": s * h, "segments": len(starts), "definition": (
@@ -396,7 +396,8 @@ def _forward_of_models(ctx, pm, chain, rec) -> dict | None:
         "RK4 in the actuated joints, the passive ones closing the loops at every stage) against Pinocchio's "
         f"rigid loops (constraintDynamics, RK4), both at a {h * 1e3:g} ms step under the torques MuJoCo was "
         f"given; the model from Pinocchio's state every {s * h:g} s over {s * h:g} s: largest |q_model - "
-        "q_Pinocchio| / the joint's range of motion over the run")}
+        f"q_Pinocchio| / the joint's range of motion over the run (at least {RANGE_FLOOR:g} of its kind's largest "
+        f"and {RANGE_FLOOR:g} rad or m)")}
     window = starts[:, None] + np.arange(s + 1)
     for e in sc.models:
         def inverse(q, qd, qdd, e=e):
@@ -408,7 +409,7 @@ def _forward_of_models(ctx, pm, chain, rec) -> dict | None:
         except (chain_forward.ChainForwardError, ClosureError) as exc:
             out[e.name] = {"failed": str(exc)}
             continue
-        rel = relative_error(q, q_ref[window], np.where(span > 0, span, 1.0))
+        rel = relative_error(q, q_ref[window], scale)
         b, k, j = np.unravel_index(int(np.argmax(rel)), rel.shape)
         out[e.name] = {"max_rel_range": float(rel[b, k, j]), "max_rel_range_joint": joints[j],
                        "max_rel_range_t": float(rec.t[0] + window[b, k] * h),
