@@ -50,8 +50,9 @@ def robot_format(path: Path, content: bytes, flag: str) -> tuple[str, str, str]:
     return FORMATS[root]
 
 
-def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str]:
-    """{file name: text} of the project; `robot` a URDF or an MJCF file (`flag`: the option that named it)."""
+def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str | Path]:
+    """{file name: its text, or the file to copy} of the project; `robot` a URDF or an MJCF file (`flag`:
+    the option that named it)."""
     from harness.base.version import DISTRIBUTION
 
     files = {f.name: f.read_text() for f in sorted((TEMPLATE / "project").iterdir())}
@@ -64,6 +65,10 @@ def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str]:
         content = read_bounded(robot, MAX_XML_BYTES)
         key, name, kind = robot_format(robot, content, flag)
         files[name] = content.decode("utf-8", errors="replace")
+        if key == "mjcf":  # the meshes, textures and included files it names: beside it, or where they are
+            text, named = named_files(robot, flag)
+            files[name] = text if text is not None else files[name]
+            files.update(named)
         head = f"# The robot the harness simulates (MuJoCo) and takes as the truth (Pinocchio): your {kind} file.\n"
         files["robot.toml"] = head + tomli_w.dumps({"model": {"name": "my_robot",
                                                               "description": f"My robot, from its {kind} file"},
@@ -73,6 +78,50 @@ def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str]:
             'ROBOT_FILE = "robot.urdf"', f'ROBOT_FILE = "{name}"')
     files["ci-job.yml"] = files["ci-job.yml"].replace("HARNESS_DISTRIBUTION", DISTRIBUTION)
     return dict(sorted(files.items()))
+
+
+ASSETS = {"mesh": "meshdir", "skin": "meshdir", "hfield": "meshdir", "texture": "texturedir"}  # MuJoCo's
+
+
+def named_files(robot: Path, flag: str) -> tuple[str | None, dict[str, Path]]:
+    """The files an MJCF file names (`<include>`, and the meshes, skins, height fields and textures
+    under its compiler's meshdir, texturedir or assetdir), found as MuJoCo finds them (relative to the
+    robot file's folder), {path in the project: the file}: each at the same place relative to the
+    project's robot file, when it lies in the robot file's folder. One that lies elsewhere is named
+    where it is (its absolute path written into the file that names it): then the robot file's new
+    text (else None). A file named but missing is refused, naming it."""
+    import xml.etree.ElementTree as ET
+
+    base = robot.resolve().parent
+    out: dict[str, Path] = {}
+    pending, robot_text = [robot.resolve()], None
+    dirs: dict[str, str] = {}
+    while pending:
+        xml = pending.pop(0)
+        root = ET.fromstring(read_bounded(xml, MAX_XML_BYTES))
+        for compiler in root.iter("compiler"):
+            dirs.update({k: v for k, v in compiler.attrib.items() if k in ("meshdir", "texturedir", "assetdir")})
+        moved = False
+        for el in root.iter():
+            if "file" not in el.attrib or el.tag not in (*ASSETS, "include"):
+                continue
+            folder = "" if el.tag == "include" else dirs.get(ASSETS[el.tag], dirs.get("assetdir", ""))
+            path = (base / folder / el.get("file")).resolve()
+            if not path.is_file():
+                raise InputError(robot, flag, f"<{el.tag} file={el.get('file')!r}>: no such file ({path})")
+            if path.is_relative_to(base):
+                out[path.relative_to(base).as_posix()] = path
+            else:
+                el.set("file", str(path))
+                moved = True
+            if el.tag == "include":
+                pending.append(path)
+        if moved and xml == robot.resolve():
+            robot_text = ET.tostring(root, encoding="unicode")
+        elif moved:
+            raise InputError(robot, flag, f"{xml.name} (an included file) names files outside {base}: copy them "
+                                          "beside the robot file")
+    return robot_text, out
 
 
 def _joints(robot: Path, key: str, flag: str) -> list[tuple[str, float, float, float | None]]:

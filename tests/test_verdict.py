@@ -456,6 +456,34 @@ def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_
     assert len(results["gates"]) == 6 and all(g["passed"] for g in results["gates"])
 
 
+@pytest.mark.parametrize("robot", ["talos_reduced", "humanoid MJCF"])
+def test_init_at_humanoid_scale_passes_its_run_and_its_pytest_out_of_the_box(tmp_path, robot):
+    """TALOS (example-robot-data's talos_reduced.urdf, 32 joints: the template method's pinv(W^T W) was
+    6.6e-8 of its largest entry off symmetric, refused) and a humanoid MJCF with meshes in a folder of
+    their own, a keyframe, a free joint and a second root body on a hinge (its meshes were not copied,
+    Pinocchio's parser stopped at the keyframe and read the first root body alone): `harness init`, then
+    `harness run scenario.toml` passes, every joint judged, and the project's own pytest (the same run
+    through the harness_run fixture: run for the MJCF project, whose run is the shorter)."""
+    from harness.model.urdf import example_robot_data_path
+    from tests.conftest import humanoid_mjcf
+
+    source = (example_robot_data_path("talos_reduced") if robot == "talos_reduced"
+              else humanoid_mjcf(tmp_path / "maker"))
+    folder = tmp_path / "p"
+    assert main(["init", str(folder), "--robot", str(source)]) == 0
+    if robot != "talos_reduced":
+        assert sorted(p.name for p in (folder / "assets").iterdir()) == ["arm.STL", "pelvis.STL", "shin.STL",
+                                                                         "thigh.STL", "torso.STL"]
+    assert main(["run", str(folder / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    results = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert len(results["scenario"]["motion"]) == (32 if robot == "talos_reduced" else 10)
+    assert len(results["gates"]) == 6 and all(g["passed"] for g in results["gates"])
+    if robot != "talos_reduced":
+        done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"],
+                              cwd=folder, capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+
+
 def test_the_plugin_file_init_writes_passes_the_linter(tmp_path):
     """my_robot.py is composed of pieces (harness/data/init/): the whole, for every kind of project."""
     from harness.model.urdf import example_robot_data_path

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import tempfile
 from contextlib import closing
 from pathlib import Path
@@ -85,11 +86,14 @@ def cmd_init(args: argparse.Namespace) -> int:
         raise InputError(out, "DIR", "exists and is not an empty folder: init writes a new project")
     flag = next((f for f in ("urdf", "mjcf", "robot") if getattr(args, f, None) is not None), None)
     files = project(getattr(args, flag) if flag else None, f"--{flag}")
-    try:
-        write_atomically(out, {name: (lambda p, text=text: p.write_text(text)) for name, text in files.items()})
+    try:  # a file's text, or a file the robot file names, copied
+        write_atomically(out, {name: (lambda p, v=value: shutil.copyfile(v, p) if isinstance(v, Path)
+                                      else p.write_text(v)) for name, value in files.items()})
     except OSError as exc:
         raise InputError(out, "DIR", f"cannot write ({exc.strerror or exc})") from None
-    print(f"wrote {out}/: {', '.join(files)}")
+    shown = [name for name in files if "/" not in name]
+    print(f"wrote {out}/: {', '.join(shown)}" + (f" and {len(files) - len(shown)} file(s) the robot file names"
+                                                 if len(files) > len(shown) else ""))
     print(f"  cd {out} && harness run scenario.toml --out reports && python -m pytest")
     return EXIT_OK
 

@@ -64,11 +64,18 @@ class LeastSquares:
     def fit(self, q, qd, qdd, tau):
         tau = tau - self.known(qd, qdd)
         W, y = self.regressor(q, qd, qdd), tau.reshape(-1)
-        theta, *_ = np.linalg.lstsq(W, y, rcond=None)  # the minimum-norm solution: exact on the base parameters
-        dof = max(len(y) - np.linalg.matrix_rank(W), 1)
-        cov = np.sum((y - W @ theta) ** 2) / dof * np.linalg.pinv(W.T @ W)
+        # W = U diag(s) V^T, kept to its numerical rank (numpy's and lstsq's cut-off): the minimum-norm
+        # solution theta = V diag(1/s) U^T y, exact on the base parameters, and its covariance
+        # sigma^2 (W^T W)^+ = sigma^2 V diag(1/s^2) V^T, made from V alone (pinv(W^T W) is not symmetric
+        # to round-off on a robot of 32 joints)
+        U, s, Vt = np.linalg.svd(W, full_matrices=False)
+        rank = int(np.sum(s > s[0] * max(W.shape) * np.finfo(float).eps))
+        V = Vt[:rank].T / s[:rank]
+        theta = V @ (U[:, :rank].T @ y)
+        sigma2 = np.sum((y - W @ theta) ** 2) / max(len(y) - rank, 1)
         k = self.A.shape[0]  # the inertial parameters, turned to world axes; the friction stays the method's own
-        return Fitted(self, theta, self.A @ theta[:k], self.A @ cov[:k, :k] @ self.A.T)
+        cov = self.A @ (sigma2 * V[:k] @ V[:k].T) @ self.A.T
+        return Fitted(self, theta, self.A @ theta[:k], (cov + cov.T) / 2)  # symmetric to the bit
 
 
 class Fitted:
@@ -89,16 +96,14 @@ def _pinocchio():
 
 
 def robot_model(path, gravity_W):
-    """Pinocchio's model of the robot file (fixed base; a URDF, or an MJCF file: told by the root
-    element) with the scenario's gravity, its data, and its joints' names in its order."""
-    import xml.etree.ElementTree as ET
+    """Pinocchio's model of the robot file (a URDF, or an MJCF file: told by the root element) with the
+    scenario's gravity, its data, and its joints' names in its order. Pinocchio's own parser reads it,
+    given an MJCF file with what that parser cannot read made readable (keyframes left out, several
+    root bodies under one) and a floating base held where the file puts it, as the harness holds it
+    (harness/engines/pinocchio_file.py)."""
+    from harness.engines.pinocchio_file import parse
 
-    pin = _pinocchio()
-    mjcf = ET.parse(path).getroot().tag == "mujoco"
-    model = pin.buildModelFromMJCF(str(path)) if mjcf else pin.buildModelFromUrdf(str(path))
-    free = [j for j in range(1, model.njoints) if model.joints[j].nq == 7]  # a floating base: fixed where the
-    if free:  # file puts it, as the harness fixes it
-        model = pin.buildReducedModel(model, free, pin.neutral(model))
+    model, _ = parse(Path(path))
     model.gravity.linear = np.asarray(gravity_W, dtype=float)
     return model, model.createData(), list(model.names)[1:]
 
