@@ -189,3 +189,16 @@ def test_scenarios_that_name_each_other_are_refused_as_a_cycle(tmp_path, capsys)
     out = tmp_path / "out"
     _assert_refused(capsys, ["run", str(scenario), "--out", str(out)], "other.toml", "torque_identification.validation",
                     out)
+
+
+def test_the_start_up_is_counted_from_the_harnesss_own_start_not_its_processs(tmp_path):
+    """A process that waits 2 s before it starts the harness (a shell that had just run pip read 54 s):
+    run.timings' first entry is the harness's imports alone (about 0.3 s here), not the process's age."""
+    code = ("import sys, time\ntime.sleep(2.0)\n"
+            f"sys.argv = ['harness', 'run', 'kr500_rail', '--out', {str(tmp_path / 'o')!r}, '--quiet']\n"
+            "from harness.cli import entry\nentry()\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    timings = json.loads((tmp_path / "o" / "results.json").read_text())["run"]["timings"]
+    first, seconds = next(iter(timings.items()))
+    assert first == "starting the harness and importing the engines and libraries" and seconds < 2.0

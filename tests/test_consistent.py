@@ -146,3 +146,31 @@ def test_the_triangle_of_the_regressor_reduced_in_pieces_holds_its_normal_equati
         return W @ np.concatenate([f.theta.ravel(), f.friction.ravel()])
     assert np.linalg.norm(torques(split) - torques(whole)) <= 1e-6 * np.linalg.norm(torques(whole))
     assert split.relative_residual == pytest.approx(whole.relative_residual, rel=1e-6)
+
+
+def test_a_link_on_the_margin_or_far_from_the_model_is_consistent_and_its_warning_says_so():
+    """The TX40's report stood a passing consistency gate beside warnings of links 'on the margin' and
+    'far from the model's' with nothing to reconcile them. A link held on the fit's margin (a body pushed
+    past physical, `nearest_physical` at the margin) and a link nine times the model's mass are each
+    consistent by the gate's own definition (`consistency`); `plausibility` finds the first on the margin
+    and the second implausible, and the warning of each says it is physically consistent all the same."""
+    from harness.identify import consistent
+    from harness.model.inertia import from_pseudo_inertia, nearest_physical, parallel_axis, pseudo_inertia
+
+    m, c = 2.0, np.array([0.1, 0.0, 0.05])
+    inertia = np.diag([0.04, 0.05, 0.03]) + parallel_axis(m, c)  # about the origin: a rigid body's
+    body = np.array([m, *(m * c), inertia[0, 0], inertia[0, 1], inertia[1, 1], inertia[0, 2], inertia[1, 2],
+                     inertia[2, 2]])
+    J = pseudo_inertia(body)
+    w, V = np.linalg.eigh(J)
+    past = from_pseudo_inertia(J - (w[0] + 1e-3) * np.outer(V[:, 0], V[:, 0]))  # the data's: past physical
+    margin = consistent.MARGIN * w[-1]
+    held, heavy = nearest_physical(past, margin), body * 9.0
+    assert not consistent.consistency(past)["consistent"]
+    assert consistent.consistency(held)["consistent"] and consistent.consistency(heavy)["consistent"]
+    p = consistent.plausibility(np.stack([held, heavy]), np.stack([body, body]), ["j1", "j2"], margin)
+    assert p["on_margin"] == ["j1"] and p["implausible"] == ["j2"]
+    said = consistent.plausibility_warnings(p)
+    assert "j2 (mass x9" in said[0] and "physically consistent all the same" in said[0]
+    assert said[1].endswith("physically consistent (as the consistency gate checks) because the fit holds them "
+                            "there, where the data alone would take them past physical: j1")

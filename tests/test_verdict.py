@@ -462,8 +462,9 @@ def test_init_at_humanoid_scale_passes_its_run_and_its_pytest_out_of_the_box(tmp
     6.6e-8 of its largest entry off symmetric, refused) and a humanoid MJCF with meshes in a folder of
     their own, a keyframe, a free joint and a second root body on a hinge (its meshes were not copied,
     Pinocchio's parser stopped at the keyframe and read the first root body alone): `harness init`, then
-    `harness run scenario.toml` passes, every joint judged, and the project's own pytest (the same run
-    through the harness_run fixture: run for the MJCF project, whose run is the shorter)."""
+    `harness run scenario.toml` passes, every joint judged, its report saying the humanoid's floating base
+    was fixed, and the project's own pytest (the same run through the harness_run fixture: run for the
+    MJCF project, whose run is the shorter)."""
     from harness.model.urdf import example_robot_data_path
     from tests.conftest import humanoid_mjcf
 
@@ -478,7 +479,8 @@ def test_init_at_humanoid_scale_passes_its_run_and_its_pytest_out_of_the_box(tmp
     results = json.loads((tmp_path / "o" / "results.json").read_text())
     assert len(results["scenario"]["motion"]) == (32 if robot == "talos_reduced" else 10)
     assert len(results["gates"]) == 6 and all(g["passed"] for g in results["gates"])
-    if robot != "talos_reduced":
+    if robot != "talos_reduced":  # its floating base, fixed where the file puts it, said in the report too
+        assert "the floating base is taken as fixed to the world" in (tmp_path / "o" / "report.html").read_text()
         done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"],
                               cwd=folder, capture_output=True, text=True, timeout=300)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]

@@ -7,7 +7,6 @@ import argparse
 import os
 import signal
 import sys
-import time
 import traceback
 from pathlib import Path
 
@@ -136,7 +135,9 @@ def entry() -> None:
     args = parser().parse_args(argv)  # usage errors: exit 2 here, before anything is started
     sys.stdout.flush()
     sys.stderr.flush()
-    run_command.BORN = time.perf_counter() - run_command.process_age()  # the child's clock and this one: the same
+    from harness.cli.started import STARTED
+
+    run_command.BORN = STARTED  # the harness's start, on the clock the child keeps (perf_counter is monotonic)
     read_end, write_end = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: the command

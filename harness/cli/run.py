@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import gc
-import os
 import sys
 import time
 from contextlib import closing
@@ -24,29 +23,21 @@ from harness.cli.common import (
 )
 from harness.runner.gates import summary_line
 
-BORN: float | None = None  # time.perf_counter() at the start of the `harness` process, noted by `entry`
+BORN: float | None = None  # time.perf_counter() when the `harness` command started (its package imported), by `entry`
 ENDS_WITH_COMMAND = False  # True in the child `entry` forks: the process ends when the command does
 
 
-def process_age() -> float:
-    """Seconds since the `harness` process started (Linux: /proc), 0 where that cannot be read. The
-    command runs in a child that `entry` forks, whose own start is the fork: it counts from the
-    start of the process that forked it, which `entry` notes beforehand (the interpreter's start and
-    the imports of this module happen there)."""
-    if BORN is not None:
-        return max(time.perf_counter() - BORN, 0.0)
-    try:
-        since_boot = float(Path("/proc/uptime").read_text().split()[0])
-        stat = Path("/proc/self/stat").read_text()
-        started = int(stat[stat.rindex(")") + 2:].split()[19]) / os.sysconf("SC_CLK_TCK")  # field 22
-        return max(since_boot - started, 0.0)
-    except (OSError, ValueError, IndexError):
-        return 0.0
+def since_start() -> float:
+    """Seconds since the `harness` command started: since its package was imported, which `entry` notes
+    (the child it forks keeps the same clock), not since its process started (a process that waited
+    before starting the harness, a wrapper's, is not the harness's time); 0 where the command is
+    called from Python (`main`), whose imports are timed on their own."""
+    return max(time.perf_counter() - BORN, 0.0) if BORN is not None else 0.0
 
 
 def cmd_run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
-    started = process_age()  # the interpreter's start and the imports of this module, before `start`
+    started = since_start()  # the harness's imports before `start`
     # in the child `entry` forks, the modules' objects live as long as the process: the cyclic garbage
     # collector is kept from walking them while they are made, and from then on (gc.freeze: 20 ms of
     # a kr500_rail run); a process that goes on after the command (main() called from Python) keeps
@@ -140,7 +131,7 @@ def _run_each(args: argparse.Namespace, scenarios: list, reading: list[float], w
         for warning in (results.get("data", {}).get("conditioning", {}).get("warnings", [])
                         + results.get("log_identification", {}).get("warnings", []) + failed):
             print(f"harness: warning: {scenario.name}: {warning}", file=sys.stderr)  # once per run, not per row
-        results["run"]["timings"] = {"starting Python and importing the engines and libraries": imported,
+        results["run"]["timings"] = {"starting the harness and importing the engines and libraries": imported,
                                      "reading the scenario, its model and plugins": read,
                                      **results["run"]["timings"]}
         imported = 0.0

@@ -316,3 +316,24 @@ def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], 
             "band": [1 / PLAUSIBLE, PLAUSIBLE], "ratios": ratios, "implausible": outside,
             "implausible_links": len(outside), "on_margin": on_margin, "links_on_margin": len(on_margin),
             "inertia_not_judged": unjudged}
+
+
+def plausibility_warnings(p: dict) -> list[str]:
+    """What the terminal and the report are told of `plausibility`'s findings, each saying how it stands
+    beside physical consistency (the gate on inconsistent links), which it does not contradict: a link
+    on the margin or far from the model's is a rigid body's all the same."""
+    out = []
+    if p["implausible"]:
+        out.append(f"identified links far from the model's (mass or inertia beyond {PLAUSIBLE:g} times, or under "
+                   f"1/{PLAUSIBLE:g} of, its own; physically consistent all the same: plausibility judges them against "
+                   "the model, consistency against a rigid body's): " + ", ".join(
+                       f"{j} (mass x{p['ratios'][j]['mass']:.3g}, inertia x{p['ratios'][j]['inertia_trace']:.3g})"
+                       for j in p["implausible"]))
+    if p["inertia_not_judged"]:
+        out.append("the model gives no inertia of their own to " + ", ".join(p["inertia_not_judged"])
+                   + " (a point mass): their identified inertia is judged against nothing (plausibility.ratios)")
+    if p["on_margin"]:
+        out.append(f"{len(p['on_margin'])} link(s) held on the fit's positive-definiteness margin: physically "
+                   "consistent (as the consistency gate checks) because the fit holds them there, where the data alone "
+                   f"would take them past physical: {', '.join(p['on_margin'])}")
+    return out

@@ -120,7 +120,14 @@ def log_identification(r: dict, log) -> str:
                    for k, v in con["links"].items()])
     pl = li.get("plausibility")
     if pl:
-        links += f"<p>Plausibility: {esc(pl['definition'])}.</p>" + table(
+        links += (f"<p>Plausibility: {esc(pl['definition'])}. A link is physically consistent (the table above, and "
+                  "the gate on <code>log_identification.consistent.inconsistent_links</code>) when some rigid body has "
+                  "its parameters: its pseudo-inertia positive definite, by at least the fit's margin. That says "
+                  "nothing of whether the body is this robot's: a link on the margin is consistent because the fit "
+                  "holds it at that boundary, where the data alone would take it past physical (the data do not "
+                  "determine it, or the model's kinematics or friction law are not the robot's), and a link far from "
+                  "the model's is consistent with a mass or inertia the model does not expect. Both are findings of "
+                  "the data against the model, not failures of consistency.</p>") + table(
             ["link (by its joint)", "mass ratio", "inertia ratio", "plausible", "on the margin"],
             [[esc(j), num(v["mass"]), num(v["inertia_trace"]),
               mark(j not in pl["implausible"], "no" if j in pl["implausible"] else "yes"),

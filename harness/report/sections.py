@@ -27,7 +27,14 @@ def verdict(r: dict) -> str:
     badge = f'<div class="verdict {"pass" if ok else "fail"}" id="verdict">{"PASSED" if ok else "FAILED"}</div>'
     failing = [g for g in r["gates"] if not g["passed"]]
     summary = esc(summary_line(r["scenario"]["name"], r["gates"])) + (
-        ": " + ", ".join(esc(g["name"]) for g in failing) if failing else "")
+        Markup(": ") + Markup(", ").join(esc(g["name"]) for g in failing) if failing else "")
+    versions = r["run"]["versions"]
+    made = esc(f"harness {versions.get('harness', '?')}, MuJoCo {versions.get('mujoco', '?')}, Pinocchio "
+               f"{versions.get('pinocchio', '?')}; run {r['run'].get('id', '(no id)')} at {r['run']['time']} (UTC)")
+    said = [*r["scenario"].get("model_notes", []), *r.get("data", {}).get("conditioning", {}).get("warnings", []),
+            *r.get("log_identification", {}).get("warnings", [])]
+    warnings = ("<p>What reading the model and the data assumed or found (each also said on the terminal):</p><ul>"
+                + "".join(f'<li class="warn">{esc(w)}</li>' for w in said) + "</ul>") if said else ""
     rows = [
         [
             esc(g["name"]),
@@ -68,7 +75,8 @@ def verdict(r: dict) -> str:
     return section(
         "verdict",
         "Verdict",
-        badge + f"<p>{summary}</p>" + (f"<ul>{''.join(answers)}</ul>" if answers else "")
+        badge + f"<p>{summary}</p><p><small>{made}</small></p>" + warnings
+        + (f"<ul>{''.join(answers)}</ul>" if answers else "")
         + table(["gate", "metric", "value", "limit", "result", "worst case"], rows, "gates"),
     )
 

@@ -501,20 +501,10 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
 
 def warnings(li: LogIdentification, mode: str) -> list[str]:
     """What the terminal is told of a log run, once."""
-    out, p, lags = [], li.plausible, li.delayed.lags
+    out, lags = [], li.delayed.lags
     out += [f"the model as given and the log as read differ at {f['joint']} by a {f['finding']}: likely {f['likely']}"
             for f in li.start.findings]
-    if p["implausible"]:
-        out.append(f"identified links far from the model's (mass or inertia beyond {consistent.PLAUSIBLE:g} times, "
-                   f"or under 1/{consistent.PLAUSIBLE:g} of, its own): " + ", ".join(
-                       f"{j} (mass x{p['ratios'][j]['mass']:.3g}, inertia x{p['ratios'][j]['inertia_trace']:.3g})"
-                       for j in p["implausible"]))
-    if p["inertia_not_judged"]:
-        out.append("the model gives no inertia of their own to " + ", ".join(p["inertia_not_judged"])
-                   + " (a point mass): their identified inertia is judged against nothing (plausibility.ratios)")
-    if p["on_margin"]:
-        out.append(f"{len(p['on_margin'])} link(s) on the fit's positive-definiteness margin (the data push them past "
-                   f"physical): {', '.join(p['on_margin'])}")
+    out += consistent.plausibility_warnings(li.plausible)
     out += delay_warnings(lags, li.model.torque_joints, mode)
     out += [note for note in (li.delayed.note, li.laws.note, li.fitted.note) if note]
     repeated = li.fitted.repeated
