@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -70,21 +69,16 @@ def write_file_atomically(path: Path, text: str) -> None:
 
 
 def write_atomically(out: Path, files: dict[str, Callable[[Path], object]]) -> None:
-    """Write every file into a temporary folder beside `out`, then move them in: a failure leaves
-    nothing half-written in `out`."""
+    """Write every file into a staging folder beside `out`, then move them into the (new or empty) folder
+    `out`: a failure leaves nothing half-written in it. A run's folder is written by
+    harness/runner/folder.py's `place`, which also says whose run it holds."""
+    from harness.runner.folder import staged
+
     out = out.resolve()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        for name, write in files.items():
-            (tmp / name).parent.mkdir(parents=True, exist_ok=True)
-            write(tmp / name)
+    with staged(out, files) as staging:
         out.mkdir(exist_ok=True)
-        for name in files:
-            (out / name).parent.mkdir(parents=True, exist_ok=True)
-            (tmp / name).replace(out / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        for entry in staging.iterdir():
+            entry.replace(out / entry.name)
 
 
 def print_gates(rows: list[dict]) -> None:

@@ -185,10 +185,11 @@ def file_inverse_dynamics(path: Path, joints: list[str], gravity_W: np.ndarray, 
     model.dof_armature[:] = model.dof_damping[:] = model.jnt_stiffness[:] = model.body_gravcomp[:] = 0.0
     model.tendon_armature[:] = model.tendon_damping[:] = model.tendon_stiffness[:] = 0.0
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
+    # an unnamed joint is '#k' in the harness's reading (harness/model/mjcf.py): MuJoCo's joint k
     ids = [int(j[1:]) if i < 0 and re.fullmatch(r"#\d+", j) else i for i, j in zip(ids, joints, strict=True)]
-    if min(ids, default=0) < 0 or max(ids, default=0) >= model.njnt:  # an unnamed joint is '#k' (model/mjcf.py)
-        raise ValueError(f"MuJoCo's model of {Path(path).name} has no joint "
-                         f"{next(j for i, j in zip(ids, joints, strict=True) if not 0 <= i < model.njnt)!r}")
+    missing = [j for i, j in zip(ids, joints, strict=True) if not 0 <= i < model.njnt]
+    if missing:
+        raise ValueError(f"MuJoCo's model of {Path(path).name} has no joint {missing[0]!r}")
     cols, pos = model.jnt_dofadr[ids], model.jnt_qposadr[ids]
     data = mujoco.MjData(model)
     tau = np.empty_like(q)

@@ -4,7 +4,7 @@ that shares none of the harness's, which `harness audit` compares the harness's 
 
 Pinocchio 4.1's MJCF parser reads less of a file than MuJoCo compiles, in ways that change no
 dynamics; what it is given is the file with those parts made readable, each said in the notes:
-- `<include>` files written in place (relative to the including file's folder, as MuJoCo reads them);
+- `<include>` files written in place (relative to the robot file's folder, as MuJoCo finds them);
 - `<keyframe>` left out: its parser checks a keyframe's size against a model of its own, which
   differs from MuJoCo's where the file has a free joint ("Keyframe size does not match model size");
 - several bodies under `<worldbody>` put under one massless body at the world's origin: its parser

@@ -246,4 +246,6 @@ def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float
         lines += ["  The inertial parameters, armature and viscous friction are the identified model's exactly."]
     elif mjcf_refused:
         lines += [f"- `{MJCF_FILE}` is not written: {mjcf_refused}."]
+    lines += ["- `manifest.json`: the run that wrote these files (its id, as in the run's `results.json`) and each "
+              "file's SHA-256: `harness.identified_model` refuses this folder when its files are not exactly those."]
     return "\n".join(lines) + "\n"

@@ -188,12 +188,7 @@ def place(out: Path, files: dict[str, Callable[[Path], object]], kind: str, name
     manifest last). An InputError (the folder is another run's, or holds files no run wrote) or a
     failure to write leaves `out` as it was."""
     out = out.absolute()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.staging-", dir=out.parent))
-    try:
-        for path, write in files.items():
-            (staging / path).parent.mkdir(parents=True, exist_ok=True)
-            write(staging / path)
+    with staged(out, files) as staging:
         seal(staging, run, kind, name)
         with _locked(out.parent):
             claim(out, kind, name, replace, flag)  # again: another command may have written it meanwhile
@@ -210,6 +205,19 @@ def place(out: Path, files: dict[str, Callable[[Path], object]], kind: str, name
                 raise
             finally:
                 shutil.rmtree(old, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def staged(out: Path, files: dict[str, Callable[[Path], object]]) -> Iterator[Path]:
+    """A staging folder beside `out` (its parent made where missing) holding `files` ({relative path:
+    writer of that path}), removed with whatever is left in it after the block."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.staging-", dir=out.parent))
+    try:
+        for path, write in files.items():
+            (staging / path).parent.mkdir(parents=True, exist_ok=True)
+            write(staging / path)
+        yield staging
     finally:
         shutil.rmtree(staging, ignore_errors=True)
 
