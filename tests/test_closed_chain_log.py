@@ -267,8 +267,11 @@ def test_the_shipped_bench_log_is_identified_within_its_noise(tmp_path):
 @pytest.mark.slow  # a 12 s simulation of the arm at 0.25 ms
 def test_the_closed_chain_bench_log_is_what_its_recipe_makes(tmp_path):
     """harness/data/logs/parallelogram_bench/log.csv is the bench of its bench.toml, its actuated
-    joints' channels measured: remade here, the same numbers (to 1e-9: another CPU may round MuJoCo's
-    last bits otherwise; the noise is seeded)."""
+    joints' channels measured: remade here, the same numbers to 1e-9 of each column's largest value
+    (another CPU may round MuJoCo's last bits otherwise; the noise is seeded). Relative to the column,
+    as every error here (harness/base/numerics.py): a velocity through zero, -2.5e-4 rad/s where its column
+    reaches 0.95, differs by 1.3e-12 between an Intel Xeon and an AMD EPYC: 1.4e-12 of the column, 5e-9
+    of itself."""
     from harness.sources.bench import record, write_log
     from harness.sources.measurement import measure
 
@@ -277,4 +280,5 @@ def test_the_closed_chain_bench_log_is_what_its_recipe_makes(tmp_path):
     write_log(measure(record(sc), sc.measurement), list(sc.robot.actuated), tmp_path / "log.csv")
     made, shipped = pd.read_csv(tmp_path / "log.csv"), pd.read_csv(folder / "log.csv")
     assert list(made.columns) == list(shipped.columns) and made.shape == shipped.shape == (2401, 10)
-    np.testing.assert_allclose(made.to_numpy(), shipped.to_numpy(), rtol=1e-9, atol=1e-12)
+    scale = np.max(np.abs(shipped.to_numpy()), axis=0)
+    assert np.all(np.abs(made.to_numpy() - shipped.to_numpy()) <= 1e-9 * scale)

@@ -345,18 +345,18 @@ def test_mujoco_sysid_absent_is_a_tool_unavailable_naming_the_extra(monkeypatch)
 
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
-def test_mujoco_sysid_improves_on_the_model_as_given_and_states_its_limits(bench_run):
-    """From the model as given (the URDF without drives: 22 % off the truth's torques) sysid's rollouts
-    must bring the model closer to the robot that made the log; its links are physical by construction
-    (the pseudo-inertia's Cholesky factor), and its row says what it cannot do and what it cost. How
-    much closer is not claimed: its 25 Gauss-Newton iterations (the adapter's default) stop before it
-    converges, where round-off has steered it (mujoco 4.0.0, same log: 5.9 % on an AMD EPYC, 15.4 % on
-    an Intel Xeon; 60 iterations: 3.4 %, docs/plugins.md)."""
+def test_mujoco_sysid_is_judged_against_the_truth_and_states_its_limits(bench_run):
+    """MuJoCo's sysid from the model as given (the URDF without drives: 22 % off the truth's torques): its
+    row holds its error against the truth's torques, its links are physical by construction (the
+    pseudo-inertia's Cholesky factor), and it says what it cannot do and what it cost. Whether it comes
+    closer to the robot than the model as given is not the harness's to claim: its rollouts' residual
+    falls from 1.5e4 to 40 on every machine, but the torques it leaves are where round-off steered it
+    (mujoco 4.0.0, same log, its default 84 chunks: 15.4 % on an Intel Xeon, 150 % on an AMD EPYC with
+    two rotor inertias at their bound, 131 % there after 60 iterations; docs/plugins.md)."""
     pytest.importorskip("mujoco.sysid", reason="MuJoCo's sysid is not installed (pip install 'harness[sysid]')")
     _, results, _, _ = bench_run
     row = results["identification_methods"]["sysid"]
-    given = results["log_identification"]["truth"]["validation_rel_error"]["model as given"]
-    assert row["truth"]["validation_rel_error"] < given
+    assert np.isfinite(row["truth"]["validation_rel_error"]) and row["truth"]["span"] == "validation"
     assert row["physical"]["inconsistent_links"] == 0
     assert any("sharp sign" in note for note in row["notes"])
     assert any("rolled out in" in note for note in row["notes"]) and row["seconds"] > 0
