@@ -183,6 +183,35 @@ def _log_scenario(folder, data: str, name: str = "s") -> None:
         '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 0.05\n')
 
 
+def test_a_motor_side_log_with_velocities_reads_as_the_joints_log_to_round_off(tmp_path):
+    """A log with velocity columns written at the joints (t, q, q', tau) and at the motors (q_m = N q + o,
+    q'_m = N q', tau_m = N^-T tau): read, the motors' log is the joints' to round-off, its velocities
+    mapped back by N^-1 (a motor's velocity read as a joint's rate, N q'_m, is N^2 q': 2,500 q' on the
+    first joint here)."""
+    from harness.api import load_scenario
+    from harness.sources.log.read import read_raw
+
+    model = load_spec(tmp_path / _drives_model(tmp_path))
+    t = np.arange(500) * 0.002
+    q = np.stack([0.4 * np.sin(1.3 * t), 0.3 * np.cos(2.1 * t)], axis=1)
+    qd = np.stack([0.52 * np.cos(1.3 * t), -0.63 * np.sin(2.1 * t)], axis=1)
+    tau = np.stack([12 + 3 * np.sin(2 * t), -4 + np.cos(3 * t)], axis=1)
+    tr = model.transmission
+    q_m, qd_m, tau_m = tr.motor_positions(q), tr.motor_rates(qd), tr.motor_torques(tau)
+    for name, (a, b, c) in (("joints", (q, qd, tau)), ("motors", (q_m, qd_m, tau_m))):
+        pd.DataFrame({"t": t, **{f"q{k + 1}": a[:, k] for k in range(2)}, **{f"qd{k + 1}": b[:, k] for k in range(2)},
+                      **{f"tau{k + 1}": c[:, k] for k in range(2)}}).to_csv(tmp_path / f"{name}.csv", index=False,
+                                                                           float_format="%.17g")
+        side = 'side = "motor"\n' if name == "motors" else ""
+        _log_scenario(tmp_path, f'file = "{name}.csv"\ncolumns = {{ t = "t", q = "q{{j}}", qd = "qd{{j}}", '
+                                f'tau = "tau{{j}}" }}\n{side}', name)
+    read = {name: read_raw(sc.data, sc.robot) for name, sc in
+            ((n, load_scenario(tmp_path / f"{n}.toml")) for n in ("joints", "motors"))}
+    for kind in ("q", "qd", "tau"):
+        a, b = getattr(read["joints"], kind), getattr(read["motors"], kind)
+        assert np.max(np.abs(a - b)) <= 1e-12 * np.max(np.abs(a)), kind
+
+
 def test_a_log_of_the_motors_in_two_files_without_a_time_column_is_the_joints_log(coupled_bench):
     """The bench's recording written twice: at the joints (t, q, tau), and at the motors as a lab
     publishes it (positions q_m = N q + o in one file, torques N^-T tau in another, no time column:

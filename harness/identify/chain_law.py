@@ -56,8 +56,8 @@ def choose(W: np.ndarray, G: np.ndarray, qd: np.ndarray, tau: np.ndarray, indepe
     function of v_c (variable projection), over a sharp sign (0) and VELOCITY_GRID, the best refined
     between its grid neighbours. One scalar beside the linear parameters: its residual is no model
     choice to guard, where a cross-validated choice on a short span of one or two actuated channels
-    follows its folds' extrapolation (a four-bar's crank log, condition number 1e4: held-out errors of
-    30 to 120 %, v_c 0.084 chosen for a true 0.05). The blocked cross-validation (`folds` consecutive
+    follows its folds' extrapolation (the four-bar's crank log of tests/test_closed_chain_log_laws.py,
+    which holds the figures). The blocked cross-validation (`folds` consecutive
     parts, each predicted by the fit on the others less their rows within `reach_s` of it) reports the
     held-out error of the chosen law and of the model's own velocities (n,). `columns`: a filtered
     span's (every joint's velocities at the full rate: harness/sources/log/closed.py)."""

@@ -49,6 +49,7 @@ from harness.base.numerics import PARAMETER_FLOOR, SideBySide, column_scale, rel
 from harness.base.tomlio import in_one_line
 from harness.identify.friction_law import Law, extra_terms
 from harness.identify.torque_id import SAMPLES_AT_A_TIME
+from harness.model import drives
 from harness.model.drives import Transmission
 from harness.model.friction import BOUNDED_BY, IDENTIFIED_KEYS, JointFriction
 from harness.model.inertia import (
@@ -238,7 +239,9 @@ def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law
     n = len(theta_model)
     terms = extra_terms(laws)
     if transmission is not None:
-        reach = transmission.N != 0  # (motors, joints)
+        reach = np.zeros((n, n), dtype=bool)  # (motors, joints): where each drive's columns are (drives.reach)
+        for j, k, _ in drives.reach(transmission, n):
+            reach[k, j] = True
     # magnitudes for the pull towards the model: the inertial parameters' kinds in the model; a
     # friction term's, the value that alone would carry its joint's whole torque (rms over rms)
     if reach is None:

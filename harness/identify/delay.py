@@ -109,15 +109,21 @@ def estimate(t: np.ndarray, tau: np.ndarray, W, largest: float = LARGEST, step: 
     delay = candidates[best].astype(float)
     residual = curve[np.arange(n), best].copy()
     at_edge = (best <= EDGE) | (best >= len(candidates) - 1 - EDGE)
-    # the vertex of the parabola through the best point and its neighbours, in squared residual
     for j in np.flatnonzero((best > 0) & (best < len(candidates) - 1)):
-        y0, y1, y2 = curve[j, best[j] - 1: best[j] + 2] ** 2
-        denominator = y0 - 2 * y1 + y2
-        if denominator > 0:
-            delay[j] += 0.5 * h * (y0 - y2) / denominator
-            residual[j] = np.sqrt(max(y1 - (y0 - y2) ** 2 / (8 * denominator), 0.0))
+        delay[j], residual[j] = vertex(curve[j, best[j] - 1: best[j] + 2], delay[j], h)
     zero = curve[:, np.argmin(np.abs(candidates))]
     return Delays(delay, residual, zero, candidates, curve, at_edge)
+
+
+def vertex(residuals: np.ndarray, at: float, h: float) -> tuple[float, float]:
+    """The vertex of the parabola through three squared residuals (the residuals at at - h, at, at + h,
+    the middle the least): (its delay, the residual there); (at, the middle residual) where they do
+    not curve upwards."""
+    y0, y1, y2 = np.asarray(residuals, dtype=float) ** 2
+    denominator = y0 - 2 * y1 + y2
+    if not denominator > 0:
+        return at, float(np.sqrt(y1))
+    return at + 0.5 * h * (y0 - y2) / denominator, float(np.sqrt(max(y1 - (y0 - y2) ** 2 / (8 * denominator), 0.0)))
 
 
 def _joint_rows(samples, N: int, j: int, rows: np.ndarray, p: int) -> np.ndarray:

@@ -40,7 +40,7 @@ from scipy.optimize import minimize, minimize_scalar
 from harness.base.numerics import consecutive_blocks, relative_residual_of_sums
 from harness.identify import filtered
 from harness.identify.torque_id import drive_column, links_weights
-from harness.model import friction
+from harness.model import drives, friction
 from harness.model.drives import Transmission
 from harness.model.friction import EXTRA_KEYS, FAMILIES, JointFriction
 
@@ -140,11 +140,11 @@ def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray
         column = filtered.drive_term(columns, t, laws[j], j, transmission, key)
         return np.abs(tau_rigid[:, j]) * column if key == "load_coulomb" else column
 
-    for c, (j, key) in enumerate(terms):
-        if transmission is None:
-            out[:, j, c] = shape(j, key)
-        else:
-            out[:, :, c] = shape(j, key)[:, None] * transmission.N[j]
+    reaching = drives.reach(transmission, n)
+    for c, (k, key) in enumerate(terms):  # drive k's column on every joint j it reaches, times N[k, j]
+        column = shape(k, key)
+        for j, _, factor in (r for r in reaching if r[1] == k):
+            out[:, j, c] = factor * column
     return out.reshape(N * n, len(terms))
 
 

@@ -70,15 +70,10 @@ SAMPLES_AT_A_TIME = 8192  # samples of the regressor made at a time (`regressor`
 
 def put_coulomb(W3: np.ndarray, S: np.ndarray, transmission: Transmission | None) -> None:
     """Each drive's Coulomb column of the regressor's rows W3 (N, n, 14 n) set to S (N, m), in place:
-    drive k's own row, or with a transmission every joint j it reaches, times N[k, j]
-    (harness/model/drives.py)."""
+    on every joint j drive k reaches, times N[k, j] (harness/model/drives.py, `reach`)."""
     n = W3.shape[1]
-    for k in range(S.shape[1]):
-        c = drive_column(n, k, "coulomb")
-        if transmission is None:
-            W3[:, k, c] = S[:, k]
-        else:
-            W3[:, :, c] = S[:, k, None] * transmission.N[k][None, :]
+    for j, k, factor in drives.reach(transmission, S.shape[1]):
+        W3[:, j, drive_column(n, k, "coulomb")] = factor * S[:, k]
 
 
 def chain_regressor(pm: PinocchioModel, chain, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -130,15 +125,10 @@ def regressor_by_joint(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: n
         for k in range(N):
             out[:, : 10 * n, k] = pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[
                 np.ix_(pm.q_index, cols)]
-    if with_friction and pm.transmission is None:  # joint j's four columns act on joint j's row only
-        shapes = friction.columns(pm.frictions, qd, qdd)  # (N, n, 4)
-        for j in range(n):
-            out[j, drive_columns(n, j)] = shapes[:, j].T
-    elif with_friction:  # motor k's four columns, at its rates, reach joint j times N[k, j] (harness/model/drives.py)
-        shapes = drives.columns(pm.frictions, pm.transmission, qd, qdd)  # (N, motors, 4)
-        N_kj = pm.transmission.N
-        for j, k in zip(*np.nonzero(N_kj.T), strict=True):
-            out[j, drive_columns(n, k)] = N_kj[k, j] * shapes[:, k].T
+    if with_friction:  # drive k's four columns, at its rates, on joint j's rows times N[k, j] (drives.reach)
+        shapes = drives.columns(pm.frictions, pm.transmission, qd, qdd)  # (N, drives, 4)
+        for j, k, factor in drives.reach(pm.transmission, n):
+            out[j, drive_columns(n, k)] = factor * shapes[:, k].T
     return out
 
 

@@ -19,7 +19,7 @@ its own motion: the motor must supply tau_m = N^-T tau_R + f_m(q'_m, q''_m), so 
 a rotor inertia reflects as N^T diag(I_m) N (off the diagonal where N couples), a friction acts on N q'.
 A diagonal N reduces to one term per joint; where a model states no drives, the joints' own laws are
 the motors' (N the identity: every figure as it was). `Transmission` is N and o; the drive law through
-it is written once here (`torque`, `columns`, `mass`), and every engine and fit takes it from here.
+it is written once here (`torque`, `columns`, `mass`, `reach`), and every engine and fit takes it from here.
 """
 
 from __future__ import annotations
@@ -94,21 +94,20 @@ def torque(frictions: tuple[JointFriction, ...], transmission: Transmission | No
     return t.joint_torques(friction.torque(frictions, t.motor_rates(qd), t.motor_rates(qdd), rigid_m))
 
 
-def through(transmission: Transmission | None, motor_columns: np.ndarray) -> np.ndarray:
-    """(N, n_joints, n_motors, c): columns of each motor's coefficients on its own motor torque
-    (N, n_motors, c) as they reach the joints: motor k's reach joint j times N[k, j]."""
+def reach(transmission: Transmission | None, n: int) -> list[tuple[int, int, float]]:
+    """Where each drive's torque reaches the joints, by tau_J = N^T tau_m column by column: (joint j,
+    drive k, N[k, j]) for every N[k, j] != 0, joint by joint; without a transmission each joint's own
+    law, (j, j, 1.0). Every regressor column of a drive term (rotor inertia, friction, the families'
+    terms) is its motor's column times N[k, j] on joint j's rows: written here once."""
     if transmission is None:
-        N, n, c = motor_columns.shape
-        out = np.zeros((N, n, n, c))
-        out[:, np.arange(n), np.arange(n)] = motor_columns
-        return out
-    return np.einsum("kj,tka->tjka", transmission.N, motor_columns)
+        return [(j, j, 1.0) for j in range(n)]
+    return [(int(j), int(k), float(transmission.N[k, j])) for j, k in zip(*np.nonzero(transmission.N.T), strict=True)]
 
 
 def columns(frictions: tuple[JointFriction, ...], transmission: Transmission | None, qd: np.ndarray,
             qdd: np.ndarray) -> np.ndarray:
     """(N, n_motors, 4): each motor's regressor of its [armature, viscous, coulomb, offset] on its own
-    torque, [q''_m, q'_m, s(q'_m), 1] at the motor's rates (`through` takes them to the joints)."""
+    torque, [q''_m, q'_m, s(q'_m), 1] at the motor's rates (`reach` takes them to the joints)."""
     if transmission is None:
         return friction.columns(frictions, qd, qdd)
     return friction.columns(frictions, transmission.motor_rates(qd), transmission.motor_rates(qdd))

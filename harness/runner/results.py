@@ -206,8 +206,3 @@ def _entry(value, path: str, key, found: list[str]):
 def write_results(path: Path, results: dict) -> None:
     Path(path).write_text(json.dumps(results, indent=2, allow_nan=False) + "\n")
 
-
-def results_of_file(results: dict) -> dict:
-    """A results dict in the order of the file: schema, verdict, then the sections."""
-    head = {k: results[k] for k in ("schema", "passed", "gates") if k in results}
-    return {**head, **{k: v for k, v in results.items() if k not in head}}
