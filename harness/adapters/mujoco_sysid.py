@@ -38,7 +38,7 @@ from types import SimpleNamespace
 import mujoco
 import numpy as np
 
-from harness.base.numerics import sampled
+from harness.base.numerics import sample_step, sampled
 from harness.base.plugins import PluginError, ToolUnavailable
 from harness.engines.mujoco import dynamics_spec
 from harness.engines.pinocchio import build_model, rnea
@@ -135,7 +135,7 @@ class Sysid:
         ms = dynamics_spec(self.robot, self.gravity_W, "Euler", o["timestep"])
         model = ms.compile()
         params = self._parameters(ms)
-        dt = float(np.median(np.diff(t)))
+        dt = sample_step(t)
         steps = round(o["chunk_seconds"] / dt)
         times = np.arange(steps + 1) * dt  # every chunk on one grid: the batch needs equal lengths
         if steps < 1 or t[-1] - t[0] < times[-1]:

@@ -1,4 +1,4 @@
-"""Numbers every layer defines the same way, written once: relative errors and their floor, the
+"""Numbers every layer defines the same way, written once: relative errors and their floor, a series' sample step, the
 relative residual of a fit (||tau_pred - tau||_F / ||tau||_F), column scaling of a regressor and its
 equilibrated condition number, the classical RK4 tableau, consecutive blocks of samples, the normal
 quantile of a 95 % interval, and how a number goes into results.json.
@@ -61,6 +61,11 @@ def relative_residual_of_sums(squared_error: float, squared_reference: float) ->
 def parameter_scale(true: np.ndarray, floor: float = PARAMETER_FLOOR) -> np.ndarray:
     """What a parameter's error is relative to: |true|, at least `floor` of the largest |true|."""
     return np.maximum(np.abs(true), floor * np.max(np.abs(true), initial=0.0))
+
+
+def sample_step(t: np.ndarray) -> float:
+    """A series' sample step: the median of its time steps (s), 0 for fewer than two samples."""
+    return float(np.median(np.diff(t))) if len(t) > 1 else 0.0
 
 
 def range_scale(q: np.ndarray, revolute) -> np.ndarray:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from harness.base.numerics import column_scale, relative_residual_of_sums, triangle
+from harness.base.numerics import column_scale, relative_residual_of_sums, sample_step, triangle
 from harness.identify import filtered
 from harness.identify.friction_law import VELOCITY_GRID, FrictionChoice, Law, blocked_folds
 from harness.identify.torque_id import drive_column, links_weights
@@ -62,7 +62,7 @@ def choose(W: np.ndarray, G: np.ndarray, qd: np.ndarray, tau: np.ndarray, indepe
     held-out error of the chosen law and of the model's own velocities (n,). `columns`: a filtered
     span's (every joint's velocities at the full rate: harness/sources/log/closed.py)."""
     N, m = tau.shape
-    step = float(np.median(np.diff(t))) if N > 1 else 0.0
+    step = sample_step(t)
     split = blocked_folds(N, folds, int(np.ceil(reach_s / step - 1e-9)) if reach_s > 0 and step > 0 else 0)
     W3 = W.reshape(N, m, -1)
     total = float(np.sum(tau**2))

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import column_scale, relative_residual
+from harness.base.numerics import column_scale, relative_residual, sample_step
 from harness.base.series import STRETCH_BREAK, TimeSeries, room
 from harness.identify.torque_id import SAMPLES_AT_A_TIME
 
@@ -74,7 +74,7 @@ def grid_step(t: np.ndarray, filtered: bool, step: float = STEP) -> float:
     seem to lag by a fraction of a sample (1 to 1.7 ms on a 250 Hz bench log of currents with 1 % noise)."""
     if filtered:
         return step
-    dt = float(np.median(np.diff(t)))
+    dt = sample_step(t)
     return max(1, round(step / dt)) * dt
 
 
@@ -159,7 +159,7 @@ def corrected(series: TimeSeries, lags: Delays, joints) -> TimeSeries:
     the others as they are), the rows where that falls across a gap or beyond an end dropped: a
     channel that lags by d is read at t + d, where it shows the torque of the state at t."""
     cols = [series.joint_index(j) for j in joints]
-    step = float(np.median(np.diff(series.t)))
+    step = sample_step(series.t)
     tau, keep = shifted(series.t, series.tau[:, cols], np.where(lags.found, lags.delay, 0.0), step)
     out = series.tau.copy()
     out[:, cols] = tau

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.optimize import minimize, minimize_scalar
 
-from harness.base.numerics import consecutive_blocks, relative_residual_of_sums
+from harness.base.numerics import consecutive_blocks, relative_residual_of_sums, sample_step
 from harness.identify import filtered
 from harness.identify.torque_id import drive_column, links_weights
 from harness.model import drives, friction
@@ -351,7 +351,7 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     tau, qd = tau[order], qd[order]
     if min(f.stop - f.start for f in consecutive_blocks(N, config.folds)) < MIN_FOLD:
         raise ValueError(f"{N} training samples: too few for {config.folds} parts of at least {MIN_FOLD}")
-    step = float(np.median(np.diff(t[order]))) if N > 1 else 0.0
+    step = sample_step(t[order])
     folds = blocked_folds(N, config.folds, int(np.ceil(reach / step - 1e-9)) if reach > 0 and step > 0 else 0)
     laws = [Law.of(f) for f in model]  # the model's own, where the search starts
     declared = [f.coulomb_velocity for f in model]  # a model's smoothing velocity (0: none declared)

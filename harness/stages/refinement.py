@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.numerics import sample_step
 from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model, rnea
 from harness.identify import delay as channel_delay
@@ -141,7 +142,7 @@ def _refit(ctx, li, r: Refinement, laws: tuple[Law, ...], rigid: np.ndarray, q, 
     shaped = robot.with_frictions(tuple(dataclasses.replace(f, coulomb_velocity=law.coulomb_velocity,
                                                             stribeck_velocity=law.stribeck_velocity)
                                         for f, law in zip(robot.frictions, laws, strict=True)))
-    later, keep = channel_delay.shifted(t, tau, r.delay, float(np.median(np.diff(t))))
+    later, keep = channel_delay.shifted(t, tau, r.delay, sample_step(t))
     W = regressor(build_model(shaped, sc.gravity_W), q[keep], qd[keep], qdd[keep], with_friction=True)
     E = extra_regressor(laws, qd[keep], rigid[keep], robot.transmission)
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws)])
