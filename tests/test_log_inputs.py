@@ -231,6 +231,11 @@ def test_a_log_read_wrongly_fails_the_start_gate_with_its_likely_cause(si_log, t
     assert not row["passed"] and joint in row["where"] and words in row["where"]
     err = capsys.readouterr().err
     assert f"differ at {joint}" in err and words in err
+    # the start check's finding heads what the run says of the log, before the conditioning's and the fit's
+    said = [line for line in err.splitlines() if line.startswith("harness: warning: ")]
+    first = next(k for k, line in enumerate(said) if "differ at" in line)
+    later = [k for k, line in enumerate(said) if any(w in line for w in ("low-pass", "no units", "links", "delays"))]
+    assert later and all(first < k for k in later), said
     si_log[1].to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
     status, results = _run(tmp_path, "", out="right")
     start = results["log_identification"]["start"]

@@ -128,8 +128,9 @@ def _run_each(args: argparse.Namespace, scenarios: list, reading: list[float], w
         failed = [f"identification method {name} failed: {m['failed']}"
                   for name, m in results.get("identification_methods", {}).items()
                   if isinstance(m, dict) and isinstance(m.get("failed"), str)]
-        for warning in (results.get("data", {}).get("conditioning", {}).get("warnings", [])
-                        + results.get("log_identification", {}).get("warnings", []) + failed):
+        li = results.get("log_identification", {})
+        for warning in (li.get("start", {}).get("said", []) + results.get("data", {}).get("conditioning", {}).get(
+                "warnings", []) + li.get("warnings", []) + failed):  # the start check's findings first
             print(f"harness: warning: {scenario.name}: {warning}", file=sys.stderr)  # once per run, not per row
         results["run"]["timings"] = {"starting the harness and importing the engines and libraries": imported,
                                      "reading the scenario, its model and plugins": read,

@@ -465,6 +465,10 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     if sc.data.units["tau"] == "current" and sc.data.identify_constants:
         ctx.progress("torque constants (motor currents)", None)
     scaled = constants(sc.data, robot, model, delayed, ctx.payload)
+    # the start check first, before any fit: the model as given against the torques as read (its
+    # findings head the terminal and the report)
+    q, qd, qdd, _ = model.data(scaled.training)
+    started = start(model.torques(model.pm, q, qd, qdd), model.data(delayed.training)[3], model.torque_joints)
     config = config or FrictionLawConfig()
     if config.choose:
         ctx.progress("the friction law of every joint (cross-validated within the training span)", None)
@@ -481,8 +485,6 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     identified = identified_spec(robot, fit.theta, frictions)
     spans = {"training": scaled.training, **({"validation": scaled.validation} if scaled.validation else {})}
     judged = judge(sc, model, spans, fitted, laws.laws, identified)
-    started = start(judged.predictions["training"]["model as given"], model.data(delayed.training)[3],
-                    model.torque_joints)
     ctx.progress("the models forward-simulated under the measured torques", None)
     span = "validation" if "validation" in spans else "training"
     q, qd, _ = judged.states[span]
@@ -501,9 +503,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
 
 def warnings(li: LogIdentification, mode: str) -> list[str]:
     """What the terminal is told of a log run, once."""
-    out, lags = [], li.delayed.lags
-    out += [f"the model as given and the log as read differ at {f['joint']} by a {f['finding']}: likely {f['likely']}"
-            for f in li.start.findings]
+    out, lags = [], li.delayed.lags  # the start check's findings are its own (log_judge.Start.said), said first
     out += consistent.plausibility_warnings(li.plausible)
     out += delay_warnings(lags, li.model.torque_joints, mode)
     out += [note for note in (li.delayed.note, li.laws.note, li.fitted.note) if note]

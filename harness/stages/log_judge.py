@@ -174,6 +174,11 @@ class Start:
     findings: list[dict[str, str]]  # {"joint" (or "all joints"), "finding", "likely"}
     outliers: int = 0  # over all joints: the entries left out of the overall factor
 
+    def said(self) -> list[str]:
+        """The findings as the terminal and the report's head say them, before anything else of the run."""
+        return [f"the model as given and the log as read differ at {f['joint']} by a {f['finding']}: likely "
+                f"{f['likely']}" for f in self.findings]
+
     def as_dict(self) -> dict:
         first = self.findings[0] if self.findings else {}
         return {"definition": "the model as given against the torques as read, on the training span: the least-squares "
@@ -186,7 +191,7 @@ class Start:
                               f"cosine is at least {SHAPED:g} in magnitude",
                 "factor": finite_or_null(self.factor), "outliers": self.outliers, "per_joint": self.per_joint,
                 "findings": len(self.findings), "findings_joint": first.get("joint", ""),
-                "findings_likely": first.get("likely", ""), "list": self.findings}
+                "findings_likely": first.get("likely", ""), "list": self.findings, "said": self.said()}
 
 
 def robust_fit(m: np.ndarray, y: np.ndarray) -> tuple[float, float, int]:
