@@ -157,7 +157,7 @@ def test_stable_tree_is_reproduced_open_loop():
     rec = exact(record(sc), sc.robot.inner_joint_arms_B())
     model = build_graph_model(sc.robot, sc.gravity_W)
     cs = build_constraints(sc.robot, model.topology, "normal")
-    result = forward_simulate(sc.robot, model, cs, rec, rec.meta["drive_stages"], sc.simulation.timestep,
+    result = forward_simulate(sc.robot, model, cs, rec, rec.drive.stages, sc.simulation.timestep,
                               sc.substeps)
     assert result.completed
     assert result.q_error.max() <= 1e-6 and result.r_error <= 1e-6

@@ -13,7 +13,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from harness.base.series import TimeSeries
 from harness.model.load import load_spec
 from tests.conftest import ROOT
 
@@ -26,6 +25,7 @@ def test_a_hold_is_a_whole_repeated_row_not_a_quantised_position_beside_a_still_
     before them whole (a logger's hold). The check drops those 7 and keeps every other row, counting
     the repeated positions it keeps; a hold read off any one channel would drop hundreds."""
     from harness.sources.log.checks import check
+    from harness.sources.log.raw import RawLog
 
     robot = load_spec(ARM)
     t = np.arange(400) * 0.002
@@ -34,7 +34,7 @@ def test_a_hold_is_a_whole_repeated_row_not_a_quantised_position_beside_a_still_
     held = np.array([50, 51, 120, 200, 201, 202, 333])
     for k in held:  # in order: a hold of two rows repeats the row before both
         q[k], tau[k] = q[k - 1], tau[k - 1]
-    raw = TimeSeries(t, tuple(robot.joint_names), q, None, None, tau, meta={"file": Path("log.csv")})
+    raw = RawLog(t, tuple(robot.joint_names), q, None, tau, Path("log.csv"))
     same_q = np.all(q[1:] == q[:-1], axis=1)
     checked = check(raw, robot)
     assert checked.record["repeated_rows_dropped"] == len(held)

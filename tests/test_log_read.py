@@ -41,7 +41,7 @@ def test_a_log_read_in_chunks_has_pandas_whole_file_columns_and_the_files_sha256
     for kind, pattern in KINDS.items():
         expected = whole[[pattern.format(j=j) for j in range(1, 8)]].to_numpy()
         assert np.array_equal(getattr(series, kind), expected), kind
-    assert series.meta["sha256"] == hashlib.sha256((tmp_path / "log.csv").read_bytes()).hexdigest()
+    assert series.sha256 == hashlib.sha256((tmp_path / "log.csv").read_bytes()).hexdigest()
 
 
 @pytest.mark.parametrize("chunk", [7, read.CHUNK_ROWS])
@@ -182,7 +182,7 @@ def test_a_last_line_cut_short_is_dropped_from_both_files_with_a_line_saying_so(
     whole = pd.read_csv(TX40 / "curr_data.csv").to_numpy()[:-1]
     assert len(series.t) == len(whole) == 44999
     np.testing.assert_array_equal(series.tau, sc.robot.transmission.joint_torques(whole))
-    assert series.meta["read"]["warnings"] == ["cut.csv: the last line has no line end (the file cut short while "
+    assert series.read["warnings"] == ["cut.csv: the last line has no line end (the file cut short while "
                                                "written?): row 45001 dropped from both files"]
 
 

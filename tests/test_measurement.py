@@ -97,7 +97,6 @@ def test_a_bench_samples_then_reads_then_differentiates_what_it_read(recording):
     """Order of the measurement: sampling, then noise and rounding of each reading, then the
     derivatives of the rounded, sampled readings (not of the full-rate truth); the graph-theory
     study's own readings (its angles, from a stream of its own) in the same order."""
-    import dataclasses as dc
 
     from harness.papers.graph_theory_2021 import readings
     from harness.sources.measurement import add_noise, add_noise_to, differentiate, round_significant, study_stream
@@ -107,7 +106,7 @@ def test_a_bench_samples_then_reads_then_differentiates_what_it_read(recording):
     arms = load_scenario(SCENARIOS / "kr500_rail.toml").robot.inner_joint_arms_B()
     got = measure(recording, m)
     rows = np.arange(0, len(recording.t), 2)
-    sampled = dc.replace(recording, t=recording.t[rows], p_W=recording.p_W[rows], v_W=recording.v_W[rows])
+    sampled = recording.span(rows)
     noisy = add_noise(sampled, m.noise, np.random.default_rng(5))
     p_read = round_significant(noisy["p_W"], 4)
     np.testing.assert_array_equal(got.p_W, p_read)

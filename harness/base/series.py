@@ -37,6 +37,57 @@ BODY_CHANNELS = ("p_W", "v_W", "R_WB", "a_W", "omega_W", "omegadot_W")
 
 
 @dataclass(frozen=True, eq=False)
+class Drive:
+    """How an engine drove a recording (harness/engines/mujoco.py): its integrator and step, and the
+    torque it applied at every evaluation of every step, so that another model can be driven by exactly
+    the same input; and the motion the drive was asked to follow at the recording's rows. Spec joint
+    order, SI."""
+
+    integrator: str  # "RK4", "Euler", ...
+    timestep: float  # s: one engine step
+    substeps: int  # engine steps per recorded row
+    stages: np.ndarray  # (steps, evaluations per step, nj): the drive torque at each evaluation
+    q_ref: np.ndarray  # (N, nj) the prescribed motion at the recording's rows
+    qd_ref: np.ndarray  # (N, nj)
+    qdd_ref: np.ndarray  # (N, nj)
+
+    def rk4_stages(self) -> np.ndarray | None:
+        """The torques at each RK4 step's four stages, (steps, 4, nj); None where it integrated otherwise."""
+        return self.stages if self.integrator == "RK4" and self.stages.shape[1] == 4 else None
+
+
+class SeriesError(ValueError):
+    """A series' invariant broken: `field` names the array (t, q, tau, ...)."""
+
+    def __init__(self, field: str, what: str):
+        super().__init__(f"TimeSeries {field}: {what}")
+        self.field, self.what = field, what
+
+
+def _refuse(field: str, what: str) -> None:
+    raise SeriesError(field, what)
+
+
+def rows_checked(t: np.ndarray, named: dict[str, np.ndarray | None], increasing: bool = True) -> None:
+    """The invariants of a series' rows: t one finite value per row (strictly increasing unless a raw
+    log's, whose order its checks judge and name by row), every per-row array in `named` (None where
+    not measured) N rows long and finite. A SeriesError (a ValueError) names the first broken one."""
+    if np.ndim(t) != 1 or len(t) == 0:
+        _refuse("t", f"must be one time per row (shape {np.shape(t)})")
+    if not np.all(np.isfinite(t)):
+        _refuse("t", f"not finite at row {int(np.flatnonzero(~np.isfinite(t))[0])}")
+    if increasing and np.any(np.diff(t) <= 0):
+        _refuse("t", f"not strictly increasing at row {int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1}")
+    for name, x in named.items():
+        if x is None:
+            continue
+        if np.shape(x)[:1] != (len(t),):
+            _refuse(name, f"{np.shape(x)[0] if np.ndim(x) else 0} rows where t has {len(t)}")
+        if np.asarray(x).dtype.kind == "f" and not np.all(np.isfinite(x)):
+            _refuse(name, f"not finite at row {int(np.argwhere(~np.isfinite(x))[0][0])}")
+
+
+@dataclass(frozen=True, eq=False)
 class TimeSeries:
     t: np.ndarray  # (N,) s
     joints: tuple[str, ...]
@@ -57,7 +108,18 @@ class TimeSeries:
     loop_gap: np.ndarray | None = None  # (N, n_loops) m: how far each loop's joined points are apart
     loop_F_W: np.ndarray | None = None  # (N, nb, 3) the loops' force on each body (a closed chain's)
     loop_M_W: np.ndarray | None = None  # (N, nb, 3) and their moment about its centre of mass
+    drive: Drive | None = None  # a recording's: how the engine drove it (None for a log, or read from CSV)
     meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        """Strictly increasing finite times; every per-row array N rows and finite; q and tau (and q',
+        q'' where given) one column per joint (SeriesError otherwise)."""
+        rows_checked(self.t, {f.name: getattr(self, f.name) for f in fields(self)
+                              if f.name != "t" and isinstance(getattr(self, f.name), np.ndarray)})
+        for name in JOINT_CHANNELS:
+            x = getattr(self, name)
+            if x is not None and np.shape(x)[1:] != (len(self.joints),):
+                _refuse(name, f"shape {np.shape(x)} for {len(self.joints)} joints")
 
     def joint_index(self, name: str) -> int:
         return self.joints.index(name)
@@ -151,8 +213,17 @@ def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:
         return df[[f"{prefix}_{j}" for j in joints]].to_numpy()
 
     series = dict(t=df["t"].to_numpy(), joints=joints, **{k: per_joint(k) for k in JOINT_CHANNELS})
-    if not bodies:
-        return TimeSeries(**series)
+    try:
+        return TimeSeries(**series) if not bodies else _with_bodies(df, series, joints)
+    except SeriesError as exc:  # finite numbers, but not a series (times out of order, an edited file)
+        column = "t" if exc.field == "t" else next((c for c in df.columns if not np.all(np.isfinite(df[c]))), exc.field)
+        raise InputError(path, column, f"{exc.what} (a {kind} is strictly increasing in t, every value "
+                                       "finite)") from None
+
+
+def _with_bodies(df, series: dict, joints: tuple[str, ...]) -> TimeSeries:
+    """A recording's series: the joints' `series` and, from the frame `df`, the bodies' and wrenches'."""
+    names = tuple(c[: -len("_R11")] for c in df.columns if c.endswith("_R11"))
 
     def vec(of: tuple[str, ...], fmt: str) -> np.ndarray:
         return np.stack([df[[fmt.format(n=n, s=s) for s in XYZ]].to_numpy() for n in of], axis=1)

@@ -15,7 +15,8 @@ engine's own inverse dynamics (mj_inverse) gives the torques for q''_cmd = q''_d
 applied as motor controls, then mj_step integrates. At each output row mj_forward evaluates the
 state with the controls in force, so forces, accelerations and drive torques in a row belong to
 one and the same instant. The torques of every evaluation inside each step (the four RK4 stages)
-are kept in `meta["drive_stages"]`, so that another model can be driven by exactly the same input.
+are kept in the recording's `drive` (harness/base/series.py, Drive), so that another model can be
+driven by exactly the same input.
 
 A closed chain's loops (harness/model/loops.py) are equality constraints between two sites, made
 stiff (LOOP_SOLIMP, a time constant of two steps); its drive gives the actuated joints the computed
@@ -35,7 +36,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from harness.base.series import TimeSeries
+from harness.base.series import Drive, TimeSeries
 from harness.engines.simulation import Simulation
 from harness.model import drives, friction
 from harness.model.mjspec import add_robot, massive_parent, new_spec
@@ -314,15 +315,11 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
                     raise _diverged(model, data, (row + 1) * substeps * dt, _WARNINGS[warned])
                 drive.captured[1] = False
     t = np.arange(n_rows) * substeps * dt
-    meta = {
-        "engine": "mujoco", "engine_version": mujoco.__version__,
-        "integrator": simulation.integrator, "timestep": dt, "substeps": substeps,
-        "warnings": _WARNINGS[warned:],
-        "tracking_bandwidth": simulation.tracking_bandwidth,
-        **dict(zip(("q_ref", "qd_ref", "qdd_ref"), (x[::2 * substeps] for x in in_spec_order), strict=True)),
-        "drive_stages": drive.stages_by_step(),  # (steps, stages, joints): torques at every evaluation
-    }
-    rec = _recorded(spec, model, gravity_W, t, sensor_rows, qacc_rows, meta)
+    meta = {"engine": "mujoco", "engine_version": mujoco.__version__, "warnings": _WARNINGS[warned:],
+            "tracking_bandwidth": simulation.tracking_bandwidth}
+    driven = Drive(simulation.integrator, dt, substeps, drive.stages_by_step(),
+                   *(x[::2 * substeps] for x in in_spec_order))
+    rec = dataclasses.replace(_recorded(spec, model, gravity_W, t, sensor_rows, qacc_rows, meta), drive=driven)
     if not spec.loops:
         return rec
     meta["loop_settings"] = {"solref": model.eq_solref[0].tolist(), "solimp": model.eq_solimp[0].tolist()}

@@ -68,7 +68,8 @@ def data_section(log) -> dict:
     from harness.sources.log import LOG_FILE
 
     return {"file": LOG_FILE, "rows": len(log.t), "joints": list(log.joints), "t_start": float(log.t[0]),
-            "t_end": float(log.t[-1]), "conditioning": log.meta}
+            "t_end": float(log.t[-1]),
+            "conditioning": {**log.meta, "reach_s": log.reach_s}}  # how far a sample's conditioning reaches
 
 
 def model_section(spec: RobotSpec) -> dict:
@@ -95,13 +96,13 @@ def model_section(spec: RobotSpec) -> dict:
 
 
 def recording_section(rec: TimeSeries) -> dict:
-    meta = rec.meta
+    meta, drive = rec.meta, rec.drive
     tracking = {}
     for j, name in enumerate(rec.joints):
         tracking[name] = {
-            "q_max_abs_error": float(np.max(np.abs(rec.q[:, j] - meta["q_ref"][:, j]))),
-            "qd_max_abs_error": float(np.max(np.abs(rec.qd[:, j] - meta["qd_ref"][:, j]))),
-            "qdd_max_abs_error": float(np.max(np.abs(rec.qdd[:, j] - meta["qdd_ref"][:, j]))),
+            "q_max_abs_error": float(np.max(np.abs(rec.q[:, j] - drive.q_ref[:, j]))),
+            "qd_max_abs_error": float(np.max(np.abs(rec.qd[:, j] - drive.qd_ref[:, j]))),
+            "qdd_max_abs_error": float(np.max(np.abs(rec.qdd[:, j] - drive.qdd_ref[:, j]))),
         }
     return {
         "file": RECORDING_FILE,
@@ -113,9 +114,9 @@ def recording_section(rec: TimeSeries) -> dict:
         "bodies": list(rec.bodies),
         "engine": meta["engine"],
         "engine_version": meta["engine_version"],
-        "integrator": meta["integrator"],
-        "timestep": meta["timestep"],
-        "substeps_per_row": meta["substeps"],
+        "integrator": drive.integrator,
+        "timestep": drive.timestep,
+        "substeps_per_row": drive.substeps,
         "tracking_bandwidth": meta["tracking_bandwidth"],
         "tracking_error": tracking,
         "engine_warnings": list(meta.get("warnings", [])),

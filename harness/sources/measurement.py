@@ -184,8 +184,7 @@ def measure(rec: TimeSeries, m: Measurement) -> TimeSeries:
     # the bench samples; each reading then carries its noise and its resolution; derivatives come
     # from what was read
     rows = np.arange(0, len(rec.t), m.every)
-    sampled = dataclasses.replace(rec, t=rec.t[rows], R_WB=rec.R_WB[rows],
-                                  **{c: getattr(rec, c)[rows] for c in CHANNELS})
+    sampled = rec.span(rows)
     values = {c: getattr(sampled, c) for c in CHANNELS}
     values.update(add_noise(sampled, m.noise, rng))
     if m.significant_digits is not None:

@@ -143,7 +143,8 @@ def run(ctx, config: EstimatorsConfig | None) -> Comparison | None:
     # the instruments: the regressor of the motion the robot was asked to follow, its velocities
     # and accelerations differentiated by the same filter as the measured ones (else the filter's
     # own distortion of the signal, the same in every trial, would bias the estimate)
-    q_ref, qd_ref, qdd_ref = (rec.meta[k][rows][:, idx] for k in ("q_ref", "qd_ref", "qdd_ref"))
+    q_ref, qd_ref, qdd_ref = (x[rows][:, idx] for x in (rec.drive.q_ref, rec.drive.qd_ref,
+                                                                       rec.drive.qdd_ref))
     if m.differentiate:
         qd_ref, qdd_ref = (savgol(q_ref, rec.t[rows], m.filter_window, k) for k in (1, 2))
     Z1 = regressor(pm, q_ref[keep], qd_ref[keep], qdd_ref[keep], with_friction=friction)[:, cols]

@@ -68,7 +68,6 @@ from harness.model.export import (
 from harness.model.friction import FAMILIES, JointFriction
 from harness.model.friction import values as friction_values
 from harness.model.mjcf import compiler_message, write_mjcf
-from harness.sources.log.condition import FULL_RATE
 from harness.stages.context import VALIDATION_SPAN
 from harness.stages.log_judge import Start, prediction, start
 from harness.stages.log_results import serialise
@@ -175,7 +174,7 @@ def delays(mode: str, model: LogModel, training: TimeSeries, validation: TimeSer
     if mode == "none":
         return Delayed(None, None, training, validation, W)
     try:
-        filtered = FULL_RATE in training.meta  # a low-passed span keeps its full rate (sources/log/condition.py)
+        filtered = training.full_rate is not None  # a low-passed span keeps its full rate (sources/log/condition.py)
         lags = delay.estimate(training.t, model.data(training)[3], rows_by_sample(W, len(joints)), filtered=filtered)
     except ValueError as exc:
         return Delayed(None, f"delays not estimated: {exc}", training, validation, W)
@@ -228,7 +227,7 @@ class LawChoice:
 def filtered_columns(series: TimeSeries):
     """The span's FilteredColumns where it was low-pass filtered (and it covers the span's rows), else
     None: the friction columns then are filtered as its torques were (harness/identify/filtered.py)."""
-    columns = series.meta.get(FULL_RATE)
+    columns = series.full_rate
     return columns if columns is not None and columns.covers(series.t) else None
 
 
@@ -248,7 +247,7 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
 
         try:
             choice = friction_law.choose(rows_of, model.base.independent, model.link_part, tau, qd, training.t,
-                                         robot.frictions, config, training.meta.get("reach_s", 0.0),
+                                         robot.frictions, config, training.reach_s,
                                          robot.transmission, filtered_columns(training))
         except ValueError as exc:
             note = f"friction law not chosen, the model's kept: {exc}"
@@ -269,7 +268,7 @@ def _chain_laws(config: FrictionLawConfig, robot, model: LogModel, training: Tim
     try:
         choice = chain_law.choose(model.rows(model.pm, q, qd, qdd), projection(model.chain, q), qd, tau,
                                   model.base.independent, model.link_part, training.t, config.folds,
-                                  training.meta.get("reach_s", 0.0), np.array([law.coulomb_velocity for law in kept]),
+                                  training.reach_s, np.array([law.coulomb_velocity for law in kept]),
                                   filtered_columns(training))
     except ValueError as exc:
         return LawChoice(kept, None, f"friction law not chosen, the model's kept: {exc}")

@@ -306,8 +306,7 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
 def _rk4_stages(rec) -> np.ndarray | None:
     """The torques the bench's drive gave at each of its RK4 steps' four stages, (steps, 4, n); None where
     it integrated otherwise (its recording keeps one torque per step)."""
-    stages = rec.meta.get("drive_stages")
-    return stages if stages is not None and rec.meta.get("integrator") == "RK4" and stages.shape[1] == 4 else None
+    return None if rec.drive is None else rec.drive.rk4_stages()
 
 
 def _against_rigid_loops(pm, robot, rec) -> dict | None:
@@ -323,8 +322,8 @@ def _against_rigid_loops(pm, robot, rec) -> dict | None:
     cols = [rec.joint_index(j) for j in robot.joint_names]
     q_rec = rec.q[:, cols]
     try:
-        q, _ = constrained_rollout(pm, robot, q_rec[0], rec.qd[0, cols], stages, rec.meta["timestep"],
-                                   rec.meta["substeps"])
+        q, _ = constrained_rollout(pm, robot, q_rec[0], rec.qd[0, cols], stages, rec.drive.timestep,
+                                   rec.drive.substeps)
     except NotSimulated as exc:  # friction that depends on the load
         return {"skipped": str(exc)}
     rel = relative_error(q, q_rec[: len(q)], range_scale(q_rec, [j.revolute for j in robot.joints])).max(axis=0)
@@ -375,11 +374,12 @@ def _forward_of_models(ctx, pm, chain, rec) -> dict | None:
         return None
     stages = _rk4_stages(rec)
     if stages is None:
-        why = (f"the bench integrated by {rec.meta.get('integrator')}, not RK4: the torques at an RK4 step's "
+        integrator = rec.drive.integrator if rec.drive is not None else "(not recorded)"
+        why = (f"the bench integrated by {integrator}, not RK4: the torques at an RK4 step's "
                "stages, which the comparison drives both runs with, were not recorded")
         return {e.name: {"skipped": why} for e in sc.models}
-    m = max(1, int(FORWARD_STEP / rec.meta["timestep"] + 1e-9) // 2 * 2)
-    h, taus = m * rec.meta["timestep"], coarser(stages, m)
+    m = max(1, int(FORWARD_STEP / rec.drive.timestep + 1e-9) // 2 * 2)
+    h, taus = m * rec.drive.timestep, coarser(stages, m)
     joints, actuated = robot.joint_names, list(robot.actuated)
     a_cols = [joints.index(a) for a in actuated]
     q0 = close(chain, rec.q[0, [rec.joint_index(j) for j in joints]], "the recording's first row", numbered=False)

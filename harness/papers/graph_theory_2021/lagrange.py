@@ -79,7 +79,7 @@ def lagrange(scenario: Scenario, spec: RobotSpec, lg: Settings, model: GraphMode
     row = None if lg.time is None else round(lg.time / scenario.output_dt)
     forward = open_loop = None
     if lg.forward_simulation:
-        args = (spec, model, forms["normal"].constraints, rec, rec.meta["drive_stages"],
+        args = (spec, model, forms["normal"].constraints, rec, rec.drive.stages,
                 scenario.simulation.timestep, scenario.substeps)
 
         def report(what):

@@ -9,9 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
+from harness.sources.log.raw import RawLog
 from harness.sources.log.schema import DataSource
 from harness.sources.log.segments import GAP_FACTOR, GAP_SPLIT, split_step
 from harness.sources.log.units import check_positions, check_velocities
@@ -24,7 +24,7 @@ class Checked:
     """Step 1 of the module docstring, on a whole file: its rows in time order, the step's record
     and its warnings."""
 
-    kept: TimeSeries  # the rows kept: no repeated positions, no repeated times
+    kept: RawLog  # the rows kept: no repeated positions, no repeated times
     record: dict  # the "checks" step of results.json
     warnings: list[str]
     median_step: float  # s
@@ -34,9 +34,9 @@ class Checked:
         return source.rate or 1.0 / self.median_step
 
 
-def check(raw: TimeSeries, robot: RobotSpec, source: DataSource | None = None) -> Checked:
+def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Checked:
     """Step 1 of the module docstring."""
-    path, t = raw.meta["file"], raw.t
+    path, t = raw.file, raw.t
     if source is None or source.limits_check:
         check_positions(raw, robot, source)
     steps, warnings = [], []

@@ -14,11 +14,10 @@ import dataclasses
 
 import numpy as np
 
-from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError, Table
 from harness.model.closure import ClosedChain, ClosureError, motion, positions
 from harness.model.spec import RobotSpec
-from harness.sources.log.condition import FULL_RATE, FilteredColumns
+from harness.sources.log.condition import ConditionedLog, FilteredColumns
 from harness.sources.log.schema import DataSource
 
 # what a closed chain's log does not support yet (docs/closed_chains.md), with the one value that changes
@@ -51,7 +50,7 @@ def logged(robot: RobotSpec) -> RobotSpec:
                                loops=(), actuated=())
 
 
-def closed(series: TimeSeries | None, robot: RobotSpec, file) -> TimeSeries | None:
+def closed(series: ConditionedLog | None, robot: RobotSpec, file) -> ConditionedLog | None:
     """A conditioned span of the actuated joints' channels with every joint's (q, q', q'') from the
     loops, in the robot's joint order; the passive joints' torques zero. A row the loops cannot reach
     (or a motion across a singular configuration) is refused, naming the file."""
@@ -67,13 +66,13 @@ def closed(series: TimeSeries | None, robot: RobotSpec, file) -> TimeSeries | No
                                           f"{exc}") from None
     tau = np.zeros_like(m.q)
     tau[:, list(chain.actuated)] = series.tau[:, order]
-    meta = {**series.meta, **({FULL_RATE: _every_joint(series.meta[FULL_RATE], order, m.G)}
-                              if FULL_RATE in series.meta else {}), "passive_joints": {
+    full_rate = None if series.full_rate is None else _every_joint(series.full_rate, order, m.G)
+    meta = {**series.meta, "passive_joints": {
         "joints": [robot.joint_names[k] for k in chain.passive],
         "from": "the loops at every conditioned row (harness/sources/log/closed.py): q_p from Phi = 0 by Newton's "
                 "method followed from q = 0, q'_p = -J_p^+ J_a q'_a, q''_p = -J_p^+ (J_a q''_a + b); torque 0"}}
     return dataclasses.replace(series, joints=tuple(robot.joint_names), q=m.q, qd=m.qd, qdd=m.qdd, tau=tau,
-                               meta=meta)
+                               meta=meta, full_rate=full_rate)
 
 
 def _every_joint(columns: FilteredColumns, order: list[int], G: np.ndarray) -> FilteredColumns:

@@ -3,7 +3,7 @@ its own: resampling to a uniform grid, a zero-phase low-pass, derivatives, the g
 both ends, decimation.
 
 A filtered log keeps, beside its rows, what a fit needs to filter a nonlinear column of the
-velocities as the torques were filtered (`FilteredColumns`, in `meta[FULL_RATE]`): the measured
+velocities as the torques were filtered (`ConditionedLog.full_rate`, a FilteredColumns): the measured
 torque of a Coulomb turn is the filtered tanh(q'/v_c), not tanh of the filtered q', and a fit that
 compares the one with the other chooses a smeared turn (a larger v_c) the robot does not have."""
 
@@ -19,10 +19,9 @@ from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
 from harness.sources.log.checks import Checked, check
+from harness.sources.log.raw import RawLog
 from harness.sources.log.schema import DataSource
 from harness.sources.log.segments import guard_band, segments, split_step
-
-FULL_RATE = "_full_rate"  # meta key of a filtered span's FilteredColumns (never written to results.json)
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,30 +83,34 @@ def zero_phase(sos: np.ndarray, x: np.ndarray, steady: np.ndarray) -> np.ndarray
     return y[::-1][edge:-edge]
 
 
-def without_full_rate(meta: dict) -> dict:
-    """The conditioning record as results.json writes it: the meta without its FilteredColumns."""
-    return {k: v for k, v in meta.items() if k != FULL_RATE}
+@dataclass(frozen=True, eq=False)
+class ConditionedLog(TimeSeries):
+    """A conditioned log: its rows (a TimeSeries, its invariants checked), the conditioning's record in
+    `meta` (what results.json writes), and what a fit reads beyond the rows, typed."""
+
+    full_rate: FilteredColumns | None = None  # a low-passed span's velocities at the full rate; None unfiltered
+    reach_s: float = 0.0  # s: how far a sample's conditioning reaches, the guard between any two parts
 
 
-def condition(raw: TimeSeries, source: DataSource, robot: RobotSpec) -> TimeSeries:
+def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> ConditionedLog:
     """Steps 1-6, for a log taken whole (a validation file, a payload log), cut at its gaps."""
     checked = check(raw, robot, source)
     notes: list[str] = []
     pieces = segments(checked.kept.t, split_step(source, checked.median_step))
-    log = conditioned(checked.kept, pieces, source, robot, checked.rate(source), checked, raw.meta["file"].name, notes)
+    log = conditioned(checked.kept, pieces, source, robot, checked.rate(source), checked, raw.file.name, notes)
     log.meta["warnings"] = log.meta["warnings"] + notes
     return log
 
 
-def smooth(kept: TimeSeries, source: DataSource, robot: RobotSpec, rate: float, checks: dict,
-           check_warnings: list[str]) -> TimeSeries:
+def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, checks: dict,
+           check_warnings: list[str]) -> ConditionedLog:
     """Steps 2-6 of the package docstring on checked rows (`check`), whose record and warnings
     open the conditioning's."""
     from scipy.signal import butter, sosfiltfilt
 
-    path, tk, raw = kept.meta["file"], kept.t, kept
-    steps = [*([raw.meta["read"]] if "read" in raw.meta else []), checks]
-    warnings = [*raw.meta.get("read", {}).get("warnings", []), *check_warnings]
+    path, tk, raw = kept.file, kept.t, kept
+    steps = [*([raw.read] if raw.read else []), checks]
+    warnings = [*raw.read.get("warnings", []), *check_warnings]
     # 2. uniform grid
     grid = tk[0] + np.arange(int(np.floor((tk[-1] - tk[0]) * rate)) + 1) / rate
 
@@ -163,17 +166,17 @@ def smooth(kept: TimeSeries, source: DataSource, robot: RobotSpec, rate: float, 
                                            f"{rate / source.decimate / 2:g} Hz")
     steps.append({"step": "trim and decimate", "trim_s": trim, "decimate": source.decimate,
                   "samples": len(rows), "rate_hz": rate / source.decimate})
-    conditioning = {"file": str(path), "sha256": raw.meta["sha256"], "steps": steps, "warnings": warnings,
-                    "reach_s": trim,  # how far a sample's conditioning reaches: the guard between any two parts
+    conditioning = {"file": str(path), "sha256": raw.sha256, "steps": steps, "warnings": warnings,
                     "t_start": float(grid[rows[0]]), "t_end": float(grid[rows[-1]])}
-    if source.cutoff is not None:
-        conditioning[FULL_RATE] = FilteredColumns(sos, ((qd, rows),), grid[rows], float(source.cutoff))
-    return TimeSeries(grid[rows], tuple(robot.joint_names), q[rows], qd[rows], qdd[rows], tau[rows], meta=conditioning)
+    full_rate = FilteredColumns(sos, ((qd, rows),), grid[rows], float(source.cutoff)) \
+        if source.cutoff is not None else None
+    return ConditionedLog(grid[rows], tuple(robot.joint_names), q[rows], qd[rows], qdd[rows], tau[rows],
+                          meta=conditioning, full_rate=full_rate, reach_s=trim)
 
 
 
-def conditioned(kept: TimeSeries, pieces: list[np.ndarray], source: DataSource, robot: RobotSpec, rate: float,
-                 checked: Checked, label: str, notes: list[str]) -> TimeSeries:
+def conditioned(kept: RawLog, pieces: list[np.ndarray], source: DataSource, robot: RobotSpec, rate: float,
+                 checked: Checked, label: str, notes: list[str]) -> ConditionedLog:
     """Each stretch of rows conditioned on its own (steps 2-5), the stretches too short for the filter
     and the trim dropped (said in `notes`), the rest joined in time order."""
     reach = guard_band(source, rate)
@@ -193,7 +196,7 @@ def conditioned(kept: TimeSeries, pieces: list[np.ndarray], source: DataSource, 
                      f"({', '.join(f'{a:.3g}-{b:.3g} s' for a, b in dropped[:4])}"
                      f"{' ...' if len(dropped) > 4 else ''}): dropped")
     if not logs:
-        raise InputError(kept.meta["file"], "gap", f"{label}: no stretch between gaps is long enough to filter and "
+        raise InputError(kept.file, "gap", f"{label}: no stretch between gaps is long enough to filter and "
                                                    f"trim ({2 * reach:.3g} s of trim and 10 samples at least)")
     if len(logs) == 1:
         return logs[0]
@@ -201,7 +204,8 @@ def conditioned(kept: TimeSeries, pieces: list[np.ndarray], source: DataSource, 
     t, q, qd, qdd, tau = joined
     conditioning = dict(logs[0].meta)
     conditioning["t_end"] = logs[-1].meta["t_end"]
-    if all(FULL_RATE in g.meta for g in logs):
-        conditioning[FULL_RATE] = FilteredColumns.joined([g.meta[FULL_RATE] for g in logs])
-    return TimeSeries(t, logs[0].joints, q, qd, qdd, tau, meta=conditioning)
+    full_rate = FilteredColumns.joined([g.full_rate for g in logs]) if all(g.full_rate is not None for g in logs) \
+        else None
+    return ConditionedLog(t, logs[0].joints, q, qd, qdd, tau, meta=conditioning, full_rate=full_rate,
+                          reach_s=logs[0].reach_s)
 

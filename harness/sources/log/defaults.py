@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.base.numerics import sampled
-from harness.base.series import TimeSeries
+from harness.sources.log.raw import RawLog
 
 BAND_ENERGY = 0.99  # the motion's band holds this share of the velocity's energy
 NOISE_BAND = 10.0  # beyond this many times the motion's band, a velocity's energy is noise
@@ -56,7 +56,7 @@ class Spectra:
     noise_cutoff: np.ndarray  # (n,) Hz, the highest cut-off the noise allows (the grid's Nyquist if none)
 
 
-def spectra(kept: TimeSeries, rate: float) -> Spectra:
+def spectra(kept: RawLog, rate: float) -> Spectra:
     """The module's docstring, on the log's rows resampled to `rate`."""
     from scipy.signal import butter, sosfiltfilt, welch
 
@@ -82,7 +82,7 @@ def spectra(kept: TimeSeries, rate: float) -> Spectra:
     return Spectra(band, level, noise_cutoff)
 
 
-def resolve(source, kept: TimeSeries, rate: float):
+def resolve(source, kept: RawLog, rate: float):
     """The scenario's `[data]` with the conditioning the data decide (the module's docstring), and the
     record of the choice (None where the scenario's own stands). `kept`: the rows it may read (a log
     split by time: the training span's alone)."""

@@ -1,11 +1,12 @@
 """A log's file read as it is: a CSV's header and columns (or a ROS bag's JointState messages,
 harness/sources/bag.py) for the model's joints, every refusal naming the file and the column; the
-values made SI (harness/sources/log/units.py). What it gives is a raw TimeSeries: q, q' where the log
-has them, tau, no accelerations, and the file and its sha256 in `meta`."""
+values made SI (harness/sources/log/units.py). What it gives is a RawLog (harness/sources/log/raw.py):
+q, q' where the log has them, tau, no accelerations, the file, its sha256 and the read step's record."""
 
 from __future__ import annotations
 
 import csv
+import dataclasses
 import hashlib
 import io
 import os
@@ -16,17 +17,23 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.base.series import TimeSeries
+from harness.base.series import SeriesError
 from harness.base.tomlio import MAX_DATA_BYTES, InputError, Table, too_large
 from harness.model.spec import RobotSpec
+from harness.sources.log.raw import RawLog
 from harness.sources.log.schema import SI, DataSource, column_names
 from harness.sources.log.units import plausible, refuse_absurd, to_si
 
 
-def raw_series(path: Path, sha256: str, t: np.ndarray, q: np.ndarray, qd: np.ndarray | None, tau: np.ndarray,
-               joints: tuple[str, ...]) -> TimeSeries:
-    """A log as read: no accelerations (they come from its conditioning), the file named in `meta`."""
-    return TimeSeries(t, joints, q, qd, None, tau, meta={"file": Path(path), "sha256": sha256})
+def raw_log(path: Path, sha256: str, t: np.ndarray, q: np.ndarray, qd: np.ndarray | None, tau: np.ndarray,
+            joints: tuple[str, ...], read: dict, columns: dict[str, list[str]]) -> RawLog:
+    """A log as read: no accelerations (they come from its conditioning). What the reading let through
+    and a RawLog's invariants refuse (a time that is not finite) is refused naming the file and the column."""
+    try:
+        return RawLog(t, joints, q, qd, tau, Path(path), sha256, read)
+    except SeriesError as exc:
+        names = columns.get(exc.field, [exc.field])
+        raise InputError(path, names[0] if names else exc.field, f"{exc.what}: not a log") from None
 
 
 TORQUE_FILE_COLUMNS = ("tau",)  # what a separate torque file (`torque_file`) holds; `file` holds the rest
@@ -105,7 +112,7 @@ def _first_line(path: Path) -> bytes:
     return line
 
 
-def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> TimeSeries:
+def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> RawLog:
     """The log's columns for the robot's joints, in SI units and at the joints (a motor-side log mapped
     through the model's drives: `at_joints`), its `window` kept; every refusal names the file and the
     column. `file`: another log of the scenario's layout (a validation or payload log)."""
@@ -118,8 +125,9 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
         kinds, names = ("q", "qd", "tau"), [f"{source.topic}: {j}" for j in source.log_names(robot.joint_names)]
         _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, dict.fromkeys(kinds, path),
                        dict.fromkeys(kinds, names), lambda i: f"message {i + 1}")
-        series = raw_series(path, digest(path), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names))
-        series.meta["read"] = _read_record(source, robot, [path], f"the bag's stamps (topic {source.topic})")
+        record = _read_record(source, robot, [path], f"the bag's stamps (topic {source.topic})")
+        series = raw_log(path, digest(path), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names),
+                         record, {"t": [f"{source.topic}: header.stamp"], **dict.fromkeys(kinds, names)})
         return _windowed(source, series)
     names = column_names(source, robot)
     files = [path] + ([source.torque_file] if source.torque_file is not None and file is None else [])
@@ -145,10 +153,10 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     t = columns["t"][:, 0] if "t" in columns else np.arange(len(columns["q"])) / source.sample_rate
     q, qd, tau = to_si(source, robot, columns.pop("q"), columns.pop("qd", None), columns.pop("tau"))
     _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, where, names, lambda i: f"row {i + 2}")
-    series = raw_series(path, digest.hexdigest(), t, *at_joints(source, robot, q, qd, tau),
-                        tuple(robot.joint_names))
-    series.meta["read"] = _read_record(source, robot, files, f"column {names['t'][0]!r}" if "t" in columns
-                                       else f"row k at k / {source.sample_rate:g} s (sample_rate)", notes)
+    record = _read_record(source, robot, files, f"column {names['t'][0]!r}" if "t" in columns
+                          else f"row k at k / {source.sample_rate:g} s (sample_rate)", notes)
+    series = raw_log(path, digest.hexdigest(), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names),
+                     record, names)
     return _windowed(source, series)
 
 
@@ -287,19 +295,17 @@ def at_joints(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarra
     return t.joint_positions(q), None if qd is None else t.joint_rates(qd), t.joint_torques(tau)
 
 
-def _windowed(source: DataSource, series: TimeSeries) -> TimeSeries:
-    """The rows inside the scenario's `window` ([t0, t1] s), said in `meta`."""
+def _windowed(source: DataSource, series: RawLog) -> RawLog:
+    """The rows inside the scenario's `window` ([t0, t1] s), said in the read step's record."""
     if source.window is None:
         return series
     t0, t1 = source.window
     keep = (series.t >= t0) & (series.t <= t1)
     if keep.sum() < 10:
-        raise InputError(series.meta["file"], "window", f"[{t0:g}, {t1:g}] s keeps {int(keep.sum())} rows of a log "
+        raise InputError(series.file, "window", f"[{t0:g}, {t1:g}] s keeps {int(keep.sum())} rows of a log "
                                                        f"from {series.t[0]:g} to {series.t[-1]:g} s")
-    kept = series.span(keep)
-    kept.meta["read"] = {**series.meta["read"], "window": {"t_start": t0, "t_end": t1, "rows": int(keep.sum()),
-                                                           "rows_before": len(series.t)}}
-    return kept
+    return dataclasses.replace(series.span(keep), read={**series.read, "window": {
+        "t_start": t0, "t_end": t1, "rows": int(keep.sum()), "rows_before": len(series.t)}})
 
 
 def _cell(value) -> str:

@@ -10,12 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
 from harness.sources.log import defaults
 from harness.sources.log.checks import check
-from harness.sources.log.condition import condition, conditioned, without_full_rate
+from harness.sources.log.condition import ConditionedLog, condition, conditioned
 from harness.sources.log.read import read_raw
 from harness.sources.log.schema import DataSource
 from harness.sources.log.segments import segment_record, segments, split_step
@@ -32,10 +31,10 @@ class Split:
     as written to data.csv, its `meta` the conditioning record (the training span's steps, the whole
     file's checks, the stretches, the split and the defaults the data decided)."""
 
-    training: TimeSeries
-    validation: TimeSeries | None
+    training: ConditionedLog
+    validation: ConditionedLog | None
     guard_band_s: float | None
-    whole: TimeSeries
+    whole: ConditionedLog
     source: DataSource  # the scenario's [data] with what the data decided (harness/sources/log/defaults.py)
 
     def __post_init__(self):
@@ -77,7 +76,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
         val = None
         if source.validation_file is not None:
             val = condition(read_raw(source, robot, source.validation_file), source, robot)
-        return Split(train, val, None, dataclasses.replace(train, meta=without_full_rate(train.meta)), source)
+        return Split(train, val, None, dataclasses.replace(train, full_rate=None), source)
     before = kept.t < t_split
     if before.sum() < MIN_SPAN_ROWS or (~before).sum() < MIN_SPAN_ROWS:
         raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few rows "
@@ -87,7 +86,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     train, val = (conditioned(kept, spans[name], source, robot, rate, checked, f"{name} span", notes)
                   for name in ("training", "validation"))
     guard = float(val.t[0] - train.t[-1])
-    conditioning = without_full_rate(train.meta)
+    conditioning = dict(train.meta)
     conditioning["warnings"] = conditioning["warnings"] + notes
     conditioning["segments"], conditioning["defaults"] = record, chosen
     conditioning["validation"] = {
@@ -98,11 +97,12 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
         "training": {"t_start": train.meta["t_start"], "t_end": train.meta["t_end"]},
         "validation": {"t_start": val.meta["t_start"], "t_end": val.meta["t_end"]}}
     joined = (np.concatenate([getattr(train, k), getattr(val, k)]) for k in ("q", "qd", "qdd", "tau"))
-    whole = TimeSeries(np.concatenate([train.t, val.t]), train.joints, *joined, meta=conditioning)
+    whole = ConditionedLog(np.concatenate([train.t, val.t]), train.joints, *joined, meta=conditioning,
+                           reach_s=train.reach_s)
     return Split(train, val, guard, whole, source)
 
 
-def load_payload(source: DataSource, robot: RobotSpec) -> TimeSeries | None:
+def load_payload(source: DataSource, robot: RobotSpec) -> ConditionedLog | None:
     """The known-payload log (`[data.payload]`), conditioned as a validation file is, or None."""
     if source.payload is None:
         return None

@@ -10,9 +10,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from harness.base.series import TimeSeries
 from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
+from harness.sources.log.raw import RawLog
 from harness.sources.log.schema import column_names
 
 if TYPE_CHECKING:
@@ -88,7 +88,7 @@ def refuse_absurd(kind: str, values: np.ndarray, bound: np.ndarray, path, names:
                                      f"value ({count} such value{'s' if count > 1 else ''} in the column)")
 
 
-def check_velocities(kept: TimeSeries, robot: RobotSpec, source: DataSource | None) -> None:
+def check_velocities(kept: RawLog, robot: RobotSpec, source: DataSource | None) -> None:
     """The logged velocities against the positions' rate of change, joint by joint: k, the
     least-squares slope of (q[i+1] - q[i]) / (t[i+1] - t[i]) on (q'[i] + q'[i+1]) / 2 over the kept
     rows (1.02 on every joint of the real Panda log of scenarios/panda_gaz2019.toml, 1.000 on a bench
@@ -118,7 +118,7 @@ def check_velocities(kept: TimeSeries, robot: RobotSpec, source: DataSource | No
         return x > 0 and abs(np.log(x / to)) < np.log(1.5)
 
     how = "the least-squares slope of the differences of q over those of t on q'; 1 in a consistent log"
-    path = kept.meta["file"]
+    path = kept.file
     every = off.sum() == moves.sum()
     time_base = [unit for factor, unit in TIME_UNITS if every and all(near(x, factor) for x in k[off])]
     if time_base:
@@ -135,7 +135,7 @@ def check_velocities(kept: TimeSeries, robot: RobotSpec, source: DataSource | No
                                            "[data] columns, and q is differentiated")
 
 
-def check_positions(raw: TimeSeries, robot: RobotSpec, source: DataSource | None) -> None:
+def check_positions(raw: RawLog, robot: RobotSpec, source: DataSource | None) -> None:
     """Positions UNIT_FACTOR or more beyond a revolute joint's limits are not the robot's motion: a log
     in degrees read as radians, most likely. Refused, saying which unit would fit."""
     unit = source.units["q"] if source is not None else "rad"
@@ -151,6 +151,6 @@ def check_positions(raw: TimeSeries, robot: RobotSpec, source: DataSource | None
             if robot.transmission is not None and (source is None or source.side == "joint"):
                 hint = ('motor angles read as joint angles? side = "motor" maps them through the model\'s drives; '
                         f"or {hint}")
-            raise InputError(raw.meta["file"], "units.q", f"joint {joint.name!r} reaches {largest:.4g} rad (as {unit} "
+            raise InputError(raw.file, "units.q", f"joint {joint.name!r} reaches {largest:.4g} rad (as {unit} "
                                                           f"read), {largest / reach:.3g} times its limit {reach:.4g} "
                                                           f"rad: {hint}, or limits_check = false")
