@@ -118,6 +118,33 @@ def test_the_arm_comes_back_from_its_own_log(arm_runs):
     assert li["friction_law"]["chosen"] and li["friction_law"]["guard_s"] == pytest.approx(0.2)
 
 
+def test_a_fit_takes_the_training_span_and_refuses_the_validation_span(arm_log):
+    """The training span is a type (TrainingSpan) the fitting steps take: handed the validation span
+    they refuse it, a harness bug, before reading a row; a delay corrected on it or a span of it stays
+    one. What the fit finds the judging applies to the validation span (log_judge.as_fitted): a delay
+    found on the training rows moves the validation span's torques as it moved the training span's."""
+    from harness.sources.log.condition import TrainingSpan
+    from harness.stages.log_identification import delays, log_model
+    from harness.stages.log_judge import as_fitted
+
+    sc = load_scenario(arm_log / "s.toml")
+    split = load(sc.data, sc.robot)
+    model = log_model(sc.robot, sc.gravity_W)
+    assert isinstance(split.training, TrainingSpan) and not isinstance(split.validation, TrainingSpan)
+    with pytest.raises(TypeError, match="training span alone"):
+        delays("correct", model, split.validation)
+    lags = delay.Delays(np.array([0.004, 0.0]), np.full(2, 0.1), np.ones(2), np.array([-0.02, 0.02]),
+                        np.zeros((2, 2)), np.array([False, True]))  # the first joint's found
+    joints = list(sc.robot.joint_names)
+    assert isinstance(delay.corrected(split.training, lags, joints), TrainingSpan)
+    assert isinstance(split.training.span(slice(0, 50)), TrainingSpan)
+    judged = as_fitted(split.validation, lags, np.array([2.0, 3.0]), joints)
+    by_hand = delay.corrected(split.validation, lags, joints)
+    assert len(by_hand.t) < len(split.validation.t)  # read 4 ms later: the last rows have no later reading
+    np.testing.assert_array_equal(judged.tau, by_hand.tau * [2.0, 3.0])
+    assert as_fitted(split.validation, None, None, joints) is split.validation
+
+
 def _positions_log(arm_log, name: str, step: float | None, spike: bool = False) -> load_scenario:
     """folder/name/: the arm's log with positions and torques only and no cutoff given; its positions
     read through an encoder of `step` rad (None: exact), and with `spike` one position of the validation

@@ -3,9 +3,11 @@ whose truth nobody knows, judged on a part of the log the fit never saw.
 
 The source gives the log read, checked, conditioned and split (Context.training, the validation span
 in Context.validation). The run is then these steps, each a function with a typed result, the fitting
-ones reading the training span alone:
+ones taking the training span alone (a TrainingSpan, harness/sources/log/condition.py: handed another,
+they refuse it); what they find on it, a delay or a torque constant, the judging applies to the
+validation span (log_judge.as_fitted):
 1. delay: each torque channel's lag behind the encoders, estimated and, where asked and found,
-   corrected on both spans (harness/identify/delay.py);
+   corrected (harness/identify/delay.py);
 2. constants: a log of currents made torques by identified torque constants (harness/identify/scale.py);
 3. friction law: each joint's law chosen by cross-validation within the training span
    (harness/identify/friction_law.py);
@@ -68,8 +70,9 @@ from harness.model.export import (
 from harness.model.friction import FAMILIES, JointFriction
 from harness.model.friction import values as friction_values
 from harness.model.mjcf import compiler_message, write_mjcf
+from harness.sources.log.condition import TrainingSpan, fits_on
 from harness.stages.context import VALIDATION_SPAN
-from harness.stages.log_judge import Start, prediction, start
+from harness.stages.log_judge import Start, as_fitted, prediction, start
 from harness.stages.log_results import serialise
 
 LAG_WARNING = 0.001  # s: an estimated delay beyond 1 ms, left uncorrected, is said on the terminal
@@ -153,46 +156,45 @@ def log_model(robot, gravity_W: np.ndarray) -> LogModel:
 @dataclass(frozen=True, eq=False)
 class Delayed:
     """Step 1: the delays estimated on the training span (None where not asked for, or not
-    estimable: `note`), the spans as the fit reads them (corrected where asked), and the training
-    span's regressor at the model's own velocities (harness/identify/torque_id.py, with friction)."""
+    estimable: `note`), the training span as the fit reads it (corrected where asked: `corrected`),
+    and its regressor at the model's own velocities (harness/identify/torque_id.py, with friction)."""
 
     lags: delay.Delays | None
     note: str | None
-    training: TimeSeries
-    validation: TimeSeries | None
+    training: TrainingSpan
     W: np.ndarray | RowsOnDemand | None  # (N n, 14 n); None once the delays and the constants have read it (`run`)
+    corrected: bool = False  # the found delays corrected (the judging corrects the validation span likewise)
 
 
-def delays(mode: str, model: LogModel, training: TimeSeries, validation: TimeSeries | None) -> Delayed:
+def delays(mode: str, model: LogModel, training: TrainingSpan) -> Delayed:
     """Each torque channel's lag (every joint's, or a closed chain's actuated joints': its rows of G^T Y)."""
-    joints = model.torque_joints
+    joints, training = model.torque_joints, fits_on(training)
 
     def rows(series: TimeSeries) -> np.ndarray | RowsOnDemand:
         return model.rows(model.pm, *model.data(series)[:3])
 
     W = rows(training)
     if mode == "none":
-        return Delayed(None, None, training, validation, W)
+        return Delayed(None, None, training, W)
     try:
         filtered = training.full_rate is not None  # a low-passed span keeps its full rate (sources/log/condition.py)
         lags = delay.estimate(training.t, model.data(training)[3], rows_by_sample(W, len(joints)), filtered=filtered)
     except ValueError as exc:
-        return Delayed(None, f"delays not estimated: {exc}", training, validation, W)
+        return Delayed(None, f"delays not estimated: {exc}", training, W)
     if mode != "correct":
-        return Delayed(lags, None, training, validation, W)
+        return Delayed(lags, None, training, W)
     # the joints whose delay is found; the others as they are
-    training, validation = (None if s is None else delay.corrected(s, lags, joints) for s in (training, validation))
-    return Delayed(lags, None, training, validation, rows(training))
+    training = delay.corrected(training, lags, joints)
+    return Delayed(lags, None, training, rows(training), corrected=True)
 
 
 @dataclass(frozen=True, eq=False)
 class Constants:
     """Step 2: the torque constants identified (None: a log of torques, or constants not asked for),
-    and the spans in joint torques."""
+    and the training span in joint torques."""
 
     scales: scale.TorqueScales | None
-    training: TimeSeries
-    validation: TimeSeries | None
+    training: TrainingSpan
 
 
 def constants(data, robot, model: LogModel, d: Delayed, payload: TimeSeries | None) -> Constants:
@@ -200,9 +202,9 @@ def constants(data, robot, model: LogModel, d: Delayed, payload: TimeSeries | No
     says of the fit (a 5 ms lag left in moved them by 6 to 16 % on a UR5 bench; corrected, under 1 %).
     Each torque channel's: a closed chain's actuated joints', on their rows of G^T Y."""
     if data.units["tau"] != "current" or not data.identify_constants:
-        return Constants(None, d.training, d.validation)
+        return Constants(None, d.training)
     joints = model.torque_joints
-    training, W = d.training, d.W
+    training, W = fits_on(d.training), d.W
     if d.lags is not None and data.delay == "estimate" and np.any(d.lags.found):
         training = delay.corrected(d.training, d.lags, joints)
         W = model.rows(model.pm, *model.data(training)[:3])
@@ -211,8 +213,7 @@ def constants(data, robot, model: LogModel, d: Delayed, payload: TimeSeries | No
     tau = model.data(training)[3]
     found = scale.torque_constants(model.pm, model.base, W, tau, model.base.of(model.x_model), robot, data.payload,
                                    payload, None if model.chain is None else partial(model.rows, model.pm))
-    return Constants(found, *(None if s is None else scale.scaled(s, found.factor, joints)
-                              for s in (d.training, d.validation)))
+    return Constants(found, scale.scaled(d.training, found.factor, joints))
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,10 +233,10 @@ def filtered_columns(series: TimeSeries):
 
 
 def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: list[str],
-                  training: TimeSeries) -> LawChoice:
+                  training: TrainingSpan) -> LawChoice:
     """The search reads the training span's regressor at the model's velocities a chunk of samples at a
     time (its fixed columns do not depend on a law's), never whole."""
-    choice, note = None, None
+    choice, note, training = None, None, fits_on(training)
     if config.choose and model.chain is not None:
         return _chain_laws(config, robot, model, training)
     if config.choose:
@@ -255,7 +256,7 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
     return LawChoice(laws, choice, note)
 
 
-def _chain_laws(config: FrictionLawConfig, robot, model: LogModel, training: TimeSeries) -> LawChoice:
+def _chain_laws(config: FrictionLawConfig, robot, model: LogModel, training: TrainingSpan) -> LawChoice:
     """A closed chain's: one smoothing velocity for every joint's viscous and Coulomb law
     (harness/identify/chain_law.py), where the model states no other family."""
     kept = tuple(Law.of(f) for f in robot.frictions)
@@ -289,12 +290,12 @@ class LeastSquares:
     note: str | None
 
 
-def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[str], training: TimeSeries,
+def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[str], training: TrainingSpan,
                   laws: LawChoice, segments: int | None) -> LeastSquares:
     """On the training span's regressor at the laws' velocities (the chosen ones, or the model's own),
     made here, its Coulomb columns the filtered ones on a filtered log; a long span's made where it is
     read, never whole (harness/identify/span_rows.py)."""
-    q, qd, qdd, tau = model.data(training)
+    q, qd, qdd, tau = model.data(fits_on(training))
     columns = filtered_columns(training)
     # the Coulomb columns filtered as the torques were, on a filtered log
     coulomb = None if columns is None else filtered.coulomb(columns, training.t, laws.laws, robot.transmission)
@@ -377,7 +378,7 @@ class Exported:
 
 
 def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], theta: np.ndarray,
-                 training: TimeSeries, W: np.ndarray | RowsOnDemand, ls: LeastSquaresFit) -> Exported:
+                 training: TrainingSpan, W: np.ndarray | RowsOnDemand, ls: LeastSquaresFit) -> Exported:
     """A closed chain's friction mapping is judged against each joint's torque in the identified tree
     (rnea at the training span's states: what each joint carries, the loops' forces included, its
     drive's or its bearing's), a passive joint having no measured torque of its own."""
@@ -460,7 +461,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     model = log_model(robot, sc.gravity_W)
     if sc.data.delay != "none":
         ctx.progress("the torque channels' delays behind the encoders", None)
-    delayed = delays(sc.data.delay, model, ctx.training, ctx.validation.get(VALIDATION_SPAN))
+    delayed = delays(sc.data.delay, model, ctx.training)
     if sc.data.units["tau"] == "current" and sc.data.identify_constants:
         ctx.progress("torque constants (motor currents)", None)
     scaled = constants(sc.data, robot, model, delayed, ctx.payload)
@@ -482,7 +483,10 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
                                               friction_values(robot.frictions), fitted.extra_model,
                                               robot.transmission, model.reach)
     identified = identified_spec(robot, fit.theta, frictions)
-    spans = {"training": scaled.training, **({"validation": scaled.validation} if scaled.validation else {})}
+    # the validation span as the fit's findings make it, by the judging (the fit never reads it)
+    validation = as_fitted(ctx.validation.get(VALIDATION_SPAN), delayed.lags if delayed.corrected else None,
+                           None if scaled.scales is None else scaled.scales.factor, model.torque_joints)
+    spans = {"training": scaled.training, **({"validation": validation} if validation is not None else {})}
     judged = judge(sc, model, spans, fitted, laws.laws, identified)
     ctx.progress("the models forward-simulated under the measured torques", None)
     span = "validation" if "validation" in spans else "training"

@@ -10,11 +10,25 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.base.numerics import evenly_spaced, finite_or_null, sampled
-from harness.base.series import room
+from harness.base.series import TimeSeries, room
 from harness.engines.rollout import PREDICTION_TIMESTEP, log_drives, predict
 
 HORIZONS = (0.02, 0.05, 0.1, 0.2)  # s: how far ahead a model is judged by forward simulation
 PREDICTION_STARTS = 20  # starts spread evenly over the span
+
+
+def as_fitted(validation: TimeSeries | None, lags, factor: np.ndarray | None, joints: list[str]) -> TimeSeries | None:
+    """The validation span as the fit's findings on the training span make it, applied here by the judging
+    (the fit never reads it): each delay found there corrected (`lags`, harness/identify/delay.py; None
+    where the fit did not correct them) and each torque constant found there applied (`factor`,
+    harness/identify/scale.py; None for a log of torques), as they were to the training span."""
+    from harness.identify import delay, scale
+
+    if validation is None:
+        return None
+    if lags is not None:
+        validation = delay.corrected(validation, lags, joints)
+    return validation if factor is None else scale.scaled(validation, factor, joints)
 
 
 def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:

@@ -9,7 +9,7 @@ compares the one with the other chooses a smeared turn (a larger v_c) the robot 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import cached_property
 
 import numpy as np
@@ -90,6 +90,26 @@ class ConditionedLog(TimeSeries):
 
     full_rate: FilteredColumns | None = None  # a low-passed span's velocities at the full rate; None unfiltered
     reach_s: float = 0.0  # s: how far a sample's conditioning reaches, the guard between any two parts
+
+
+@dataclass(frozen=True, eq=False)
+class TrainingSpan(ConditionedLog):
+    """The training span (harness/sources/log/split.py): the only rows a fit may read. The fitting steps
+    of a log's identification take this type and refuse another (`fits_on`); what they find (a delay, a
+    torque constant) the judging applies to the validation span, never the fit. A span of it, a delay
+    corrected or a factor applied (dataclasses.replace), stays one."""
+
+    @staticmethod
+    def of(log: ConditionedLog) -> TrainingSpan:
+        return TrainingSpan(**{f.name: getattr(log, f.name) for f in fields(log)})
+
+
+def fits_on(series: TimeSeries) -> TrainingSpan:
+    """`series` where it is the training span; a fit handed another (the validation span, a whole log) is
+    a harness bug, refused here."""
+    if not isinstance(series, TrainingSpan):
+        raise TypeError(f"a fit reads the training span alone, and was handed a {type(series).__name__}")
+    return series
 
 
 def condition(raw: RawLog, source: DataSource, robot: RobotSpec) -> ConditionedLog:

@@ -14,7 +14,7 @@ from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
 from harness.sources.log import defaults
 from harness.sources.log.checks import check
-from harness.sources.log.condition import ConditionedLog, condition, conditioned
+from harness.sources.log.condition import ConditionedLog, TrainingSpan, condition, conditioned
 from harness.sources.log.read import read_raw
 from harness.sources.log.schema import DataSource
 from harness.sources.log.segments import segment_record, segments, split_step
@@ -31,7 +31,7 @@ class Split:
     as written to data.csv, its `meta` the conditioning record (the training span's steps, the whole
     file's checks, the stretches, the split and the defaults the data decided)."""
 
-    training: ConditionedLog
+    training: TrainingSpan
     validation: ConditionedLog | None
     guard_band_s: float | None
     whole: ConditionedLog
@@ -70,13 +70,13 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
                      f"s): the log is conditioned in {len(pieces)} stretches, nothing filtered across a gap")
     record = segment_record(kept.t, pieces, source, checked.median_step)
     if source.validation_from is None:
-        train = conditioned(kept, pieces, source, robot, rate, checked, "log", notes)
-        train.meta["segments"], train.meta["defaults"] = record, chosen
-        train.meta["warnings"] = train.meta["warnings"] + notes
+        log = conditioned(kept, pieces, source, robot, rate, checked, "log", notes)
+        log.meta["segments"], log.meta["defaults"] = record, chosen
+        log.meta["warnings"] = log.meta["warnings"] + notes
         val = None
         if source.validation_file is not None:
             val = condition(read_raw(source, robot, source.validation_file), source, robot)
-        return Split(train, val, None, dataclasses.replace(train, full_rate=None), source)
+        return Split(TrainingSpan.of(log), val, None, dataclasses.replace(log, full_rate=None), source)
     before = kept.t < t_split
     if before.sum() < MIN_SPAN_ROWS or (~before).sum() < MIN_SPAN_ROWS:
         raise InputError(source.file, "validation.from", f"splitting at {t_split:g} s leaves too few rows "
@@ -85,6 +85,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
                                                                                       ("validation", ~before))}
     train, val = (conditioned(kept, spans[name], source, robot, rate, checked, f"{name} span", notes)
                   for name in ("training", "validation"))
+    train = TrainingSpan.of(train)
     guard = float(val.t[0] - train.t[-1])
     conditioning = dict(train.meta)
     conditioning["warnings"] = conditioning["warnings"] + notes
