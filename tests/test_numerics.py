@@ -32,3 +32,21 @@ def test_a_joint_that_does_not_move_is_judged_against_its_kinds_largest_range_no
     scale = range_scale(q, [True, True, True, False, False])
     np.testing.assert_allclose(scale, [2.0, 0.5, RANGE_FLOOR * 2.0, 0.2, RANGE_FLOOR], rtol=1e-12)
     assert range_scale(q[:, :1] * 1e-6, [True])[0] == RANGE_FLOOR  # a small motion: 1 mrad at least
+
+
+@pytest.mark.parametrize("rank_short", [False, True])
+def test_a_fits_residual_read_off_its_qr_is_numpys_least_squares_residual(rank_short):
+    """fit_residual against numpy's lstsq (an SVD) on columns of sizes 1e-3 to 1e3, full rank and with a
+    column repeating another (the minimum-norm cut-off's): the same residual to 1e-12 of it, a residual
+    under 1e-3 of |y| (where |y|^2 - |A x|^2 would keep few of its digits)."""
+    from harness.base.numerics import fit_residual
+
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(3000, 8)) * np.logspace(-3, 3, 8)
+    if rank_short:
+        A[:, 5] = 2.0 * A[:, 2]
+    y = A @ rng.normal(size=8) + 1e-4 * rng.normal(size=3000) * np.linalg.norm(A) / np.sqrt(3000)
+    x = np.linalg.lstsq(A, y, rcond=None)[0]
+    expected = float(np.linalg.norm(y - A @ x))
+    assert expected < 1e-3 * np.linalg.norm(y)
+    assert fit_residual(A, y) == pytest.approx(expected, rel=1e-12)

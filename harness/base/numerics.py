@@ -160,6 +160,12 @@ def triangle(A: np.ndarray | SideBySide, y: np.ndarray, col: np.ndarray) -> tupl
     return R, b, float(np.hypot(outside, np.linalg.norm(unreached)))
 
 
+def fit_residual(A: np.ndarray | SideBySide, y: np.ndarray) -> float:
+    """||y - A x|| at the least-squares x: read off the QR of A's scaled columns (`triangle`), never
+    from |y|^2 - |A x|^2. Relative to y it is `relative_residual`'s figure for a fit's own residual."""
+    return triangle(A, y, column_scale(A))[2]
+
+
 def equilibrated_singular_values(W: np.ndarray) -> np.ndarray:
     """The singular values of W with its columns scaled (`column_scale`), largest first."""
     return np.linalg.svd(W / column_scale(W), compute_uv=False)

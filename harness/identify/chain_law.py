@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from harness.base.numerics import column_scale, relative_residual_of_sums, sample_step, triangle
+from harness.base.numerics import column_scale, fit_residual, relative_residual_of_sums, sample_step
 from harness.identify import filtered
 from harness.identify.friction_law import VELOCITY_GRID, FrictionChoice, Law, blocked_folds
 from harness.identify.torque_id import drive_column, links_weights
@@ -75,7 +75,7 @@ def choose(W: np.ndarray, G: np.ndarray, qd: np.ndarray, tau: np.ndarray, indepe
 
     def residual(v) -> float:  # read off the QR of the scaled rows, as the judging's floor is
         A = rows(v).reshape(N * m, -1)
-        return triangle(A, tau.ravel(), column_scale(A))[2] / np.sqrt(total)
+        return fit_residual(A, tau.ravel()) / np.sqrt(total)
 
     def held_out(v) -> float:
         A, sse = rows(v), 0.0

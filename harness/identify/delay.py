@@ -71,7 +71,7 @@ def grid_step(t: np.ndarray, filtered: bool, step: float = STEP) -> float:
     steps, the one nearest `step` (at least one). On an unfiltered log a candidate between two samples
     would read the channel by interpolation, which averages its noise (at half a step, white noise by
     1 / sqrt(2)): its residual would fall by the noise it smooths, and a log without any delay would
-    seem to lag by a fraction of a sample (1 to 1.7 ms on a 250 Hz bench log of currents with 1 % noise)."""
+    seem to lag by a fraction of a sample (docs/identification.md gives the figure on a bench log)."""
     if filtered:
         return step
     dt = sample_step(t)

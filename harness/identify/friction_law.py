@@ -297,8 +297,8 @@ class _Normal:
     def held_out_sse(self) -> np.ndarray:
         """(K,) the squared error of every fold, each predicted by the fit on the others: from the fold's
         normal equations, |tau_k|^2 - x.(2 r_k - M_k x), where that keeps its digits, else from the fold's
-        rows (`_rows_sse`). The normal equations' form loses about 10 eps |tau_k|^2 (measured 1e-15
-        |tau_k|^2 on the Panda's log, where it agrees with the rows to 7e-12): at an error below
+        rows (`_rows_sse`). The normal equations' form loses about 10 eps |tau_k|^2 (a difference of
+        two sums of that size, each rounded to eps of it): at an error below
         GRAM_FLOOR |tau_k|^2 (a log the law fits closely, a bench log to round-off) the rows answer."""
         P, p = self.M.shape[:2]
         flat = self.M.reshape(P, p * p)

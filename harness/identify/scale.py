@@ -11,7 +11,7 @@ f_j tau_nom,j, with f_j unknown. With g_j = 1 / f_j, the torques as read are, up
 add, on the columns of the body carrying it). The noise of the currents is on the left, where least
 squares expects it: (beta, g) minimise the residual by Gauss-Newton, from the linear solution of
 W beta - f o tau_nom = known (whose noisy tau_nom columns bias f towards zero by the noise's share of
-the torque that W beta cannot explain: -0.6 % at 1 % current noise on a UR5 bench). The payload's
+the torque that W beta cannot explain; docs/identification.md gives the figure). The payload's
 known torques fix the scale. Without them the log alone fixes (beta, g) only up to one common scale,
 which the median ratio of the model's own base parameters to beta fixes (over those the model gives
 a size), and said so: the factors are then as right as the model's parameters are on the median,

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.base.numerics import SideBySide, column_scale, triangle
+from harness.base.numerics import SideBySide, fit_residual
 from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
 from harness.engines.pinocchio import PinocchioModel, build_model, rnea
@@ -199,7 +199,7 @@ class Constants:
 
 def constants(data, robot, model: LogModel, d: Delayed, payload: TimeSeries | None) -> Constants:
     """The factors are read from the training span with every found delay corrected, whatever `delay`
-    says of the fit (a 5 ms lag left in moved them by 6 to 16 % on a UR5 bench; corrected, under 1 %).
+    says of the fit (a lag left in moves them by several percent: docs/identification.md, torque constants).
     Each torque channel's: a closed chain's actuated joints', on their rows of G^T Y."""
     if data.units["tau"] != "current" or not data.identify_constants:
         return Constants(None, d.training)
@@ -356,7 +356,7 @@ def judge(sc, model: LogModel, spans: dict[str, TimeSeries], fitted: LeastSquare
                                  "consistent": model.torques(pm_identified, q, qd, qdd),
                                  "model as given": model.torques(model.pm, q, qd, qdd)}
         if name == "validation":  # the model class's floor there: its least squares on that span itself
-            floor = triangle(W_span, tau.ravel(), column_scale(W_span))[2]  # its residual, from its rows' QR
+            floor = fit_residual(W_span, tau.ravel())  # its residual, from its rows' QR
             out = _with_floor(out, floor / float(np.linalg.norm(tau)))
         if pm_truth is not None:  # what the robot that made the log needs at these states
             out.truth[name] = model.torques(pm_truth, q, qd, qdd)
