@@ -440,3 +440,22 @@ def test_the_held_out_error_from_the_folds_normal_equations_is_the_rows_and_belo
             np.testing.assert_allclose(sse, _held_out_by_lstsq(normal, G3, C, tau, coupling), rtol=1e-9)
         else:
             assert np.all(sse <= 1e-24 * tau_k), sse / tau_k
+
+
+def test_a_law_and_a_joints_friction_values_meet_in_one_place():
+    """A law (family, v_c, v_s) and a joint's friction values: values made from a law carry its family
+    and velocities and read back as it; a model's values given a law's velocities keep every coefficient;
+    a law read at a friction's velocities keeps its family."""
+    from harness.identify.friction_law import Law
+    from harness.model.friction import JointFriction
+
+    f = JointFriction(armature=0.1, viscous=0.2, coulomb=0.3, offset=0.05, coulomb_velocity=0.01,
+                      viscous_asymmetry=0.02, coulomb_asymmetry=0.03, stribeck_velocity=0.2)
+    law = Law("stribeck", 0.04, 0.5)
+    made = law.friction(1.0, 2.0, 3.0, 4.0, stribeck=0.6)
+    assert Law.of(made) == law and made.as_dict()["stribeck"] == 0.6 and made.armature == 1.0
+    shaped = law.shaping(f)
+    assert (shaped.coulomb_velocity, shaped.stribeck_velocity) == (0.04, 0.5)
+    assert {k: v for k, v in shaped.as_dict().items() if "velocity" not in k} == \
+        {k: v for k, v in f.as_dict().items() if "velocity" not in k}
+    assert law.at_velocities_of(f) == Law("stribeck", 0.01, 0.2)

@@ -262,11 +262,9 @@ def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law
                             for c, (k, _) in enumerate(terms)])
     scale = np.concatenate([model_kind_scales(theta_model).ravel(), friction_scale.ravel(), extra_scale])
     result = fit(SideBySide((W, E)), tau.reshape(-1), theta_model, friction_model, scale, tuple(terms), extra_model)
-    frictions = tuple(
-        JointFriction(*map(float, result.friction[k]), coulomb_velocity=law.coulomb_velocity,
-                      stribeck_velocity=law.stribeck_velocity,
-                      **{key: float(result.extra[c]) for c, (kk, key) in enumerate(terms) if kk == k})
-        for k, law in enumerate(laws))
+    frictions = tuple(law.friction(*result.friction[k], **{key: result.extra[c] for c, (kk, key) in enumerate(terms)
+                                                           if kk == k})
+                      for k, law in enumerate(laws))
     return result, frictions
 
 

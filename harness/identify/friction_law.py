@@ -72,7 +72,9 @@ class FrictionLawConfig:
 
 @dataclass(frozen=True)
 class Law:
-    """One joint's law: its family and the velocities its shapes turn over."""
+    """One joint's law: its family and the velocities its shapes turn over. The one type of a law: a
+    joint's friction values (model/friction.py, JointFriction) are made from a law and coefficients
+    (`friction`), given a law's velocities (`shaping`) or read into one (`at_velocities_of`) here alone."""
 
     family: str = "viscous_coulomb"
     coulomb_velocity: float = 0.0
@@ -86,7 +88,22 @@ class Law:
     @property
     def shapes(self) -> JointFriction:
         """A friction with this law's velocities and no coefficient: what its columns are built from."""
-        return JointFriction(coulomb_velocity=self.coulomb_velocity, stribeck_velocity=self.stribeck_velocity)
+        return self.friction()
+
+    def friction(self, armature: float = 0.0, viscous: float = 0.0, coulomb: float = 0.0, offset: float = 0.0,
+                 **terms: float) -> JointFriction:
+        """A joint's friction of this law: its velocities, and the coefficients given (the family's
+        terms by name)."""
+        return JointFriction(float(armature), float(viscous), float(coulomb), float(offset), self.coulomb_velocity,
+                             stribeck_velocity=self.stribeck_velocity, **{k: float(v) for k, v in terms.items()})
+
+    def shaping(self, f: JointFriction) -> JointFriction:
+        """f at this law's velocities, its coefficients kept."""
+        return replace(f, coulomb_velocity=self.coulomb_velocity, stribeck_velocity=self.stribeck_velocity)
+
+    def at_velocities_of(self, f: JointFriction) -> Law:
+        """This law, its family kept, at f's velocities."""
+        return replace(self, coulomb_velocity=f.coulomb_velocity, stribeck_velocity=f.stribeck_velocity)
 
     @classmethod
     def of(cls, f: JointFriction) -> Law:
@@ -107,8 +124,7 @@ class FrictionChoice:
 
     def frictions(self, model: tuple[JointFriction, ...]) -> tuple[JointFriction, ...]:
         """The model's friction values with the chosen velocities (the coefficients are the fit's to find)."""
-        return tuple(JointFriction(f.armature, f.viscous, f.coulomb, f.offset, law.coulomb_velocity,
-                                   stribeck_velocity=law.stribeck_velocity)
+        return tuple(law.friction(f.armature, f.viscous, f.coulomb, f.offset)
                      for f, law in zip(model, self.laws, strict=True))
 
 

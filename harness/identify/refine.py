@@ -34,7 +34,7 @@ fitting its torques within TORQUE_SLACK of the consistent fit.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
@@ -158,7 +158,7 @@ def _columns(qd: np.ndarray, qdd: np.ndarray, rigid: np.ndarray, v_c: float, v_s
              terms: tuple[str, ...]) -> tuple[np.ndarray, tuple[str, ...]]:
     """One joint's drive regressor at velocities qd, accelerations qdd and rigid-body torque rigid
     (each (N,)): [q'', q', s, 1] (harness/model/friction.py, columns), its family's shapes, and their keys."""
-    law = (JointFriction(coulomb_velocity=v_c, stribeck_velocity=v_s),)
+    law = (Law(coulomb_velocity=v_c, stribeck_velocity=v_s).shapes,)
     drive = columns(law, qd[:, None], qdd[:, None])[:, 0]
     extra = extra_columns(law, qd[:, None], rigid[:, None])[:, 0]
     keys = (*IDENTIFIED_KEYS, *terms)
@@ -179,8 +179,7 @@ def _drive_fit(p: _Problem, k: int, velocity: dict, lag: float) -> JointFriction
     for key, bound in BOUNDED_BY.items():
         if key in values:
             values[key] = float(np.clip(values[key], -values[bound], values[bound]))
-    return JointFriction(coulomb_velocity=velocity["coulomb_velocity"], stribeck_velocity=velocity["stribeck_velocity"],
-                         **values)
+    return replace(p.laws[k], **velocity).friction(**values)
 
 
 def _inner(t: np.ndarray, largest: float) -> np.ndarray:

@@ -17,7 +17,6 @@ forward simulation from the same measured states over the same horizons.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -137,11 +136,8 @@ def _refit(ctx, li, r: Refinement, laws: tuple[Law, ...], rigid: np.ndarray, q, 
     cross an end or a gap left out)."""
     sc = ctx.scenario
     robot = sc.robot
-    laws = tuple(dataclasses.replace(law, coulomb_velocity=f.coulomb_velocity, stribeck_velocity=f.stribeck_velocity)
-                 for law, f in zip(laws, r.frictions, strict=True))
-    shaped = robot.with_frictions(tuple(dataclasses.replace(f, coulomb_velocity=law.coulomb_velocity,
-                                                            stribeck_velocity=law.stribeck_velocity)
-                                        for f, law in zip(robot.frictions, laws, strict=True)))
+    laws = tuple(law.at_velocities_of(f) for law, f in zip(laws, r.frictions, strict=True))
+    shaped = robot.with_frictions(tuple(law.shaping(f) for f, law in zip(robot.frictions, laws, strict=True)))
     later, keep = channel_delay.shifted(t, tau, r.delay, sample_step(t))
     W = regressor(build_model(shaped, sc.gravity_W), q[keep], qd[keep], qdd[keep], with_friction=True)
     E = extra_regressor(laws, qd[keep], rigid[keep], robot.transmission)
