@@ -27,7 +27,7 @@ def _verdicts(ident):
     out = {}
     for body, ls in zip(ident.bodies, ident.per_body, strict=True):
         for c, name in enumerate(PARAMETERS):
-            out[(body, name)] = (bool(ls.identifiable[c]), ls.x[c], ls.reasons[c])
+            out[(body, name)] = (bool(ls.identifiable[c]), ls.beta[c], ls.reasons[c])
     return out
 
 
@@ -61,8 +61,8 @@ def test_whole_system_least_squares_agrees_with_per_body(run_scenario):
     ident = run_scenario(SCENARIOS / "kr500_rail.toml")["identification"]
     per_body_ok = np.concatenate([ls.identifiable for ls in ident.per_body])
     np.testing.assert_array_equal(ident.system.identifiable, per_body_ok)
-    per_body_x = np.concatenate([ls.x for ls in ident.per_body])
-    np.testing.assert_allclose(ident.system.x[per_body_ok], per_body_x[per_body_ok], rtol=1e-9)
+    per_body_x = np.concatenate([ls.beta for ls in ident.per_body])
+    np.testing.assert_allclose(ident.system.beta[per_body_ok], per_body_x[per_body_ok], rtol=1e-9)
 
 
 def test_a_different_tree_is_identified_by_the_same_code(run_scenario):
@@ -142,7 +142,7 @@ def test_cr3_covariance_is_the_leave_one_cluster_out_jackknife(sizes):
     for g in range(len(sizes)):
         keep = cluster != g
         x_g = np.linalg.lstsq(K[keep] * sw[keep, None], L[keep] * sw[keep], rcond=None)[0]
-        sq += (ls.x - x_g) ** 2
+        sq += (ls.beta - x_g) ** 2
     np.testing.assert_allclose(ls.std**2, sq, rtol=1e-9)
 
 

@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.base.numerics import NORMAL_975, SideBySide, column_scale, triangle
-from harness.identify.lstsq import sandwich_std, t_quantile
+from harness.identify.lstsq import Estimate, sandwich_std, t_quantile
 
 HUBER_C = 1.345  # Huber's constant: 95 % efficiency under Gaussian noise
 IRLS_ITERATIONS = 20
@@ -70,14 +70,6 @@ class Instruments:
     Z1: np.ndarray  # (rows, r): the regressor of the reference motion
     nonlinear: np.ndarray | None = None  # (r,) bool: columns nonlinear in a measured signal, taken from Z1
     score_covariance: np.ndarray | None = None  # (r, r) Cov(Z1^T e) from the sensors (harness/identify/propagation.py)
-
-
-@dataclass(frozen=True, eq=False)
-class Estimate:
-    beta: np.ndarray
-    std: np.ndarray
-    ci_half_width: np.ndarray
-    seconds: float
 
 
 def _weighted_fit(W1: np.ndarray, tau: np.ndarray, n: int, w: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, ...]:

@@ -22,7 +22,8 @@ FORMAT = 1
 
 @dataclass(frozen=True, eq=False)
 class LeastSquaresFit:
-    """What least_squares.toml holds (r base parameters, then e family coefficients)."""
+    """What least_squares.toml holds (r base parameters, then e family coefficients): a fit's Estimate
+    (harness/identify/lstsq.py; its beta and std) in the file's form, with what evaluating it needs."""
 
     model: str  # the model file the columns are evaluated with, relative to the file's folder
     columns: np.ndarray  # (r,) indices into the regressor with friction (14 n columns)

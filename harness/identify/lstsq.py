@@ -115,27 +115,35 @@ WEAK_RATIO = 1e3  # sensitivity above this times the median: weakly identifiable
 
 
 @dataclass(frozen=True, eq=False)
-class LeastSquares:
-    names: tuple[str, ...]
-    x: np.ndarray  # (p,) NaN where not identifiable
-    identifiable: np.ndarray  # (p,) bool
-    reasons: tuple[str, ...]  # "" where identifiable
-    column_snr: np.ndarray  # (p,) ||K_c|| / column_floor[c]
-    singular_values: np.ndarray  # of the scaled, excited columns
-    residual_norm: float
-    rows: int
-    std: np.ndarray  # (p,) standard deviation of each estimate, NaN where not identifiable
-    ci_half_width: np.ndarray  # (p,) half width of the 95 % interval
-    sensitivity: np.ndarray  # (p,) kappa, NaN where not identifiable or no scale was given
-    weak: np.ndarray  # (p,) bool: identifiable, but kappa > WEAK_RATIO x median kappa
+class Estimate:
+    """A least-squares result, the one type every fit here returns: the estimators' OLS, WLS and IV
+    (harness/identify/estimators.py), the log's base fit (torque_id.fit_base), the bench's per-body and
+    whole-system solves (`solve`). The estimate, each entry's standard deviation and the half width of
+    its 95 % interval; then what a fit knows beyond them, where it knows it (None or empty where not)."""
+
+    beta: np.ndarray  # (p,) NaN where not identifiable
+    std: np.ndarray  # (p,) NaN where not identifiable
+    ci_half_width: np.ndarray  # (p,) of the 95 % interval
+    seconds: float = float("nan")  # the fit's own time (the estimators' comparison)
+    sensitivity: np.ndarray | None = None  # (p,) kappa, NaN where not identifiable or no scale was given
+    weak: np.ndarray | None = None  # (p,) bool: identifiable, but kappa > WEAK_RATIO x median kappa
+    condition_number: float | None = None  # of the column-scaled regressor
+    # what `solve` says of each column: its name, whether it is identifiable and why not
+    names: tuple[str, ...] = ()
+    identifiable: np.ndarray | None = None  # (p,) bool
+    reasons: tuple[str, ...] = ()  # "" where identifiable
+    column_snr: np.ndarray | None = None  # (p,) ||K_c|| / column_floor[c]
+    singular_values: np.ndarray | None = None  # of the scaled, excited columns
+    residual_norm: float | None = None
+    rows: int | None = None
 
     @property
     def ci_low(self) -> np.ndarray:
-        return self.x - self.ci_half_width
+        return self.beta - self.ci_half_width
 
     @property
     def ci_high(self) -> np.ndarray:
-        return self.x + self.ci_half_width
+        return self.beta + self.ci_half_width
 
 
 def _weighted(Ks: np.ndarray, L: np.ndarray, group: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -158,7 +166,7 @@ def _weighted(Ks: np.ndarray, L: np.ndarray, group: np.ndarray | None) -> tuple[
 
 def solve(K: np.ndarray, L: np.ndarray, names: Sequence[str], column_floor: np.ndarray,
           cluster: np.ndarray | None = None, group: np.ndarray | None = None,
-          scale: np.ndarray | None = None) -> LeastSquares:
+          scale: np.ndarray | None = None) -> Estimate:
     """cluster: (rows,) the sample each row belongs to; group: (rows,) its channel group;
     scale: (p,) each parameter's magnitude in the model's own values, for the sensitivities."""
     p = K.shape[1]
@@ -200,8 +208,9 @@ def solve(K: np.ndarray, L: np.ndarray, names: Sequence[str], column_floor: np.n
             size = norms[cols] * scale[cols]  # a parameter of no magnitude has no relative sensitivity
             kappa[cols] = np.where(size > 0, sensitivity(Ks * np.sqrt(w)[:, None], L * np.sqrt(w))
                                    / np.where(size > 0, size, 1.0), np.nan)
-    return LeastSquares(tuple(names), x, ok, tuple(reasons), snr, sv, residual, K.shape[0], std, half,
-                        kappa, weakly_identifiable(kappa))
+    return Estimate(x, std, half, sensitivity=kappa, weak=weakly_identifiable(kappa), names=tuple(names),
+                    identifiable=ok, reasons=tuple(reasons), column_snr=snr, singular_values=sv,
+                    residual_norm=residual, rows=K.shape[0])
 
 
 def sensitivity(K: np.ndarray, L: np.ndarray, svd: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:

@@ -26,7 +26,7 @@ from harness.base.numerics import (
 )
 from harness.engines.pinocchio import PinocchioModel
 from harness.identify.estimators import ols_of, reduced
-from harness.identify.lstsq import sensitivity, weakly_identifiable
+from harness.identify.lstsq import Estimate, sensitivity, weakly_identifiable
 from harness.model import drives, friction
 from harness.model.drives import Transmission
 from harness.model.inertia import PARAMETER_NAMES
@@ -301,17 +301,7 @@ def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau
                                 fit.sensitivity, fit.weak, err)
 
 
-@dataclass(frozen=True, eq=False)
-class BaseFit:
-    beta: np.ndarray  # (r,)
-    std: np.ndarray
-    ci_half_width: np.ndarray
-    sensitivity: np.ndarray  # kappa (harness/identify/lstsq.py)
-    weak: np.ndarray
-    condition_number: float  # of the column-scaled base regressor
-
-
-def fit_base(W1: np.ndarray | SideBySide, tau: np.ndarray, beta_model: np.ndarray) -> BaseFit:
+def fit_base(W1: np.ndarray | SideBySide, tau: np.ndarray, beta_model: np.ndarray) -> Estimate:
     """Least squares of the base parameters from torques tau (N, n) and their regressor W1 (N n, r):
     ordinary least squares on the column-scaled regressor with CR3 intervals clustered by sample (a
     sample's joints share noise; harness/identify/estimators.py), the scaled regressor's condition number,
@@ -322,10 +312,10 @@ def fit_base(W1: np.ndarray | SideBySide, tau: np.ndarray, beta_model: np.ndarra
     est = ols_of(red, W1, L, tau.shape[1])
     s, sv = red.s, red.sv
     kappa = sensitivity(W1, L, (sv, red.Vt)) / (s * parameter_scale(np.maximum(np.abs(beta_model), np.abs(est.beta))))
-    return BaseFit(est.beta, est.std, est.ci_half_width, kappa, weakly_identifiable(kappa), condition(sv))
+    return dataclasses.replace(est, sensitivity=kappa, weak=weakly_identifiable(kappa), condition_number=condition(sv))
 
 
-def with_structure(fit: BaseFit, base: BaseParameters) -> BaseFit:
+def with_structure(fit: Estimate, base: BaseParameters) -> Estimate:
     """The fit with the structurally weak base parameters (`structurally_weak`) also weak: the data's
     verdict (sensitivity) or the robot's, whichever says so. Columns after the base parameters (a
     friction family's) keep the data's verdict."""

@@ -41,10 +41,10 @@ from harness.engines.pinocchio import PinocchioModel, build_model, rnea
 from harness.identify import chain_law, consistent, delay, filtered, friction_law, scale
 from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
 from harness.identify.ls_model import LeastSquaresFit, extra_terms_names
+from harness.identify.lstsq import Estimate
 from harness.identify.repeat import Repeatability, repeat
 from harness.identify.span_rows import RowsOnDemand, rows_by_sample, span_regressor
 from harness.identify.torque_id import (
-    BaseFit,
     BaseParameters,
     chain_regressor,
     describe_base,
@@ -277,21 +277,21 @@ def _chain_laws(config: FrictionLawConfig, robot, model: LogModel, training: Tra
 
 
 @dataclass(frozen=True, eq=False)
-class LeastSquares:
-    """Step 4: the least-squares fit of the base parameters and the families' coefficients, on the
-    regressor at the laws' velocities; the fit repeated on disjoint segments where asked."""
+class Fitted:
+    """Step 4: the least-squares fit of the base parameters and the families' coefficients (`ls`, an
+    Estimate), with the regressor it was made on; the fit repeated on disjoint segments where asked."""
 
     W: np.ndarray | RowsOnDemand  # (N n, 14 n) the training span's regressor at the laws' velocities
     E: np.ndarray  # (N n, e) the families' columns (extra_terms(laws)) on the training span
     beta_model: np.ndarray  # the model's own base parameters and family coefficients
     extra_model: np.ndarray  # (e,) the model's family coefficients
-    ls: BaseFit
+    ls: Estimate  # harness/identify/lstsq.py
     repeated: Repeatability | None
     note: str | None
 
 
 def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[str], training: TrainingSpan,
-                  laws: LawChoice, segments: int | None) -> LeastSquares:
+                  laws: LawChoice, segments: int | None) -> Fitted:
     """On the training span's regressor at the laws' velocities (the chosen ones, or the model's own),
     made here, its Coulomb columns the filtered ones on a filtered log; a long span's made where it is
     read, never whole (harness/identify/span_rows.py)."""
@@ -314,7 +314,7 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
             repeated = repeat(W_ls, tau, beta_model, segments)
         except ValueError as exc:
             note = f"repeatability not measured: {exc}"
-    return LeastSquares(W, E, beta_model, extra_model, ls, repeated, note)
+    return Fitted(W, E, beta_model, extra_model, ls, repeated, note)
 
 
 def links_torque(W: np.ndarray | RowsOnDemand, theta: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -336,7 +336,7 @@ class Judged:
     floor: float | None  # the least-squares columns fitted on the validation span itself: its error there
 
 
-def judge(sc, model: LogModel, spans: dict[str, TimeSeries], fitted: LeastSquares, laws: tuple[Law, ...],
+def judge(sc, model: LogModel, spans: dict[str, TimeSeries], fitted: Fitted, laws: tuple[Law, ...],
           identified) -> Judged:
     """Each span predicted by the least-squares fit, the consistent fit (`identified`, a RobotSpec)
     and the model as given."""
@@ -410,7 +410,7 @@ def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], th
     return Exported(files, mapping, refused)
 
 
-def least_squares_fit(model: LogModel, fitted: LeastSquares, names: list[str], laws: tuple[Law, ...],
+def least_squares_fit(model: LogModel, fitted: Fitted, names: list[str], laws: tuple[Law, ...],
                       drives: list[str]) -> LeastSquaresFit:
     """Step 8's least-squares file: the fit, its columns and what each parameter stands for."""
     base, r = model.base, len(model.base.independent)
@@ -432,7 +432,7 @@ class LogIdentification:
     delayed: Delayed
     constants: Constants
     laws: LawChoice
-    fitted: LeastSquares
+    fitted: Fitted
     fit: consistent.ConsistentFit
     frictions: tuple[JointFriction, ...]  # each joint's identified friction law
     plausible: dict  # consistent.plausibility

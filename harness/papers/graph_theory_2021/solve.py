@@ -12,7 +12,7 @@ import numpy as np
 from harness.base.numerics import finite_or_null, floats
 from harness.base.reference import reference_table
 from harness.base.series import TimeSeries
-from harness.identify.lstsq import WEAK_RATIO, LeastSquares, solve, weakly_identifiable
+from harness.identify.lstsq import WEAK_RATIO, Estimate, solve, weakly_identifiable
 from harness.model.inertia import kind_scale
 from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.dynamics import GraphModel, Residual, body_series
@@ -29,8 +29,8 @@ PACKAGE = "harness.papers.graph_theory_2021"  # its reference tables are in its 
 @dataclass(frozen=True, eq=False)
 class Identification:
     bodies: tuple[str, ...]
-    per_body: tuple[LeastSquares, ...]
-    system: LeastSquares | None  # Eqs. 57-64, all bodies at once (None when not asked for)
+    per_body: tuple[Estimate, ...]
+    system: Estimate | None  # Eqs. 57-64, all bodies at once (None when not asked for)
     true: np.ndarray  # (n, 6) the true values (m, m, m, J11, J22, J33)
     sample_times: np.ndarray
     resolution: float  # relative resolution of the measurement the floors were taken at
@@ -99,7 +99,7 @@ def identify(model: GraphModel, measured: TimeSeries, rows: np.ndarray,
 @dataclass(frozen=True, eq=False)
 class FullIdentification:
     bodies: tuple[str, ...]
-    per_body: tuple[LeastSquares, ...]
+    per_body: tuple[Estimate, ...]
     true: np.ndarray  # (n, 10) Pinocchio's dynamic parameters of the true robot
 
     def serialise(self, ctx, config) -> dict:
@@ -156,7 +156,7 @@ WEAK_DEFINITION = (f"identifiable, but its sensitivity to the data (relative cha
                    "is reported apart from max_abs_rel_error (harness/identify/lstsq.py)")
 
 
-def _weakness(ls: LeastSquares, c: int) -> dict:
+def _weakness(ls: Estimate, c: int) -> dict:
     k = ls.sensitivity[c]
     return {"sensitivity": float(k) if np.isfinite(k) else None, "weakly_identifiable": bool(ls.weak[c])}
 
@@ -175,8 +175,8 @@ def full_identification_section(full) -> dict:
             ok = bool(ls.identifiable[c])
             scale = scales[c]
             rows.append({"body": body, "name": name, "true": float(true[c]),
-                         "identified": float(ls.x[c]) if ok else None,
-                         "rel_error": float((ls.x[c] - true[c]) / scale) if ok and scale > 0 else None,
+                         "identified": float(ls.beta[c]) if ok else None,
+                         "rel_error": float((ls.beta[c] - true[c]) / scale) if ok and scale > 0 else None,
                          "std": finite_or_null(ls.std[c]) if ok else None, "identifiable": ok, "reason": ls.reasons[c],
                          **_weakness(ls, c)})
     rel = [abs(r["rel_error"]) for r in rows if r["rel_error"] is not None and not r["weakly_identifiable"]]
@@ -204,7 +204,7 @@ def identification_section(ident: Identification, paper_identified: str | None, 
     for i, body in enumerate(ident.bodies):
         ls = ident.per_body[i]
         for c, name in enumerate(PARAMETERS):
-            true, x = float(ident.true[i, c]), ls.x[c]
+            true, x = float(ident.true[i, c]), ls.beta[c]
             ok = bool(ls.identifiable[c])
             rows.append({
                 "body": body, "name": name, "true": true,
@@ -223,7 +223,7 @@ def identification_section(ident: Identification, paper_identified: str | None, 
     strong = [r for r in identified if not r["weakly_identifiable"]]
     weak = [r for r in identified if r["weakly_identifiable"]]
     sys = ident.system
-    per_body_x = np.concatenate([ls.x for ls in ident.per_body])
+    per_body_x = np.concatenate([ls.beta for ls in ident.per_body])
     both = sys.identifiable & np.concatenate([ls.identifiable for ls in ident.per_body])
     return {
         "method": "least squares per body (Eq. 56) and for the whole system (Eq. 64)",
@@ -259,7 +259,7 @@ def identification_section(ident: Identification, paper_identified: str | None, 
             "same_verdicts_as_per_body": bool(np.array_equal(
                 sys.identifiable, np.concatenate([ls.identifiable for ls in ident.per_body]))),
             "max_rel_difference_from_per_body": float(np.max(
-                np.abs(sys.x[both] - per_body_x[both]) / scale.reshape(-1)[both], initial=0.0)),
+                np.abs(sys.beta[both] - per_body_x[both]) / scale.reshape(-1)[both], initial=0.0)),
         },
     }
 

@@ -47,7 +47,7 @@ def _trial(state: dict, task: tuple[int, float]) -> tuple[np.ndarray, np.ndarray
     measured = read(state["readings"], measure(state["recording"], m), m, state["arms"])
     ident = identify(state["model"], measured, measured_rows(measured, sc.sample_times), m, state["truth"],
                      with_system=False)
-    x = np.stack([ls.x for ls in ident.per_body])
+    x = np.stack([ls.beta for ls in ident.per_body])
     half = np.stack([ls.ci_half_width for ls in ident.per_body])
     std = np.stack([ls.std for ls in ident.per_body])
     return x, std, half
