@@ -196,16 +196,28 @@ def test_an_empty_cell_is_named_with_its_row(si_log, tmp_path, capsys):
     assert key == "tau2" and "row 9 is empty" in err and "(1 such row)" in err
 
 
-def test_motor_currents_with_their_constants_give_the_fit_of_the_torques(si_log, reference, tmp_path):
+@pytest.mark.parametrize("signs", [(1, 1), (-1, 1), (1, -1)], ids=["positive", "a motor wired the other way",
+                                                                     "a reversing gear"])
+def test_motor_currents_with_their_constants_give_the_fit_of_the_torques(si_log, reference, tmp_path, capsys, signs):
+    """Currents made torques by tau = i k_t r give the torques' fit (to 1e-9: the currents' 17 digits
+    divided and multiplied back). The elbow's constant or its gear negative, as a maker publishes a motor
+    wired the other way or a reversing gear, with its current the other way: the same fit; given the
+    constant's magnitude alone, the start gate names the elbow's opposite sign."""
     k_t, gear = np.array([0.1, 0.12, 0.09, 0.05, 0.05, 0.04]), np.array([100, 100, 80, 50, 50, 50])
+    k_t[2], gear[2] = signs[0] * k_t[2], signs[1] * gear[2]
     df = si_log[1].copy()
     for j in range(6):
         df[f"tau{j + 1}"] = df[f"tau{j + 1}"] / (k_t[j] * gear[j])
     df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
     status, results = _run(tmp_path, f'units = {{ tau = "current" }}\ntorque_constant = {k_t.tolist()}\n'
                                      f'gear_ratio = {[int(g) for g in gear]}\n')
-    assert status == 0
+    assert status == 0 and results["log_identification"]["start"]["findings"] == 0
     np.testing.assert_allclose(_base(results), _base(reference), rtol=1e-9, atol=1e-9 * np.abs(_base(reference)).max())
+    if signs != (1, 1):
+        status, results = _run(tmp_path, f'units = {{ tau = "current" }}\ntorque_constant = {np.abs(k_t).tolist()}\n'
+                                         f'gear_ratio = {[abs(int(g)) for g in gear]}\n', out="magnitudes")
+        err = capsys.readouterr().err
+        assert status == 1 and "differ at elbow_joint" in err and "opposite sign" in err
 
 
 @pytest.mark.parametrize("case, edit, joint, words", [
@@ -246,6 +258,18 @@ def test_currents_without_their_constants_are_refused(si_log, tmp_path, capsys):
     si_log[1].to_csv(tmp_path / "log.csv", index=False)
     status, _ = _run(tmp_path, 'units = { tau = "current" }\n')
     assert status == 2 and "torque_constant" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("key, values, words", [
+    ("torque_constant", "[0.1, 0.12, 0.0, 0.05, 0.05, 0.04]", "every value must be a nonzero number"),
+    ("gear_ratio", "0", "every value must be a nonzero number"), ("torque_constant", "nan", "must be a finite number")])
+def test_a_zero_or_not_finite_constant_or_ratio_is_refused_naming_its_key(si_log, tmp_path, capsys, key, values,
+                                                                          words):
+    si_log[1].to_csv(tmp_path / "log.csv", index=False)
+    given = {"torque_constant": "0.1", "gear_ratio": "100", key: values}
+    status, _ = _run(tmp_path, 'units = { tau = "current" }\n' + "".join(f"{k} = {v}\n" for k, v in given.items()))
+    err = capsys.readouterr().err
+    assert status == 2 and f"data.{key}: {words}" in err and len(err.splitlines()) == 1, err
 
 
 def test_columns_named_one_by_one_in_any_order_give_the_fit_of_the_pattern(si_log, reference, tmp_path):

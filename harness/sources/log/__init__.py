@@ -10,8 +10,8 @@ model's joint order and `{name}` for a joint's name, or a list of column names i
     file = "log.csv"                      # relative to the scenario file
     columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }   # qd may be left out
     units = { q = "rad", qd = "rad/s", tau = "N m" }   # or "deg", "deg/s", "current" (default SI, said so)
-    torque_constant = [0.11, ...]         # N m/A per joint (motor side), with tau = "current"
-    gear_ratio = [100, ...]               # per joint, with tau = "current"
+    torque_constant = [0.11, ...]         # N m/A per joint (motor side, signed), with tau = "current"
+    gear_ratio = [100, ...]               # per joint (signed), with tau = "current"
     cutoff = 10.0                         # Hz, zero-phase low-pass (default: none)
     filter_order = 4                      # Butterworth order (applied forward and backward)
     rate = 1000.0                         # Hz, the uniform grid (default: 1 / the median step)

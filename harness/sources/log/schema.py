@@ -256,13 +256,12 @@ def _columns(ct: Table, joints: int | None) -> dict[str, str | tuple[str, ...]]:
 
 
 def _per_joint(t: Table, key: str, joints: int | None) -> tuple[float, ...]:
-    """A positive number per joint (a list in the model's joint order), or one for every joint."""
-    if isinstance(t.data.get(key), list):
-        values = t.vector(key, length=joints)
-    else:
-        values = np.full(joints or 1, t.number(key, positive=True))
-    if not np.all(np.isfinite(values) & (values > 0)):
-        raise t.error(key, "every value must be a positive number")
+    """A nonzero number per joint (a list in the model's joint order), or one for every joint: a torque
+    constant's or a gear ratio's sign states which way the motor's current or the gear turns the joint
+    (a motor wired the other way, a gear that reverses), as its maker publishes it."""
+    values = t.vector(key, length=joints) if isinstance(t.data.get(key), list) else np.full(joints or 1, t.number(key))
+    if not np.all(np.isfinite(values) & (values != 0)):
+        raise t.error(key, "every value must be a nonzero number (its sign the motor's or the gear's direction)")
     return tuple(float(v) for v in values)
 
 

@@ -31,8 +31,9 @@ STANDARD_GRAVITY = 9.80665
 def to_si(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarray | None,
           tau: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """The log's q, q', tau in SI units: degrees of revolute joints to radians; motor currents to
-    joint torques, tau = i k_t r (torque constant k_t in N m/A on the motor side, gear ratio r), or on a
-    motor-side log (`side = "motor"`) to motor torques i k_t, which the model's drives take to the joints."""
+    joint torques, tau = i k_t r (torque constant k_t in N m/A on the motor side, gear ratio r, each signed:
+    a motor wired the other way, a reversing gear), or on a motor-side log (`side = "motor"`) to motor
+    torques i k_t, which the model's drives take to the joints."""
     revolute = np.array([j.revolute for j in robot.joints])
     if source.units["q"] == "deg":
         q = np.where(revolute, np.radians(q), q)
