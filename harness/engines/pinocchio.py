@@ -142,7 +142,8 @@ def joint_torques(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.nda
     tau = np.empty((len(q), model.nv))
     for k in range(len(q)):
         tau[k] = pin.rnea(model, data, qq[k], vv[k], aa[k])
-    tau = tau[:, pm.q_index]
+    tau = np.ascontiguousarray(tau[:, pm.q_index])  # row-major as `rnea`'s (the column selection is not):
+    # the same numbers in the same order, so that what reduces them (a norm, a mean) sums them alike
     return tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau)
 
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from harness.base.numerics import condition, equilibrated_condition_number, equilibrated_singular_values
 from harness.base.tomlio import InputError, Table
-from harness.engines.pinocchio import build_model, rnea
+from harness.engines.pinocchio import build_model, joint_torques
 from harness.identify.torque_id import regressor, structural_base
 from harness.sources.motion import Sinusoids
 
@@ -149,7 +149,7 @@ def usage(pm, spec, lim: Limits, q, qd, qdd) -> dict[str, float]:
     """The largest fraction of each kind of limit the trajectory uses (0 where there is none)."""
     half = (lim.upper - lim.lower) / 2
     mid = (lim.upper + lim.lower) / 2
-    tau = rnea(pm, q, qd, qdd).tau  # with the drives' friction and rotor inertia
+    tau = joint_torques(pm, q, qd, qdd)  # with the drives' friction and rotor inertia
     with np.errstate(divide="ignore", invalid="ignore"):
         return {"position": float(np.max(np.abs(q - mid) / half)),
                 "velocity": float(np.max(np.nan_to_num(np.abs(qd) / lim.velocity))),

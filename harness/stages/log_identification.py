@@ -37,7 +37,7 @@ import numpy as np
 from harness.base.numerics import SideBySide, fit_residual
 from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
-from harness.engines.pinocchio import PinocchioModel, build_model, rnea
+from harness.engines.pinocchio import PinocchioModel, build_model, joint_torques
 from harness.identify import chain_law, consistent, delay, filtered, friction_law, scale
 from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
 from harness.identify.ls_model import LeastSquaresFit, extra_terms_names
@@ -125,7 +125,7 @@ class LogModel:
 
     def torques(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
         """(N, torque joints): the model pm's joint torques at the states, a closed chain's G^T rnea."""
-        tau = rnea(pm, q, qd, qdd).tau
+        tau = joint_torques(pm, q, qd, qdd)
         return tau if self.chain is None else actuated_torques(projection(self.chain, q), tau)
 
     def families(self, laws: tuple[Law, ...], q, qd, rigid, transmission, columns, t) -> np.ndarray:
@@ -391,7 +391,7 @@ def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], th
         f"{sc.name}).\nFormat: docs/reference.md, 'The least-squares fit'; harness.identified_model(folder, "
         "fit=\"least squares\") evaluates it.")
     if robot.loops:
-        mapping = coulomb_mapping(identified, qd, rnea(build_model(identified, sc.gravity_W), q, qd, qdd).tau)
+        mapping = coulomb_mapping(identified, qd, joint_torques(build_model(identified, sc.gravity_W), q, qd, qdd))
     else:
         mapping = coulomb_mapping(identified, qd, tau, links_torque(W, theta, tau.shape))
     worst = max(mapping, key=lambda j: mapping[j]["rms"])

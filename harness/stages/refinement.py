@@ -24,7 +24,7 @@ import numpy as np
 
 from harness.base.numerics import sample_step
 from harness.base.plugins import Stage
-from harness.engines.pinocchio import build_model, rnea
+from harness.engines.pinocchio import build_model, joint_torques
 from harness.identify import delay as channel_delay
 from harness.identify.consistent import fit_with_laws
 from harness.identify.friction_law import Law, extra_regressor, extra_terms
@@ -127,7 +127,7 @@ def _beside(ctx) -> dict:
 
 def _rigid(spec, gravity_W, q, qd, qdd) -> np.ndarray:
     """(N, n): the rigid-body torque of a model's links (its drives left out)."""
-    return rnea(build_model(spec.with_frictions((NO_FRICTION,) * len(spec.joints)), gravity_W), q, qd, qdd).tau
+    return joint_torques(build_model(spec.with_frictions((NO_FRICTION,) * len(spec.joints)), gravity_W), q, qd, qdd)
 
 
 def _refit(ctx, li, r: Refinement, laws: tuple[Law, ...], rigid: np.ndarray, q, qd, qdd, tau, t):
