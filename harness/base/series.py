@@ -64,27 +64,26 @@ class SeriesError(ValueError):
         self.field, self.what = field, what
 
 
-def _refuse(field: str, what: str) -> None:
-    raise SeriesError(field, what)
-
-
-def rows_checked(t: np.ndarray, named: dict[str, np.ndarray | None], increasing: bool = True) -> None:
+def rows_checked(t: np.ndarray, named: dict[str, np.ndarray | None], joints: int, increasing: bool = True) -> None:
     """The invariants of a series' rows: t one finite value per row (strictly increasing unless a raw
     log's, whose order its checks judge and name by row), every per-row array in `named` (None where
-    not measured) N rows long and finite. A SeriesError (a ValueError) names the first broken one."""
+    not measured) N rows long and finite, and the joint channels among them (JOINT_CHANNELS) one
+    column per joint of `joints`. A SeriesError (a ValueError) names the first broken one."""
     if np.ndim(t) != 1 or len(t) == 0:
-        _refuse("t", f"must be one time per row (shape {np.shape(t)})")
+        raise SeriesError("t", f"must be one time per row (shape {np.shape(t)})")
     if not np.all(np.isfinite(t)):
-        _refuse("t", f"not finite at row {int(np.flatnonzero(~np.isfinite(t))[0])}")
+        raise SeriesError("t", f"not finite at row {int(np.flatnonzero(~np.isfinite(t))[0])}")
     if increasing and np.any(np.diff(t) <= 0):
-        _refuse("t", f"not strictly increasing at row {int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1}")
+        raise SeriesError("t", f"not strictly increasing at row {int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1}")
     for name, x in named.items():
         if x is None:
             continue
         if np.shape(x)[:1] != (len(t),):
-            _refuse(name, f"{np.shape(x)[0] if np.ndim(x) else 0} rows where t has {len(t)}")
+            raise SeriesError(name, f"{np.shape(x)[0] if np.ndim(x) else 0} rows where t has {len(t)}")
+        if name in JOINT_CHANNELS and np.shape(x)[1:] != (joints,):
+            raise SeriesError(name, f"shape {np.shape(x)} for {joints} joints")
         if np.asarray(x).dtype.kind == "f" and not np.all(np.isfinite(x)):
-            _refuse(name, f"not finite at row {int(np.argwhere(~np.isfinite(x))[0][0])}")
+            raise SeriesError(name, f"not finite at row {int(np.argwhere(~np.isfinite(x))[0][0])}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,11 +114,7 @@ class TimeSeries:
         """Strictly increasing finite times; every per-row array N rows and finite; q and tau (and q',
         q'' where given) one column per joint (SeriesError otherwise)."""
         rows_checked(self.t, {f.name: getattr(self, f.name) for f in fields(self)
-                              if f.name != "t" and isinstance(getattr(self, f.name), np.ndarray)})
-        for name in JOINT_CHANNELS:
-            x = getattr(self, name)
-            if x is not None and np.shape(x)[1:] != (len(self.joints),):
-                _refuse(name, f"shape {np.shape(x)} for {len(self.joints)} joints")
+                              if f.name != "t" and isinstance(getattr(self, f.name), np.ndarray)}, len(self.joints))
 
     def joint_index(self, name: str) -> int:
         return self.joints.index(name)

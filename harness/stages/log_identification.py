@@ -337,9 +337,9 @@ class Judged:
 
 
 def judge(sc, model: LogModel, spans: dict[str, TimeSeries], fitted: Fitted, laws: tuple[Law, ...],
-          identified) -> Judged:
+          identified, given_training: np.ndarray) -> Judged:
     """Each span predicted by the least-squares fit, the consistent fit (`identified`, a RobotSpec)
-    and the model as given."""
+    and the model as given (on the training span `given_training`, as the start check computed it)."""
     r = len(model.base.independent)
     pm_truth = build_model(sc.truth, sc.gravity_W) if sc.truth is not None else None
     pm_identified = build_model(identified, sc.gravity_W)
@@ -354,7 +354,8 @@ def judge(sc, model: LogModel, spans: dict[str, TimeSeries], fitted: Fitted, law
         out.states[name], out.measured[name], out.t[name] = (q, qd, qdd), tau, series.t
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
                                  "consistent": model.torques(pm_identified, q, qd, qdd),
-                                 "model as given": model.torques(model.pm, q, qd, qdd)}
+                                 "model as given": given_training if name == "training" else
+                                 model.torques(model.pm, q, qd, qdd)}
         if name == "validation":  # the model class's floor there: its least squares on that span itself
             floor = fit_residual(W_span, tau.ravel())  # its residual, from its rows' QR
             out = _with_floor(out, floor / float(np.linalg.norm(tau)))
@@ -468,7 +469,8 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     # the start check first, before any fit: the model as given against the torques as read (its
     # findings head the terminal and the report)
     q, qd, qdd, _ = model.data(scaled.training)
-    started = start(model.torques(model.pm, q, qd, qdd), model.data(delayed.training)[3], model.torque_joints)
+    given = model.torques(model.pm, q, qd, qdd)  # the model as given on the training span, judged again below
+    started = start(given, model.data(delayed.training)[3], model.torque_joints)
     config = config or FrictionLawConfig()
     if config.choose:
         ctx.progress("the friction law of every joint (cross-validated within the training span)", None)
@@ -487,7 +489,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     validation = as_fitted(ctx.validation.get(VALIDATION_SPAN), delayed.lags if delayed.corrected else None,
                            None if scaled.scales is None else scaled.scales.factor, model.torque_joints)
     spans = {"training": scaled.training, **({"validation": validation} if validation is not None else {})}
-    judged = judge(sc, model, spans, fitted, laws.laws, identified)
+    judged = judge(sc, model, spans, fitted, laws.laws, identified, given)
     ctx.progress("the models forward-simulated under the measured torques", None)
     span = "validation" if "validation" in spans else "training"
     q, qd, _ = judged.states[span]

@@ -217,7 +217,7 @@ def conditioned(kept: RawLog, pieces: list[np.ndarray], source: DataSource, robo
                      f"{' ...' if len(dropped) > 4 else ''}): dropped")
     if not logs:
         raise InputError(kept.file, "gap", f"{label}: no stretch between gaps is long enough to filter and "
-                                                   f"trim ({2 * reach:.3g} s of trim and 10 samples at least)")
+                                           f"trim ({2 * reach:.3g} s of trim and 10 samples at least)")
     if len(logs) == 1:
         return logs[0]
     joined = (np.concatenate([getattr(g, k) for g in logs]) for k in ("t", "q", "qd", "qdd", "tau"))

@@ -303,7 +303,7 @@ def _windowed(source: DataSource, series: RawLog) -> RawLog:
     keep = (series.t >= t0) & (series.t <= t1)
     if keep.sum() < 10:
         raise InputError(series.file, "window", f"[{t0:g}, {t1:g}] s keeps {int(keep.sum())} rows of a log "
-                                                       f"from {series.t[0]:g} to {series.t[-1]:g} s")
+                                                f"from {series.t[0]:g} to {series.t[-1]:g} s")
     return dataclasses.replace(series.span(keep), read={**series.read, "window": {
         "t_start": t0, "t_end": t1, "rows": int(keep.sum()), "rows_before": len(series.t)}})
 

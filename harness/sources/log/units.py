@@ -153,5 +153,5 @@ def check_positions(raw: RawLog, robot: RobotSpec, source: DataSource | None) ->
                 hint = ('motor angles read as joint angles? side = "motor" maps them through the model\'s drives; '
                         f"or {hint}")
             raise InputError(raw.file, "units.q", f"joint {joint.name!r} reaches {largest:.4g} rad (as {unit} "
-                                                          f"read), {largest / reach:.3g} times its limit {reach:.4g} "
-                                                          f"rad: {hint}, or limits_check = false")
+                                                  f"read), {largest / reach:.3g} times its limit {reach:.4g} "
+                                                  f"rad: {hint}, or limits_check = false")
