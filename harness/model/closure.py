@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.model.loops import bias, jacobian, residual
+from harness.model.loops import bias, jacobian, residual_and_jacobian
 from harness.model.spec import WORLD, Loop, RobotSpec
 
 NEWTON_ITERATIONS = 30
@@ -149,34 +149,39 @@ def predicted(chain: ClosedChain, q: np.ndarray, J: np.ndarray, P: np.ndarray, t
     return out
 
 
-def _newton(chain: ClosedChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Newton's method on q_p for every row of q at once (q_a held): q and the scaled |Phi| per row."""
+def _newton(chain: ClosedChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Newton's method on q_p for every row of q at once (q_a held): q, the scaled |Phi| per row and J
+    at q (loops.residual_and_jacobian: Phi and J from one evaluation of the tree's positions)."""
     q = q.copy()
     scale = chain._scale()
-    for _ in range(NEWTON_ITERATIONS):
-        phi = residual(chain.spec, chain.loops, q)
+    for iteration in range(NEWTON_ITERATIONS + 1):
+        phi, J = residual_and_jacobian(chain.spec, chain.loops, q)
         err = np.max(np.abs(phi) / scale, axis=1)
         todo = err > CLOSED
-        if not todo.any():
-            return q, err
-        J = jacobian(chain.spec, chain.loops, q[todo])[:, :, chain.passive]
-        step = np.linalg.pinv(J, rcond=RANK) @ phi[todo][:, :, None]
+        if not todo.any() or iteration == NEWTON_ITERATIONS:
+            return q, err, J
+        step = np.linalg.pinv(J[todo][:, :, chain.passive], rcond=RANK) @ phi[todo][:, :, None]
         q[np.ix_(np.flatnonzero(todo), chain.passive)] -= step[:, :, 0]
-    phi = residual(chain.spec, chain.loops, q)
-    return q, np.max(np.abs(phi) / scale, axis=1)
+    raise AssertionError("unreachable")
 
 
 def close(chain: ClosedChain, q: np.ndarray, where: str = "sample", numbered: bool = True) -> np.ndarray:
     """q (N, n) with its passive joints moved so that every loop closes, each row from itself; a row
     that does not close is refused, named `where` and its row number (or `where` alone)."""
-    q, err = _newton(chain, np.atleast_2d(np.asarray(q, dtype=float)))
+    return close_with_jacobian(chain, q, where, numbered)[0]
+
+
+def close_with_jacobian(chain: ClosedChain, q: np.ndarray, where: str = "sample",
+                        numbered: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """`close`, and J (N, rows, n) at the closed configurations (Newton's last evaluation)."""
+    q, err, J = _newton(chain, np.atleast_2d(np.asarray(q, dtype=float)))
     bad = np.flatnonzero(~(err <= CLOSED))
     if bad.size:
         at = f"{where} {bad[0]}" if numbered else where
         raise ClosureError(f"{chain.spec.name}: the loops do not close at {at} (|Phi| = "
                            f"{err[bad[0]]:.1e} of the size after {NEWTON_ITERATIONS} Newton steps: out of reach, or "
                            "too far from the configuration it started from)")
-    return q
+    return q, J
 
 
 def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.ndarray:
@@ -191,15 +196,14 @@ def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.nd
     # between two samples are cut into intermediate stations)
     stations_travel = np.arange(0.0, travel[-1] + CONTINUATION_STEP, CONTINUATION_STEP)
     stations = np.array([np.interp(stations_travel, travel, path[:, k]) for k in range(path.shape[1])]).T
-    q = close(chain, np.asarray(q_start, dtype=float), "the starting configuration", numbered=False)
-    J = jacobian(chain.spec, chain.loops, q)
+    q, J = close_with_jacobian(chain, np.asarray(q_start, dtype=float), "the starting configuration", numbered=False)
     solved = np.empty((len(stations), chain.n))
     for s, target in enumerate(stations):
         k = min(int(np.searchsorted(travel[1:], stations_travel[s])), len(q_a) - 1)
         where = f"sample {k} of the motion (q_a = {np.array2string(target, precision=4)}, reached from the one before)"
         P = pinv_passive(chain, J, where, numbered=False)
-        q = close(chain, predicted(chain, q, J, P, target[None]), where, numbered=False)
-        J_before, J = J, jacobian(chain.spec, chain.loops, q)
+        J_before = J
+        q, J = close_with_jacobian(chain, predicted(chain, q, J, P, target[None]), where, numbered=False)
         _no_fold(chain, J_before[0], J[0], where)
         solved[s] = q[0]
     nearest = np.clip(np.searchsorted(stations_travel, travel[1:], side="right") - 1, 0, len(stations) - 1)
@@ -235,11 +239,13 @@ class ChainMotion:
     J: np.ndarray
 
 
-def motion(chain: ClosedChain, q: np.ndarray, qd_a: np.ndarray, qdd_a: np.ndarray) -> ChainMotion:
+def motion(chain: ClosedChain, q: np.ndarray, qd_a: np.ndarray, qdd_a: np.ndarray,
+           J: np.ndarray | None = None, P: np.ndarray | None = None) -> ChainMotion:
     """The velocity and acceleration levels at closed configurations q (N, n): q' = G q'_a and
-    q'' = G q''_a - J_p^+ b on the passive rows (module docstring)."""
-    J = jacobian(chain.spec, chain.loops, q)
-    P = pinv_passive(chain, J, "sample")
+    q'' = G q''_a - J_p^+ b on the passive rows (module docstring); J at q and P = J_p^+ from it
+    (`pinv_passive`) where the caller holds them already."""
+    J = jacobian(chain.spec, chain.loops, q) if J is None else J
+    P = pinv_passive(chain, J, "sample") if P is None else P
     G = _G(chain, J, P)
     _check_null_space(chain, J, G, "sample", numbered=True)
     qd = (G @ np.atleast_2d(qd_a)[:, :, None])[:, :, 0]
@@ -290,7 +296,7 @@ def reach(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> tuple[np.
         target = q0[act] + (q_a - q0[act]) * (s / steps)
         J = jacobian(chain.spec, chain.loops, q[ok])
         P = np.linalg.pinv(J[:, :, chain.passive], rcond=RANK)  # a row that cannot be followed is dropped, not refused
-        closed, err = _newton(chain, predicted(chain, q[ok], J, P, target[ok]))
+        closed, err, _ = _newton(chain, predicted(chain, q[ok], J, P, target[ok]))
         q[ok] = closed
         ok[np.flatnonzero(ok)[~(err <= CLOSED)]] = False
     return q, ok

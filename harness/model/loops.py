@@ -78,7 +78,17 @@ def _at(spec: RobotSpec, q: np.ndarray) -> TreeKinematics:
 def residual(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> np.ndarray:
     """Phi(q), (N, rows): each loop's x_a - x_b (m), then for a weld phi_ab (rad), loop by loop."""
     q = np.atleast_2d(q)
+    return _residual(spec, loops, _at(spec, q), len(q))
+
+
+def residual_and_jacobian(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi(q), J(q)) from one evaluation of the tree's positions (`residual`, `jacobian`)."""
+    q = np.atleast_2d(q)
     kin = _at(spec, q)
+    return _residual(spec, loops, kin, len(q)), _jacobian(spec, loops, kin, len(q))
+
+
+def _residual(spec: RobotSpec, loops: tuple[Loop, ...], kin: TreeKinematics, N: int) -> np.ndarray:
     out = []
     for loop in loops:
         out.append(_point_now(spec, kin, loop.body_a, loop.point_a_W0)
@@ -87,7 +97,7 @@ def residual(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> np.ndar
             R_a = _frame_now(spec, kin, loop.body_a, loop.R_W_frame_a0)
             R_b = _frame_now(spec, kin, loop.body_b, loop.R_W_frame_b0)
             out.append(_rotation_vector(R_a @ np.swapaxes(R_b, -1, -2)))
-    return np.concatenate(out, axis=1) if out else np.zeros((len(q), 0))
+    return np.concatenate(out, axis=1) if out else np.zeros((N, 0))
 
 
 def _point_columns(spec: RobotSpec, kin: TreeKinematics, body: str, x_W: np.ndarray) -> np.ndarray:
@@ -114,14 +124,17 @@ def jacobian(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> np.ndar
     """J(q) = dPhi/dq, (N, rows, n_joints) (module docstring): each joined point's velocity at where
     it is; a weld's rotation rows w_a - w_b, the derivative of phi_ab where the frames coincide."""
     q = np.atleast_2d(q)
-    kin = _at(spec, q)
+    return _jacobian(spec, loops, _at(spec, q), len(q))
+
+
+def _jacobian(spec: RobotSpec, loops: tuple[Loop, ...], kin: TreeKinematics, N: int) -> np.ndarray:
     out = []
     for loop in loops:
         out.append(_point_columns(spec, kin, loop.body_a, _point_now(spec, kin, loop.body_a, loop.point_a_W0))
                    - _point_columns(spec, kin, loop.body_b, _point_now(spec, kin, loop.body_b, loop.point_b_W0)))
         if loop.kind == "weld":
             out.append(_angular_columns(spec, kin, loop.body_a) - _angular_columns(spec, kin, loop.body_b))
-    return np.concatenate(out, axis=1) if out else np.zeros((len(q), 0, len(spec.joints)))
+    return np.concatenate(out, axis=1) if out else np.zeros((N, 0, len(spec.joints)))
 
 
 def _point_acceleration(spec: RobotSpec, kin: TreeKinematics, body: str, x_W: np.ndarray) -> np.ndarray:

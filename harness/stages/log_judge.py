@@ -95,21 +95,22 @@ def _geometry(spec) -> bytes:
     return b"/".join(parts) + "/".join(spec.actuated).encode()
 
 
-def _stacked(chain, pms: list, owners: np.ndarray):
-    """The actuated inverse dynamics of a batch of runs, run r by the model pms[owners[r]]: each run's
-    rows come together, in run order (harness/model/chain_forward.py, actuated_acceleration)."""
+def _stacked(pms: list, owners: np.ndarray):
+    """The tree's inverse dynamics of a batch of runs, run r by the model pms[owners[r]]: each run's
+    rows come together, in run order (harness/model/chain_forward.py, actuated_acceleration), projected
+    onto the actuated joints there."""
     from harness.engines.pinocchio import joint_torques
-    from harness.model.closure import actuated_torques, projection
+    from harness.model.chain_forward import TreeInverseDynamics
 
-    def inverse(qq: np.ndarray, vv: np.ndarray, aa: np.ndarray) -> np.ndarray:
+    def torques(qq: np.ndarray, vv: np.ndarray, aa: np.ndarray) -> np.ndarray:
         of_row = np.repeat(owners, len(qq) // len(owners))
         tau = np.empty_like(qq)
         for m in np.unique(owners):
             rows = of_row == m
             tau[rows] = joint_torques(pms[m], qq[rows], vv[rows], aa[rows])
-        return actuated_torques(projection(chain, qq), tau)
+        return tau
 
-    return inverse
+    return TreeInverseDynamics(torques)
 
 
 def predict_chains(specs: dict, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
@@ -147,7 +148,7 @@ def predict_chains(specs: dict, gravity_W: np.ndarray, t: np.ndarray, q: np.ndar
             runs = batches.pop()
             first = starts[runs % B]
             try:
-                q_sim, qd_a = chain_forward.rollout_states(chain, _stacked(chain, pms, model_of[runs]), q[first],
+                q_sim, qd_a = chain_forward.rollout_states(chain, _stacked(pms, model_of[runs]), q[first],
                                                            qd[first][:, act], stage_tau[runs % B], timestep)
             except (chain_forward.ChainForwardError, ClosureError):
                 batches += [runs[i:i + 1] for i in range(len(runs))] if len(runs) > 1 else []
