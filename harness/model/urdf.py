@@ -89,23 +89,37 @@ def _vec(text: str | None, default: str) -> np.ndarray:
 
 
 INERTIA_TOL = 1e-9  # relative to the largest principal moment: round-off in a URDF's printed tensor
+NO_RIGID_BODY = "are no rigid body's"  # what the note of a link read as the nearest rigid body says
 
 
-def _check_inertia(name: str, m: float, I: np.ndarray, model_scale: float) -> None:
-    """A link's tensor about its centre of mass must be a rigid body's: principal moments not
-    negative and each at most the sum of the other two (the triangle inequality), both to
-    INERTIA_TOL of the link's largest moment. A tensor below INERTIA_TOL of the model's largest
-    moment is round-off around zero (a link with no rotational inertia) and passes."""
-    moments = np.linalg.eigvalsh(I)
+def physical_inertia(name: str, I: np.ndarray, model_scale: float) -> tuple[np.ndarray, str]:
+    """A link's tensor about its centre of mass as a rigid body's, and a note where it was not one. A
+    rigid body's principal moments p are each at most the sum of the other two (the triangle
+    inequality, which implies p >= 0): the cone of p = B y, y >= 0, B's columns (0, 1, 1), (1, 0, 1),
+    (1, 1, 0). Moments outside it (beyond INERTIA_TOL of the link's largest) are replaced by the nearest
+    inside (Euclidean in p, so Frobenius in the tensor, the principal axes kept): B y for y the
+    non-negative least squares of B y = p (scipy.optimize.nnls), every moment then raised by INERTIA_TOL
+    of the largest, which leaves each inequality that much slack for an engine's check. A tensor below
+    INERTIA_TOL of the model's largest moment is round-off around zero (a link with no rotational
+    inertia) and passes as it is. Makers' URDFs carry such tensors (moments rounded, or fitted by CAD
+    tools to a shape they do not bound): Pinocchio reads them as written, MuJoCo refuses them, and the
+    identification starts from the nearest body that exists."""
+    moments, axes = np.linalg.eigh(I)
     scale = float(np.max(np.abs(moments)))
-    if scale <= INERTIA_TOL * model_scale:
-        return
-    if moments[0] < -INERTIA_TOL * scale:
-        raise _Bad(f"link {name!r}: inertia is not positive semi-definite (principal moments "
-                   f"{', '.join(f'{x:.4g}' for x in moments)})")
-    if moments[2] > (moments[0] + moments[1]) * (1 + INERTIA_TOL) + INERTIA_TOL * scale:
-        raise _Bad(f"link {name!r}: principal moments {', '.join(f'{x:.4g}' for x in moments)} break the "
-                   "triangle inequality (the largest exceeds the sum of the others): no rigid body has them")
+    negative = moments[0] < -INERTIA_TOL * scale
+    if scale <= INERTIA_TOL * model_scale or (not negative and (
+            moments[2] <= (moments[0] + moments[1]) * (1 + INERTIA_TOL) + INERTIA_TOL * scale)):
+        return I, ""
+    from scipy.optimize import nnls  # only for a tensor no rigid body has
+
+    B = np.ones((3, 3)) - np.eye(3)
+    fixed = B @ nnls(B, moments)[0] + INERTIA_TOL * scale
+    why = ("a negative principal moment" if negative
+           else "the largest principal moment above the sum of the others (the triangle inequality)")
+    note = (f"link {name!r}: principal moments {', '.join(f'{x:.4g}' for x in moments)} kg m^2 {NO_RIGID_BODY} "
+            f"({why}): read as the nearest that is, {', '.join(f'{x:.4g}' for x in fixed)} kg m^2 about the same "
+            "axes, the prior of its identification")
+    return (axes * fixed) @ axes.T, note
 
 
 def _structure(path: Path, root) -> tuple[dict, list, dict, dict]:
@@ -187,7 +201,8 @@ def _read(path: Path, root, table: Table,
     pose, order = _poses(roots[0], joints, parent_of, child_of)
     inertial = {name: _inertial(name, links[name], pose[name]) for name in order}
     owner, kept = _owners(path, table, order, joints, parent_of, child_of, fixed)
-    bodies = _bodies(order, owner, inertial, pose)
+    notes: list[str] = []
+    bodies = _bodies(order, owner, inertial, pose, notes)
     spec_joints, limits, drive_limits = [], {}, {}
     for j in kept:
         child = child_of[j.get("name")]
@@ -199,7 +214,7 @@ def _read(path: Path, root, table: Table,
         spec_joints.append(Joint(j.get("name"), jtype, owner[parent_of[j.get("name")]], child, p_c,
                                  axis / np.linalg.norm(axis), _dynamics(j)))
         _limits(j, limits, drive_limits)
-    notes = [f"joint {j.get('name')!r} mimics {j.find('mimic').get('joint')!r} in the URDF: read as a joint of its "
+    notes += [f"joint {j.get('name')!r} mimics {j.find('mimic').get('joint')!r} in the URDF: read as a joint of its "
              "own, moved and identified as the others (list it in [urdf] fixed to hold it at 0)"
              for j in kept if j.find("mimic") is not None]
     return bodies, spec_joints, limits, drive_limits, notes
@@ -267,15 +282,20 @@ def _owners(path: Path, table: Table, order: list[str], joints: list, parent_of:
     return owner, kept
 
 
-def _bodies(order: list[str], owner: dict, inertial: dict, pose: dict) -> list[Body]:
-    """The moving bodies, each the union of the links it owns (the links of the ground never move:
-    their inertia, consistent or not, enters nothing)."""
+def _bodies(order: list[str], owner: dict, inertial: dict, pose: dict, notes: list[str]) -> list[Body]:
+    """The moving bodies, each the union of the links it owns, every moving link's tensor a rigid
+    body's (`physical_inertia`, its note added to `notes`; the links of the ground never move: their
+    inertia, consistent or not, enters nothing)."""
     groups: dict[str, list[str]] = {}
     model_scale = max((float(np.max(np.abs(np.linalg.eigvalsh(inertial[n][2])))) for n in order), default=0.0)
+    inertial = dict(inertial)
     for name in order[1:]:
         if owner[name] != WORLD:
             groups.setdefault(owner[name], []).append(name)
-            _check_inertia(name, *inertial[name][::2], model_scale)
+            m, c, I = inertial[name]
+            I, note = physical_inertia(name, I, model_scale)
+            inertial[name] = (m, c, I)
+            notes += [note] if note else []
     bodies = []
     for body_name, members in groups.items():
         m = sum(inertial[n][0] for n in members)
@@ -285,7 +305,7 @@ def _bodies(order: list[str], owner: dict, inertial: dict, pose: dict) -> list[B
             bodies.append(Body(body_name, 0.0, np.zeros((3, 3)), np.eye(3), pose[body_name][1]))
             continue
         _, com, moments, axes = union([inertial[n] for n in members])
-        # every link passed _check_inertia: a moment below zero here is round-off of a link with
+        # every link is a rigid body's (physical_inertia): a moment below zero here is round-off of a link with
         # no rotational inertia (the iCub's -5e-20 kg m^2), which Pinocchio refuses as written
         bodies.append(Body(body_name, m, np.diag(np.maximum(moments, 0.0)), axes, com))
     return bodies

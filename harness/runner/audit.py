@@ -162,6 +162,11 @@ def _not_the_files(spec: RobotSpec, described: Path | None) -> str:
         return "the model file reads no URDF or MJCF"
     if spec.urdf_fixed:
         return f"the model file fixes joints its URDF moves ({', '.join(spec.urdf_fixed[:3])})"
+    from harness.model.urdf import NO_RIGID_BODY
+
+    unlike = [note.split(":", 1)[0] for note in spec.notes if NO_RIGID_BODY in note]
+    if unlike:
+        return f"the harness reads {', '.join(unlike[:3])} as the nearest rigid body, the file as no rigid body"
     return ""
 
 
