@@ -33,9 +33,9 @@ def si_log(tmp_path_factory):
 
 
 def _run(folder, data: str, out: str = "out", columns: str | None = None, gate: str = GATE,
-         law: str = MODELS_LAW) -> tuple[int, dict | None]:
+         law: str = MODELS_LAW, file: str = '"log.csv"') -> tuple[int, dict | None]:
     columns = columns or 'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\n'
-    (folder / "s.toml").write_text(f'[scenario]\nmodel = "{MODEL}"\n[data]\nfile = "log.csv"\n{columns}'
+    (folder / "s.toml").write_text(f'[scenario]\nmodel = "{MODEL}"\n[data]\nfile = {file}\n{columns}'
                                    f'validation = {{ from = 0.7 }}\n{data}' + gate + law)
     status = main(["run", str(folder / "s.toml"), "--out", str(folder / out), "--quiet"])
     path = folder / out / "results.json"
@@ -86,7 +86,7 @@ def test_a_log_in_degrees_with_its_units_gives_the_fit_of_the_log_in_radians(si_
     df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
     status, results = _run(tmp_path, 'units = { q = "deg", qd = "deg/s" }\n')
     assert status == 0
-    assert results["scenario"]["data"]["units"] == {"q": "deg", "qd": "deg/s", "tau": "N m"}
+    assert results["scenario"]["data"]["units"] == {"q": "deg", "qd": "deg/s", "tau": "N m", "t": "s"}
     np.testing.assert_allclose(_base(results), _base(reference), rtol=1e-9, atol=1e-9 * np.abs(_base(reference)).max())
 
 
@@ -284,6 +284,27 @@ def test_columns_named_one_by_one_in_any_order_give_the_fit_of_the_pattern(si_lo
     status, results = _run(tmp_path, "", columns=columns)
     assert status == 0
     assert _base(results).tolist() == _base(reference).tolist()
+
+
+def test_a_log_in_three_files_with_their_own_times_gives_the_fit_of_the_one_file(si_log, reference, tmp_path, capsys):
+    """The log as a mobile manipulator's tools publish it: positions, velocities and efforts in three
+    files, each with its own time column, the efforts stamped a third of a step late: joined on time,
+    the run's base parameters are the one file's to the bit, and the join is said once on the terminal
+    and in the read step's record."""
+    df = si_log[1]
+    h = float(np.median(np.diff(df["t"])))
+    for quantity, kind, late in (("position", "q", 0.0), ("velocity", "qd", 0.0), ("effort", "tau", h / 3)):
+        frame = df[["t"] + [f"{kind}{j}" for j in range(1, 7)]].rename(
+            columns={f"{kind}{j}": f"- j{j}_{quantity}" for j in range(1, 7)})
+        frame.assign(t=frame["t"] + late).to_csv(tmp_path / f"{quantity}.csv", index=False, float_format="%.17g")
+    columns = ('columns = { t = "t", q = "- j{j}_position", qd = "- j{j}_velocity", tau = "- j{j}_effort" }\n'
+               'units = { q = "rad", qd = "rad/s", tau = "N m" }\n')
+    status, results = _run(tmp_path, "", columns=columns, file='["position.csv", "velocity.csv", "effort.csv"]')
+    assert status == 0
+    assert _base(results).tolist() == _base(reference).tolist()
+    read_step = next(s for s in results["data"]["conditioning"]["steps"] if s["step"] == "read")
+    assert read_step["joined_on_time"]["rows_kept"] == len(df)
+    assert capsys.readouterr().err.count("effort.csv joined to position.csv on 't'") == 1
 
 
 def test_a_column_list_of_the_wrong_length_is_refused(si_log, tmp_path, capsys):

@@ -7,9 +7,11 @@ A scenario's `[data]` table names a CSV file and its columns, `{j}` standing for
 model's joint order and `{name}` for a joint's name, or a list of column names in joint order:
 
     [data]
-    file = "log.csv"                      # relative to the scenario file
+    file = "log.csv"                      # relative to the scenario file; or a list of files, each with
+                                          # its own time column, joined on time (join.py)
     columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }   # qd may be left out
-    units = { q = "rad", qd = "rad/s", tau = "N m" }   # or "deg", "deg/s", "current" (default SI, said so)
+    units = { q = "rad", qd = "rad/s", tau = "N m" }   # or "deg", "deg/s", "current" (default SI, said so);
+                                          # t = "s" (default), "ms", "us" or "ns"
     torque_constant = [0.11, ...]         # N m/A per joint (motor side, signed), with tau = "current"
     gear_ratio = [100, ...]               # per joint (signed), with tau = "current"
     cutoff = 10.0                         # Hz, zero-phase low-pass (default: none)

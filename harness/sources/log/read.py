@@ -21,7 +21,7 @@ from harness.base.series import SeriesError
 from harness.base.tomlio import MAX_DATA_BYTES, InputError, Table, too_large
 from harness.model.spec import RobotSpec
 from harness.sources.log.raw import RawLog
-from harness.sources.log.schema import SI, DataSource, column_names
+from harness.sources.log.schema import SECONDS, SI, DataSource, column_names
 from harness.sources.log.units import plausible, refuse_absurd, to_si
 
 
@@ -46,8 +46,11 @@ def _kinds(source: DataSource, path: Path) -> tuple[str, ...]:
     return TORQUE_FILE_COLUMNS if path == source.torque_file else ("t", "q", "qd")
 
 
-def _check_header(path: Path, header: list[str], source: DataSource, robot: RobotSpec) -> None:
-    kinds = _kinds(source, path)
+def _check_header(path: Path, header: list[str], source: DataSource, robot: RobotSpec,
+                  kinds: tuple[str, ...] | None = None) -> None:
+    """The header has the columns of the quantities `kinds` (those the file holds: `_kinds`) and no
+    column of a joint beyond the model's."""
+    kinds = _kinds(source, path) if kinds is None else kinds
     for kind, names in column_names(source, robot).items():
         if kind not in kinds:
             continue
@@ -92,9 +95,38 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
             if path is not None:
                 check_bag(path, source.topic)
         return
+    if source.joined:
+        _holders(source, robot, {p: _header(p, _first_line(p)) for p in source.files})
+        return
     for path in (source.file, source.torque_file, source.validation_file, source.payload and source.payload.file):
         if path is not None:
             _check_header(path, _header(path, _first_line(path)), source, robot)
+
+
+def _holders(source: DataSource, robot: RobotSpec, headers: dict[Path, list[str]]) -> dict[str, Path]:
+    """A log in several files: which file holds each quantity (q, q' where named, tau), every one in one
+    file and every file holding one, each with the time column; the headers checked as one file's."""
+    names = column_names(source, robot)
+    holder = {}
+    for kind, columns in names.items():
+        if kind == "t":
+            continue
+        for name in columns:
+            having = [p for p in source.files if name in headers[p]]
+            if len(having) > 1:
+                raise InputError(having[1], name, f"column in {having[0].name} too: which file's to read?")
+        having = [p for p in source.files if columns[0] in headers[p]]
+        if not having:
+            raise InputError(source.file, columns[0], f"column missing in every file of the log "
+                                                      f"({', '.join(p.name for p in source.files)})")
+        holder[kind] = having[0]
+    for path in source.files:
+        kinds = tuple(k for k, p in holder.items() if p == path)
+        if not kinds:
+            held = ", ".join(names[k][0] for k in holder)
+            raise InputError(path, "", f"holds none of the log's columns ({held}, ...)")
+        _check_header(path, headers[path], source, robot, ("t", *kinds))
+    return holder
 
 
 HEADER_BYTES = 1 << 20  # a log's header line: thousands of columns fit
@@ -130,6 +162,33 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
                          record, {"t": [f"{source.topic}: header.stamp"], **dict.fromkeys(kinds, names)})
         return _windowed(source, series)
     names = column_names(source, robot)
+    if source.joined and file is None:
+        files, digest, columns, where, notes, joined = _joined_files(source, robot, names)
+    else:
+        files, digest, columns, where, notes = _row_by_row(source, robot, names, path, file)
+        joined = None
+    if not len(columns["q"]):
+        raise InputError(path, "", "the log has no rows")
+    t = (columns["t"][:, 0] * SECONDS[source.units["t"]] if "t" in columns
+         else np.arange(len(columns["q"])) / source.sample_rate)
+    q, qd, tau = to_si(source, robot, columns.pop("q"), columns.pop("qd", None), columns.pop("tau"))
+    _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, where, names, lambda i: f"row {i + 2}")
+    time = (f"column {names['t'][0]!r}" + (f" in {source.units['t']}" if source.units["t"] != "s" else "")
+            if "t" in columns else f"row k at k / {source.sample_rate:g} s (sample_rate)")
+    if joined is not None:
+        time += f" of each file, the rows joined on it to those of {Path(joined['reference']).name}"
+    record = _read_record(source, robot, files, time, notes)
+    if joined is not None:
+        record["joined_on_time"] = joined
+    series = raw_log(path, digest.hexdigest(), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names),
+                     record, names)
+    return _windowed(source, series)
+
+
+def _row_by_row(source: DataSource, robot: RobotSpec, names: dict[str, list[str]], path: Path, file: Path | None):
+    """A log in one file, or with its torques in a file of their own read row by row with it: the files
+    read, the digest of their bytes one after the other, the columns {kind: (rows, n)}, each kind's file,
+    and what the reading must say (a last line cut short, dropped)."""
     files = [path] + ([source.torque_file] if source.torque_file is not None and file is None else [])
     digest = hashlib.sha256()  # of the files' bytes one after the other, as they are parsed
     columns, rows, cut, where = {}, [], [], {}
@@ -148,16 +207,35 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
         columns = {kind: x[:-1] for kind, x in columns.items()}
         notes.append(f"{', '.join(p.name for p in cut)}: the last line has no line end (the file cut short while "
                      f"written?): row {rows[0] + 1} dropped" + (" from both files" if len(files) > 1 else ""))
-    if not len(columns["q"]):
-        raise InputError(path, "", "the log has no rows")
-    t = columns["t"][:, 0] if "t" in columns else np.arange(len(columns["q"])) / source.sample_rate
-    q, qd, tau = to_si(source, robot, columns.pop("q"), columns.pop("qd", None), columns.pop("tau"))
-    _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, where, names, lambda i: f"row {i + 2}")
-    record = _read_record(source, robot, files, f"column {names['t'][0]!r}" if "t" in columns
-                          else f"row k at k / {source.sample_rate:g} s (sample_rate)", notes)
-    series = raw_log(path, digest.hexdigest(), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names),
-                     record, names)
-    return _windowed(source, series)
+    return files, digest, columns, where, notes
+
+
+def _joined_files(source: DataSource, robot: RobotSpec, names: dict[str, list[str]]):
+    """A log in several files, each with its own time column: each file's columns read (`_holders`
+    says which file holds which quantity), a cut last line dropped from its file, and the rows joined on
+    time to those of the file holding the positions (harness/sources/log/join.py). As `_row_by_row`,
+    and the join's record."""
+    from harness.sources.log.join import join_on_time
+
+    holder = _holders(source, robot, {p: _header(p, _first_line(p)) for p in source.files})
+    digest = hashlib.sha256()
+    read, notes = {}, []
+    for p in source.files:
+        kinds = {"t": names["t"], **{k: names[k] for k, h in holder.items() if h == p}}
+        columns, count, short = _csv(p, kinds, source, robot, digest, tuple(kinds))
+        if short:
+            columns = {k: x[:-1] for k, x in columns.items()}
+            notes.append(f"{p.name}: the last line has no line end (the file cut short while written?): row "
+                         f"{count + 1} dropped")
+        read[p] = columns
+    reference = holder["q"]
+    scale = SECONDS[source.units["t"]]
+    join = join_on_time(reference, read[reference]["t"][:, 0] * scale,
+                        {p: read[p]["t"][:, 0] * scale for p in source.files if p != reference}, names["t"][0])
+    columns = {"t": read[reference]["t"][join.keep]}
+    for kind, p in holder.items():
+        columns[kind] = read[p][kind][join.keep] if p == reference else read[p][kind][join.rows[p]]
+    return list(source.files), digest, columns, dict(holder), notes + join.warnings, join.record
 
 
 def _refuse_absurd(source: DataSource, robot: RobotSpec, values: dict[str, np.ndarray | None], files: dict[str, Path],
@@ -210,7 +288,7 @@ class _Digested(io.RawIOBase):
 
 
 def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: RobotSpec,
-         digest) -> tuple[dict[str, np.ndarray], int, bool]:
+         digest, kinds: tuple[str, ...] | None = None) -> tuple[dict[str, np.ndarray], int, bool]:
     """The columns `wanted` ({kind: names}) of the CSV at `path`, {kind: (rows, len(names))}, its row
     count, and whether its last line was cut short (the file ends without a line end: a logger stopped
     mid-line; that row is the caller's to drop): its header checked against the scenario's columns,
@@ -232,7 +310,7 @@ def _csv(path: Path, wanted: dict[str, list[str]], source: DataSource, robot: Ro
             if len(line) > HEADER_BYTES:
                 raise InputError(path, "", f"no header line within its first {HEADER_BYTES >> 20} MiB: not a CSV log")
             header = _header(path, line)
-            _check_header(path, header, source, robot)
+            _check_header(path, header, source, robot, kinds)
             at = {name: header.index(name) for names in wanted.values() for name in names}
             positions = sorted(set(at.values()))
             pieces: dict[int, list[np.ndarray]] = {k: [] for k in positions}

@@ -14,8 +14,9 @@ from harness.model.spec import RobotSpec
 from harness.sources.log.segments import GAP_FACTOR
 
 MAX_FILTER_ORDER = 20
-UNITS = {"q": ("rad", "deg"), "qd": ("rad/s", "deg/s"), "tau": ("N m", "current")}
-SI = {"q": "rad", "qd": "rad/s", "tau": "N m"}
+UNITS = {"q": ("rad", "deg"), "qd": ("rad/s", "deg/s"), "tau": ("N m", "current"), "t": ("s", "ms", "us", "ns")}
+SI = {"q": "rad", "qd": "rad/s", "tau": "N m", "t": "s"}
+SECONDS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # what one unit of a time column is
 DELAY_CHOICES = ("estimate", "correct", "none")
 MAX_REPEAT = 100
 
@@ -64,6 +65,13 @@ class DataSource:
     window: tuple[float, float] | None = None  # s: the part of the log kept (the motion), by time
     decimate_given: bool = True  # False: `decimate` is the default, and a cutoff chosen by the data may set it
     joint_map: dict[str, str] = field(default_factory=dict)  # the log's name of a joint -> the model's
+    joined: tuple[Path, ...] = ()  # a log in several files: the files after `file`, each with its own time
+    # column, their rows joined on time to those of the file holding the positions (harness/sources/log/join.py)
+
+    @property
+    def files(self) -> tuple[Path, ...]:
+        """The log's files: `file`, and those joined to it on time."""
+        return (self.file, *self.joined)
 
     def log_names(self, joints: list[str]) -> list[str]:
         """The log's name of each of the model's `joints` (`joint_map` read backwards; a joint it does
@@ -72,7 +80,7 @@ class DataSource:
         return [back.get(j, j) for j in joints]
 
     def describe(self) -> dict:
-        return {"file": str(self.file),
+        return {"file": str(self.file), **({"joined_on_time": [str(f) for f in self.joined]} if self.joined else {}),
                 "columns": {k: list(v) if isinstance(v, tuple) else v for k, v in self.columns.items()},
                 "units": dict(self.units), "units_given": self.units_given,
                 "torque_constant": list(self.torque_constant) if self.torque_constant else None,
@@ -107,11 +115,13 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
         if t.has("columns"):
             raise t.error("columns", "a bag's JointState messages name their joints: no columns to give")
         columns: dict[str, str | tuple[str, ...]] = {}
-        ct = None
+        ct, joined = None, ()
     else:
-        file = _file(t, "file", scenario_file)
+        file, joined = _files(t, scenario_file)
         ct = t.table("columns")
         columns = _columns(ct, joints)
+        if joined and "t" not in columns:
+            raise ct.error("t", "missing: a log in several files joins them on each file's time column")
     torque_file, sample_rate, side, window = _layout(t, ct, scenario_file, topic)
     units, units_given = dict(SI), t.has("units")
     if units_given:
@@ -138,8 +148,9 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
     delay = t.string("delay", default="estimate", choices=DELAY_CHOICES)
     payload = None
     if t.has("payload"):
-        if t.has("torque_file"):
-            raise t.error("payload", "a payload log beside a torque file is not supported: one file per log")
+        if t.has("torque_file") or joined:
+            raise t.error("payload", "a payload log beside a torque file or a log in several files is not "
+                                     "supported: one file per log")
         pt = t.table("payload")
         payload = KnownPayload(_file(pt, "file", scenario_file, bag=topic is not None), pt.string("body"),
                                pt.number("mass", positive=True), pt.vector("com"), pt.vector("inertia", length=6))
@@ -169,14 +180,34 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
                 raise vt.error("from", f"{v_from:g} is outside the log: a fraction of its duration in (0, 1)")
         else:
             v_file = _file(vt, "file", scenario_file, bag=topic is not None)
-            if t.has("torque_file"):
-                raise vt.error("file", "with torque_file, the validation span is a part of the log: validation = "
-                                       "{ from = ... }")
+            if t.has("torque_file") or joined:
+                raise vt.error("file", f"with {'torque_file' if t.has('torque_file') else 'a log in several files'}"
+                                       ", the validation span is a part of the log: validation = { from = ... }")
         vt.finish()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
                       ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
-                      sample_rate, side, window, decimate_given, joint_map)
+                      sample_rate, side, window, decimate_given, joint_map, joined)
+
+
+def _files(t: Table, scenario_file: Path) -> tuple[Path, tuple[Path, ...]]:
+    """`file`: one CSV, or a list of CSVs, each with its own time column, holding the quantities
+    between them (the positions in one, the velocities in another, the torques in a third, as a
+    robot's tools export one file per topic or quantity): the first and the rest."""
+    if not isinstance(t.data.get("file"), list):
+        return _file(t, "file", scenario_file), ()
+    names = t.strings("file", choices=None)
+    paths = [(scenario_file.parent / name).resolve() for name in names]
+    for name, path in zip(names, paths, strict=True):
+        if not path.is_file():
+            raise t.error("file", f"file {name!r} not found (looked for {path})")
+    if len(set(paths)) < len(paths):
+        raise t.error("file", "a file is named twice")
+    if t.has("torque_file"):
+        raise t.error("torque_file", "a log in several files names every file in `file`")
+    if t.has("sample_rate"):
+        raise t.error("sample_rate", "a log in several files is joined on its files' time columns")
+    return paths[0], tuple(paths[1:])
 
 
 def _joint_map(t: Table, joint_names: list[str] | None) -> dict[str, str]:

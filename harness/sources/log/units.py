@@ -22,6 +22,7 @@ UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more lo
 VELOCITY_FACTOR = 3.0  # the positions' rate of change and the logged velocities this far apart: a unit mistake
 TRACKING = 0.5  # a joint whose logged velocity follows its positions' changes this closely (cosine) moves
 TIME_UNITS = ((1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds"))
+TIME_SYMBOL = {"milliseconds": "ms", "microseconds": "us", "nanoseconds": "ns"}
 ABSURD = 1e3  # a value this many times beyond what the model's size allows (`plausible`) is no measurement
 UNLIMITED_POSITION = 1e3  # rad or m: a joint without limits reaches at most ABSURD times this (160,000 turns)
 DEFAULT_SPEED = 10.0  # rad/s or m/s: a joint without a velocity limit moves at most ABSURD times this
@@ -125,8 +126,8 @@ def check_velocities(kept: RawLog, robot: RobotSpec, source: DataSource | None) 
     if time_base:
         median = float(np.median(k[off]))
         raise InputError(path, names["t"][0], f"on every joint that moves, q changes {median:.3g} times as fast "
-                                              f"as the logged q' says ({how}): t in {time_base[0]}? t must be in "
-                                              "seconds")
+                                              f"as the logged q' says ({how}): t in {time_base[0]}? give its unit, "
+                                              f"units = {{ t = \"{TIME_SYMBOL[time_base[0]]}\" }}")
     hint = ("q' in deg/s read as rad/s? units = { qd = \"deg/s\" }" if near(k[j], np.pi / 180) else
             "q in degrees with q' in radians? give both units" if near(k[j], 180 / np.pi) else
             "q' has the opposite sign to q's changes" if near(-k[j], 1.0) else
