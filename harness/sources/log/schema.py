@@ -12,6 +12,7 @@ import numpy as np
 from harness.base.tomlio import Table
 from harness.model.spec import RobotSpec
 from harness.sources.log.segments import GAP_FACTOR
+from harness.sources.log.velocity import VELOCITY_CHOICES
 
 MAX_FILTER_ORDER = 20
 UNITS = {"q": ("rad", "deg"), "qd": ("rad/s", "deg/s"), "tau": ("N m", "current"), "t": ("s", "ms", "us", "ns")}
@@ -65,6 +66,7 @@ class DataSource:
     window: tuple[float, float] | None = None  # s: the part of the log kept (the motion), by time
     decimate_given: bool = True  # False: `decimate` is the default, and a cutoff chosen by the data may set it
     joint_map: dict[str, str] = field(default_factory=dict)  # the log's name of a joint -> the model's
+    velocities: str = "checked"  # logged velocities left out where they lag the positions' rate ("used": kept)
     joined: tuple[Path, ...] = ()  # a log in several files: the files after `file`, each with its own time
     # column, their rows joined on time to those of the file holding the positions (harness/sources/log/join.py)
 
@@ -96,7 +98,7 @@ class DataSource:
                     "com": [float(x) for x in self.payload.com_W], "inertia": [float(x) for x in self.payload.inertia]},
                 "torque_file": str(self.torque_file) if self.torque_file else None, "sample_rate_hz": self.sample_rate,
                 "side": self.side, "window_s": list(self.window) if self.window else None,
-                "joint_map": dict(self.joint_map)}
+                "joint_map": dict(self.joint_map), "velocities": self.velocities}
 
 
 
@@ -184,10 +186,11 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
                 raise vt.error("file", f"with {'torque_file' if t.has('torque_file') else 'a log in several files'}"
                                        ", the validation span is a part of the log: validation = { from = ... }")
         vt.finish()
+    velocities = t.string("velocities", default="checked", choices=VELOCITY_CHOICES)
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
                       ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
-                      sample_rate, side, window, decimate_given, joint_map, joined)
+                      sample_rate, side, window, decimate_given, joint_map, velocities, joined)
 
 
 def _files(t: Table, scenario_file: Path) -> tuple[Path, tuple[Path, ...]]:

@@ -18,6 +18,7 @@ from harness.sources.log.condition import ConditionedLog, TrainingSpan, conditio
 from harness.sources.log.read import read_raw
 from harness.sources.log.schema import DataSource
 from harness.sources.log.segments import segment_record, segments, split_step
+from harness.sources.log.velocity import judged
 
 LOG_FILE = "data.csv"  # the conditioned log, written beside results.json
 MIN_SPAN_ROWS = 10  # rows each side of the split needs before conditioning
@@ -56,10 +57,12 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     t_split = None if source.validation_from is None else \
         kept.t[0] + source.validation_from * (kept.t[-1] - kept.t[0])
     # what the data decide, they decide from the training rows alone
+    training_rows = kept if t_split is None else kept.span(kept.t < t_split)
+    kept, velocities, late = judged(kept, training_rows, list(robot.joint_names), source.velocities)
     source, chosen = defaults.resolve(source, kept if t_split is None else kept.span(kept.t < t_split), rate)
     longest = split_step(source, checked.median_step)
     pieces = segments(kept.t, longest)
-    notes: list[str] = []
+    notes: list[str] = [late] if late else []
     if chosen is not None:
         notes.append(f"no cutoff given, and the positions carry noise (the motion within "
                      f"{max(chosen['motion_band_hz']):.3g} Hz): a {chosen['cutoff_hz']:.3g} Hz low-pass chosen"
@@ -71,7 +74,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     record = segment_record(kept.t, pieces, source, checked.median_step)
     if source.validation_from is None:
         log = conditioned(kept, pieces, source, robot, rate, checked, "log", notes)
-        log.meta["segments"], log.meta["defaults"] = record, chosen
+        log.meta["segments"], log.meta["defaults"], log.meta["velocities"] = record, chosen, velocities
         log.meta["warnings"] = log.meta["warnings"] + notes
         val = None
         if source.validation_file is not None:
@@ -89,7 +92,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     guard = float(val.t[0] - train.t[-1])
     conditioning = dict(train.meta)
     conditioning["warnings"] = conditioning["warnings"] + notes
-    conditioning["segments"], conditioning["defaults"] = record, chosen
+    conditioning["segments"], conditioning["defaults"], conditioning["velocities"] = record, chosen, velocities
     conditioning["validation"] = {
         "from_fraction": source.validation_from, "t_split": float(t_split),
         "training_samples": len(train.t), "validation_samples": len(val.t),
