@@ -174,3 +174,55 @@ def test_a_link_on_the_margin_or_far_from_the_model_is_consistent_and_its_warnin
     assert "j2 (mass x9" in said[0] and "physically consistent all the same" in said[0]
     assert said[1].endswith("physically consistent (as the consistency gate checks) because the fit holds them "
                             "there, where the data alone would take them past physical: j1")
+
+
+def _link(mass: float) -> np.ndarray:
+    """One link's ten parameters about its joint: `mass` kg, its centre 0.1 m out, moments 0.01 to 0.025
+    kg m^2 per kg about it."""
+    from harness.model.inertia import parallel_axis
+
+    c = np.array([0.1, 0.0, 0.0])
+    I = mass * np.diag([0.01, 0.02, 0.025]) + parallel_axis(mass, c)
+    return np.array([mass, *(mass * c), I[0, 0], I[0, 1], I[1, 1], I[0, 2], I[1, 2], I[2, 2]])
+
+
+def test_masses_the_data_cannot_tell_stay_within_the_band(problem):
+    """The model given with the forearm 20 times the truth's mass and inertia, the truth's noise-free
+    torques: the base parameters regroup the masses, so many physical links explain the torques to
+    round-off; every identified mass stays within MASS_BAND times the model's, any held at its edge
+    said (held_at_band) with the free fit's residual, which is no better beyond round-off."""
+    W, _, tau_clean, theta_model, friction_model, scale, _ = problem
+    heavy = theta_model.copy()
+    heavy[2] = theta_model[2] / 1.2 * 20.0  # theta_model is the truth 20 % off: the truth, times 20
+    fit = consistent.fit(W, tau_clean, heavy, friction_model, scale)
+    ratio = fit.theta[:, 0] / heavy[:, 0]
+    lo, hi = consistent.MASS_BAND
+    assert np.all((ratio >= lo * (1 - 1e-9)) & (ratio <= hi * (1 + 1e-9))) and fit.beyond_band == ()
+    assert fit.held_at_band and all(min(abs(ratio[k] / lo - 1), abs(ratio[k] / hi - 1)) <= consistent.AT_BAND
+                                    for k in fit.held_at_band)
+    assert fit.relative_residual < 1e-12 and fit.free_residual < 1e-12
+
+
+@pytest.mark.parametrize("demand", [consistent.DEMAND, 1.0])
+def test_a_mass_the_data_demand_goes_beyond_the_band_and_is_said(demand, monkeypatch):
+    """One link whose ten parameters a random regressor (600 rows) sees one by one, the model 20 times the
+    truth's mass: the noise-free torques demand 0.05 of the model's mass, the band's fit cannot explain
+    them (its residual far more than DEMAND above the free fit's round-off), so the free fit is taken and
+    the link named (beyond_band). Were the bar one no fit can pass (DEMAND = 1: data that could not
+    tell), the band holds the mass at 0.1 of the model's (held_at_band), its fit far worse than the free one."""
+    rng = np.random.default_rng(11)
+    W = rng.standard_normal((600, 14))
+    truth, model = _link(0.5), _link(10.0)
+    friction = np.array([[0.01, 0.1, 0.2, 0.0]])
+    tau = W @ np.concatenate([truth, friction.ravel()])
+    scale = np.concatenate([kind_scale(model), np.ones(4)])
+    monkeypatch.setattr(consistent, "DEMAND", demand)
+    fit = consistent.fit(W, tau, model[None], friction, scale)
+    ratio = fit.theta[0][0] / model[0]
+    if demand < 1.0:
+        assert fit.beyond_band == (0,) and fit.held_at_band == () and ratio == pytest.approx(0.05, rel=1e-4)
+        assert fit.relative_residual == fit.free_residual < 1e-6
+    else:
+        assert fit.held_at_band == (0,) and fit.beyond_band == ()
+        assert ratio == pytest.approx(consistent.MASS_BAND[0], rel=consistent.AT_BAND)
+        assert fit.free_residual < 1e-6 < fit.relative_residual

@@ -39,6 +39,7 @@ number a gate can read; a fit never fails.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass, field
 
@@ -70,6 +71,11 @@ FALLBACKS = ("solved by Clarabel to its tolerances", "solved by SCS, or short of
              "no solver succeeded: the unconstrained minimum, each link moved to the nearest physical one")
 RESIDUAL_FLOOR = 1e-6  # of ||tau||: the least-squares residual taken as at least this (see `fit`)
 MARGIN = 1e-6  # J_i >= MARGIN * (model's largest pseudo-inertia eigenvalue) 1: strictly physical
+MASS_BAND = (0.1, 10.0)  # each link's identified mass within these times its model's, unless the data demand more
+DEMAND = 0.01  # the fit free of the band explains the training torques this much (relative residual) better:
+# the data demand a mass beyond it (more freedom always explains a little more; a hundredth is not noise's doing)
+AT_BAND = 1e-4  # a mass within this (relative) of the band's edge is held there (an interior-point solution stops
+# short of an active bound by its tolerance: 6e-6 of it on the Panda's log)
 
 
 def _pseudo_inertia_expr(t) -> cp.Expression:
@@ -115,6 +121,9 @@ class ConsistentFit:
     attempts: tuple[str, ...] = ()  # every solver tried and how it ended, in order
     margin: float = 0.0  # the smallest pseudo-inertia eigenvalue every link was held to
     extra: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the friction families' coefficients (`fit`)
+    held_at_band: tuple[int, ...] = ()  # links whose mass the band held at its edge (MASS_BAND)
+    beyond_band: tuple[int, ...] = ()  # links whose mass the data demand beyond the band (DEMAND)
+    free_residual: float | None = None  # the training residual of the fit free of the band, where it was made
 
 
 def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, friction_model: np.ndarray,
@@ -127,7 +136,11 @@ def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, fr
     friction_model (n, 4) and extra_model (e,): the model's own values; scale: (14 n + e,) the
     magnitude of each parameter's kind in the model. The families' terms are held physical: an
     asymmetry no larger than its coefficient (so that both directions' coefficients stay
-    non-negative), Stribeck and load terms non-negative."""
+    non-negative), Stribeck and load terms non-negative. Each link's mass is held within MASS_BAND
+    times its model's: what the data cannot see stays near the model rather than at whatever the
+    margin allows. Where a mass ends on the band's edge, the fit is made again free of the band and
+    taken where it explains the training torques DEMAND better (the data demand that mass:
+    `beyond_band`), else the band's kept (`held_at_band`)."""
     n = len(theta_model)
     extra_model = np.zeros(len(extra)) if extra_model is None else extra_model
     x0 = np.concatenate([theta_model.ravel(), friction_model.ravel(), extra_model])
@@ -159,7 +172,54 @@ def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, fr
             constraints += [fr[4 * k + ASYMMETRY[key]] - e >= 0, fr[4 * k + ASYMMETRY[key]] + e >= 0]
         else:
             constraints.append(e >= 0)
-    problem = cp.Problem(cp.Minimize(objective), constraints)
+    massive = [i for i in range(n) if theta_model[i, 0] > 0]
+    lo, hi = (np.array([MASS_BAND[k] * theta_model[i, 0] for i in massive]) for k in (0, 1))
+    band = [c for k, i in enumerate(massive) for c in (x[10 * i] >= lo[k], x[10 * i] <= hi[k])]
+    # the band's fit may explain the torques far worse than the least squares (data that demand a mass
+    # beyond it): its fit term is scaled by the least squares' optimum within the band on the masses
+    # alone (scipy's bounded least squares), so that its objective stays of order one for the solver
+    r0_band = _band_floor(R, b, col, norm_tau, massive, lo, hi, r0)
+    objective_band = cp.sum_squares(R @ z - b) / r0_band + PULL * pull
+    bounded = _solved(cp.Problem(cp.Minimize(objective_band), constraints + band), z, W, tau, col, R, b, r0_band,
+                      x0, scale, eps, n, extra, (massive, lo, hi))
+    ratio = bounded[0][10 * np.arange(n)] / np.where(theta_model[:, 0] > 0, theta_model[:, 0], np.inf)
+    held = tuple(i for i in massive
+                 if ratio[i] <= MASS_BAND[0] * (1 + AT_BAND) or ratio[i] >= MASS_BAND[1] * (1 - AT_BAND))
+    if not held:
+        return _result(bounded, n, eps)
+    free = _solved(cp.Problem(cp.Minimize(objective), constraints), z, W, tau, col, R, b, r0, x0, scale, eps, n, extra)
+    if free[1] < (1.0 - DEMAND) * bounded[1]:  # the data demand the masses the band would hold
+        ratio = free[0][10 * np.arange(n)] / np.where(theta_model[:, 0] > 0, theta_model[:, 0], np.inf)
+        beyond = tuple(i for i in massive if not MASS_BAND[0] <= ratio[i] <= MASS_BAND[1])
+        return dataclasses.replace(_result(free, n, eps), beyond_band=beyond, free_residual=free[1])
+    return dataclasses.replace(_result(bounded, n, eps), held_at_band=held, free_residual=free[1])
+
+
+def _result(solved: tuple, n: int, eps: float) -> ConsistentFit:
+    xv, residual, status, solver, fallback, attempts = solved
+    return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n: 14 * n].reshape(n, 4), status, residual, solver,
+                         fallback, tuple(attempts), eps, xv[14 * n:])
+
+
+def _band_floor(R: np.ndarray, b: np.ndarray, col: np.ndarray, norm_tau: float, massive: list[int], lo: np.ndarray,
+                hi: np.ndarray, r0: float) -> float:
+    """The squared residual of the least squares with the masses of `massive` links within [lo, hi]
+    (scipy.optimize.lsq_linear on the column-scaled triangle R z = b), as the fit's r0 is: at least r0."""
+    from scipy.optimize import lsq_linear
+
+    lower, upper = np.full(R.shape[1], -np.inf), np.full(R.shape[1], np.inf)
+    where = 10 * np.asarray(massive, dtype=int)
+    lower[where], upper[where] = lo * col[where], hi * col[where]
+    z = lsq_linear(R, b, bounds=(lower, upper)).x
+    return max(float(np.linalg.norm(R @ z - b) ** 2 + norm_tau**2 - float(b @ b)), r0)
+
+
+def _solved(problem: cp.Problem, z: cp.Variable, W, tau: np.ndarray, col: np.ndarray, R: np.ndarray, b: np.ndarray,
+            r0: float, x0: np.ndarray, scale: np.ndarray, eps: float, n: int, extra: tuple, band=None) -> tuple:
+    """`problem` solved by the first of SOLVERS that gives a solution (a looser one moved onto the
+    constraints), or its objective's projection where none does, each mass then within `band` (its links,
+    lower and upper masses) where one is given: (x, the training residual, status, solver, fallback,
+    attempts)."""
     attempts: list[str] = []
     found = None  # (z, status, solver, fallback)
     for k, (solver, options) in enumerate(SOLVERS):
@@ -188,9 +248,13 @@ def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, fr
         xv = zv / col
         if fallback:  # a looser solution may sit just outside the constraints: moved onto them
             xv = _physical(xv, eps, n, extra)
-    residual = relative_residual(W @ xv - tau, tau)
-    return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n: 14 * n].reshape(n, 4), status, residual, solver,
-                         fallback, tuple(attempts), eps, xv[14 * n:])
+    if band is not None and fallback:  # each link scaled whole into the band (a positive factor keeps it physical)
+        massive, lo, hi = band
+        for k, i in enumerate(massive):
+            m = xv[10 * i]
+            if m > 0 and not lo[k] <= m <= hi[k]:
+                xv[10 * i: 10 * i + 10] *= np.clip(m, lo[k], hi[k]) / m
+    return xv, relative_residual(W @ xv - tau, tau), status, solver, fallback, attempts
 
 
 def _projected(R: np.ndarray, b: np.ndarray, col: np.ndarray, r0: float, x0: np.ndarray, scale: np.ndarray,
@@ -337,4 +401,23 @@ def plausibility_warnings(p: dict) -> list[str]:
         out.append(f"{len(p['on_margin'])} link(s) held on the fit's positive-definiteness margin: physically "
                    "consistent (as the consistency gate checks) because the fit holds them there, where the data alone "
                    f"would take them past physical: {', '.join(p['on_margin'])}")
+    return out
+
+
+def band_warnings(fit: ConsistentFit, joints: list[str], theta_model: np.ndarray) -> list[str]:
+    """What the terminal and the report are told of the mass band (`fit`): the links it held, and those
+    whose mass the data demand beyond it, each with its ratio to the model's."""
+    lo, hi = MASS_BAND
+    ratio = [float(fit.theta[k][0] / theta_model[k][0]) if theta_model[k][0] > 0 else float("nan")
+             for k in range(len(joints))]
+    out = []
+    if fit.held_at_band:
+        out.append(f"link masses held at the edge of [{lo:g}, {hi:g}] times the model's, where the data cannot tell "
+                   f"them (free of the band, the training residual {fit.free_residual:.4g} against "
+                   f"{fit.relative_residual:.4g}): " + ", ".join(f"{joints[k]} (mass x{ratio[k]:.3g})"
+                                                                 for k in fit.held_at_band))
+    if fit.beyond_band:
+        out.append(f"link masses beyond [{lo:g}, {hi:g}] times the model's because the data demand them (held within "
+                   f"it, the training residual would be more than {100 * DEMAND:g} % higher): " + ", ".join(
+                       f"{joints[k]} (mass x{ratio[k]:.3g})" for k in fit.beyond_band))
     return out

@@ -510,6 +510,7 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
     """What the terminal is told of a log run, once."""
     out, lags = [], li.delayed.lags  # the start check's findings are its own (log_judge.Start.said), said first
     out += consistent.plausibility_warnings(li.plausible)
+    out += consistent.band_warnings(li.fit, li.joints, li.model.theta)
     out += delay_warnings(lags, li.model.torque_joints, mode)
     out += [note for note in (li.delayed.note, li.laws.note, li.fitted.note) if note]
     repeated = li.fitted.repeated

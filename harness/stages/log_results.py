@@ -127,6 +127,14 @@ def _consistent_section(li, ctx) -> dict:
         "solver_attempts": list(fit.attempts),
         "training_rel_residual": fit.relative_residual,
         "inconsistent_links": sum(not v["consistent"] for v in links.values()),
+        "mass_band": {"definition": f"each link's mass held within {consistent.MASS_BAND[0]:g} to "
+                                    f"{consistent.MASS_BAND[1]:g} times its model's; where one ends on the band's "
+                                    "edge the fit is made again free of it and taken where its training residual is "
+                                    f"{consistent.DEMAND:g} (relative) lower: the data demand that mass",
+                      "band": list(consistent.MASS_BAND), "held_at_band": [li.joints[k] for k in fit.held_at_band],
+                      "beyond_band": [li.joints[k] for k in fit.beyond_band],
+                      "training_rel_residual_free_of_band": fit.free_residual},
+        "masses_beyond_band": len(fit.beyond_band),
         "links": links,
         "friction": {j: {"family": f.family, **f.as_dict()} for j, f in zip(li.drives, li.frictions, strict=True)},
         **({"transmission": ctx.scenario.robot.transmission.describe(ctx.scenario.robot.joint_names)}
