@@ -335,6 +335,44 @@ def test_logged_velocities_off_the_positions_are_realigned_and_give_the_fit_of_t
     assert abs(error - on_time) < 5e-4 and as_published > 10 * error, (error, on_time, as_published)
 
 
+def _without_gravity(df: pd.DataFrame, joint: int) -> pd.DataFrame:
+    """The log with joint `joint`'s channel (1-based) less its gravity torque, Pinocchio's
+    computeGeneralizedGravity of the robot that made it: a joint a spring or counterweight holds."""
+    import pinocchio as pin
+
+    from harness.engines.pinocchio import build_model
+    from harness.model.load import load_spec
+
+    pm = build_model(load_spec(MODEL), np.array([0.0, 0.0, -9.80665]))
+    data = pm.model.createData()
+    q = df[[f"q{j}" for j in range(1, 7)]].to_numpy()
+    full = np.zeros(pm.model.nq)
+    gravity = np.empty(len(q))
+    for i, row in enumerate(q):
+        full[pm.q_index] = row
+        gravity[i] = pin.computeGeneralizedGravity(pm.model, data, full)[pm.q_index[joint - 1]]
+    return df.assign(**{f"tau{joint}": df[f"tau{joint}"] - gravity})
+
+
+def test_a_counterbalanced_joint_is_the_start_checks_likely_cause_and_passes_once_declared(si_log, tmp_path, capsys):
+    """The shoulder lift's channel without its gravity torque (a spring or counterweight holds it, as a mobile
+    manipulator's torso lift): the start check fails naming that joint and a counterbalanced joint as the
+    likely cause, not a unit; declared (counterbalanced = ["shoulder_lift_joint"]), the check judges that
+    channel against the model's torques less their gravity and passes."""
+    _without_gravity(si_log[1], 2).to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    units = 'units = { q = "rad", qd = "rad/s", tau = "N m" }\n'
+    gate = '[[gates]]\nmetric = "log_identification.start.findings"\nlimit = 0\n'
+    status, results = _run(tmp_path, units, gate=gate)
+    start = results["log_identification"]["start"]
+    assert status == 1 and start["findings"] >= 1
+    assert "counterbalanced" in start["findings_likely"] and "shoulder_lift_joint" in " ".join(
+        f["joint"] + f["likely"] for f in start["list"])
+    assert start["per_joint"]["shoulder_lift_joint"]["counterbalanced"] == "likely"
+    status, declared = _run(tmp_path, units + 'counterbalanced = ["shoulder_lift_joint"]\n', out="declared", gate=gate)
+    assert status == 0 and declared["log_identification"]["start"]["findings"] == 0
+    assert declared["log_identification"]["start"]["per_joint"]["shoulder_lift_joint"]["counterbalanced"] == "declared"
+
+
 def test_a_column_list_of_the_wrong_length_is_refused(si_log, tmp_path, capsys):
     si_log[1].to_csv(tmp_path / "log.csv", index=False)
     status, _ = _run(tmp_path, "", columns='columns = { t = "t", q = ["q1", "q2"], tau = "tau{j}" }\n')

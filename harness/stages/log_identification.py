@@ -470,7 +470,9 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     # findings head the terminal and the report)
     q, qd, qdd, _ = model.data(scaled.training)
     given = model.torques(model.pm, q, qd, qdd)  # the model as given on the training span, judged again below
-    started = start(given, model.data(delayed.training)[3], model.torque_joints)
+    weightless = model.torques(build_model(robot, np.zeros(3)), q, qd, qdd)  # a counterbalanced joint's reading
+    started = start(given, model.data(delayed.training)[3], model.torque_joints, weightless,
+                    sc.data.counterbalanced)
     config = config or FrictionLawConfig()
     if config.choose:
         ctx.progress("the friction law of every joint (cross-validated within the training span)", None)

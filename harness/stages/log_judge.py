@@ -239,19 +239,50 @@ def _likely(s: float) -> str:
             "model too light (its masses in the wrong unit, or bodies missing)")
 
 
-def start(model: np.ndarray, log: np.ndarray, joints: list[str]) -> Start:
-    """`model` (N, n) the model as given's torques at the log's states, `log` (N, n) the torques as read."""
-    def off(s: float) -> bool:
-        return s < 0 or not (1 / START_FACTOR <= s <= START_FACTOR)
+COUNTERBALANCED = ("a counterbalanced joint: its channel carries no gravity (a spring or a counterweight holds it), "
+                   "as the model's torques there less their gravity match it (declare it: [data] counterbalanced)")
 
+
+def _off(s: float) -> bool:
+    return s < 0 or not (1 / START_FACTOR <= s <= START_FACTOR)
+
+
+def start(model: np.ndarray, log: np.ndarray, joints: list[str], weightless: np.ndarray | None = None,
+          counterbalanced: tuple[str, ...] = ()) -> Start:
+    """`model` (N, n) the model as given's torques at the log's states, `log` (N, n) the torques as read;
+    `weightless` (N, n) the model's torques there without gravity, where known: a joint whose channel
+    is off the model's by a factor but matches them without gravity (factor within the band, their
+    cosine at least SHAPED) is a counterbalanced joint, its finding's likely cause (and the overall
+    factor judged with that joint's weightless torques); a joint of `counterbalanced` is judged against
+    its weightless torques from the start."""
+    model = model.copy()
+    for j in (j for j in counterbalanced if j in joints):  # of a closed chain, its actuated joints
+        model[:, joints.index(j)] = weightless[:, joints.index(j)]
+    balanced = []
+    if weightless is not None:
+        for k, j in enumerate(joints):
+            s, cosine, _ = robust_fit(model[:, k], log[:, k])
+            s0, cosine0, _ = robust_fit(weightless[:, k], log[:, k])
+            if j not in counterbalanced and np.isfinite(s) and _off(s) and np.isfinite(s0) and not _off(s0) \
+                    and abs(cosine0) >= SHAPED:
+                balanced.append(k)
     overall, _, left_out = robust_fit(model, log)
     findings, per_joint = [], {}
-    if np.isfinite(overall) and off(overall):
-        findings.append({"joint": "all joints", "finding": f"factor {overall:.3g}", "likely": _likely(overall)})
+    if np.isfinite(overall) and _off(overall):
+        cleared = model.copy()
+        cleared[:, balanced] = weightless[:, balanced] if balanced else cleared[:, balanced]
+        cause = (COUNTERBALANCED.replace("a counterbalanced joint", "a counterbalanced joint, "
+                                         + ", ".join(joints[k] for k in balanced))
+                 if balanced and not _off(robust_fit(cleared, log)[0]) else _likely(overall))
+        findings.append({"joint": "all joints", "finding": f"factor {overall:.3g}", "likely": cause})
     for k, j in enumerate(joints):
         s, cosine, outliers = robust_fit(model[:, k], log[:, k])
-        per_joint[j] = {"factor": finite_or_null(s), "cosine": finite_or_null(cosine), "outliers": outliers}
-        if np.isfinite(s) and abs(cosine) >= SHAPED and off(s) and (s < 0 or not findings):
+        per_joint[j] = {"factor": finite_or_null(s), "cosine": finite_or_null(cosine), "outliers": outliers,
+                        **({"counterbalanced": "declared"} if j in counterbalanced else
+                           {"counterbalanced": "likely"} if k in balanced else {})}
+        if k in balanced and not findings:
+            findings.append({"joint": j, "finding": f"factor {s:.3g}", "likely": COUNTERBALANCED})
+        elif np.isfinite(s) and abs(cosine) >= SHAPED and _off(s) and (s < 0 or not findings):
             findings.append({"joint": j, "finding": f"factor {s:.3g} (cosine {cosine:.2f})", "likely": _likely(s)})
     return Start(overall, per_joint, findings, left_out)
 

@@ -66,7 +66,8 @@ class DataSource:
     window: tuple[float, float] | None = None  # s: the part of the log kept (the motion), by time
     decimate_given: bool = True  # False: `decimate` is the default, and a cutoff chosen by the data may set it
     joint_map: dict[str, str] = field(default_factory=dict)  # the log's name of a joint -> the model's
-    velocities: str = "checked"  # logged velocities left out where they lag the positions' rate ("used": kept)
+    velocities: str = "checked"  # logged velocities realigned where they lag the positions' rate ("used": kept)
+    counterbalanced: tuple[str, ...] = ()  # joints whose channel carries no gravity (a spring or counterweight)
     joined: tuple[Path, ...] = ()  # a log in several files: the files after `file`, each with its own time
     # column, their rows joined on time to those of the file holding the positions (harness/sources/log/join.py)
 
@@ -98,7 +99,8 @@ class DataSource:
                     "com": [float(x) for x in self.payload.com_W], "inertia": [float(x) for x in self.payload.inertia]},
                 "torque_file": str(self.torque_file) if self.torque_file else None, "sample_rate_hz": self.sample_rate,
                 "side": self.side, "window_s": list(self.window) if self.window else None,
-                "joint_map": dict(self.joint_map), "velocities": self.velocities}
+                "joint_map": dict(self.joint_map), "velocities": self.velocities,
+                "counterbalanced": list(self.counterbalanced)}
 
 
 
@@ -187,10 +189,11 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
                                        ", the validation span is a part of the log: validation = { from = ... }")
         vt.finish()
     velocities = t.string("velocities", default="checked", choices=VELOCITY_CHOICES)
+    counterbalanced = t.strings("counterbalanced", choices=joint_names) if t.has("counterbalanced") else ()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
                       ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
-                      sample_rate, side, window, decimate_given, joint_map, velocities, joined)
+                      sample_rate, side, window, decimate_given, joint_map, velocities, counterbalanced, joined)
 
 
 def _files(t: Table, scenario_file: Path) -> tuple[Path, tuple[Path, ...]]:
