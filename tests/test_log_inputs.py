@@ -373,6 +373,31 @@ def test_a_counterbalanced_joint_is_the_start_checks_likely_cause_and_passes_onc
     assert declared["log_identification"]["start"]["per_joint"]["shoulder_lift_joint"]["counterbalanced"] == "declared"
 
 
+@pytest.mark.parametrize("channel", ["dead", "unrelated"])
+def test_a_channel_that_measures_nothing_is_said(si_log, tmp_path, capsys, channel):
+    """The wrist 3's channel reading exactly 0 on 90 % of its rows (as a mobile manipulator's wrist channels
+    do), or the elbow's replaced by white noise of its RMS: each said in one line naming the joint (the
+    share of zeros, from the checks; the cosine with the model's torque under 0.2, from the start check)
+    and kept in results.json."""
+    df = si_log[1].copy()
+    rng = np.random.default_rng(5)
+    if channel == "dead":
+        df.loc[rng.random(len(df)) < 0.9, "tau6"] = 0.0
+    else:
+        df["tau3"] = np.sqrt(np.mean(df["tau3"] ** 2)) * rng.standard_normal(len(df))
+    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    _, results = _run(tmp_path, 'units = { q = "rad", qd = "rad/s", tau = "N m" }\n')
+    err = capsys.readouterr().err
+    if channel == "dead":
+        checks = next(s for s in results["data"]["conditioning"]["steps"] if s["step"] == "checks")
+        assert checks["torque_channels_zero"] == ["wrist_3_joint"]
+        assert checks["torque_zero_share"]["wrist_3_joint"] > 0.85
+        assert err.count("read exactly 0 on most rows") == 1 and "wrist_3_joint 9" in err
+    else:
+        assert results["log_identification"]["start"]["unrelated_channels"] == ["elbow_joint"]
+        assert err.count("do not follow the model's torque") == 1 and "elbow_joint (" in err
+
+
 def test_a_column_list_of_the_wrong_length_is_refused(si_log, tmp_path, capsys):
     si_log[1].to_csv(tmp_path / "log.csv", index=False)
     status, _ = _run(tmp_path, "", columns='columns = { t = "t", q = ["q1", "q2"], tau = "tau{j}" }\n')

@@ -170,6 +170,11 @@ SHAPED = 0.5  # a joint's torques and the model's torques there have a cosine of
 # has not: its factor says nothing)
 
 
+UNRELATED = 0.2  # a channel whose cosine with the model's torque is under this in magnitude does not follow it
+SIZED = 0.01  # where the model's torque there is at least this share of the largest joint's RMS (a joint the
+# model moves hardly at all says nothing by its cosine)
+
+
 OUTLIER = 10.0  # a row whose torque lies this many robust standard deviations (1.4826 x the median absolute
 # deviation) off the median-ratio line is left out of the factors: no single cell decides the diagnosis
 
@@ -188,11 +193,18 @@ class Start:
     per_joint: dict[str, dict[str, float]]  # joint -> {"factor", "cosine", "outliers"}
     findings: list[dict[str, str]]  # {"joint" (or "all joints"), "finding", "likely"}
     outliers: int = 0  # over all joints: the entries left out of the overall factor
+    unrelated: tuple[str, ...] = ()  # joints whose channel does not follow the model's torque (UNRELATED)
 
     def said(self) -> list[str]:
         """The findings as the terminal and the report's head say them, before anything else of the run."""
-        return [f"the model as given and the log as read differ at {f['joint']} by a {f['finding']}: likely "
-                f"{f['likely']}" for f in self.findings]
+        out = [f"the model as given and the log as read differ at {f['joint']} by a {f['finding']}: likely "
+               f"{f['likely']}" for f in self.findings]
+        if self.unrelated:
+            out.append(f"torque channels that do not follow the model's torque (cosine under {UNRELATED:g} where the "
+                       "model's torque is not small): " + ", ".join(
+                           f"{j} ({self.per_joint[j]['cosine']:.2f})" for j in self.unrelated)
+                       + ": channels that measure nothing, or another joint's? The fit reads them as measured")
+        return out
 
     def as_dict(self) -> dict:
         first = self.findings[0] if self.findings else {}
@@ -206,7 +218,8 @@ class Start:
                               f"cosine is at least {SHAPED:g} in magnitude",
                 "factor": finite_or_null(self.factor), "outliers": self.outliers, "per_joint": self.per_joint,
                 "findings": len(self.findings), "findings_joint": first.get("joint", ""),
-                "findings_likely": first.get("likely", ""), "list": self.findings, "said": self.said()}
+                "findings_likely": first.get("likely", ""), "list": self.findings, "said": self.said(),
+                "unrelated_channels": list(self.unrelated)}
 
 
 def robust_fit(m: np.ndarray, y: np.ndarray) -> tuple[float, float, int]:
@@ -284,5 +297,9 @@ def start(model: np.ndarray, log: np.ndarray, joints: list[str], weightless: np.
             findings.append({"joint": j, "finding": f"factor {s:.3g}", "likely": COUNTERBALANCED})
         elif np.isfinite(s) and abs(cosine) >= SHAPED and _off(s) and (s < 0 or not findings):
             findings.append({"joint": j, "finding": f"factor {s:.3g} (cosine {cosine:.2f})", "likely": _likely(s)})
-    return Start(overall, per_joint, findings, left_out)
+    rms = np.sqrt(np.mean(model**2, axis=0))
+    unrelated = tuple(j for k, j in enumerate(joints) if rms[k] >= SIZED * rms.max()
+                      and np.isfinite(per_joint[j]["cosine"] if per_joint[j]["cosine"] is not None else np.nan)
+                      and abs(per_joint[j]["cosine"]) < UNRELATED)
+    return Start(overall, per_joint, findings, left_out, unrelated)
 

@@ -17,6 +17,7 @@ from harness.sources.log.segments import GAP_FACTOR, GAP_SPLIT, split_step
 from harness.sources.log.units import check_positions, check_velocities
 
 MAX_UPSAMPLING = 100.0  # a grid this many times finer than the log's own median step is not resampling
+DEAD_SHARE = 0.5  # a torque channel reading exactly 0 on this share of the rows measures nothing there
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,5 +97,12 @@ def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Ch
         warnings.append("positions beyond the model's joint limits: "
                         + ", ".join(f"{k} {v} rows" for k, v in beyond.items()))
     steps[0]["beyond_joint_limits"] = beyond
+    zero = {name: float(np.mean(kept.tau[:, j] == 0.0)) for j, name in enumerate(kept.joints)}
+    dead = [name for name, share in zero.items() if share >= DEAD_SHARE]
+    steps[0]["torque_zero_share"], steps[0]["torque_channels_zero"] = zero, dead
+    if dead:
+        warnings.append("torque channels that read exactly 0 on most rows (a channel that measures nothing, or a "
+                        "joint held by its brake?): " + ", ".join(f"{name} {100 * zero[name]:.0f} %" for name in dead)
+                        + "; the fit reads them as measured")
     return Checked(kept, steps[0], warnings, median)
 
