@@ -459,3 +459,29 @@ def test_a_law_and_a_joints_friction_values_meet_in_one_place():
     assert {k: v for k, v in shaped.as_dict().items() if "velocity" not in k} == \
         {k: v for k, v in f.as_dict().items() if "velocity" not in k}
     assert law.at_velocities_of(f) == Law("stribeck", 0.01, 0.2)
+
+
+def test_a_smoothing_velocity_the_data_cannot_tell_is_the_middle_of_its_flat_range_not_the_grids_edge():
+    """friction_law._search on a held-out error flat to 1e-6 over v_c from 1e-3 to 0.1 (its smallest value
+    at 1e-3, the range's edge, as a log's folds give within their round-off) and rising outside: the middle
+    in log v, 0.01, is taken and the range said; on an error with a clear minimum at 0.0371 (between grid
+    points) that minimum is found to the search's tolerance, and nothing is said."""
+    from harness.identify import friction_law as fl
+
+    def flat(law) -> float:
+        v = law.coulomb_velocity
+        return 1.0 + (1e-6 * np.log10(v / 1e-3) if 1e-3 <= v <= 0.1 else abs(np.log10(max(v, 1e-9) / 0.01)))
+
+    undecided: list = []
+    law, _ = fl._search(flat, fl.Law("viscous_coulomb"), "coulomb_velocity", fl._grid(None), undecided=undecided)
+    grid = fl.VELOCITY_GRID
+    inside = grid[(grid >= 1e-3 * (1 - 1e-12)) & (grid <= 0.1 * (1 + 1e-12))]
+    assert undecided == [(inside.min(), inside.max())]
+    assert law.coulomb_velocity == pytest.approx(np.sqrt(inside.min() * inside.max()), rel=1e-12)
+
+    def sharp(law) -> float:
+        return 1.0 + (np.log(max(law.coulomb_velocity, 1e-9) / 0.0371)) ** 2
+
+    undecided = []
+    law, _ = fl._search(sharp, fl.Law("viscous_coulomb"), "coulomb_velocity", fl._grid(None), undecided=undecided)
+    assert undecided == [] and law.coulomb_velocity == pytest.approx(0.0371, rel=1e-3)

@@ -45,6 +45,8 @@ from harness.model.drives import Transmission
 from harness.model.friction import EXTRA_KEYS, FAMILIES, JointFriction
 
 VELOCITY_GRID = np.geomspace(1e-4, 1.0, 17)  # rad/s or m/s: v_c tried, and 0 (a sharp sign)
+FLAT = 1e-4  # held-out errors within this (relative) of the best are the same to the data
+UNDECIDED = 4  # that many velocities of a grid (three of its steps, a factor 10 on VELOCITY_GRID) as good: undecided
 STRIBECK_GRID = np.geomspace(1e-3, 2.0, 12)  # v_s tried
 PASSES = 2
 REFINE_TOL = 1e-3  # in log v: a velocity to 0.1 %
@@ -422,12 +424,16 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
                 place(j, law)
                 return relative_residual_of_sums(normal.held_out_sse().sum(), total)
 
-            found = _families(score, laws[j], first, config.families, columns_of.v_s_floor[j])
+            undecided: list = []
+            found = _families(score, laws[j], first, config.families, columns_of.v_s_floor[j], undecided)
             chosen = _simplest(found, normal, place, j, total)
             laws[j] = found[chosen][0]
+            flat = scores[j].get("coulomb_velocity_undecided") if not first else None
             scores[j] = {f: {"held_out_rel_error": e, "coulomb_velocity": law.coulomb_velocity,
                              **({"stribeck_velocity": law.stribeck_velocity} if f == "stribeck" else {})}
                          for f, (law, e) in found.items()}
+            if (undecided and first) or flat:  # the whole grid's range, found on the first pass
+                scores[j]["coulomb_velocity_undecided"] = list(undecided[0]) if first else flat
             if declared[j] > 0:  # the model's own v_c stands unless the data's beats it clearly
                 laws[j], scores[j]["declared"] = _declared(laws[j], found[chosen][1], declared[j], score, normal,
                                                            place, j, total)
@@ -476,12 +482,14 @@ class _LawColumns:
         return np.column_stack([self.qd[:, j], self.term(j, law, "coulomb"), *extra])
 
 
-def _families(score, last: Law, first: bool, families: tuple[str, ...], v_s_floor: float) -> dict:
+def _families(score, last: Law, first: bool, families: tuple[str, ...], v_s_floor: float,
+              undecided: list | None = None) -> dict:
     """One joint's search: {family: (its best law, its held-out error)}, v_c of the plain law over the
     whole grid (`first`) or around `last`, the joint's law so far; each richer family around that v_c;
-    Stribeck's v_s over its grid (or around its last choice), no lower than `v_s_floor`, then v_c."""
+    Stribeck's v_s over its grid (or around its last choice), no lower than `v_s_floor`, then v_c. The
+    plain law's v_c range the data cannot tell apart, where they cannot (`_search`), into `undecided`."""
     found = {"viscous_coulomb": _search(score, Law("viscous_coulomb"), "coulomb_velocity",
-                                        _grid(None if first else last.coulomb_velocity))}
+                                        _grid(None if first else last.coulomb_velocity), undecided=undecided)}
     v_c = found["viscous_coulomb"][0].coulomb_velocity  # the richer families searched around it
     stribeck_grid = STRIBECK_GRID[STRIBECK_GRID >= v_s_floor]
     for family in (f for f in FAMILIES if f in families and f != "viscous_coulomb"):
@@ -562,14 +570,24 @@ def _around(v: float, grid: np.ndarray, steps: int) -> np.ndarray:
     return v * (grid[1] / grid[0]) ** np.arange(-steps, steps + 1.0)
 
 
-def _search(score, law: Law, key: str, grid: np.ndarray, floor: float = 0.0) -> tuple[Law, float]:
+def _search(score, law: Law, key: str, grid: np.ndarray, floor: float = 0.0,
+            undecided: list | None = None) -> tuple[Law, float]:
     """The best velocity `key` (coulomb_velocity or stribeck_velocity) for `law` over `grid`, then,
     where the best is not a sharp sign, refined between its neighbours in log v by a bounded scalar
     search (Brent's, to REFINE_TOL): on a log that the law fits closely the held-out error is sharp
-    at its minimum, and a parabola through three grid points misses it."""
+    at its minimum, and a parabola through three grid points misses it. Where the held-out errors are
+    flat (UNDECIDED or more of the grid's velocities within FLAT of the best), the data cannot tell the
+    velocity: the middle in log v of those velocities is taken, not the grid's edge the smallest error
+    happens to sit at, and their range appended to `undecided`."""
     values = [score(replace(law, **{key: float(v)})) for v in grid]
     i = int(np.argmin(values))
     best_v, best = float(grid[i]), values[i]
+    near = [float(v) for v, e in zip(grid, values, strict=True) if v > 0 and e <= best * (1.0 + FLAT)]
+    if len(near) >= UNDECIDED:
+        middle = float(np.sqrt(min(near) * max(near)))
+        if undecided is not None:
+            undecided.append((min(near), max(near)))
+        return replace(law, **{key: middle}), score(replace(law, **{key: middle}))
     if best_v > 0:
         lo = grid[i - 1] if i > 0 and grid[i - 1] > 0 else max(best_v / 2, floor) if floor < best_v else best_v
         hi = grid[i + 1] if i < len(grid) - 1 else best_v * 2
