@@ -136,11 +136,11 @@ def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, fr
     friction_model (n, 4) and extra_model (e,): the model's own values; scale: (14 n + e,) the
     magnitude of each parameter's kind in the model. The families' terms are held physical: an
     asymmetry no larger than its coefficient (so that both directions' coefficients stay
-    non-negative), Stribeck and load terms non-negative. Each link's mass is held within MASS_BAND
+    non-negative), Stribeck and load terms non-negative. Each link's mass stays within MASS_BAND
     times its model's: what the data cannot see stays near the model rather than at whatever the
-    margin allows. Where a mass ends on the band's edge, the fit is made again free of the band and
-    taken where it explains the training torques DEMAND better (the data demand that mass:
-    `beyond_band`), else the band's kept (`held_at_band`)."""
+    margin allows. Where the fit puts a mass beyond the band, it is made again with the band and the
+    fit free of it kept only where it explains the training torques DEMAND better (the data demand
+    that mass: `beyond_band`), else the band's taken (`held_at_band`)."""
     n = len(theta_model)
     extra_model = np.zeros(len(extra)) if extra_model is None else extra_model
     x0 = np.concatenate([theta_model.ravel(), friction_model.ravel(), extra_model])
@@ -173,6 +173,11 @@ def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, fr
         else:
             constraints.append(e >= 0)
     massive = [i for i in range(n) if theta_model[i, 0] > 0]
+    free = _solved(cp.Problem(cp.Minimize(objective), constraints), z, W, tau, col, R, b, r0, x0, scale, eps, n, extra)
+    ratio = free[0][10 * np.arange(n)] / np.where(theta_model[:, 0] > 0, theta_model[:, 0], np.inf)
+    beyond = tuple(i for i in massive if not MASS_BAND[0] <= ratio[i] <= MASS_BAND[1])
+    if not beyond:
+        return _result(free, n, eps)
     lo, hi = (np.array([MASS_BAND[k] * theta_model[i, 0] for i in massive]) for k in (0, 1))
     band = [c for k, i in enumerate(massive) for c in (x[10 * i] >= lo[k], x[10 * i] <= hi[k])]
     # the band's fit may explain the torques far worse than the least squares (data that demand a mass
@@ -182,16 +187,11 @@ def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, fr
     objective_band = cp.sum_squares(R @ z - b) / r0_band + PULL * pull
     bounded = _solved(cp.Problem(cp.Minimize(objective_band), constraints + band), z, W, tau, col, R, b, r0_band,
                       x0, scale, eps, n, extra, (massive, lo, hi))
+    if free[1] < (1.0 - DEMAND) * bounded[1]:  # the data demand the masses the band would hold
+        return dataclasses.replace(_result(free, n, eps), beyond_band=beyond, free_residual=free[1])
     ratio = bounded[0][10 * np.arange(n)] / np.where(theta_model[:, 0] > 0, theta_model[:, 0], np.inf)
     held = tuple(i for i in massive
                  if ratio[i] <= MASS_BAND[0] * (1 + AT_BAND) or ratio[i] >= MASS_BAND[1] * (1 - AT_BAND))
-    if not held:
-        return _result(bounded, n, eps)
-    free = _solved(cp.Problem(cp.Minimize(objective), constraints), z, W, tau, col, R, b, r0, x0, scale, eps, n, extra)
-    if free[1] < (1.0 - DEMAND) * bounded[1]:  # the data demand the masses the band would hold
-        ratio = free[0][10 * np.arange(n)] / np.where(theta_model[:, 0] > 0, theta_model[:, 0], np.inf)
-        beyond = tuple(i for i in massive if not MASS_BAND[0] <= ratio[i] <= MASS_BAND[1])
-        return dataclasses.replace(_result(free, n, eps), beyond_band=beyond, free_residual=free[1])
     return dataclasses.replace(_result(bounded, n, eps), held_at_band=held, free_residual=free[1])
 
 
@@ -211,7 +211,8 @@ def _band_floor(R: np.ndarray, b: np.ndarray, col: np.ndarray, norm_tau: float, 
     where = 10 * np.asarray(massive, dtype=int)
     lower[where], upper[where] = lo * col[where], hi * col[where]
     z = lsq_linear(R, b, bounds=(lower, upper)).x
-    return max(float(np.linalg.norm(R @ z - b) ** 2 + norm_tau**2 - float(b @ b)), r0)
+    bounded = float(np.linalg.norm(R @ z - b) ** 2 + norm_tau**2 - float(b @ b))
+    return bounded if bounded > (1.0 + DEMAND) * r0 else r0  # the band that binds the least squares rescales
 
 
 def _solved(problem: cp.Problem, z: cp.Variable, W, tau: np.ndarray, col: np.ndarray, R: np.ndarray, b: np.ndarray,

@@ -123,6 +123,7 @@ class FrictionChoice:
     folds: int
     tau_rigid: np.ndarray  # (N, n) the rigid-body torque of the chosen law's fit on the whole training span
     guard_s: float = 0.0  # the rows within this of a fold are left out of the fit that predicts it
+    undecided: tuple = ()  # per joint, the plain law's v_c range the data cannot tell apart ((lo, hi) or None)
 
     def frictions(self, model: tuple[JointFriction, ...]) -> tuple[JointFriction, ...]:
         """The model's friction values with the chosen velocities (the coefficients are the fit's to find)."""
@@ -415,6 +416,7 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
         place(j, laws[j])
     model_error = relative_residual_of_sums(normal.held_out_sse().sum(), total)
     scores: list[dict] = [{} for _ in range(n)]
+    flat: list = [None] * n
     for sweep in range(PASSES):
         first = sweep == 0  # the first pass searches v_c over the whole grid; the next, around its choice
         for j in np.flatnonzero(moving):
@@ -428,12 +430,11 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
             found = _families(score, laws[j], first, config.families, columns_of.v_s_floor[j], undecided)
             chosen = _simplest(found, normal, place, j, total)
             laws[j] = found[chosen][0]
-            flat = scores[j].get("coulomb_velocity_undecided") if not first else None
+            if first and undecided:  # the whole grid's range, found on the first pass
+                flat[j] = undecided[0]
             scores[j] = {f: {"held_out_rel_error": e, "coulomb_velocity": law.coulomb_velocity,
                              **({"stribeck_velocity": law.stribeck_velocity} if f == "stribeck" else {})}
                          for f, (law, e) in found.items()}
-            if (undecided and first) or flat:  # the whole grid's range, found on the first pass
-                scores[j]["coulomb_velocity_undecided"] = list(undecided[0]) if first else flat
             if declared[j] > 0:  # the model's own v_c stands unless the data's beats it clearly
                 laws[j], scores[j]["declared"] = _declared(laws[j], found[chosen][1], declared[j], score, normal,
                                                            place, j, total)
@@ -442,7 +443,7 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     tau_rigid = np.empty_like(tau)
     tau_rigid[order] = normal.rigid_torque()
     return FrictionChoice(tuple(laws), tuple(scores), model_error, chosen_error, config.folds, tau_rigid,
-                          folds.guard * step)
+                          folds.guard * step, tuple(flat))
 
 
 class _LawColumns:

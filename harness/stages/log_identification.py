@@ -254,12 +254,11 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
             note = f"friction law not chosen, the model's kept: {exc}"
     laws = choice.laws if choice is not None else tuple(Law.of(f) for f in robot.frictions)
     if choice is not None:  # what the data could not tell, said with its range
-        undecided = [(j, s["coulomb_velocity_undecided"], law) for j, s, law in zip(joints, choice.scores, laws,
-                                                                                   strict=True)
-                     if "coulomb_velocity_undecided" in s]
-        note = ("the held-out error is flat in the Coulomb smoothing velocity (the data cannot tell it; rad/s or "
-                "m/s): " + ", ".join(f"{j} from {lo:.3g} to {hi:.3g}, {law.coulomb_velocity:.3g} taken (its middle, "
-                                     "or the model's own)" for j, (lo, hi), law in undecided)) if undecided else None
+        undecided = [(j, flat, law) for j, flat, law in zip(joints, choice.undecided, laws, strict=True) if flat]
+        note = ("the held-out error of viscous and Coulomb friction is flat in the smoothing velocity (the data "
+                "cannot tell it; rad/s or m/s): " + ", ".join(
+                    f"{j} from {lo:.3g} to {hi:.3g} (the law chosen: {law.family}, v_c {law.coulomb_velocity:.3g})"
+                    for j, (lo, hi), law in undecided)) if undecided else None
     return LawChoice(laws, choice, note)
 
 

@@ -128,9 +128,10 @@ def _consistent_section(li, ctx) -> dict:
         "training_rel_residual": fit.relative_residual,
         "inconsistent_links": sum(not v["consistent"] for v in links.values()),
         "mass_band": {"definition": f"each link's mass held within {consistent.MASS_BAND[0]:g} to "
-                                    f"{consistent.MASS_BAND[1]:g} times its model's; where one ends on the band's "
-                                    "edge the fit is made again free of it and taken where its training residual is "
-                                    f"{consistent.DEMAND:g} (relative) lower: the data demand that mass",
+                                    f"{consistent.MASS_BAND[1]:g} times its model's: where the fit puts one beyond, "
+                                    "it is made again with the band, and the fit free of it kept only where its "
+                                    f"training residual is {consistent.DEMAND:g} (relative) lower: the data demand "
+                                    "that mass",
                       "band": list(consistent.MASS_BAND), "held_at_band": [li.joints[k] for k in fit.held_at_band],
                       "beyond_band": [li.joints[k] for k in fit.beyond_band],
                       "training_rel_residual_free_of_band": fit.free_residual},
@@ -190,6 +191,12 @@ def _law_section(li) -> dict:
         "guard_s": c.guard_s,
         "held_out_rel_error": {"model's law": c.model_error, "chosen": c.chosen_error},
         "per_joint": {j: c.scores[k] for k, j in enumerate(li.drives)},
+        **({"coulomb_velocity_undecided": {
+            "definition": f"the plain law's v_c range over which the held-out errors lie within "
+                          f"{friction_law.FLAT:g} of the best, where it spans {friction_law.UNDECIDED} or more of the "
+                          "grid's velocities: the data cannot tell them, and the range's middle (log v) is taken",
+            **{j: list(r) for j, r in zip(li.drives, c.undecided, strict=True) if r}}}
+           if any(getattr(c, "undecided", ()) or ()) else {}),
     }
     return out
 
