@@ -68,3 +68,13 @@ def test_velocities_used_as_logged_or_absent_are_left_as_they_are(choice):
         assert record["late_joints"] == ["a"] and not record["realigned"] and "used as logged" in said
     else:
         assert record is None and said is None
+
+
+def test_a_column_stamped_early_is_realigned_the_other_way_and_the_rows_at_the_start_dropped():
+    log = _log()
+    early = dataclasses.replace(log, qd=np.stack([_qd(T + 0.0523), log.qd[:, 1], log.qd[:, 2]], axis=1))
+    out, record, _ = judged(early, early, list(log.joints))
+    assert record["per_joint"]["a"]["lag_s"] == pytest.approx(-0.0523, abs=1e-6)
+    kept = T - 0.0523 >= T[0] - 1e-9
+    assert record["rows_dropped"] == int(np.sum(~kept)) and np.array_equal(out.t, T[kept])
+    assert np.abs(out.qd[:, 0] - _qd(out.t)).max() < 2e-4 * np.abs(_qd(T)).max()

@@ -1,0 +1,57 @@
+"""Torque channels that measure nothing, found where a lab's log has them (harness/sources/log/checks.py,
+harness/stages/log_judge.py): a channel reading exactly 0 on most rows, said by the checks; a channel
+that does not follow the model's torque, said by the start check; neither refused nor hidden."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from harness.model.load import load_spec
+from harness.sources.log.checks import DEAD_SHARE, check
+from harness.sources.log.raw import RawLog
+from harness.stages.log_judge import SIZED, UNRELATED, start
+from tests.conftest import SCENARIOS
+
+ROWS = 2000
+
+
+def _motion(rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t = np.arange(ROWS) * 0.005
+    q = 0.5 * np.sin(np.outer(t, [0.7, 1.1, 1.3, 1.7, 1.9, 2.3]) + np.arange(6))
+    tau = 10.0 * np.cos(np.outer(t, [0.9, 1.2, 1.4, 1.6, 2.0, 2.2])) + 0.1 * rng.standard_normal((ROWS, 6))
+    return t, q, tau
+
+
+def test_a_channel_that_reads_zero_on_most_rows_is_counted_and_said():
+    """The wrist 3's channel 0 on 90 % of its rows (as a mobile manipulator's wrist channels are), the
+    elbow's on 40 %: the first named with its share in one line, every channel's share kept."""
+    robot = load_spec(SCENARIOS.parent / "models" / "ur5.toml")
+    rng = np.random.default_rng(3)
+    t, q, tau = _motion(rng)
+    tau[rng.random(ROWS) < 0.9, 5] = 0.0
+    tau[rng.random(ROWS) < 0.4, 2] = 0.0
+    checked = check(RawLog(t, tuple(robot.joint_names), q, None, tau, Path("log.csv")), robot)
+    share = checked.record["torque_zero_share"]
+    assert checked.record["torque_channels_zero"] == ["wrist_3_joint"]
+    assert share["wrist_3_joint"] >= DEAD_SHARE > share["elbow_joint"] > 0.3
+    said = [w for w in checked.warnings if "read exactly 0 on most rows" in w]
+    assert len(said) == 1 and f"wrist_3_joint {100 * share['wrist_3_joint']:.0f} %" in said[0]
+
+
+def test_a_channel_that_does_not_follow_the_models_torque_is_said_by_the_start_check():
+    """The log's elbow channel white noise of its RMS (cosine with the model's torque about 0), a joint the
+    model hardly loads (1e-3 of the largest RMS) with an unrelated channel too: the elbow alone named,
+    under UNRELATED; the other says nothing under SIZED of the largest torque."""
+    rng = np.random.default_rng(4)
+    _, _, model = _motion(rng)
+    model[:, 4] *= 1e-4
+    log = model * 1.02
+    log[:, 2] = np.sqrt(np.mean(model[:, 2] ** 2)) * rng.standard_normal(ROWS)
+    log[:, 4] = rng.standard_normal(ROWS)
+    joints = [f"j{k}" for k in range(6)]
+    found = start(model, log, joints)
+    assert found.unrelated == ("j2",) and abs(found.per_joint["j2"]["cosine"]) < UNRELATED
+    assert np.sqrt(np.mean(model[:, 4] ** 2)) < SIZED * np.sqrt(np.mean(model**2, axis=0)).max()
+    assert any("do not follow the model's torque" in line and "j2 (" in line for line in found.said())
