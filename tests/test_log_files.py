@@ -161,3 +161,44 @@ def test_a_plotjuggler_export_is_read_as_written(tmp_path):
     for kind in ("q", "qd", "tau"):
         assert np.array_equal(getattr(series, kind), getattr(one, kind)), kind
     assert np.allclose(series.t - 1.7e9, one.t, rtol=0.0, atol=5e-7)
+
+
+ROSTOPIC = ('{ t = "%time", names = "field.name{index}", q = "field.position{index}", qd = "field.velocity{index}", '
+            'tau = "field.effort{index}" }')
+ORDER = (3, 0, 5, 1, 4, 2)  # the messages' joint order: the model's joint ORDER[k] at place k
+
+
+def _rostopic(folder, log: pd.DataFrame, names=None) -> None:
+    """The log as `rostopic echo -p /joint_states` writes it: %time in integer nanoseconds since the epoch,
+    the header's fields, then each message's joint names and values in its own order (ORDER)."""
+    names = names if names is not None else [[NAMES[j] for j in ORDER]] * len(log)
+    frame = {"%time": (1_700_000_000_000_000_000 + np.round(log["t"].to_numpy() * 1e9)).astype(np.int64),
+             "field.header.seq": np.arange(len(log)), "field.header.frame_id": ""}
+    frame |= {f"field.name{k}": [row[k] for row in names] for k in range(6)}
+    for field, prefix in (("position", "q"), ("velocity", "qd"), ("effort", "tau")):
+        frame |= {f"field.{field}{k}": log[f"{prefix}{j + 1}"].to_numpy() for k, j in enumerate(ORDER)}
+    pd.DataFrame(frame).to_csv(folder / "joint_states.csv", index=False, float_format="%.17g")
+
+
+def test_a_ros_joint_states_export_is_read_as_written_whatever_its_joint_order(tmp_path):
+    """Its names read from its own columns and each model joint found among them: q, q', tau the one-file
+    log's to the bit, t in seconds from its nanoseconds (to the float's 2.4e-7 s at 1.7e9 s)."""
+    log = _log()
+    _rostopic(tmp_path, log)
+    series = read.read_raw(*_data(_scenario(tmp_path, '"joint_states.csv"', ROSTOPIC, 'units = { t = "ns" }\n')))
+    one = _single(tmp_path, log)
+    for kind in ("q", "qd", "tau"):
+        assert np.array_equal(getattr(series, kind), getattr(one, kind)), kind
+    assert np.allclose(series.t - 1.7e9, one.t, rtol=0.0, atol=5e-7)
+
+
+@pytest.mark.parametrize(("names", "said"), [
+    (lambda rows: rows[:40] + [list(reversed(rows[40]))] + rows[41:], "row 42 names its joints"),
+    (lambda rows: [["other_joint", *row[1:]] for row in rows], "no message names joint 'wrist_1_joint'"),
+])
+def test_a_joint_states_export_whose_names_change_or_miss_a_joint_is_refused_naming_the_row(tmp_path, names, said):
+    log = _log()
+    _rostopic(tmp_path, log, names([[NAMES[j] for j in ORDER] for _ in range(len(log))]))
+    with pytest.raises(InputError) as caught:
+        _scenario(tmp_path, '"joint_states.csv"', ROSTOPIC, 'units = { t = "ns" }\n')
+    assert said in str(caught.value) and caught.value.key == "field.name0", str(caught.value)

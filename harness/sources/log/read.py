@@ -98,9 +98,11 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
     if source.joined:
         _holders(source, robot, {p: _header(p, _first_line(p)) for p in source.files})
         return
+    from harness.sources.log.indexed import resolved
+
     for path in (source.file, source.torque_file, source.validation_file, source.payload and source.payload.file):
-        if path is not None:
-            _check_header(path, _header(path, _first_line(path)), source, robot)
+        if path is not None:  # a log whose messages name their joints: the columns of its own order
+            _check_header(path, _header(path, _first_line(path)), resolved(source, robot, path), robot)
 
 
 def _holders(source: DataSource, robot: RobotSpec, headers: dict[Path, list[str]]) -> dict[str, Path]:
@@ -161,6 +163,9 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
         series = raw_log(path, digest(path), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names),
                          record, {"t": [f"{source.topic}: header.stamp"], **dict.fromkeys(kinds, names)})
         return _windowed(source, series)
+    from harness.sources.log.indexed import resolved
+
+    source = resolved(source, robot, path)  # a log whose messages name their joints: its own order's columns
     names = column_names(source, robot)
     if source.joined and file is None:
         files, digest, columns, where, notes, joined = _joined_files(source, robot, names)

@@ -126,6 +126,8 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
         columns = _columns(ct, joints)
         if joined and "t" not in columns:
             raise ct.error("t", "missing: a log in several files joins them on each file's time column")
+        if "names" in columns and (joined or t.has("torque_file")):
+            raise ct.error("names", "a log whose messages name their joints is read from one file")
     torque_file, sample_rate, side, window = _layout(t, ct, scenario_file, topic)
     units, units_given = dict(SI), t.has("units")
     if units_given:
@@ -267,12 +269,21 @@ def _layout(t: Table, ct: Table | None, scenario_file: Path, topic: str | None
 
 def _columns(ct: Table, joints: int | None) -> dict[str, str | tuple[str, ...]]:
     """`columns`: t (where the log has a time column), q, qd (optional) and tau, each a template with
-    {j} or {name}, or a list of column names in the model's joint order."""
+    {j} or {name}, or a list of column names in the model's joint order; or, with `names` (a template
+    with {index}: the columns that name each message's joints, as a ROS joint_states export writes
+    `field.name0`, `field.name1`, ...), templates with {index}, the place of a joint's name among them
+    (harness/sources/log/indexed.py)."""
     columns: dict[str, str | tuple[str, ...]] = {"t": ct.string("t")} if ct.has("t") else {}
+    indexed = ct.has("names")
+    if indexed:
+        columns["names"] = ct.string("names")
+        if "{index}" not in columns["names"]:
+            raise ct.error("names", f"{columns['names']!r}: the columns of the joints' names need {{index}}")
+    fields = "{index}" if indexed else "{j} or {name}"
     for k in ("q", "qd", "tau"):
         if k == "qd" and not ct.has("qd"):
             continue
-        if isinstance(ct.data.get(k), list):
+        if isinstance(ct.data.get(k), list) and not indexed:
             names = ct.strings(k, choices=None)
             if joints is not None and len(names) != joints:
                 raise ct.error(k, f"{len(names)} columns for a model of {joints} joints (one per joint, in the "
@@ -280,13 +291,16 @@ def _columns(ct: Table, joints: int | None) -> dict[str, str | tuple[str, ...]]:
             columns[k] = names
             continue
         v = ct.string(k)
-        if "{j}" not in v and "{name}" not in v:
+        if indexed and "{index}" not in v:
+            raise ct.error(k, f"with names, a per-joint column needs {{index}} (the joint's place among the names), "
+                              f"got {v!r}")
+        if not indexed and "{j}" not in v and "{name}" not in v:
             raise ct.error(k, f"a per-joint column needs {{j}} (1..n in the model's joint order) or {{name}} (the "
                               f"joint's name), or a list of the columns in joint order, got {v!r}")
         try:
-            v.format(j=1, name="joint")
+            v.format(index=0) if indexed else v.format(j=1, name="joint")
         except (KeyError, IndexError, ValueError):
-            raise ct.error(k, f"{v!r}: only {{j}} and {{name}} may stand in braces") from None
+            raise ct.error(k, f"{v!r}: only {fields} may stand in braces") from None
         columns[k] = v
     ct.finish()
     return columns
@@ -313,7 +327,10 @@ def _file(t: Table, key: str, scenario_file: Path, bag: bool = False) -> Path:
 
 def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
     """The log's column of each quantity and joint: {j} is 1..n in the model's joint order, {name}
-    the joint's name in the log (`joint_map`)."""
+    the joint's name in the log (`joint_map`); a log whose messages name their joints (`names`) once its
+    {index} templates are made lists (harness/sources/log/indexed.py)."""
+    if "names" in source.columns:
+        raise ValueError("a log whose messages name their joints is read through sources.log.indexed.resolved")
     return {k: [v] if k == "t" else list(v) if isinstance(v, tuple) else
             [v.format(j=j + 1, name=name) for j, name in enumerate(source.log_names(robot.joint_names))]
             for k, v in source.columns.items()}

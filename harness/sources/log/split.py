@@ -15,6 +15,7 @@ from harness.model.spec import RobotSpec
 from harness.sources.log import defaults
 from harness.sources.log.checks import check
 from harness.sources.log.condition import ConditionedLog, TrainingSpan, condition, conditioned
+from harness.sources.log.indexed import resolved
 from harness.sources.log.read import read_raw
 from harness.sources.log.schema import DataSource
 from harness.sources.log.segments import segment_record, segments, split_step
@@ -52,6 +53,8 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     and trimmed on its own (on the whole file's grid rate), so that no filter or difference reaches
     across a gap or the split (the trim at both ends of each stretch is the guard band). A validation
     file is conditioned whole, on its own."""
+    given = source  # a validation file's columns resolved from the scenario's own (its messages' order)
+    source = resolved(source, robot, source.file)
     checked = check(read_raw(source, robot), robot, source)  # the rows read let go of: `kept` holds what is used
     kept, rate = checked.kept, checked.rate(source)
     t_split = None if source.validation_from is None else \
@@ -78,7 +81,8 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
         log.meta["warnings"] = log.meta["warnings"] + notes
         val = None
         if source.validation_file is not None:
-            val = condition(read_raw(source, robot, source.validation_file), source, robot)
+            of_file = resolved(given, robot, source.validation_file)
+            val = condition(read_raw(of_file, robot, source.validation_file), of_file, robot)
         return Split(TrainingSpan.of(log), val, None, dataclasses.replace(log, full_rate=None), source)
     before = kept.t < t_split
     if before.sum() < MIN_SPAN_ROWS or (~before).sum() < MIN_SPAN_ROWS:
@@ -110,4 +114,5 @@ def load_payload(source: DataSource, robot: RobotSpec) -> ConditionedLog | None:
     """The known-payload log (`[data.payload]`), conditioned as a validation file is, or None."""
     if source.payload is None:
         return None
+    source = resolved(source, robot, source.payload.file)
     return condition(read_raw(source, robot, source.payload.file), source, robot)
