@@ -9,7 +9,9 @@ model's joint order and `{name}` for a joint's name, or a list of column names i
     [data]
     file = "log.csv"                      # relative to the scenario file; or a list of files, each with
                                           # its own time column, joined on time (join.py)
-    columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }   # qd may be left out
+    columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }   # qd may be left out; or a ROS
+                                          # joint_states export's: names = "field.name{index}",
+                                          # q = "field.position{index}", ... (indexed.py)
     units = { q = "rad", qd = "rad/s", tau = "N m" }   # or "deg", "deg/s", "current" (default SI, said so);
                                           # t = "s" (default), "ms", "us" or "ns"
     torque_constant = [0.11, ...]         # N m/A per joint (motor side, signed), with tau = "current"
