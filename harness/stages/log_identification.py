@@ -476,7 +476,9 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     # findings head the terminal and the report)
     q, qd, qdd, _ = model.data(scaled.training)
     given = model.torques(model.pm, q, qd, qdd)  # the model as given on the training span, judged again below
-    weightless = model.torques(build_model(robot, np.zeros(3)), q, qd, qdd)  # a counterbalanced joint's reading
+    def weightless() -> np.ndarray:  # a counterbalanced joint's reading: made only where the start check reads it
+        return model.torques(build_model(robot, np.zeros(3)), q, qd, qdd)
+
     started = start(given, model.data(delayed.training)[3], model.torque_joints, weightless,
                     sc.data.counterbalanced)
     config = config or FrictionLawConfig()

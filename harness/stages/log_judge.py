@@ -260,38 +260,42 @@ def _off(s: float) -> bool:
     return s < 0 or not (1 / START_FACTOR <= s <= START_FACTOR)
 
 
-def start(model: np.ndarray, log: np.ndarray, joints: list[str], weightless: np.ndarray | None = None,
+def start(model: np.ndarray, log: np.ndarray, joints: list[str], weightless=None,
           counterbalanced: tuple[str, ...] = ()) -> Start:
     """`model` (N, n) the model as given's torques at the log's states, `log` (N, n) the torques as read;
-    `weightless` (N, n) the model's torques there without gravity, where known: a joint whose channel
-    is off the model's by a factor but matches them without gravity (factor within the band, their
-    cosine at least SHAPED) is a counterbalanced joint, its finding's likely cause (and the overall
-    factor judged with that joint's weightless torques); a joint of `counterbalanced` is judged against
-    its weightless torques from the start."""
+    `weightless`, where given, a function giving the model's torques there without gravity (N, n), called
+    only where they are read (a joint declared `counterbalanced`, or one off the model's by a factor): a
+    joint whose channel is off the model's by a factor but matches them without gravity (factor within
+    the band, their cosine at least SHAPED) is a counterbalanced joint, its finding's likely cause (and the
+    overall factor judged with that joint's weightless torques); a joint of `counterbalanced` is judged
+    against its weightless torques from the start."""
     model = model.copy()
-    for j in (j for j in counterbalanced if j in joints):  # of a closed chain, its actuated joints
-        model[:, joints.index(j)] = weightless[:, joints.index(j)]
+    declared = [joints.index(j) for j in counterbalanced if j in joints]  # of a closed chain, its actuated joints
+    without = weightless() if weightless is not None and declared else None
+    for k in declared:
+        model[:, k] = without[:, k]
+    fits = [robust_fit(model[:, k], log[:, k]) for k in range(len(joints))]
+    off = [k for k, (s, _, _) in enumerate(fits) if k not in declared and np.isfinite(s) and _off(s)]
     balanced = []
-    if weightless is not None:
-        for k, j in enumerate(joints):
-            s, cosine, _ = robust_fit(model[:, k], log[:, k])
-            s0, cosine0, _ = robust_fit(weightless[:, k], log[:, k])
-            if j not in counterbalanced and np.isfinite(s) and _off(s) and np.isfinite(s0) and not _off(s0) \
-                    and abs(cosine0) >= SHAPED:
+    if weightless is not None and off:
+        without = weightless() if without is None else without
+        for k in off:
+            s0, cosine0, _ = robust_fit(without[:, k], log[:, k])
+            if np.isfinite(s0) and not _off(s0) and abs(cosine0) >= SHAPED:
                 balanced.append(k)
     overall, _, left_out = robust_fit(model, log)
     findings, per_joint = [], {}
     if np.isfinite(overall) and _off(overall):
         cleared = model.copy()
-        cleared[:, balanced] = weightless[:, balanced] if balanced else cleared[:, balanced]
+        cleared[:, balanced] = without[:, balanced] if balanced else cleared[:, balanced]
         cause = (COUNTERBALANCED.replace("a counterbalanced joint", "a counterbalanced joint, "
                                          + ", ".join(joints[k] for k in balanced))
                  if balanced and not _off(robust_fit(cleared, log)[0]) else _likely(overall))
         findings.append({"joint": "all joints", "finding": f"factor {overall:.3g}", "likely": cause})
     for k, j in enumerate(joints):
-        s, cosine, outliers = robust_fit(model[:, k], log[:, k])
+        s, cosine, outliers = fits[k]
         per_joint[j] = {"factor": finite_or_null(s), "cosine": finite_or_null(cosine), "outliers": outliers,
-                        **({"counterbalanced": "declared"} if j in counterbalanced else
+                        **({"counterbalanced": "declared"} if k in declared else
                            {"counterbalanced": "likely"} if k in balanced else {})}
         if k in balanced and not findings:
             findings.append({"joint": j, "finding": f"factor {s:.3g}", "likely": COUNTERBALANCED})

@@ -97,7 +97,7 @@ def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Ch
         warnings.append("positions beyond the model's joint limits: "
                         + ", ".join(f"{k} {v} rows" for k, v in beyond.items()))
     steps[0]["beyond_joint_limits"] = beyond
-    zero = {name: float(np.mean(kept.tau[:, j] == 0.0)) for j, name in enumerate(kept.joints)}
+    zero = dict(zip(kept.joints, map(float, np.mean(kept.tau == 0.0, axis=0)), strict=True))
     dead = [name for name, share in zero.items() if share >= DEAD_SHARE]
     steps[0]["torque_zero_share"], steps[0]["torque_channels_zero"] = zero, dead
     if dead:

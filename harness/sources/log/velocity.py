@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 MAX_LAG = 0.5  # s: the lags searched, either way
-LAG_STEPS = 3.0  # median steps: a logged velocity further off the positions' rate than this is left out
+LAG_STEPS = 3.0  # median steps: a logged velocity further off the positions' rate than this is realigned
 TRACKING = 0.5  # the peak's correlation under which a joint's velocity and rate say nothing of a lag
 
 
@@ -59,7 +59,8 @@ def lags(t: np.ndarray, q: np.ndarray, qd: np.ndarray) -> VelocityLags:
     dt = np.diff(t)
     inner = (midpoints >= grid[K]) & (midpoints <= grid[len(grid) - 1 - K])  # every lag searched reaches them
     for j in range(n):  # joint by joint: a long log's grids are not made for all joints at once
-        rate = np.interp(grid, midpoints, np.diff(q[:, j]) / dt)[K:len(grid) - K]  # the central window
+        differences = np.diff(q[:, j]) / dt
+        rate = np.interp(grid, midpoints, differences)[K:len(grid) - K]  # the central window
         logged = np.interp(grid, t, qd[:, j])
         # w[k] = sum_i logged[i + k] rate[i] over the window moved by k - K, normalised by both norms there
         energy = np.concatenate([[0.0], np.cumsum(logged**2)])
@@ -69,7 +70,7 @@ def lags(t: np.ndarray, q: np.ndarray, qd: np.ndarray) -> VelocityLags:
             continue
         w = correlate(logged, rate, mode="valid", method="fft") / norm
         k = int(np.argmax(w))
-        lag[j], peak[j] = _refined(t, qd[:, j], midpoints[inner], (np.diff(q[:, j]) / dt)[inner], (k - K) * h, h), w[k]
+        lag[j], peak[j] = _refined(t, qd[:, j], midpoints[inner], differences[inner], (k - K) * h, h), w[k]
     return VelocityLags(lag, peak, peak >= TRACKING, h)
 
 
