@@ -55,3 +55,23 @@ def test_a_channel_that_does_not_follow_the_models_torque_is_said_by_the_start_c
     assert found.unrelated == ("j2",) and abs(found.per_joint["j2"]["cosine"]) < UNRELATED
     assert np.sqrt(np.mean(model[:, 4] ** 2)) < SIZED * np.sqrt(np.mean(model**2, axis=0)).max()
     assert any("do not follow the model's torque" in line and "j2 (" in line for line in found.said())
+
+
+def test_a_channel_off_by_a_factor_with_or_without_gravity_is_not_called_counterbalanced():
+    """Currents read as torques (every channel 0.02 of the model's, whose torques are partly gravity): the
+    start check reads them without gravity too, where they have the model's shape (cosine about 0.9) but
+    are still off by a factor, so the likely cause stays a reading's, not a counterbalanced joint; a
+    channel that matches a gravity-dominated model less its gravity (joint 1) is one, and only it."""
+    rng = np.random.default_rng(6)
+    _, _, motion = _motion(rng)
+    gravity = 3.0 + 0.5 * np.cos(np.linspace(0.0, 6.0, ROWS))[:, None] * np.ones((1, 6))
+    model = motion + gravity
+    joints = [f"j{k}" for k in range(6)]
+    read_wrongly = start(model, 0.02 * model, joints, lambda: motion)
+    assert read_wrongly.findings and all("counterbalanced" not in f["likely"] for f in read_wrongly.findings)
+    assert not any(v.get("counterbalanced") for v in read_wrongly.per_joint.values())
+    heavy = motion + 40.0  # gravity that dominates the model's torques
+    log = heavy.copy()
+    log[:, 1] = motion[:, 1]  # joint 1's gravity held by a spring
+    balanced = start(heavy, log, joints, lambda: motion)
+    assert [j for j, v in balanced.per_joint.items() if v.get("counterbalanced") == "likely"] == ["j1"]
