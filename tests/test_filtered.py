@@ -84,7 +84,7 @@ def test_the_law_search_with_a_filter_that_passes_everything_is_the_search_witho
     from harness.identify.friction_law import FrictionLawConfig, choose
     from harness.identify.torque_id import regressor
     from harness.sources.bench import record
-    from harness.stages.log_identification import log_model
+    from harness.stages.log_model import log_model
     from tests.conftest import SCENARIOS
 
     sc = load_scenario(SCENARIOS / "ur5_friction.toml")

@@ -124,8 +124,9 @@ def test_a_fit_takes_the_training_span_and_refuses_the_validation_span(arm_log):
     one. What the fit finds the judging applies to the validation span (log_judge.as_fitted): a delay
     found on the training rows moves the validation span's torques as it moved the training span's."""
     from harness.sources.log.condition import TrainingSpan
-    from harness.stages.log_identification import delays, log_model
+    from harness.stages.log_identification import delays
     from harness.stages.log_judge import as_fitted
+    from harness.stages.log_model import log_model
 
     sc = load_scenario(arm_log / "s.toml")
     split = load(sc.data, sc.robot)

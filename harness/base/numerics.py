@@ -217,3 +217,39 @@ def finite_or_null(x: float) -> float | None:
     """A number that may be meaningfully infinite or undefined (a condition number, the standard
     deviation of an undetermined parameter): null in the file, and not a fault of the run."""
     return float(x) if np.isfinite(x) else None
+
+
+@dataclass(frozen=True, eq=False)
+class Folds:
+    """Blocked cross-validation with a guard (`blocked_folds`): the folds, each predicted by a fit that
+    reads neither its rows nor those within `guard` rows of it."""
+
+    folds: list[slice]  # each fold's rows, in time order: what is predicted and scored
+    pieces: list[slice]  # the span cut into pieces, in order: each fold's first `guard` rows, its middle, its last
+    left_out: np.ndarray  # (K, P) 0/1: the pieces the fit that predicts fold k does not read
+    guard: int
+
+
+def blocked_folds(N: int, count: int, guard: int) -> Folds:
+    """range(N) cut into `count` consecutive folds (harness/base/numerics.py, consecutive_blocks), each
+    into its first `guard` rows, its middle and its last `guard` rows; fold k is predicted by the fit on
+    every piece but its own and its neighbours' `guard` rows next to it. A conditioned log's samples
+    within the conditioning's reach of each other share filter inputs (harness/sources/log/segments.py,
+    guard_band): without the guard, a fold's neighbours would carry part of it into its own fit."""
+    folds = consecutive_blocks(N, count)
+    if min(f.stop - f.start for f in folds) <= 2 * guard:
+        raise ValueError(f"{N} training samples: {count} parts of at most {min(f.stop - f.start for f in folds)} "
+                         f"cannot be held out with a guard of {guard} rows at each end")
+    pieces, owner = [], []
+    for k, f in enumerate(folds):
+        for a, b in ((f.start, f.start + guard), (f.start + guard, f.stop - guard), (f.stop - guard, f.stop)):
+            if b > a:
+                pieces.append(slice(a, b))
+                owner.append(k)
+    owner = np.array(owner)
+    left_out = np.zeros((count, len(pieces)))
+    for k in range(count):
+        for i, piece in enumerate(pieces):
+            nearest = min(abs(piece.start - folds[k].stop), abs(folds[k].start - piece.stop))
+            left_out[k, i] = owner[i] == k or nearest < guard
+    return Folds(folds, pieces, left_out, guard)

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.linalg.lapack import dpotrf, dpotrs
 from scipy.optimize import minimize, minimize_scalar
 
-from harness.base.numerics import consecutive_blocks, relative_residual_of_sums, sample_step
+from harness.base.numerics import Folds, blocked_folds, consecutive_blocks, relative_residual_of_sums, sample_step
 from harness.identify import filtered
 from harness.identify.torque_id import drive_column, links_weights
 from harness.model import drives, friction
@@ -172,42 +172,6 @@ def _columns(law: Law, qd: np.ndarray, tau_rigid: np.ndarray) -> np.ndarray:
     s = friction.coulomb_shape(qd[:, None], np.array([law.coulomb_velocity]))
     extra = friction.extra_columns((law.shapes,), qd[:, None], tau_rigid[:, None])[:, 0]
     return np.column_stack([qd, s[:, 0], *(extra[:, EXTRA_KEYS.index(k)] for k in law.terms)])
-
-
-@dataclass(frozen=True, eq=False)
-class Folds:
-    """Blocked cross-validation with a guard (`blocked_folds`): the folds, each predicted by a fit that
-    reads neither its rows nor those within `guard` rows of it."""
-
-    folds: list[slice]  # each fold's rows, in time order: what is predicted and scored
-    pieces: list[slice]  # the span cut into pieces, in order: each fold's first `guard` rows, its middle, its last
-    left_out: np.ndarray  # (K, P) 0/1: the pieces the fit that predicts fold k does not read
-    guard: int
-
-
-def blocked_folds(N: int, count: int, guard: int) -> Folds:
-    """range(N) cut into `count` consecutive folds (harness/base/numerics.py, consecutive_blocks), each
-    into its first `guard` rows, its middle and its last `guard` rows; fold k is predicted by the fit on
-    every piece but its own and its neighbours' `guard` rows next to it. A conditioned log's samples
-    within the conditioning's reach of each other share filter inputs (harness/sources/log/segments.py,
-    guard_band): without the guard, a fold's neighbours would carry part of it into its own fit."""
-    folds = consecutive_blocks(N, count)
-    if min(f.stop - f.start for f in folds) <= 2 * guard:
-        raise ValueError(f"{N} training samples: {count} parts of at most {min(f.stop - f.start for f in folds)} "
-                         f"cannot be held out with a guard of {guard} rows at each end")
-    pieces, owner = [], []
-    for k, f in enumerate(folds):
-        for a, b in ((f.start, f.start + guard), (f.start + guard, f.stop - guard), (f.stop - guard, f.stop)):
-            if b > a:
-                pieces.append(slice(a, b))
-                owner.append(k)
-    owner = np.array(owner)
-    left_out = np.zeros((count, len(pieces)))
-    for k in range(count):
-        for i, piece in enumerate(pieces):
-            nearest = min(abs(piece.start - folds[k].stop), abs(folds[k].start - piece.stop))
-            left_out[k, i] = owner[i] == k or nearest < guard
-    return Folds(folds, pieces, left_out, guard)
 
 
 class _Normal:
@@ -352,7 +316,8 @@ def regressor_rows(W: np.ndarray, n: int):
 
 def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
            qd: np.ndarray, t: np.ndarray, model: tuple[JointFriction, ...], config: FrictionLawConfig,
-           reach: float = 0.0, transmission: Transmission | None = None, columns=None) -> FrictionChoice:
+           reach: float = 0.0, transmission: Transmission | None = None, columns=None,
+           measured: np.ndarray | None = None) -> FrictionChoice:
     """Each joint's friction law, chosen within the training span. W: (N n, 10 n + 4 n) the
     regressor with friction (harness/identify/torque_id.py), or a function of sample indices that
     gives their rows (len, n, 10 n + 4 n) (`regressor_rows`: a long log's regressor made a chunk of
@@ -363,8 +328,10 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     (`blocked_folds`). With a `transmission` (harness/model/drives.py) the laws are the motors': each
     motor's columns at its own rates, reaching the joints through N, its load the motor's share of
     the rigid-body torque, N^-T tau_R. With a filtered span's `columns` (FilteredColumns), each law's
-    nonlinear columns are filtered as the torques were (harness/identify/filtered.py). Raises ValueError
-    when the span is too short to cut."""
+    nonlinear columns are filtered as the torques were (harness/identify/filtered.py). `measured` (n,)
+    bool: the joints whose torque the log holds (harness/stages/log_model.py); an unmeasured joint's rows
+    are W's and tau's zeros, its law the model's, its columns none (they reach no measured row). Raises
+    ValueError when the span is too short to cut."""
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
     tau, qd = tau[order], qd[order]
@@ -395,6 +362,8 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     # a joint (a motor) that never moves faster than the smallest v_c tried shows nothing of its friction's
     # shape: it keeps the model's law
     moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]
+    measured = np.ones(n, dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
+    moving &= measured
     rigid = np.zeros((N, n))
     total = float(np.sum(tau**2))
 
@@ -407,6 +376,9 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
         point need not be the bilinear fit's least-squares minimum; on the bench of
         tests/test_friction_law.py, Levenberg-Marquardt on the whole bilinear fit moved f_l by 1e-4 of
         itself, and the alternation is kept."""
+        if not measured[j]:  # no row of its own: no column to place
+            normal.set(j, np.zeros((N, 0)))
+            return
         normal.set(j, columns_of(j, law, rigid[:, j]))
         if "load_coulomb" in law.terms:
             for _ in range(LOAD_ITERATIONS):

@@ -169,14 +169,15 @@ def payload_parameters(mass: float, com_W: np.ndarray, inertia_c: np.ndarray, p_
 
 
 def torque_constants(pm, base, W: np.ndarray, tau: np.ndarray, beta_model: np.ndarray, robot, payload=None,
-                     loaded: TimeSeries | None = None, rows=None) -> TorqueScales:
+                     loaded: TimeSeries | None = None, rows=None, channels: list[str] | None = None) -> TorqueScales:
     """Each joint's factor on its nominal torque constant, from the training span's regressor W (N n,
     14 n: harness/identify/torque_id.py, with friction) and torques tau (N, n) at the nominal
     constants: fixed by `loaded`, a log of the robot carrying `payload` (the scenario's
     `[data.payload]`, a harness.sources.log.KnownPayload, conditioned as the log), where given; else
-    by the model's own base parameters `beta_model` (`base` the structural base parameters). Of a
-    closed chain, each actuated channel's: `rows(q, q', q'')` its regressor G^T Y (N n_a, 14 n), tau
-    and the loaded log's torques the actuated joints' (the payload's known torque projected alike)."""
+    by the model's own base parameters `beta_model` (`base` the structural base parameters). Each torque
+    channel's (the joints `channels`: every joint, a closed chain's actuated ones or an open tree's
+    measured ones): `rows(q, q', q'')` their regressor as the log reads them (harness/stages/
+    log_model.py), tau and the loaded log's torques theirs (the payload's known torque read alike)."""
     from harness.identify.torque_id import regressor
 
     if payload is None:
@@ -186,7 +187,7 @@ def torque_constants(pm, base, W: np.ndarray, tau: np.ndarray, beta_model: np.nd
     if rows is None:
         W2 = regressor(pm, q2, qd2, qdd2, with_friction=True)
     else:
-        W2, tau2 = rows(q2, qd2, qdd2), tau2[:, [joints.index(a) for a in robot.actuated]]
+        W2, tau2 = rows(q2, qd2, qdd2), tau2[:, [joints.index(a) for a in channels or joints]]
     k = joints.index(robot.inner_joint(payload.body).name)
     theta_p = payload_parameters(payload.mass, payload.com_W, payload.inertia, robot.joints[k].p_W0)
     known = (W2[:, 10 * k: 10 * k + 10] @ theta_p).reshape(tau2.shape)

@@ -231,14 +231,16 @@ STRUCTURAL_STATES = 200  # random states for the structural base: 2 x 10 n rows 
 
 
 def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0,
-                    with_friction: bool = False, chain=None) -> BaseParameters:
+                    with_friction: bool = False, chain=None, channels: tuple[int, ...] | None = None) -> BaseParameters:
     """The base parameters of the model's structure, chosen once: QR with column pivoting of the
     noise-free regressor at STRUCTURAL_STATES random states (q uniform within the joint limits, or
     +-pi, +-1 m; q', q'' standard normal), not of a measured trajectory, whose noise or poor
     excitation would change which combinations are chosen. For the same model and seed it is the
     same every time it is asked for. Of a closed chain (`chain`, harness/model/closure.py): its
     actuated-torque regressor G^T Y at random consistent states (the actuated joints' q uniform within
-    their limits, q'_a and q''_a within +-1, the passive joints' from the loops)."""
+    their limits, q'_a and q''_a within +-1, the passive joints' from the loops). `channels`: the joints
+    whose rows a log holds (an open tree's measured joints, harness/stages/log_model.py): the base of
+    their rows alone, every joint's motion in them."""
     if chain is not None:
         from harness.model.closure import random_motion
 
@@ -256,7 +258,10 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
                              limits)
     q = rng.uniform(lo, hi, (STRUCTURAL_STATES, n))
     qd, qdd = rng.standard_normal((2, STRUCTURAL_STATES, n))
-    return base_parameters(regressor(pm, q, qd, qdd, with_friction), with_friction)
+    W = regressor(pm, q, qd, qdd, with_friction)
+    if channels is not None:
+        W = W.reshape(STRUCTURAL_STATES, n, -1)[:, list(channels)].reshape(-1, W.shape[1])
+    return base_parameters(W, with_friction)
 
 
 @dataclass(eq=False)

@@ -37,11 +37,14 @@ def data(r: dict, log) -> str:
     passive = c.get("passive_joints")  # a closed chain's: from its loops, no torque of their own
     if passive:
         split += f"<p>Passive joints {esc(', '.join(passive['joints']))}: {esc(passive['from'])}.</p>"
+    unread = set(src.get("unmeasured") or ()) | set(passive["joints"] if passive else ())  # no channel of theirs
+    if src.get("unmeasured"):
+        split += (f"<p>Unmeasured joints {esc(', '.join(src['unmeasured']))}: no torque channel read; their motion "
+                  "kept.</p>")
     t = log.t
     figs = [figure(plots.lines(t, {j: log.q[:, k] for k, j in enumerate(log.joints)}, "q [rad]", "Joint positions"),
                    "Conditioned joint positions."),
-            figure(plots.lines(t, {j: log.tau[:, k] for k, j in enumerate(log.joints)
-                                   if not passive or j not in passive["joints"]}, "tau [N m]",
+            figure(plots.lines(t, {j: log.tau[:, k] for k, j in enumerate(log.joints) if j not in unread}, "tau [N m]",
                                "Measured joint torques"), "Conditioned (filtered) joint torques."),
             figure(plots.lines(t, {j: log.qdd[:, k] for k, j in enumerate(log.joints)}, "q'' [rad/s^2]",
                                "Joint accelerations"), "Accelerations by differences of the filtered velocities.")]
@@ -88,6 +91,8 @@ def log_identification(r: dict, log) -> str:
                   f"<p>{esc(pred['definition'])}. RMS position error [rad or m] per horizon:</p>"
                   + table(["model", *hs], [[esc(m), *(num(v[h]["q_rms"]) for h in hs)]
                                            for m, v in pred["models"].items()]))
+    elif pred.get("note"):
+        extra += f"<h3>Forward simulation under the measured torques</h3><p>{esc(pred['note'])}.</p>"
     constants = li.get("torque_constants")
     if constants:
         extra += ("<h3>Torque constants (motor currents)</h3>"

@@ -46,7 +46,7 @@ from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate, read_gates
 from harness.sources.log import DataSource, check_columns, read_source
-from harness.sources.log.closed import closed_chain_source, logged
+from harness.sources.log.channels import logged, supported
 from harness.sources.measurement import Measurement, read_measurement
 from harness.sources.motion import Motion, read_motion
 
@@ -278,7 +278,7 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     dt = root.table("data")
     read_as = logged(robot)  # a closed chain's log holds its actuated joints' channels (sources/log/closed.py)
     source = read_source(dt, path, len(read_as.joints), read_as.joint_names)
-    source = closed_chain_source(root, dt, robot, source) if robot.loops else source  # what it does not read yet
+    source = supported(root, dt, robot, source)  # what a closed chain's log, or unmeasured channels, do not allow
     if source.side == "motor" and robot.transmission is None:
         raise dt.error("side", f'"motor": the log is mapped to the joints through the model\'s drives, and '
                                f"{robot.source} states none ([drives])")

@@ -37,26 +37,22 @@ import numpy as np
 from harness.base.numerics import SideBySide, fit_residual
 from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
-from harness.engines.pinocchio import PinocchioModel, build_model, joint_torques
+from harness.engines.pinocchio import build_model, joint_torques
 from harness.identify import chain_law, consistent, delay, filtered, friction_law, scale
-from harness.identify.friction_law import FrictionLawConfig, Law, extra_regressor, extra_terms
+from harness.identify.friction_law import FrictionLawConfig, Law, extra_terms
 from harness.identify.ls_model import LeastSquaresFit, extra_terms_names
 from harness.identify.lstsq import Estimate
 from harness.identify.repeat import Repeatability, repeat
-from harness.identify.span_rows import RowsOnDemand, rows_by_sample, span_regressor
+from harness.identify.span_rows import RowsOnDemand, rows_by_sample
 from harness.identify.torque_id import (
-    BaseParameters,
-    chain_regressor,
     describe_base,
     fit_base,
     links_weights,
     parameter_names,
     regressor,
-    structural_base,
-    true_parameters,
     with_structure,
 )
-from harness.model.closure import ClosedChain, actuated_torques, projection
+from harness.model.closure import projection
 from harness.model.export import (
     LEAST_SQUARES_FILE,
     MJCF_FILE,
@@ -73,84 +69,10 @@ from harness.model.mjcf import compiler_message, write_mjcf
 from harness.sources.log.condition import TrainingSpan, fits_on
 from harness.stages.context import VALIDATION_SPAN
 from harness.stages.log_judge import Start, as_fitted, prediction, start
+from harness.stages.log_model import LogModel, log_model
 from harness.stages.log_results import serialise
 
 LAG_WARNING = 0.001  # s: an estimated delay beyond 1 ms, left uncorrected, is said on the terminal
-
-
-@dataclass(frozen=True, eq=False)
-class LogModel:
-    """The model as the fit reads it: its Pinocchio model, its structural base parameters with each
-    joint's friction and rotor inertia, and its own values of all of them. Of a closed chain (`chain`,
-    harness/model/closure.py) the log's torques are its actuated joints' and a regressor's rows are
-    the tree's projected onto them, G^T Y (docs/closed_chains.md)."""
-
-    pm: PinocchioModel
-    base: BaseParameters
-    x_model: np.ndarray  # (14 n,) every link's ten parameters, then every joint's four drive terms
-    link_part: tuple[np.ndarray, np.ndarray]  # BaseParameters.link_part at the model's values
-    joints: list[str]  # every joint, in the spec's order
-    chain: ClosedChain | None = None
-
-    @property
-    def torque_joints(self) -> list[str]:
-        """The joints whose torques the log holds: every joint, or a closed chain's actuated ones."""
-        return self.joints if self.chain is None else list(self.chain.spec.actuated)
-
-    @property
-    def reach(self) -> np.ndarray | None:
-        """(joints, actuated joints) of a closed chain: every joint's drive terms reach every actuated
-        torque through G^T (consistent.fit_with_laws); None: each joint its own."""
-        return None if self.chain is None else np.ones((len(self.joints), len(self.chain.actuated)), dtype=bool)
-
-    def data(self, series: TimeSeries) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """A span's (q, q', q'') of every joint and its torques (N, torque joints)."""
-        q, qd, qdd, tau = series.joint_data(self.joints)
-        return q, qd, qdd, tau if self.chain is None else tau[:, list(self.chain.actuated)]
-
-    def rows(self, pm: PinocchioModel, q, qd, qdd, coulomb=None) -> np.ndarray | RowsOnDemand:
-        """The span's regressor with friction: (N n, 14 n), or a closed chain's G^T Y (N n_a, 14 n)."""
-        if self.chain is None:
-            return span_regressor(pm, q, qd, qdd, coulomb)
-        return chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True, coulomb=coulomb)
-
-    def projected(self, q: np.ndarray, rows: np.ndarray) -> np.ndarray:
-        """Per-joint rows (N n, c) as the log's torques read them: a closed chain's projected onto its
-        actuated joints by G^T, (N n_a, c)."""
-        if self.chain is None:
-            return rows
-        N, n = q.shape
-        G = projection(self.chain, q)
-        return np.einsum("nja,njc->nac", G, rows.reshape(N, n, -1)).reshape(N * G.shape[2], -1)
-
-    def torques(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
-        """(N, torque joints): the model pm's joint torques at the states, a closed chain's G^T rnea."""
-        tau = joint_torques(pm, q, qd, qdd)
-        return tau if self.chain is None else actuated_torques(projection(self.chain, q), tau)
-
-    def families(self, laws: tuple[Law, ...], q, qd, rigid, transmission, columns, t) -> np.ndarray:
-        """The families' columns (extra_regressor) on a span's rows; a closed chain's from every joint's
-        law projected by G^T (no law of a closed chain reads the load: harness/model/load.py)."""
-        if self.chain is None:
-            return extra_regressor(laws, qd, rigid, transmission, columns, t)
-        return self.projected(q, extra_regressor(laws, qd, None, None, columns, t))
-
-    @property
-    def n(self) -> int:
-        return len(self.x_model) // 14
-
-    @property
-    def theta(self) -> np.ndarray:
-        """(n, 10) the links' parameters."""
-        return self.x_model[: 10 * self.n].reshape(self.n, 10)
-
-
-def log_model(robot, gravity_W: np.ndarray) -> LogModel:
-    pm = build_model(robot, gravity_W)
-    chain = ClosedChain.of(robot) if robot.loops else None
-    base = structural_base(pm, robot.limits, with_friction=True, chain=chain)
-    x_model = true_parameters(pm, with_friction=True)
-    return LogModel(pm, base, x_model, base.link_part(x_model, 10 * len(robot.joints)), robot.joint_names, chain)
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,7 +134,7 @@ def constants(data, robot, model: LogModel, d: Delayed, payload: TimeSeries | No
         W = W.whole()
     tau = model.data(training)[3]
     found = scale.torque_constants(model.pm, model.base, W, tau, model.base.of(model.x_model), robot, data.payload,
-                                   payload, None if model.chain is None else partial(model.rows, model.pm))
+                                   payload, None if model.reach is None else partial(model.rows, model.pm), joints)
     return Constants(found, scale.scaled(d.training, found.factor, joints))
 
 
@@ -242,17 +164,20 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
     if config.choose:
         q, qd, qdd, tau = training.joint_data(joints)
 
+        measured = model.measured  # an unmeasured joint's rows and torque zero: they weigh nothing
+
         def rows_of(samples: np.ndarray) -> np.ndarray:
             return regressor(model.pm, q[samples], qd[samples], qdd[samples], with_friction=True).reshape(
-                len(samples), len(joints), -1)
+                len(samples), len(joints), -1) * measured[:, None]
 
         try:
-            choice = friction_law.choose(rows_of, model.base.independent, model.link_part, tau, qd, training.t,
-                                         robot.frictions, config, training.reach_s,
-                                         robot.transmission, filtered_columns(training))
+            choice = friction_law.choose(rows_of, model.base.independent, model.link_part, tau * measured, qd,
+                                         training.t, unmeasured_plain(robot.frictions, measured), config,
+                                         training.reach_s, robot.transmission, filtered_columns(training), measured)
         except ValueError as exc:
             note = f"friction law not chosen, the model's kept: {exc}"
-    laws = choice.laws if choice is not None else tuple(Law.of(f) for f in robot.frictions)
+    laws = choice.laws if choice is not None else tuple(
+        Law.of(f) for f in unmeasured_plain(robot.frictions, model.measured))
     if choice is not None:  # what the data could not tell, said with its range
         undecided = [(j, flat, law) for j, flat, law in zip(joints, choice.undecided, laws, strict=True) if flat]
         note = ("the held-out error of viscous and Coulomb friction is flat in the smoothing velocity (the data "
@@ -260,6 +185,21 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
                     f"{j} from {lo:.3g} to {hi:.3g} (the law chosen: {law.family}, v_c {law.coulomb_velocity:.3g})"
                     for j, (lo, hi), law in undecided)) if undecided else None
     return LawChoice(laws, choice, note)
+
+
+def unmeasured_plain(frictions: tuple[JointFriction, ...], measured: np.ndarray) -> tuple[JointFriction, ...]:
+    """Each joint's friction as the fit reads it: an unmeasured joint's (no row of its own in an open
+    tree) plain viscous and Coulomb friction, no family's term, at its own values: its terms reach no
+    measured row, and the identified model keeps its own law (`identified_frictions`)."""
+    return tuple(f if m else JointFriction(f.armature, f.viscous, f.coulomb, f.offset, f.coulomb_velocity)
+                 for f, m in zip(frictions, measured, strict=True))
+
+
+def identified_frictions(frictions: tuple[JointFriction, ...], model: tuple[JointFriction, ...],
+                         measured: np.ndarray) -> tuple[JointFriction, ...]:
+    """The consistent fit's friction of each joint, an unmeasured joint's the model's own (the data hold
+    nothing of it)."""
+    return tuple(f if m else own for f, own, m in zip(frictions, model, measured, strict=True))
 
 
 def _chain_laws(config: FrictionLawConfig, robot, model: LogModel, training: TrainingSpan) -> LawChoice:
@@ -308,7 +248,8 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
     pm = model.pm if laws.choice is None else build_model(  # the chosen smoothing velocities
         robot.with_frictions(laws.choice.frictions(robot.frictions)), gravity_W)
     W = model.rows(pm, q, qd, qdd, coulomb)
-    rigid = laws.choice.tau_rigid if laws.choice is not None else links_torque(W, model.theta, tau.shape)
+    rigid = (laws.choice.tau_rigid[:, model.measured] if laws.choice is not None and model.chain is None
+             else laws.choice.tau_rigid if laws.choice is not None else links_torque(W, model.theta, tau.shape))
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws.laws)])
     beta_model = np.concatenate([model.base.of(model.x_model), extra_model])
     E = model.families(laws.laws, q, qd, rigid, robot.transmission, columns, training.t)
@@ -397,7 +338,7 @@ def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], th
         f"{robot.name}: the least-squares fit of its base parameters from {sc.data.file.name} by harness (scenario "
         f"{sc.name}).\nFormat: docs/reference.md, 'The least-squares fit'; harness.identified_model(folder, "
         "fit=\"least squares\") evaluates it.")
-    if robot.loops:
+    if robot.loops or sc.data.unmeasured:  # every joint's torque in the identified model
         mapping = coulomb_mapping(identified, qd, joint_torques(build_model(identified, sc.gravity_W), q, qd, qdd))
     else:
         mapping = coulomb_mapping(identified, qd, tau, links_torque(W, theta, tau.shape))
@@ -465,7 +406,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     sc = ctx.scenario
     robot, joints = sc.robot, sc.robot.joint_names
     ctx.progress("structural base parameters (with friction and rotor inertia)", None)
-    model = log_model(robot, sc.gravity_W)
+    model = log_model(robot, sc.gravity_W, sc.data.unmeasured)
     if sc.data.delay != "none":
         ctx.progress("the torque channels' delays behind the encoders", None)
     delayed = delays(sc.data.delay, model, ctx.training)
@@ -494,6 +435,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     fit, frictions = consistent.fit_with_laws(fitted.W, fitted.E, tau, laws.laws, model.theta,
                                               friction_values(robot.frictions), fitted.extra_model,
                                               robot.transmission, model.reach)
+    frictions = identified_frictions(frictions, robot.frictions, model.measured)
     identified = identified_spec(robot, fit.theta, frictions)
     # the validation span as the fit's findings make it, by the judging (the fit never reads it)
     validation = as_fitted(ctx.validation.get(VALIDATION_SPAN), delayed.lags if delayed.corrected else None,
@@ -504,7 +446,8 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     span = "validation" if "validation" in spans else "training"
     q, qd, _ = judged.states[span]
     models = {"consistent": identified, "model as given": robot, **({"truth": sc.truth} if sc.truth else {})}
-    predicted = prediction(sc.gravity_W, models, judged.t[span], q, qd, judged.measured[span], span, joints)
+    predicted = prediction(sc.gravity_W, models, judged.t[span], q, qd, judged.measured[span], span, joints,
+                           unmeasured=sc.data.unmeasured)
     names = parameter_names(joints, True, robot.drive_names)
     exported = export_model(sc, robot, identified, frictions, fit.theta, scaled.training, fitted.W,
                             least_squares_fit(model, fitted, names, laws.laws, robot.drive_names))
@@ -519,6 +462,11 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
 def warnings(li: LogIdentification, mode: str) -> list[str]:
     """What the terminal is told of a log run, once."""
     out, lags = [], li.delayed.lags  # the start check's findings are its own (log_judge.Start.said), said first
+    unmeasured = [j for j, m in zip(li.joints, li.model.measured, strict=True) if not m]
+    if unmeasured:
+        out.append(f"torque channels unmeasured ([data] unmeasured): {', '.join(unmeasured)}: fitted and judged on the "
+                   f"other {len(li.model.torque_joints)} channels, their joints' motion in the model; their friction "
+                   "and rotor inertia the model's; no forward prediction (nothing drives them)")
     out += consistent.plausibility_warnings(li.plausible)
     out += consistent.band_warnings(li.fit, li.joints, li.model.theta)
     out += delay_warnings(lags, li.model.torque_joints, mode)

@@ -40,10 +40,12 @@ def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
 
 
 def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
-               tau: np.ndarray, span: str, joints: list[str], delays: dict | None = None) -> dict:
+               tau: np.ndarray, span: str, joints: list[str], delays: dict | None = None,
+               unmeasured: tuple[str, ...] = ()) -> dict:
     """Each model forward-simulated in MuJoCo from measured states of a span (t (N,), q, q', tau (N, n))
     under the measured torques (harness/engines/rollout.py, predict), each channel read delays[model]
-    (n,) s later where given: per horizon the RMS and largest position and velocity error."""
+    (n,) s later where given: per horizon the RMS and largest position and velocity error. Not made
+    where joints are `unmeasured` (no torque to drive them), said."""
     starts = _starts(t, HORIZONS[-1], PREDICTION_STARTS)
     out = {"definition": f"from {len(starts)} measured states along the {span} span, each model forward-simulated "
                          "in MuJoCo (RK4, 1 ms) under the measured joint torques less its dry friction (Coulomb, "
@@ -53,8 +55,9 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
                          "simulated: its base parameters are not a full set of physical parameters",
            "span": span, "starts": len(starts), "timestep_s": PREDICTION_TIMESTEP,
            "horizons_s": list(HORIZONS), "models": {}}
-    if not len(starts):
-        out["note"] = f"no stretch of the {span} span is {HORIZONS[-1]:g} s long"
+    if not len(starts) or unmeasured:
+        out["note"] = (f"no stretch of the {span} span is {HORIZONS[-1]:g} s long" if not unmeasured else
+                       f"not made: {', '.join(unmeasured)} without a measured torque to drive them ([data] unmeasured)")
         return out
     chains = {name: spec for name, spec in models.items() if spec.loops}
     if chains:
@@ -203,7 +206,8 @@ class Start:
             out.append(f"torque channels that do not follow the model's torque (cosine under {UNRELATED:g} where the "
                        "model's torque is not small): " + ", ".join(
                            f"{j} ({self.per_joint[j]['cosine']:.2f})" for j in self.unrelated)
-                       + ": channels that measure nothing, or another joint's? The fit reads them as measured")
+                       + ": channels that measure nothing, or another joint's? The fit reads them as measured "
+                         "([data] unmeasured = [...] leaves a channel out, its joint's motion kept)")
         return out
 
     def as_dict(self) -> dict:

@@ -65,8 +65,14 @@ def serialise(li, ctx, config) -> dict:
         "export_mjcf_not_written": li.exported.refused,
         "joints": len(li.joints),
         "torque_joints": li.model.torque_joints,
+        "unmeasured": {"joints": list(ctx.scenario.data.unmeasured), "definition": UNMEASURED},
         "series": _series(li),
     }
+
+
+UNMEASURED = ("joints whose torque the log does not hold ([data] unmeasured): their motion is in every other "
+              "joint's row; no row of theirs is fitted or judged; their friction and rotor inertia reach no measured "
+              "row and are the model's in the identified model")
 
 
 def _expression(li, k: int) -> str:

@@ -97,12 +97,15 @@ def check(raw: RawLog, robot: RobotSpec, source: DataSource | None = None) -> Ch
         warnings.append("positions beyond the model's joint limits: "
                         + ", ".join(f"{k} {v} rows" for k, v in beyond.items()))
     steps[0]["beyond_joint_limits"] = beyond
-    zero = dict(zip(kept.joints, map(float, np.mean(kept.tau == 0.0, axis=0)), strict=True))
+    unmeasured = () if source is None else source.unmeasured  # declared: no channel of theirs is read
+    zero = {name: float(share) for name, share in zip(kept.joints, np.mean(kept.tau == 0.0, axis=0), strict=True)
+            if name not in unmeasured}
     dead = [name for name, share in zero.items() if share >= DEAD_SHARE]
     steps[0]["torque_zero_share"], steps[0]["torque_channels_zero"] = zero, dead
     if dead:
         warnings.append("torque channels that read exactly 0 on most rows (a channel that measures nothing, or a "
                         "joint held by its brake?): " + ", ".join(f"{name} {100 * zero[name]:.0f} %" for name in dead)
-                        + "; the fit reads them as measured")
+                        + "; the fit reads them as measured ([data] unmeasured = [...] leaves a channel out, its "
+                          "joint's motion kept)")
     return Checked(kept, steps[0], warnings, median)
 

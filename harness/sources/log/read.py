@@ -20,6 +20,7 @@ import numpy as np
 from harness.base.series import SeriesError
 from harness.base.tomlio import MAX_DATA_BYTES, InputError, Table, too_large
 from harness.model.spec import RobotSpec
+from harness.sources.log.channels import every_joint
 from harness.sources.log.raw import RawLog
 from harness.sources.log.schema import SECONDS, SI, DataSource, column_names
 from harness.sources.log.units import plausible, refuse_absurd, to_si
@@ -155,6 +156,7 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
         from harness.sources.bag import digest, read_bag
 
         t, q, qd, tau = read_bag(path, source.topic, source.log_names(robot.joint_names))
+        tau = np.where([j in source.unmeasured for j in robot.joint_names], 0.0, tau)  # what it says, not read
         q, qd, tau = to_si(source, robot, q, qd, tau)
         kinds, names = ("q", "qd", "tau"), [f"{source.topic}: {j}" for j in source.log_names(robot.joint_names)]
         _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, dict.fromkeys(kinds, path),
@@ -176,8 +178,10 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
         raise InputError(path, "", "the log has no rows")
     t = (columns["t"][:, 0] * SECONDS[source.units["t"]] if "t" in columns
          else np.arange(len(columns["q"])) / source.sample_rate)
-    q, qd, tau = to_si(source, robot, columns.pop("q"), columns.pop("qd", None), columns.pop("tau"))
-    _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, where, names, lambda i: f"row {i + 2}")
+    tau, tau_names = every_joint(source, robot, columns.pop("tau"), names["tau"])
+    q, qd, tau = to_si(source, robot, columns.pop("q"), columns.pop("qd", None), tau)
+    _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, where, {**names, "tau": tau_names},
+                   lambda i: f"row {i + 2}")
     time = (f"column {names['t'][0]!r}" + (f" in {source.units['t']}" if source.units["t"] != "s" else "")
             if "t" in columns else f"row k at k / {source.sample_rate:g} s (sample_rate)")
     if joined is not None:

@@ -68,6 +68,7 @@ class DataSource:
     joint_map: dict[str, str] = field(default_factory=dict)  # the log's name of a joint -> the model's
     velocities: str = "checked"  # logged velocities realigned where they lag the positions' rate ("used": kept)
     counterbalanced: tuple[str, ...] = ()  # joints whose channel carries no gravity (a spring or counterweight)
+    unmeasured: tuple[str, ...] = ()  # joints without a torque channel: their motion in the model, no row of theirs
     joined: tuple[Path, ...] = ()  # a log in several files: the files after `file`, each with its own time
     # column, their rows joined on time to those of the file holding the positions (harness/sources/log/join.py)
 
@@ -100,7 +101,11 @@ class DataSource:
                 "torque_file": str(self.torque_file) if self.torque_file else None, "sample_rate_hz": self.sample_rate,
                 "side": self.side, "window_s": list(self.window) if self.window else None,
                 "joint_map": dict(self.joint_map), "velocities": self.velocities,
-                "counterbalanced": list(self.counterbalanced)}
+                "counterbalanced": list(self.counterbalanced), "unmeasured": list(self.unmeasured)}
+
+    def measured(self, joints: list[str]) -> list[str]:
+        """The joints among `joints` whose torque channel the log holds (all but `unmeasured`)."""
+        return [j for j in joints if j not in self.unmeasured]
 
 
 
@@ -111,6 +116,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
     `joint_names`, the model's joints, the values of `joint_map`."""
     topic = None
     joint_map = _joint_map(t, joint_names) if t.has("joint_map") else {}
+    unmeasured = _unmeasured(t, joint_names)
     if t.either("file", "bag", "file (a CSV log) or bag (a ROS bag: a rosbag2 folder or a ROS 1 .bag file)") == "bag":
         file = (scenario_file.parent / t.string("bag")).resolve()
         if not file.exists():
@@ -123,7 +129,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
     else:
         file, joined = _files(t, scenario_file)
         ct = t.table("columns")
-        columns = _columns(ct, joints)
+        columns = _columns(ct, joints, len(unmeasured))
         if joined and "t" not in columns:
             raise ct.error("t", "missing: a log in several files joins them on each file's time column")
         if "names" in columns and (joined or t.has("torque_file")):
@@ -192,10 +198,30 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
         vt.finish()
     velocities = t.string("velocities", default="checked", choices=VELOCITY_CHOICES)
     counterbalanced = t.strings("counterbalanced", choices=joint_names) if t.has("counterbalanced") else ()
+    both = [j for j in counterbalanced if j in unmeasured]
+    if both:
+        raise t.error("counterbalanced", f"{both[0]!r} is unmeasured: it has no channel to be without gravity")
+    if unmeasured and side == "motor":
+        raise t.error("unmeasured", 'a motor-side log\'s channels are its motors\': name unmeasured joints of a '
+                                    'joint-side log (side = "joint")')
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
                       ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
-                      sample_rate, side, window, decimate_given, joint_map, velocities, counterbalanced, joined)
+                      sample_rate, side, window, decimate_given, joint_map, velocities, counterbalanced, unmeasured,
+                      joined)
+
+
+def _unmeasured(t: Table, joint_names: list[str] | None) -> tuple[str, ...]:
+    """`unmeasured = [...]`: the joints whose torque the log does not measure (no column, or a channel that
+    reads nothing): each a joint of the model, once, and at least one joint left measured."""
+    if not t.has("unmeasured"):
+        return ()
+    names = t.strings("unmeasured", choices=joint_names)
+    if len(set(names)) < len(names):
+        raise t.error("unmeasured", "a joint is named twice")
+    if joint_names is not None and len(names) >= len(joint_names):
+        raise t.error("unmeasured", "every joint named: a log without one torque channel identifies nothing")
+    return tuple(names)
 
 
 def _files(t: Table, scenario_file: Path) -> tuple[Path, tuple[Path, ...]]:
@@ -267,9 +293,10 @@ def _layout(t: Table, ct: Table | None, scenario_file: Path, topic: str | None
     return torque_file, sample_rate, side, window
 
 
-def _columns(ct: Table, joints: int | None) -> dict[str, str | tuple[str, ...]]:
+def _columns(ct: Table, joints: int | None, unmeasured: int = 0) -> dict[str, str | tuple[str, ...]]:
     """`columns`: t (where the log has a time column), q, qd (optional) and tau, each a template with
-    {j} or {name}, or a list of column names in the model's joint order; or, with `names` (a template
+    {j} or {name}, or a list of column names in the model's joint order (tau's: of every joint, or of the
+    measured joints alone where `unmeasured` joints have no channel); or, with `names` (a template
     with {index}: the columns that name each message's joints, as a ROS joint_states export writes
     `field.name0`, `field.name1`, ...), templates with {index}, the place of a joint's name among them
     (harness/sources/log/indexed.py)."""
@@ -285,9 +312,11 @@ def _columns(ct: Table, joints: int | None) -> dict[str, str | tuple[str, ...]]:
             continue
         if isinstance(ct.data.get(k), list) and not indexed:
             names = ct.strings(k, choices=None)
-            if joints is not None and len(names) != joints:
+            if joints is not None and len(names) != joints and not (k == "tau" and unmeasured
+                                                                    and len(names) == joints - unmeasured):
                 raise ct.error(k, f"{len(names)} columns for a model of {joints} joints (one per joint, in the "
-                                  "model's joint order)")
+                                  "model's joint order" + (f"; or tau's {joints - unmeasured}, one per measured joint"
+                                                           if k == "tau" and unmeasured else "") + ")")
             columns[k] = names
             continue
         v = ct.string(k)
@@ -331,6 +360,9 @@ def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
     {index} templates are made lists (harness/sources/log/indexed.py)."""
     if "names" in source.columns:
         raise ValueError("a log whose messages name their joints is read through sources.log.indexed.resolved")
-    return {k: [v] if k == "t" else list(v) if isinstance(v, tuple) else
-            [v.format(j=j + 1, name=name) for j, name in enumerate(source.log_names(robot.joint_names))]
-            for k, v in source.columns.items()}
+    out = {k: [v] if k == "t" else list(v) if isinstance(v, tuple) else
+           [v.format(j=j + 1, name=name) for j, name in enumerate(source.log_names(robot.joint_names))]
+           for k, v in source.columns.items()}
+    if source.unmeasured and len(out["tau"]) == len(robot.joint_names):  # the measured joints' channels alone
+        out["tau"] = [c for c, j in zip(out["tau"], robot.joint_names, strict=True) if j not in source.unmeasured]
+    return out

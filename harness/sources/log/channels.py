@@ -1,0 +1,52 @@
+"""Which joints a log's torque channels measure: `[data] unmeasured` names the joints without one (no
+column, or a channel that reads nothing, as a mobile manipulator's wrist channels do). Their motion
+stays in the model: their torque row is left out of every fit and judgement (harness/stages/
+log_model.py, as a closed chain's passive joints' are), so the links they carry are identified from
+the other joints' rows; their own friction and rotor inertia reach no measured channel of an open tree
+and stay the model's."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.base.tomlio import Table
+from harness.model.spec import RobotSpec
+from harness.sources.log.closed import closed_chain_source, logged
+from harness.sources.log.schema import DataSource
+
+__all__ = ["every_joint", "logged", "supported"]  # logged: the robot as its log is read
+
+
+def every_joint(source: DataSource, robot: RobotSpec, tau: np.ndarray, names: list[str]
+                ) -> tuple[np.ndarray, list[str]]:
+    """The torque columns read (the measured joints', in the model's order) as one column per joint, an
+    unmeasured joint's zero (never read: harness/stages/log_model.py); and each column's name."""
+    if not source.unmeasured:
+        return tau, names
+    measured = [k for k, j in enumerate(robot.joint_names) if j not in source.unmeasured]
+    out = np.zeros((len(tau), len(robot.joint_names)))
+    out[:, measured] = tau
+    every = [f"(unmeasured: {j})" for j in robot.joint_names]
+    for k, name in zip(measured, names, strict=True):
+        every[k] = name
+    return out, every
+
+
+def supported(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
+    """The `[data]` table `dt` of a scenario `root` on `robot`, read as `source`: what a closed chain's log
+    does not support (harness/sources/log/closed.py) and what reads every joint's torque beside
+    `unmeasured` joints refused in one line naming the key."""
+    if robot.loops:
+        source = closed_chain_source(root, dt, robot, source)
+    if not source.unmeasured:
+        return source
+    for table in ("identification", "refinement"):
+        if root.has(table):
+            raise root.error(table, "reads every joint's torque, and [data] unmeasured names joints without one")
+    if robot.transmission is not None:
+        raise dt.error("unmeasured", f"{robot.source} states drives ([drives]): a motor's law reaches several "
+                                     "channels, and unmeasured channels are read on a model without drives")
+    if robot.loops:
+        raise dt.error("unmeasured", f"model {robot.name!r} is a closed chain: its actuated joints' channels are "
+                                     "all read (unmeasured channels are read on an open tree)")
+    return source

@@ -1,0 +1,142 @@
+"""The model as a log's fit reads it (harness/stages/log_identification.py): which joints' torques the
+log holds, and every regressor's and prediction's rows as those torques read them.
+
+The log's torques are S^T tau of the tree's joint torques tau = Y theta (plus each joint's drive terms):
+of an open tree S selects its measured joints (every joint, or all but `[data] unmeasured`,
+harness/sources/log/channels.py); of a closed chain S = G, its actuated joints' projection
+(harness/model/closure.py, docs/closed_chains.md). A joint whose torque is not read keeps its motion in
+every row: its velocity and acceleration move the links outboard and inboard of it in the other joints'
+rows, so those links are identified from them; the parameters only its own row sees (of an open tree,
+its drive's friction and rotor inertia, and the combinations of its outer links that reach no measured
+row) are not in the structural base and stay the model's."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.engines.pinocchio import PinocchioModel, build_model, joint_torques
+from harness.identify.friction_law import Law, extra_regressor
+from harness.identify.span_rows import RowsOnDemand, span_regressor
+from harness.identify.torque_id import BaseParameters, chain_regressor, structural_base, true_parameters
+from harness.model.closure import ClosedChain, actuated_torques, projection
+
+
+@dataclass(frozen=True, eq=False)
+class LogModel:
+    """The model as the fit reads it: its Pinocchio model, its structural base parameters with each
+    joint's friction and rotor inertia, and its own values of all of them. Of a closed chain (`chain`,
+    harness/model/closure.py) the log's torques are its actuated joints' and a regressor's rows are
+    the tree's projected onto them, G^T Y (docs/closed_chains.md); of an open tree with `channels`, its
+    measured joints' rows alone."""
+
+    pm: PinocchioModel
+    base: BaseParameters
+    x_model: np.ndarray  # (14 n,) every link's ten parameters, then every joint's four drive terms
+    link_part: tuple[np.ndarray, np.ndarray]  # BaseParameters.link_part at the model's values
+    joints: list[str]  # every joint, in the spec's order
+    chain: ClosedChain | None = None
+    channels: tuple[int, ...] | None = None  # the measured ones among the joints (an open tree's); None: all
+
+    @property
+    def torque_joints(self) -> list[str]:
+        """The joints whose torques the log holds: every joint, a closed chain's actuated ones, or an open
+        tree's measured ones."""
+        every = self.joints if self.chain is None else list(self.chain.spec.actuated)
+        return every if self.channels is None else [every[k] for k in self.channels]
+
+    @property
+    def measured(self) -> np.ndarray:
+        """(n,) bool: each joint whose drive terms reach a torque the log holds: an open tree's measured
+        joints; every joint of a closed chain (through G^T)."""
+        if self.chain is not None or self.channels is None:
+            return np.ones(len(self.joints), dtype=bool)
+        return np.isin(self.joints, self.torque_joints)
+
+    @property
+    def reach(self) -> np.ndarray | None:
+        """(joints, torque channels) where each joint's drive terms reach a channel: a closed chain's
+        every actuated torque through G^T (consistent.fit_with_laws), an open tree's measured joint its
+        own channel; None: every joint its own."""
+        if self.chain is not None:
+            return np.ones((len(self.joints), len(self.chain.actuated)), dtype=bool)
+        if self.channels is None:
+            return None
+        return np.arange(len(self.joints))[:, None] == np.asarray(self.channels)[None, :]
+
+    def data(self, series) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """A span's (q, q', q'') of every joint and its torques (N, torque joints)."""
+        q, qd, qdd, tau = series.joint_data(self.joints)
+        return q, qd, qdd, tau[:, [self.joints.index(j) for j in self.torque_joints]]
+
+    def rows(self, pm: PinocchioModel, q, qd, qdd, coulomb=None) -> np.ndarray | RowsOnDemand:
+        """The span's regressor with friction, (N m, 14 n) for the m torque channels: every joint's
+        (a long span's made on demand), an open tree's measured joints', or a closed chain's G^T Y."""
+        if self.chain is None:
+            W = span_regressor(pm, q, qd, qdd, coulomb)
+            if self.channels is None:
+                return W
+            return self._selected(W.whole() if isinstance(W, RowsOnDemand) else W, len(self.joints))
+        return chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True, coulomb=coulomb)
+
+    def _selected(self, rows: np.ndarray, per_sample: int) -> np.ndarray:
+        """Rows (N per_sample, c) of each sample's joints or actuated joints: the measured channels' alone."""
+        if self.channels is None:
+            return rows
+        return rows.reshape(-1, per_sample, rows.shape[1])[:, list(self.channels)].reshape(-1, rows.shape[1])
+
+    def projected(self, q: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Per-joint rows (N n, c) as the log's torques read them: an open tree's measured joints', a
+        closed chain's projected onto its actuated joints by G^T, (N n_a, c)."""
+        if self.chain is None:
+            return self._selected(rows, len(self.joints))
+        N, n = q.shape
+        G = projection(self.chain, q)
+        return np.einsum("nja,njc->nac", G, rows.reshape(N, n, -1)).reshape(N * G.shape[2], -1)
+
+    def torques(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
+        """(N, torque joints): the model pm's joint torques at the states as the log reads them."""
+        tau = joint_torques(pm, q, qd, qdd)
+        if self.chain is not None:
+            return actuated_torques(projection(self.chain, q), tau)
+        return tau if self.channels is None else tau[:, list(self.channels)]
+
+    def every_joint(self, x: np.ndarray) -> np.ndarray:
+        """(N, n): an open tree's per-channel x (N, m) at its joints, zero at an unmeasured joint's."""
+        if self.channels is None or self.chain is not None:
+            return x
+        out = np.zeros((len(x), len(self.joints)))
+        out[:, list(self.channels)] = x
+        return out
+
+    def families(self, laws: tuple[Law, ...], q, qd, rigid, transmission, columns, t) -> np.ndarray:
+        """The families' columns (extra_regressor) on a span's rows; a closed chain's from every joint's
+        law projected by G^T (no law of a closed chain reads the load: harness/model/load.py). `rigid`
+        (N, m): the rigid-body torque of the channels, a load-dependent law's."""
+        if self.chain is None:
+            rigid = None if rigid is None else self.every_joint(rigid)
+            return self._selected(extra_regressor(laws, qd, rigid, transmission, columns, t), len(self.joints))
+        return self.projected(q, extra_regressor(laws, qd, None, None, columns, t))
+
+    @property
+    def n(self) -> int:
+        return len(self.x_model) // 14
+
+    @property
+    def theta(self) -> np.ndarray:
+        """(n, 10) the links' parameters."""
+        return self.x_model[: 10 * self.n].reshape(self.n, 10)
+
+
+def log_model(robot, gravity_W: np.ndarray, unmeasured: tuple[str, ...] = ()) -> LogModel:
+    """The robot's LogModel; `unmeasured`: joints of an open tree whose torque the log does not hold."""
+    pm = build_model(robot, gravity_W)
+    chain = ClosedChain.of(robot) if robot.loops else None
+    if unmeasured and chain is not None:
+        raise ValueError("unmeasured channels are read on an open tree")
+    channels = tuple(k for k, j in enumerate(robot.joint_names) if j not in unmeasured) if unmeasured else None
+    base = structural_base(pm, robot.limits, with_friction=True, chain=chain, channels=channels)
+    x_model = true_parameters(pm, with_friction=True)
+    return LogModel(pm, base, x_model, base.link_part(x_model, 10 * len(robot.joints)), robot.joint_names, chain,
+                    channels)
