@@ -7,6 +7,9 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shlex
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -236,6 +239,13 @@ def test_init_writes_a_project_that_passes_out_of_the_box(tmp_path, capsys):
     done = subprocess.run([str(HARNESS), "run", "scenario.toml", "--out", "reports", "--quiet"],
                           cwd=tmp_path / "p", capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
+    # the CI job's comparison, its command as written, with this run as its own baseline: nothing worse
+    shutil.copytree(tmp_path / "p" / "reports", tmp_path / "p" / "baseline")
+    command = re.search(r"harness compare [^|\n]*", (tmp_path / "p" / "ci-job.yml").read_text()).group(0)
+    done = subprocess.run([str(HARNESS), *shlex.split(command)[1:]], cwd=tmp_path / "p", capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0 and "NOT WORSE" in done.stdout, done.stdout + done.stderr
+    assert "NOT WORSE" in (tmp_path / "p" / "reports" / "compare.md").read_text()
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"], cwd=tmp_path / "p",
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0 and "1 passed" in done.stdout, done.stdout + done.stderr

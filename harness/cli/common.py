@@ -45,10 +45,12 @@ def resolve_scenario(arg: str) -> Path:
     return resolve(arg, "scenarios")
 
 
-def write_ci(args: argparse.Namespace, verdicts: list[tuple[str, list[dict]]]) -> None:
+def write_ci(args: argparse.Namespace, verdicts: list[tuple[str, list[dict]]], markdown=None) -> None:
+    """--junit-xml and --summary of the verdicts (gate rows per scenario); `markdown` the summary's own
+    form where it is not a gate table (a comparison's)."""
     from harness.runner.ci import junit_xml, markdown_summary
 
-    for path, text in ((args.junit_xml, junit_xml), (args.summary, markdown_summary)):
+    for path, text in ((args.junit_xml, junit_xml), (args.summary, markdown or markdown_summary)):
         if path is not None:
             try:
                 write_file_atomically(path, text(verdicts))

@@ -15,13 +15,14 @@ from harness.cli import run as run_command
 from harness.cli.common import DEFAULT_SCENARIO, EXIT_BAD_INPUT, EXIT_INTERNAL, write_file_atomically
 from harness.cli.parser import parser
 from harness.cli.project import cmd_audit, cmd_init, cmd_list
-from harness.cli.results import cmd_gate, cmd_report
+from harness.cli.results import cmd_compare, cmd_gate, cmd_report
 from harness.cli.run import cmd_run
 from harness.cli.sweep import cmd_excite, cmd_sweep
 from harness.runner.ci import error_summary, error_xml
 
-COMMANDS = {"run": cmd_run, "report": cmd_report, "gate": cmd_gate, "sweep": cmd_sweep, "excite": cmd_excite,
-            "list": cmd_list, "init": cmd_init, "audit": cmd_audit}  # each imports what it needs when it runs
+# each command imports what it needs when it runs
+COMMANDS = {"run": cmd_run, "report": cmd_report, "gate": cmd_gate, "compare": cmd_compare, "sweep": cmd_sweep,
+            "excite": cmd_excite, "list": cmd_list, "init": cmd_init, "audit": cmd_audit}
 
 
 class _Stdout:
@@ -60,7 +61,7 @@ class _Stdout:
 def _no_verdict(args: argparse.Namespace, kind: str, message: str) -> None:
     """Bad input or an internal error: the CI files asked for still say so, as one test case with
     an error (harness/runner/ci.py). Nothing is written where the CI file itself is the fault."""
-    given = next((v for v in (getattr(args, k, None) for k in ("scenarios", "results", "scenario")) if v),
+    given = next((v for v in (getattr(args, k, None) for k in ("scenarios", "results", "scenario", "candidate")) if v),
                  [DEFAULT_SCENARIO] if args.command == "run" else [f"harness {args.command}"])
     name = " ".join(str(s) for s in (given if isinstance(given, list) else [given]))
     for attr, text in (("junit_xml", error_xml), ("summary", error_summary)):
@@ -87,7 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     # are not loaded unless the environment asks for them (MUJOCO_GL set beforehand is kept)
     os.environ.setdefault("MUJOCO_GL", "disable")
     args = parser().parse_args(argv)
-    for attr in ("out", "junit_xml", "summary"):  # where to write, fixed now: plugin code may change directory
+    # where to write, fixed now: plugin code may change directory
+    for attr in ("out", "junit_xml", "summary", "figures"):
         if getattr(args, attr, None) is not None:
             setattr(args, attr, Path(os.path.abspath(getattr(args, attr))))
     args.reports = Path(os.path.abspath("reports"))  # the default output folder's parent

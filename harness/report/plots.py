@@ -4,16 +4,22 @@ same data.
 
 Written here rather than drawn with matplotlib: its layout (tick labels measured, tight bounding
 boxes, a second draw for `bbox_inches`) cost 0.1 to 0.3 s per panel, over 5 s for the 45 panels
-of kr500_rail's report, where these charts take milliseconds. A series is thinned to what a
+of kr500_rail's report, where these charts take milliseconds (`harness report --figures` draws the
+same charts with matplotlib, for print: harness/report/figures.py). A series is thinned to what a
 panel can show (the minimum and maximum of each pixel column, so a spike stays visible); a
 non-finite value, or a non-positive one on a logarithmic axis, breaks the line.
 """
 
 from __future__ import annotations
 
+import functools
 import html
 import itertools
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,6 +28,41 @@ COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e3
           "#bcbd22", "#17becf")
 FONT = 'font-family="sans-serif"'
 CHAR = 0.58  # average glyph width in ems, to place legends without measuring text
+
+
+@dataclass(frozen=True)
+class Chart:
+    """One chart as the report asked for it: the function (`kind`: lines, grid, bars, histograms) and
+    its arguments, so that harness/report/figures.py draws the same data with matplotlib."""
+
+    kind: str
+    args: tuple
+    kwargs: dict
+
+
+_charts: ContextVar[list[Chart] | None] = ContextVar("charts", default=None)
+
+
+@contextmanager
+def collecting() -> Iterator[list[Chart]]:
+    """Every chart drawn within, in the report's order."""
+    charts: list[Chart] = []
+    token = _charts.set(charts)
+    try:
+        yield charts
+    finally:
+        _charts.reset(token)
+
+
+def _kept(draw):
+    """A chart function whose calls are kept where `collecting` asks for them."""
+    @functools.wraps(draw)
+    def drawn(*args, **kwargs):
+        charts = _charts.get()
+        if charts is not None:
+            charts.append(Chart(draw.__name__, args, kwargs))
+        return draw(*args, **kwargs)
+    return drawn
 
 
 def _esc(s: str) -> str:
@@ -210,6 +251,7 @@ def _colors(names) -> dict[str, str]:
     return {name: COLORS[k % len(COLORS)] for k, name in enumerate(names)}
 
 
+@_kept
 def lines(t, series: dict[str, np.ndarray], ylabel: str, title: str, logy: bool = False,
           flags: np.ndarray | None = None, styles: dict[str, str] | None = None, height: float = 2.6,
           xlabel: str = "t [s]", logx: bool = False) -> str:
@@ -223,6 +265,7 @@ def lines(t, series: dict[str, np.ndarray], ylabel: str, title: str, logy: bool 
                                                      xlabel, 10, colors, logx))
 
 
+@_kept
 def grid(t, panels: list[tuple[str, dict[str, np.ndarray], np.ndarray | None]], ylabel: str,
          logy: bool = False, styles: dict[str, str] | None = None, ncols: int = 2) -> str:
     """Small multiples: one panel per (title, series, flags), one legend above them."""
@@ -242,6 +285,7 @@ def grid(t, panels: list[tuple[str, dict[str, np.ndarray], np.ndarray | None]], 
     return _svg(WIDTH, lh + 10 + nrows * cell_h, "".join(body))
 
 
+@_kept
 def bars(labels: list[str], series: dict[str, list[float | None]], ylabel: str, title: str,
          logy: bool = True) -> str:
     colors = _colors(series)
@@ -273,6 +317,7 @@ def bars(labels: list[str], series: dict[str, list[float | None]], ylabel: str, 
     return _svg(WIDTH, h, "".join(body) + legend)
 
 
+@_kept
 def histograms(panels: list[tuple[str, np.ndarray]], xlabel: str, bins: int = 30, ncols: int = 6) -> str:
     """Small multiples: one histogram per (title, values), a line at zero where the range holds it."""
     nrows = -(-len(panels) // ncols)

@@ -5,6 +5,8 @@
     limit = 1e-9
     direction = "at_most"                                 # or "at_least"; default at_most
     name = "graph torques agree with Pinocchio"           # optional; default the metric
+    tolerance = 0.05                                      # optional: the relative change `harness compare`
+                                                          # allows against a baseline (harness/runner/compare.py)
 
 A gate set is a file of gates that many scenarios share, included with `[scenario] gate_sets`:
 
@@ -38,9 +40,11 @@ class Gate:
     metric: str
     limit: float
     direction: str = "at_most"
+    tolerance: float | None = None  # the relative change a comparison allows (None: by the gate's kind)
 
     def as_dict(self) -> dict:
-        return {"name": self.name, "metric": self.metric, "limit": self.limit, "direction": self.direction}
+        return {"name": self.name, "metric": self.metric, "limit": self.limit, "direction": self.direction,
+                **({"tolerance": self.tolerance} if self.tolerance is not None else {})}
 
 
 def read_gates(tables: list[Table]) -> tuple[Gate, ...]:
@@ -50,7 +54,8 @@ def read_gates(tables: list[Table]) -> tuple[Gate, ...]:
         if not metric or any(not part for part in metric.split(".")):
             raise t.error("metric", f"{metric!r} is not a dotted path into results.json")
         gate = Gate(t.string("name", default=metric), metric, t.number("limit"),
-                    t.string("direction", default="at_most", choices=DIRECTIONS))
+                    t.string("direction", default="at_most", choices=DIRECTIONS),
+                    t.number("tolerance", nonnegative=True) if t.has("tolerance") else None)
         t.finish()
         gates.append(gate)
     return tuple(gates)
@@ -189,6 +194,7 @@ def from_results(results: dict, source) -> tuple[Gate, ...]:
     for i, r in enumerate(rows):
         if not isinstance(r, dict):
             raise InputError(source, f"gates[{i}]", "expected an object")
-        t = Table({k: r[k] for k in ("name", "metric", "limit", "direction") if k in r}, source, f"gates[{i}]")
+        t = Table({k: r[k] for k in ("name", "metric", "limit", "direction", "tolerance") if k in r}, source,
+                  f"gates[{i}]")
         out.extend(read_gates([t]))
     return tuple(out)
