@@ -103,7 +103,7 @@ def _law(f: dict, qd: np.ndarray, qdd: np.ndarray, tau_rigid: np.ndarray) -> np.
 def test_the_exported_model_beats_the_published_one_on_data_it_never_saw(panda):
     """The exported URDF read by Pinocchio's own parser, its joints.toml by tomllib: on the last
     30 % of the log, which the fit never saw, the torque error is below the published model's
-    2.6 % (on its own training data; measured here 1.35 %), and it is the figure results.json states."""
+    2.6 % (on its own training data; measured here 1.33 %), and it is the figure results.json states."""
     out, r = panda
     model = pin.buildModelFromUrdf(str(out / "identified" / "robot.urdf"))
     model.gravity.linear = np.array(r["scenario"]["gravity"])
