@@ -91,6 +91,22 @@ def test_an_unmeasured_joints_drive_terms_leave_the_base_and_its_motion_stays_in
     assert not np.allclose(model.torques(model.pm, q, moved, qdd), tau, rtol=0, atol=1e-9)
 
 
+def test_the_measured_columns_are_read_into_their_joints_places_an_unmeasured_joints_zero():
+    """The elbow (the third of six joints) unmeasured: the log's five torque columns go to joints 1, 2, 4,
+    5 and 6, in that order, each with its column's name; the elbow's column is zero and named as
+    unmeasured."""
+    from types import SimpleNamespace
+
+    from harness.sources.log.channels import every_joint
+
+    robot = load_scenario(SCENARIOS / "ur5_friction.toml").robot
+    source = SimpleNamespace(unmeasured=("elbow_joint",))
+    tau = np.arange(1.0, 11.0).reshape(2, 5)
+    out, names = every_joint(source, robot, tau, [f"c{k}" for k in range(5)])
+    np.testing.assert_array_equal(out, [[1, 2, 0, 3, 4, 5], [6, 7, 0, 8, 9, 10]])
+    assert names == ["c0", "c1", "(unmeasured: elbow_joint)", "c2", "c3", "c4"]
+
+
 @pytest.fixture(scope="module")
 def logs(tmp_path_factory):
     """ur5_friction's bench log (2 s, 400 rows, noise free): as recorded; with the wrists' channels reading
