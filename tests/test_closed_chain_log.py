@@ -215,6 +215,8 @@ REFUSED = {  # what a closed chain's log path does not read yet: its key, and wh
                                 "open tree"),
     "friction law families": ("", '[friction_law]\nfamilies = ["stribeck"]', "friction_law.families",
                               "viscous and Coulomb"),
+    "a counterbalanced channel": ('counterbalanced = ["ACTUATED"]', "", "data.counterbalanced", "with gravity"),
+    "an unmeasured channel": ('unmeasured = ["ACTUATED"]', "", "data.unmeasured", "open tree"),
 }
 
 
@@ -222,7 +224,11 @@ REFUSED = {  # what a closed chain's log path does not read yet: its key, and wh
 def test_what_a_closed_chain_s_log_cannot_read_yet_is_refused_naming_the_key(exact, tmp_path, case):
     extra_data, extra, key, message = REFUSED[case]
     text = _scenario_text(exact[0] / "log.csv", "", extra)
-    text = text.replace("validation = { from = 0.7 }", f"validation = {{ from = 0.7 }}\n{extra_data}")
+    from harness.model.load import load_spec
+
+    actuated = load_spec(MODELS / "parallelogram.toml").actuated
+    text = text.replace("validation = { from = 0.7 }",
+                        f"validation = {{ from = 0.7 }}\n{extra_data.replace('ACTUATED', actuated[-1])}")
     (tmp_path / "s.toml").write_text(text)
     with pytest.raises(InputError) as err:
         load_scenario(tmp_path / "s.toml")

@@ -75,3 +75,38 @@ def test_a_channel_off_by_a_factor_with_or_without_gravity_is_not_called_counter
     log[:, 1] = motion[:, 1]  # joint 1's gravity held by a spring
     balanced = start(heavy, log, joints, lambda: motion)
     assert [j for j, v in balanced.per_joint.items() if v.get("counterbalanced") == "likely"] == ["j1"]
+
+
+def test_a_counterbalanced_channels_rows_and_torques_are_its_joints_less_its_gravity():
+    """The shoulder lift declared counterbalanced: at 30 random states of the UR5 with drives, its channel's
+    torque is pinocchio.rnea's plus its drive terms less pinocchio.computeGeneralizedGravity's, every
+    other channel the torque itself (1e-12 of the largest); the regressor's rows times the model's
+    parameters give the same (the fit's and the friction law search's), and the structural base spans
+    those rows (its rank theirs)."""
+    import pinocchio as pin
+
+    from harness.stages.log_model import log_model
+
+    robot = load_spec(SCENARIOS.parent / "models" / "ur5_friction.toml")
+    model = log_model(robot, np.array([0.0, 0.0, -9.81]), counterbalanced=("shoulder_lift_joint",))
+    rng = np.random.default_rng(8)
+    q, qd, qdd = rng.uniform(-np.pi, np.pi, (30, 6)), rng.standard_normal((30, 6)), rng.standard_normal((30, 6))
+    pm, data = model.pm, model.pm.model.createData()
+    expected = np.empty((30, 6))
+    for i in range(30):
+        full, v, a = (np.zeros(pm.model.nq) for _ in range(3))
+        full[pm.q_index], v[pm.q_index], a[pm.q_index] = q[i], qd[i], qdd[i]  # one coordinate per hinge
+        tau = pin.rnea(pm.model, data, full, v, a)[pm.q_index]
+        tau[1] -= pin.computeGeneralizedGravity(pm.model, data, full)[pm.q_index][1]
+        for k, f in enumerate(robot.frictions):
+            tau[k] += (f.armature * qdd[i, k] + f.viscous * qd[i, k]
+                       + f.coulomb * np.tanh(qd[i, k] / f.coulomb_velocity) + f.offset)
+        expected[i] = tau
+    atol = 1e-12 * np.abs(expected).max()
+    np.testing.assert_allclose(model.torques(pm, q, qd, qdd), expected, rtol=0, atol=atol)
+    W = model.rows(pm, q, qd, qdd)
+    np.testing.assert_allclose((W @ model.x_model).reshape(30, 6), expected, rtol=0, atol=atol)
+    np.testing.assert_allclose(model.joint_rows(pm, q, qd, qdd) @ model.x_model, expected, rtol=0, atol=atol)  # the
+    # friction law search's rows
+    rank = np.linalg.matrix_rank(W)
+    assert np.linalg.matrix_rank(W[:, model.base.independent]) == len(model.base.independent) == rank

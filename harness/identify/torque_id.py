@@ -230,8 +230,22 @@ def structurally_weak(W: np.ndarray, independent: np.ndarray, norms: np.ndarray,
 STRUCTURAL_STATES = 200  # random states for the structural base: 2 x 10 n rows and more for n <= 9 joints
 
 
+def without_gravity(pm: PinocchioModel, q: np.ndarray, W: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
+    """The regressor's rows W (N n, c) with the links' columns of the rows of `joints` (counterbalanced:
+    a spring or counterweight holds their weight) less the gravity regressor Y(q, 0, 0), whose product with
+    the links' parameters is the gravity torque; in place."""
+    if not joints:
+        return W
+    N, n = q.shape
+    rest = np.zeros_like(q)
+    gravity = regressor(pm, q, rest, rest).reshape(N, n, 10 * n)[:, list(joints)]
+    W.reshape(N, n, -1)[:, list(joints), : 10 * n] -= gravity
+    return W
+
+
 def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0,
-                    with_friction: bool = False, chain=None, channels: tuple[int, ...] | None = None) -> BaseParameters:
+                    with_friction: bool = False, chain=None, channels: tuple[int, ...] | None = None,
+                    weightless: tuple[int, ...] = ()) -> BaseParameters:
     """The base parameters of the model's structure, chosen once: QR with column pivoting of the
     noise-free regressor at STRUCTURAL_STATES random states (q uniform within the joint limits, or
     +-pi, +-1 m; q', q'' standard normal), not of a measured trajectory, whose noise or poor
@@ -240,7 +254,8 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
     actuated-torque regressor G^T Y at random consistent states (the actuated joints' q uniform within
     their limits, q'_a and q''_a within +-1, the passive joints' from the loops). `channels`: the joints
     whose rows a log holds (an open tree's measured joints, harness/stages/log_model.py): the base of
-    their rows alone, every joint's motion in them."""
+    their rows alone, every joint's motion in them; `weightless`: joints whose rows carry no gravity
+    (`without_gravity`)."""
     if chain is not None:
         from harness.model.closure import random_motion
 
@@ -258,7 +273,7 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
                              limits)
     q = rng.uniform(lo, hi, (STRUCTURAL_STATES, n))
     qd, qdd = rng.standard_normal((2, STRUCTURAL_STATES, n))
-    W = regressor(pm, q, qd, qdd, with_friction)
+    W = without_gravity(pm, q, regressor(pm, q, qd, qdd, with_friction), weightless)
     if channels is not None:
         W = W.reshape(STRUCTURAL_STATES, n, -1)[:, list(channels)].reshape(-1, W.shape[1])
     return base_parameters(W, with_friction)

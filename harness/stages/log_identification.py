@@ -49,7 +49,6 @@ from harness.identify.torque_id import (
     fit_base,
     links_weights,
     parameter_names,
-    regressor,
     with_structure,
 )
 from harness.model.closure import projection
@@ -134,7 +133,7 @@ def constants(data, robot, model: LogModel, d: Delayed, payload: TimeSeries | No
         W = W.whole()
     tau = model.data(training)[3]
     found = scale.torque_constants(model.pm, model.base, W, tau, model.base.of(model.x_model), robot, data.payload,
-                                   payload, None if model.reach is None else partial(model.rows, model.pm), joints)
+                                   payload, None if model.plain else partial(model.rows, model.pm), joints)
     return Constants(found, scale.scaled(d.training, found.factor, joints))
 
 
@@ -167,8 +166,7 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
         measured = model.measured  # an unmeasured joint's rows and torque zero: they weigh nothing
 
         def rows_of(samples: np.ndarray) -> np.ndarray:
-            return regressor(model.pm, q[samples], qd[samples], qdd[samples], with_friction=True).reshape(
-                len(samples), len(joints), -1) * measured[:, None]
+            return model.joint_rows(model.pm, q[samples], qd[samples], qdd[samples])
 
         try:
             choice = friction_law.choose(rows_of, model.base.independent, model.link_part, tau * measured, qd,
@@ -406,7 +404,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     sc = ctx.scenario
     robot, joints = sc.robot, sc.robot.joint_names
     ctx.progress("structural base parameters (with friction and rotor inertia)", None)
-    model = log_model(robot, sc.gravity_W, sc.data.unmeasured)
+    model = log_model(robot, sc.gravity_W, sc.data.unmeasured, sc.data.counterbalanced)
     if sc.data.delay != "none":
         ctx.progress("the torque channels' delays behind the encoders", None)
     delayed = delays(sc.data.delay, model, ctx.training)
@@ -447,7 +445,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     q, qd, _ = judged.states[span]
     models = {"consistent": identified, "model as given": robot, **({"truth": sc.truth} if sc.truth else {})}
     predicted = prediction(sc.gravity_W, models, judged.t[span], q, qd, judged.measured[span], span, joints,
-                           unmeasured=sc.data.unmeasured)
+                           not_made=_not_driven(sc.data, model))
     names = parameter_names(joints, True, robot.drive_names)
     exported = export_model(sc, robot, identified, frictions, fit.theta, scaled.training, fitted.W,
                             least_squares_fit(model, fitted, names, laws.laws, robot.drive_names))
@@ -459,6 +457,17 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     return li
 
 
+def _not_driven(data, model: LogModel) -> str | None:
+    """Why the models are not forward-simulated under the measured torques, where they are not: joints
+    without a torque to drive them, or a channel that lacks the counterweight's torque the model lacks."""
+    if data.unmeasured:
+        return f"not made: {', '.join(data.unmeasured)} without a measured torque to drive them ([data] unmeasured)"
+    if model.weightless:
+        return (f"not made: {', '.join(model.joints[k] for k in model.weightless)} held by a counterweight or spring "
+                "the model does not have ([data] counterbalanced)")
+    return None
+
+
 def warnings(li: LogIdentification, mode: str) -> list[str]:
     """What the terminal is told of a log run, once."""
     out, lags = [], li.delayed.lags  # the start check's findings are its own (log_judge.Start.said), said first
@@ -467,6 +476,10 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
         out.append(f"torque channels unmeasured ([data] unmeasured): {', '.join(unmeasured)}: fitted and judged on the "
                    f"other {len(li.model.torque_joints)} channels, their joints' motion in the model; their friction "
                    "and rotor inertia the model's; no forward prediction (nothing drives them)")
+    if li.model.weightless:
+        out.append("counterbalanced channels ([data] counterbalanced) fitted without their joints' gravity: "
+                   f"{', '.join(li.joints[k] for k in li.model.weightless)}; the exported model has no counterweight "
+                   "or spring (a simulation of it needs one at those joints); no forward prediction")
     out += consistent.plausibility_warnings(li.plausible)
     out += consistent.band_warnings(li.fit, li.joints, li.model.theta)
     out += delay_warnings(lags, li.model.torque_joints, mode)

@@ -41,11 +41,12 @@ def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
 
 def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
                tau: np.ndarray, span: str, joints: list[str], delays: dict | None = None,
-               unmeasured: tuple[str, ...] = ()) -> dict:
+               not_made: str | None = None) -> dict:
     """Each model forward-simulated in MuJoCo from measured states of a span (t (N,), q, q', tau (N, n))
     under the measured torques (harness/engines/rollout.py, predict), each channel read delays[model]
     (n,) s later where given: per horizon the RMS and largest position and velocity error. Not made
-    where joints are `unmeasured` (no torque to drive them), said."""
+    where the log's torques cannot drive the models (`not_made` says why: joints without a torque, a
+    counterweight the models lack), said."""
     starts = _starts(t, HORIZONS[-1], PREDICTION_STARTS)
     out = {"definition": f"from {len(starts)} measured states along the {span} span, each model forward-simulated "
                          "in MuJoCo (RK4, 1 ms) under the measured joint torques less its dry friction (Coulomb, "
@@ -55,9 +56,8 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
                          "simulated: its base parameters are not a full set of physical parameters",
            "span": span, "starts": len(starts), "timestep_s": PREDICTION_TIMESTEP,
            "horizons_s": list(HORIZONS), "models": {}}
-    if not len(starts) or unmeasured:
-        out["note"] = (f"no stretch of the {span} span is {HORIZONS[-1]:g} s long" if not unmeasured else
-                       f"not made: {', '.join(unmeasured)} without a measured torque to drive them ([data] unmeasured)")
+    if not len(starts) or not_made:
+        out["note"] = not_made or f"no stretch of the {span} span is {HORIZONS[-1]:g} s long"
         return out
     chains = {name: spec for name, spec in models.items() if spec.loops}
     if chains:

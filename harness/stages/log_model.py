@@ -8,7 +8,14 @@ harness/sources/log/channels.py); of a closed chain S = G, its actuated joints' 
 every row: its velocity and acceleration move the links outboard and inboard of it in the other joints'
 rows, so those links are identified from them; the parameters only its own row sees (of an open tree,
 its drive's friction and rotor inertia, and the combinations of its outer links that reach no measured
-row) are not in the structural base and stay the model's."""
+row) are not in the structural base and stay the model's.
+
+A counterbalanced joint's channel (`[data] counterbalanced`: a spring or counterweight holds its weight)
+carries the joint's torque less its gravity torque: its rows are the regressor's less the gravity
+regressor's, Y(q, q', q'') - Y(q, 0, 0) on the links' columns (the gravity torque is Y(q, 0, 0) theta,
+linear in the same parameters), and its predicted torque the model's less its gravity torque. A
+counterweight's torque that is not the joint's gravity (a spring's) is not modelled beyond the constant
+offset."""
 
 from __future__ import annotations
 
@@ -19,7 +26,14 @@ import numpy as np
 from harness.engines.pinocchio import PinocchioModel, build_model, joint_torques
 from harness.identify.friction_law import Law, extra_regressor
 from harness.identify.span_rows import RowsOnDemand, span_regressor
-from harness.identify.torque_id import BaseParameters, chain_regressor, structural_base, true_parameters
+from harness.identify.torque_id import (
+    BaseParameters,
+    chain_regressor,
+    regressor,
+    structural_base,
+    true_parameters,
+    without_gravity,
+)
 from harness.model.closure import ClosedChain, actuated_torques, projection
 
 
@@ -38,6 +52,7 @@ class LogModel:
     joints: list[str]  # every joint, in the spec's order
     chain: ClosedChain | None = None
     channels: tuple[int, ...] | None = None  # the measured ones among the joints (an open tree's); None: all
+    weightless: tuple[int, ...] = ()  # joints (an open tree's) whose channel carries no gravity: counterbalanced
 
     @property
     def torque_joints(self) -> list[str]:
@@ -75,10 +90,26 @@ class LogModel:
         (a long span's made on demand), an open tree's measured joints', or a closed chain's G^T Y."""
         if self.chain is None:
             W = span_regressor(pm, q, qd, qdd, coulomb)
-            if self.channels is None:
+            if self.channels is None and not self.weightless:
                 return W
-            return self._selected(W.whole() if isinstance(W, RowsOnDemand) else W, len(self.joints))
+            W = self._weightless(pm, q, W.whole() if isinstance(W, RowsOnDemand) else W)
+            return self._selected(W, len(self.joints))
         return chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True, coulomb=coulomb)
+
+    def joint_rows(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
+        """(N, n, 14 n): every joint's rows with friction as its channel reads them: a counterbalanced
+        joint's without gravity, an unmeasured joint's zero (they weigh nothing in a fit)."""
+        W = self._weightless(pm, q, regressor(pm, q, qd, qdd, with_friction=True))
+        return W.reshape(len(q), len(self.joints), -1) * self.measured[:, None]
+
+    def _weightless(self, pm: PinocchioModel, q: np.ndarray, W: np.ndarray) -> np.ndarray:
+        """Rows (N n, c) of every joint, a counterbalanced joint's without gravity (torque_id.without_gravity)."""
+        return without_gravity(pm, q, W, self.weightless)
+
+    @property
+    def plain(self) -> bool:
+        """Every joint's channel read as its torque: an open tree, every joint measured, none counterbalanced."""
+        return self.chain is None and self.channels is None and not self.weightless
 
     def _selected(self, rows: np.ndarray, per_sample: int) -> np.ndarray:
         """Rows (N per_sample, c) of each sample's joints or actuated joints: the measured channels' alone."""
@@ -98,6 +129,10 @@ class LogModel:
     def torques(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
         """(N, torque joints): the model pm's joint torques at the states as the log reads them."""
         tau = joint_torques(pm, q, qd, qdd)
+        if self.weightless:  # a counterbalanced joint's channel: less its gravity torque, Y(q, 0, 0) theta
+            rest = np.zeros_like(q)
+            gravity = regressor(pm, q, rest, rest).reshape(*q.shape, -1)[:, list(self.weightless)]
+            tau[:, list(self.weightless)] -= gravity @ true_parameters(pm)
         if self.chain is not None:
             return actuated_torques(projection(self.chain, q), tau)
         return tau if self.channels is None else tau[:, list(self.channels)]
@@ -129,14 +164,17 @@ class LogModel:
         return self.x_model[: 10 * self.n].reshape(self.n, 10)
 
 
-def log_model(robot, gravity_W: np.ndarray, unmeasured: tuple[str, ...] = ()) -> LogModel:
-    """The robot's LogModel; `unmeasured`: joints of an open tree whose torque the log does not hold."""
+def log_model(robot, gravity_W: np.ndarray, unmeasured: tuple[str, ...] = (),
+              counterbalanced: tuple[str, ...] = ()) -> LogModel:
+    """The robot's LogModel; `unmeasured`: joints of an open tree whose torque the log does not hold;
+    `counterbalanced`: joints of an open tree whose channel carries no gravity."""
     pm = build_model(robot, gravity_W)
     chain = ClosedChain.of(robot) if robot.loops else None
-    if unmeasured and chain is not None:
-        raise ValueError("unmeasured channels are read on an open tree")
+    if (unmeasured or counterbalanced) and chain is not None:
+        raise ValueError("unmeasured and counterbalanced channels are read on an open tree")
     channels = tuple(k for k, j in enumerate(robot.joint_names) if j not in unmeasured) if unmeasured else None
-    base = structural_base(pm, robot.limits, with_friction=True, chain=chain, channels=channels)
+    weightless = tuple(robot.joint_names.index(j) for j in counterbalanced)
+    base = structural_base(pm, robot.limits, with_friction=True, chain=chain, channels=channels, weightless=weightless)
     x_model = true_parameters(pm, with_friction=True)
     return LogModel(pm, base, x_model, base.link_part(x_model, 10 * len(robot.joints)), robot.joint_names, chain,
-                    channels)
+                    channels, weightless)

@@ -30,7 +30,7 @@ model's joint order and `{name}` for a joint's name, or a list of column names i
     payload = { file = "loaded.csv", body = "wrist_3_link", mass = 2.0, com = [...], inertia = [...] }
     validation = { from = 0.7 }           # the last 30 % by time is kept for validation
     velocities = "checked"                # logged q' realigned where it lags the positions (velocity.py); "used"
-    counterbalanced = ["torso_lift"]      # channels without gravity (a spring, a counterweight): the start check
+    counterbalanced = ["torso_lift"]      # channels without gravity (a spring, a counterweight): read so
     unmeasured = ["wrist_2", "wrist_3"]   # joints without a torque channel: their motion kept (channels.py)
 
 Instead of `file` and `columns`, `bag` (a rosbag2 folder or a ROS 1 .bag file) and `topic` (its

@@ -34,10 +34,14 @@ def every_joint(source: DataSource, robot: RobotSpec, tau: np.ndarray, names: li
 
 def supported(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
     """The `[data]` table `dt` of a scenario `root` on `robot`, read as `source`: what a closed chain's log
-    does not support (harness/sources/log/closed.py) and what reads every joint's torque beside
-    `unmeasured` joints refused in one line naming the key."""
+    does not support (harness/sources/log/closed.py, and counterbalanced channels) and what reads every
+    joint's torque beside `unmeasured` joints refused in one line naming the key."""
     if robot.loops:
         source = closed_chain_source(root, dt, robot, source)
+        if source.counterbalanced:
+            raise dt.error("counterbalanced", f"model {robot.name!r} is a closed chain: its fit reads every "
+                                              "actuated channel with gravity (a counterbalanced channel is read "
+                                              "without it on an open tree)")
     if not source.unmeasured:
         return source
     for table in ("identification", "refinement"):
