@@ -50,10 +50,8 @@ def _fit(problem, monkeypatch, solvers):
 
 
 def _physical(fit, theta_model) -> bool:
-    """Every link's smallest pseudo-inertia eigenvalue at least MARGIN of its model's largest, every
-    friction term but the offset non-negative."""
-    eps = [consistent.MARGIN * np.max(np.linalg.eigvalsh(pseudo_inertia(t))) for t in theta_model]
-    return (all(np.linalg.eigvalsh(pseudo_inertia(t))[0] >= e * (1 - 1e-6) for t, e in zip(fit.theta, eps, strict=True))
+    eps = consistent.MARGIN * max(np.max(np.linalg.eigvalsh(pseudo_inertia(t))) for t in theta_model)
+    return (all(np.linalg.eigvalsh(pseudo_inertia(t))[0] >= eps * (1 - 1e-6) for t in fit.theta)
             and np.all(fit.friction[:, :3] >= -1e-9))
 
 
@@ -170,7 +168,7 @@ def test_a_link_on_the_margin_or_far_from_the_model_is_consistent_and_its_warnin
     held, heavy = nearest_physical(past, margin), body * 9.0
     assert not consistent.consistency(past)["consistent"]
     assert consistent.consistency(held)["consistent"] and consistent.consistency(heavy)["consistent"]
-    p = consistent.plausibility(np.stack([held, heavy]), np.stack([body, body]), ["j1", "j2"], np.array([margin] * 2))
+    p = consistent.plausibility(np.stack([held, heavy]), np.stack([body, body]), ["j1", "j2"], margin)
     assert p["on_margin"] == ["j1"] and p["implausible"] == ["j2"]
     said = consistent.plausibility_warnings(p)
     assert "j2 (mass x9" in said[0] and "physically consistent all the same" in said[0]
@@ -228,32 +226,3 @@ def test_a_mass_the_data_demand_goes_beyond_the_band_and_is_said(demand, monkeyp
         assert fit.held_at_band == (0,) and fit.beyond_band == ()
         assert ratio == pytest.approx(consistent.MASS_BAND[0], rel=consistent.AT_BAND)
         assert fit.free_residual < 1e-6 < fit.relative_residual
-
-
-def test_a_link_a_thousandth_of_anothers_size_is_held_to_a_margin_of_its_own():
-    """A 10 kg link beside a 0.1 g one (a finger beside an arm: its pseudo-inertia's eigenvalues 2.5e-9 to
-    1e-4, the arm's largest 10), a random regressor (600 rows) that sees each parameter, noise-free
-    torques, the model both links 20 % off. Each link is held MARGIN of its own model's scale from
-    singular, so the finger's truth lies inside the fit's set and comes back within 1e-4 of its largest
-    parameter (what is left is the pull towards the model, PULL of a fit term at RESIDUAL_FLOOR); held
-    to the arm's margin, 1.2e-5, above the finger's three smallest eigenvalues, it could not (0.24 off)."""
-    from harness.model.inertia import parallel_axis
-
-    def link(mass, c, moments):
-        centre = np.array([c, 0.0, 0.0])
-        inertia = mass * np.diag(moments) + parallel_axis(mass, centre)
-        return np.array([mass, *(mass * centre), inertia[0, 0], inertia[0, 1], inertia[1, 1], inertia[0, 2],
-                         inertia[1, 2], inertia[2, 2]])
-
-    arm, finger = link(10.0, 0.1, (0.01, 0.02, 0.025)), link(1e-4, 0.02, (1e-4, 2e-4, 2.5e-4))
-    finger_eigenvalues, arm_eigenvalues = (np.linalg.eigvalsh(pseudo_inertia(t)) for t in (finger, arm))
-    assert finger_eigenvalues[0] < consistent.MARGIN * arm_eigenvalues[-1]  # the arm's margin: the finger outside
-    friction = np.array([[0.01, 0.1, 0.2, 0.0], [0.001, 0.01, 0.02, 0.0]])
-    W = np.random.default_rng(5).standard_normal((600, 28))
-    tau = W @ np.concatenate([arm, finger, friction.ravel()])
-    model = np.stack([1.2 * arm, 1.2 * finger])
-    scale = np.concatenate([kind_scale(model[0]), kind_scale(model[1]), np.ones(8)])
-    fit = consistent.fit(W, tau, model, friction, scale)
-    assert _physical(fit, model)
-    assert np.abs(fit.theta[1] - finger).max() <= 1e-4 * np.abs(finger).max()
-    assert np.abs(fit.theta[0] - arm).max() <= 1e-4 * np.abs(arm).max()
