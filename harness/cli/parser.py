@@ -60,34 +60,7 @@ def parser() -> argparse.ArgumentParser:
     _replace_option(run)
     _worker_options(run, "the estimators' Monte Carlo trials ([estimators])")
     _ci_options(run)
-    report = sub.add_parser("report", help="re-render report.html from a results.json",
-                            description="Re-render the HTML report from a results.json and the recording.csv "
-                                        "beside it, without simulating again.")
-    report.add_argument("results", metavar="RESULTS.json", type=Path)
-    report.add_argument("--out", metavar="FILE", type=Path, default=None,
-                        help="where to write the report (default: report.html beside RESULTS.json)")
-    report.add_argument("--figures", metavar="DIR", type=Path, default=None,
-                        help="also write each chart of the report as PNG and PDF into DIR, drawn with matplotlib "
-                             "from the same data (pip install 'robot-dynamics-harness[figures]')")
-    gate = sub.add_parser("gate", help="re-check the gates of one or more results.json",
-                          description="Check gates against existing results without simulating again. The gates "
-                                      "are the ones stored in each results.json, or those of --scenario FILE (for "
-                                      "example after changing a limit). Exit status 1 if any gate fails.")
-    gate.add_argument("results", metavar="RESULTS.json", type=Path, nargs="+")
-    gate.add_argument("--scenario", metavar="FILE", type=Path, default=None,
-                      help="take the gates from this scenario file instead")
-    _ci_options(gate)
-    comp = sub.add_parser(
-        "compare", help="compare two runs' gated metrics: is the candidate worse than the baseline?",
-        description="Read each gated metric of the candidate in both runs and say, per metric, whether the "
-                    "candidate is worse beyond its tolerance: the gate's own (tolerance = ... in [[gates]]), "
-                    "else an order of magnitude for a round-off gate (limit at most 1e-6) and a 1 % change "
-                    "its wrong way for any other. Exit status 1 naming each worse metric, 2 when the runs are "
-                    "of another scenario or one is missing.")
-    comp.add_argument("baseline", metavar="BASELINE", type=Path,
-                      help="a results.json, or a folder of runs (DIR/results.json or DIR/*/results.json)")
-    comp.add_argument("candidate", metavar="CANDIDATE", type=Path, help="the same, of the run to judge")
-    _ci_options(comp)
+    _results_commands(sub)
     sweep = sub.add_parser(
         "sweep", help="repeat a scenario's noisy measurement N times: error distributions and coverage",
         description="Simulate the scenario once, then draw its measurement noise N times (seeds from the scenario's "
@@ -152,6 +125,38 @@ def parser() -> argparse.ArgumentParser:
                                 "arm with a closed-form model); any of --urdf, --mjcf and --robot takes either format, "
                                 "told by its root element")
     return parser
+
+
+def _results_commands(sub) -> None:
+    """`report`, `gate` and `compare`: what reads results.json files without simulating again."""
+    report = sub.add_parser("report", help="re-render report.html from a results.json",
+                            description="Re-render the HTML report from a results.json and the recording.csv "
+                                        "beside it, without simulating again.")
+    report.add_argument("results", metavar="RESULTS.json", type=Path)
+    report.add_argument("--out", metavar="FILE", type=Path, default=None,
+                        help="where to write the report (default: report.html beside RESULTS.json)")
+    report.add_argument("--figures", metavar="DIR", type=Path, default=None,
+                        help="also write each chart of the report as PNG and PDF into DIR, drawn with matplotlib "
+                             "from the same data (pip install 'robot-dynamics-harness[figures]')")
+    gate = sub.add_parser("gate", help="re-check the gates of one or more results.json",
+                          description="Check gates against existing results without simulating again. The gates "
+                                      "are the ones stored in each results.json, or those of --scenario FILE (for "
+                                      "example after changing a limit). Exit status 1 if any gate fails.")
+    gate.add_argument("results", metavar="RESULTS.json", type=Path, nargs="+")
+    gate.add_argument("--scenario", metavar="FILE", type=Path, default=None,
+                      help="take the gates from this scenario file instead")
+    _ci_options(gate)
+    comp = sub.add_parser(
+        "compare", help="compare two runs' gated metrics: is the candidate worse than the baseline?",
+        description="Read each gated metric of the candidate in both runs and say, per metric, whether the "
+                    "candidate is worse beyond its tolerance: the gate's own (tolerance = ... in [[gates]]), "
+                    "else an order of magnitude for a round-off gate (limit at most 1e-6) and a 1 % change "
+                    "its wrong way for any other. Exit status 1 naming each worse metric, 2 when the runs are "
+                    "of another scenario or one is missing.")
+    comp.add_argument("baseline", metavar="BASELINE", type=Path,
+                      help="a results.json, or a folder of runs (DIR/results.json or DIR/*/results.json)")
+    comp.add_argument("candidate", metavar="CANDIDATE", type=Path, help="the same, of the run to judge")
+    _ci_options(comp)
 
 
 def _replace_option(p: argparse.ArgumentParser) -> None:

@@ -100,8 +100,6 @@ def cmd_gate(args: argparse.Namespace) -> int:
     return EXIT_OK if passed else EXIT_GATE_FAILED
 
 
-
-
 def _runs(path: Path) -> dict[str, tuple[Path, dict]]:
     """The results a path holds by scenario name: a results.json, or a folder holding one or one per
     subfolder (as `harness run` writes several scenarios)."""

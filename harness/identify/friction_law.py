@@ -359,11 +359,8 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     if transmission is not None:
         qd = transmission.motor_rates(qd)
     columns_of = _LawColumns(qd, t[order], transmission, columns)
-    # a joint (a motor) that never moves faster than the smallest v_c tried shows nothing of its friction's
-    # shape: it keeps the model's law
-    moving = np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]
     measured = np.ones(n, dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
-    moving &= measured
+    moving = _searched(qd, measured)
     rigid = np.zeros((N, n))
     total = float(np.sum(tau**2))
 
@@ -416,6 +413,13 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     tau_rigid[order] = normal.rigid_torque()
     return FrictionChoice(tuple(laws), tuple(scores), model_error, chosen_error, config.folds, tau_rigid,
                           folds.guard * step, tuple(flat))
+
+
+def _searched(qd: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """(n,) the joints (motors) whose law is searched: a joint that never moves faster than the smallest
+    v_c tried shows nothing of its friction's shape, and an unmeasured one has no row of its own: either
+    keeps the model's law."""
+    return (np.max(np.abs(qd), axis=0, initial=0.0) > VELOCITY_GRID[0]) & measured
 
 
 class _LawColumns:

@@ -230,17 +230,25 @@ def structurally_weak(W: np.ndarray, independent: np.ndarray, norms: np.ndarray,
 STRUCTURAL_STATES = 200  # random states for the structural base: 2 x 10 n rows and more for n <= 9 joints
 
 
+def gravity_rows(pm: PinocchioModel, q: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
+    """(N, len(joints), 10 n): the rows of `joints` of the gravity regressor Y(q, 0, 0), whose product with
+    the links' parameters is their gravity torque."""
+    rest = np.zeros_like(q)
+    return regressor(pm, q, rest, rest).reshape(*q.shape, -1)[:, list(joints)]
+
+
 def without_gravity(pm: PinocchioModel, q: np.ndarray, W: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
     """The regressor's rows W (N n, c) with the links' columns of the rows of `joints` (counterbalanced:
-    a spring or counterweight holds their weight) less the gravity regressor Y(q, 0, 0), whose product with
-    the links' parameters is the gravity torque; in place."""
-    if not joints:
-        return W
-    N, n = q.shape
-    rest = np.zeros_like(q)
-    gravity = regressor(pm, q, rest, rest).reshape(N, n, 10 * n)[:, list(joints)]
-    W.reshape(N, n, -1)[:, list(joints), : 10 * n] -= gravity
+    a spring or counterweight holds their weight) less the gravity regressor's (`gravity_rows`); in place."""
+    if joints:
+        N, n = q.shape
+        W.reshape(N, n, -1)[:, list(joints), : 10 * n] -= gravity_rows(pm, q, joints)
     return W
+
+
+def selected_rows(W: np.ndarray, per_sample: int, joints: tuple[int, ...]) -> np.ndarray:
+    """Rows (N per_sample, c), sample by sample, of each sample's `joints` alone: (N len(joints), c)."""
+    return W.reshape(-1, per_sample, W.shape[1])[:, list(joints)].reshape(-1, W.shape[1])
 
 
 def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0,
@@ -274,9 +282,7 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
     q = rng.uniform(lo, hi, (STRUCTURAL_STATES, n))
     qd, qdd = rng.standard_normal((2, STRUCTURAL_STATES, n))
     W = without_gravity(pm, q, regressor(pm, q, qd, qdd, with_friction), weightless)
-    if channels is not None:
-        W = W.reshape(STRUCTURAL_STATES, n, -1)[:, list(channels)].reshape(-1, W.shape[1])
-    return base_parameters(W, with_friction)
+    return base_parameters(W if channels is None else selected_rows(W, n, channels), with_friction)
 
 
 @dataclass(eq=False)

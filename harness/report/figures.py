@@ -51,23 +51,21 @@ def file_stem(k: int, chart: plots.Chart) -> str:
 
 
 def _spans(ax, t: np.ndarray, flags) -> None:
-    """The flagged samples shaded, consecutive ones as one band (as plots._spans)."""
-    if flags is None or not np.any(flags):
-        return
-    dt = (t[1] - t[0]) if len(t) > 1 else 1.0
-    f = np.concatenate([[False], np.asarray(flags, dtype=bool), [False]])
-    for a, b in zip(np.flatnonzero(~f[:-1] & f[1:]), np.flatnonzero(f[:-1] & ~f[1:]), strict=True):
-        ax.axvspan(t[a] - dt / 2, t[b - 1] + dt / 2, color="#d62728", alpha=0.15, linewidth=0)
+    """The flagged samples shaded, consecutive ones as one band (plots.flagged_spans)."""
+    if flags is not None and np.any(flags):
+        for start, end in plots.flagged_spans(t, flags):
+            ax.axvspan(start, end, color="#d62728", alpha=0.15, linewidth=0)
 
 
-def _series(ax, t, series: dict, styles: dict | None, logy: bool, logx: bool = False) -> None:
+def _series(ax, t, series: dict, styles: dict | None, logy: bool, colors: dict[str, str], logx: bool = False,
+            width: float = 1.1, marker: float = 3.0) -> None:
+    """Each series a line in its colour (plots' own per name), a non-positive value breaking it on a
+    logarithmic axis, as in the HTML."""
     t = np.asarray(t, dtype=float)
-    for k, (name, y) in enumerate(series.items()):
+    for name, y in series.items():
         y = np.asarray(y, dtype=float)
-        if logy:
-            y = np.where(y > 0, y, np.nan)  # a non-positive value breaks the line, as in the HTML
-        ax.plot(t, y, (styles or {}).get(name, "-"), color=plots.COLORS[k % len(plots.COLORS)], label=name,
-                linewidth=1.1, markersize=3)
+        ax.plot(t, np.where(y > 0, y, np.nan) if logy else y, (styles or {}).get(name, "-"), color=colors[name],
+                label=name, linewidth=width, markersize=marker)
     if logy:
         ax.set_yscale("log")
     if logx:
@@ -78,7 +76,7 @@ def _lines(a: dict):
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(WIDTH_IN, a["height"] + 0.8), layout="constrained")
-    _series(ax, a["t"], a["series"], a["styles"], a["logy"], a["logx"])
+    _series(ax, a["t"], a["series"], a["styles"], a["logy"], plots.series_colors(a["series"]), a["logx"])
     _spans(ax, np.asarray(a["t"], dtype=float), a["flags"])
     ax.set(xlabel=a["xlabel"], ylabel=a["ylabel"], title=a["title"])
     ax.legend(fontsize=7, ncols=min(4, max(1, len(a["series"]))))
@@ -92,15 +90,10 @@ def _grid(a: dict):
     nrows = -(-len(panels) // ncols)
     fig, axes = plt.subplots(nrows, ncols, figsize=(WIDTH_IN, 1.9 * nrows + 0.6), sharex=True,
                              layout="constrained", squeeze=False)
-    names = list(dict.fromkeys(k for _, series, _ in panels for k in series))
+    names = dict.fromkeys(k for _, series, _ in panels for k in series)
+    colors = plots.series_colors(names)  # one per name, the same in every panel
     for ax, (title, series, flags) in zip(axes.flat, panels, strict=False):
-        colors = {n: plots.COLORS[k % len(plots.COLORS)] for k, n in enumerate(names)}
-        for name, y in series.items():
-            y = np.asarray(y, dtype=float)
-            ax.plot(np.asarray(a["t"], dtype=float), np.where(y > 0, y, np.nan) if a["logy"] else y,
-                    (a["styles"] or {}).get(name, "-"), color=colors[name], label=name, linewidth=1.0, markersize=2)
-        if a["logy"]:
-            ax.set_yscale("log")
+        _series(ax, a["t"], series, a["styles"], a["logy"], colors, width=1.0, marker=2.0)
         _spans(ax, np.asarray(a["t"], dtype=float), flags)
         ax.set_title(title, fontsize=8)
         ax.set_ylabel(a["ylabel"], fontsize=7)

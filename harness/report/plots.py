@@ -164,14 +164,20 @@ def _polyline(px: np.ndarray, py: np.ndarray, color: str, style: str, lw: float,
     return "".join(out)
 
 
-def _spans(t: np.ndarray, flags: np.ndarray, sx: _Scale, top: float, bottom: float) -> str:
-    """Shade the flagged samples, consecutive ones as one band."""
+def flagged_spans(t: np.ndarray, flags: np.ndarray) -> list[tuple[float, float]]:
+    """The flagged samples, consecutive ones as one band: each band's (start, end) times, half a step
+    beyond its first and last sample."""
     dt = (t[1] - t[0]) if len(t) > 1 else 1.0
     f = np.concatenate([[False], np.asarray(flags, dtype=bool), [False]])
     starts, ends = np.flatnonzero(~f[:-1] & f[1:]), np.flatnonzero(f[:-1] & ~f[1:])
+    return [(t[a] - dt / 2, t[b - 1] + dt / 2) for a, b in zip(starts, ends, strict=True)]
+
+
+def _spans(t: np.ndarray, flags: np.ndarray, sx: _Scale, top: float, bottom: float) -> str:
+    """Shade the flagged samples, consecutive ones as one band."""
     out = []
-    for a, b in zip(starts, ends, strict=True):
-        x0, x1 = sx(t[a] - dt / 2), sx(t[b - 1] + dt / 2)
+    for start, end in flagged_spans(t, flags):
+        x0, x1 = sx(start), sx(end)
         out.append(f'<rect x="{x0:.1f}" y="{top:.1f}" width="{max(x1 - x0, 0.5):.1f}" height="{bottom - top:.1f}" '
                    f'fill="#d62728" fill-opacity="0.15"/>')
     return "".join(out)
@@ -247,7 +253,8 @@ def _panel(box, t, series: dict[str, np.ndarray], flags, styles, logy: bool, lw:
     return "".join(body)
 
 
-def _colors(names) -> dict[str, str]:
+def series_colors(names) -> dict[str, str]:
+    """Each series name's colour, in order: the same in the SVG and in harness/report/figures.py."""
     return {name: COLORS[k % len(COLORS)] for k, name in enumerate(names)}
 
 
@@ -256,7 +263,7 @@ def lines(t, series: dict[str, np.ndarray], ylabel: str, title: str, logy: bool 
           flags: np.ndarray | None = None, styles: dict[str, str] | None = None, height: float = 2.6,
           xlabel: str = "t [s]", logx: bool = False) -> str:
     """Series over one axis (time, unless `xlabel` says otherwise), one legend above."""
-    colors = _colors(series)
+    colors = series_colors(series)
     heading = f'<text x="{WIDTH / 2:.1f}" y="16" font-size="12" text-anchor="middle">{_esc(title)}</text>'
     legend, lh = _legend([(k, colors[k], (styles or {}).get(k, "-")) for k in series], 70, 34, WIDTH - 80)
     h = 100 * height + lh
@@ -270,7 +277,7 @@ def grid(t, panels: list[tuple[str, dict[str, np.ndarray], np.ndarray | None]], 
          logy: bool = False, styles: dict[str, str] | None = None, ncols: int = 2) -> str:
     """Small multiples: one panel per (title, series, flags), one legend above them."""
     names = list(dict.fromkeys(k for _, series, _ in panels for k in series))
-    colors = _colors(names)
+    colors = series_colors(names)
     legend, lh = _legend([(k, colors[k], (styles or {}).get(k, "-")) for k in names], 60, 14, WIDTH - 70)
     nrows = -(-len(panels) // ncols)
     cell_w, cell_h = WIDTH / ncols, 170.0
@@ -288,7 +295,7 @@ def grid(t, panels: list[tuple[str, dict[str, np.ndarray], np.ndarray | None]], 
 @_kept
 def bars(labels: list[str], series: dict[str, list[float | None]], ylabel: str, title: str,
          logy: bool = True) -> str:
-    colors = _colors(series)
+    colors = series_colors(series)
     heading = f'<text x="{WIDTH / 2:.1f}" y="16" font-size="12" text-anchor="middle">{_esc(title)}</text>'
     legend, lh = _legend([(k, colors[k], "-") for k in series], 70, 34, WIDTH - 80)
     longest = max((len(s) for s in labels), default=1)

@@ -70,20 +70,20 @@ def error_xml(name: str, kind: str, message: str) -> str:
 
 
 def error_summary(name: str, kind: str, message: str) -> str:
-    return f"### {_cell(name)}: ERROR ({kind})\n\n{_cell(message)}\n"
+    return f"### {cell(name)}: ERROR ({kind})\n\n{cell(message)}\n"
 
 
-def _cell(text: str) -> str:
+def cell(text: str) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
 def markdown_summary(verdicts: list[tuple[str, list[dict]]]) -> str:
     out = []
     for name, rows in verdicts:
-        out.append(f"### {_cell(summary_line(name, rows))}\n")
+        out.append(f"### {cell(summary_line(name, rows))}\n")
         out.append("| gate | metric | value | limit | result | worst case |\n|---|---|---:|---:|---|---|")
         for g in rows:
-            out.append(f"| {_cell(g['name'])} | `{_cell(g['metric'])}` | {_value(g)} | {_sign(g)} {g['limit']:.3g} | "
-                       f"{result_word(g, '**FAIL**')} | {_cell(g.get('where') or g.get('reason') or '')} |")
+            out.append(f"| {cell(g['name'])} | `{cell(g['metric'])}` | {_value(g)} | {_sign(g)} {g['limit']:.3g} | "
+                       f"{result_word(g, '**FAIL**')} | {cell(g.get('where') or g.get('reason') or '')} |")
         out.append("")
     return "\n".join(out) + "\n"

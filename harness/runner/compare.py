@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from harness.runner.ci import cell
 from harness.runner.gates import Gate, lookup, skipped_by
 
 ROUND_OFF_LIMIT = 1e-6  # an at_most gate whose limit is this small judges round-off
@@ -142,18 +143,17 @@ def markdown(verdicts: list[tuple[str, list[dict]]]) -> str:
     """The comparisons as a Markdown job summary: per scenario its line and a row per metric."""
     out = []
     for name, rows in verdicts:
-        out.append(f"### {_cell(line(name, rows))}\n")
+        out.append(f"### {cell(line(name, rows))}\n")
         out.append("| gate | metric | candidate | allowed | result | baseline, change and rule |\n"
                    "|---|---|---:|---:|---|---|")
         for r in rows:
             compared = r["outcome"] in ("worse", "not worse")
             allowed = f"{'<=' if r['direction'] == 'at_most' else '>='} {r['limit']:.4g}" if compared else ""
             word = "**WORSE**" if r["outcome"] == "worse" else WORDS[r["outcome"]]
-            out.append(f"| {_cell(r['name'])} | `{_cell(r['metric'])}` | {_num(r['value'])} | {allowed} | {word} | "
-                       f"{_cell(r['reason'])} |")
+            out.append(f"| {cell(r['name'])} | `{cell(r['metric'])}` | {_num(r['value'])} | {allowed} | {word} | "
+                       f"{cell(r['reason'])} |")
         out.append("")
     return "\n".join(out) + "\n"
 
 
-def _cell(text: str) -> str:
-    return str(text).replace("|", "\\|").replace("\n", " ")
+

@@ -246,8 +246,10 @@ def least_squares(robot, gravity_W: np.ndarray, model: LogModel, joints: list[st
     pm = model.pm if laws.choice is None else build_model(  # the chosen smoothing velocities
         robot.with_frictions(laws.choice.frictions(robot.frictions)), gravity_W)
     W = model.rows(pm, q, qd, qdd, coulomb)
-    rigid = (laws.choice.tau_rigid[:, model.measured] if laws.choice is not None and model.chain is None
-             else laws.choice.tau_rigid if laws.choice is not None else links_torque(W, model.theta, tau.shape))
+    if laws.choice is None:
+        rigid = links_torque(W, model.theta, tau.shape)
+    else:  # the search's is every joint's, a closed chain's its actuated joints'
+        rigid = laws.choice.tau_rigid if model.chain is not None else laws.choice.tau_rigid[:, model.measured]
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws.laws)])
     beta_model = np.concatenate([model.base.of(model.x_model), extra_model])
     E = model.families(laws.laws, q, qd, rigid, robot.transmission, columns, training.t)

@@ -266,18 +266,15 @@ def _off(s: float) -> bool:
 
 def start(model: np.ndarray, log: np.ndarray, joints: list[str], weightless=None,
           counterbalanced: tuple[str, ...] = ()) -> Start:
-    """`model` (N, n) the model as given's torques at the log's states, `log` (N, n) the torques as read;
-    `weightless`, where given, a function giving the model's torques there without gravity (N, n), called
-    only where they are read (a joint declared `counterbalanced`, or one off the model's by a factor): a
-    joint whose channel is off the model's by a factor but matches them without gravity (factor within
-    the band, their cosine at least SHAPED) is a counterbalanced joint, its finding's likely cause (and the
-    overall factor judged with that joint's weightless torques); a joint of `counterbalanced` is judged
-    against its weightless torques from the start."""
-    model = model.copy()
-    declared = [joints.index(j) for j in counterbalanced if j in joints]  # of a closed chain, its actuated joints
-    without = weightless() if weightless is not None and declared else None
-    for k in declared:
-        model[:, k] = without[:, k]
+    """`model` (N, n) the model as given's torques at the log's states as the log reads them (a joint
+    declared `counterbalanced` without its gravity: harness/stages/log_model.py, LogModel.torques),
+    `log` (N, n) the torques as read; `weightless`, where given, a function giving the model's torques
+    there without gravity (N, n), called only where a joint is off the model's by a factor: a joint whose
+    channel is that but matches them without gravity (factor within the band, their cosine at least
+    SHAPED) is a counterbalanced joint, its finding's likely cause (and the overall factor judged with
+    that joint's weightless torques); a declared one is said so."""
+    declared = [joints.index(j) for j in counterbalanced if j in joints]
+    without = None
     fits = [robust_fit(model[:, k], log[:, k]) for k in range(len(joints))]
     off = [k for k, (s, _, _) in enumerate(fits) if k not in declared and np.isfinite(s) and _off(s)]
     balanced = []

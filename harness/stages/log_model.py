@@ -29,7 +29,9 @@ from harness.identify.span_rows import RowsOnDemand, span_regressor
 from harness.identify.torque_id import (
     BaseParameters,
     chain_regressor,
+    gravity_rows,
     regressor,
+    selected_rows,
     structural_base,
     true_parameters,
     without_gravity,
@@ -92,19 +94,15 @@ class LogModel:
             W = span_regressor(pm, q, qd, qdd, coulomb)
             if self.channels is None and not self.weightless:
                 return W
-            W = self._weightless(pm, q, W.whole() if isinstance(W, RowsOnDemand) else W)
+            W = without_gravity(pm, q, W.whole() if isinstance(W, RowsOnDemand) else W, self.weightless)
             return self._selected(W, len(self.joints))
         return chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True, coulomb=coulomb)
 
     def joint_rows(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
         """(N, n, 14 n): every joint's rows with friction as its channel reads them: a counterbalanced
         joint's without gravity, an unmeasured joint's zero (they weigh nothing in a fit)."""
-        W = self._weightless(pm, q, regressor(pm, q, qd, qdd, with_friction=True))
+        W = without_gravity(pm, q, regressor(pm, q, qd, qdd, with_friction=True), self.weightless)
         return W.reshape(len(q), len(self.joints), -1) * self.measured[:, None]
-
-    def _weightless(self, pm: PinocchioModel, q: np.ndarray, W: np.ndarray) -> np.ndarray:
-        """Rows (N n, c) of every joint, a counterbalanced joint's without gravity (torque_id.without_gravity)."""
-        return without_gravity(pm, q, W, self.weightless)
 
     @property
     def plain(self) -> bool:
@@ -113,9 +111,7 @@ class LogModel:
 
     def _selected(self, rows: np.ndarray, per_sample: int) -> np.ndarray:
         """Rows (N per_sample, c) of each sample's joints or actuated joints: the measured channels' alone."""
-        if self.channels is None:
-            return rows
-        return rows.reshape(-1, per_sample, rows.shape[1])[:, list(self.channels)].reshape(-1, rows.shape[1])
+        return rows if self.channels is None else selected_rows(rows, per_sample, self.channels)
 
     def projected(self, q: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Per-joint rows (N n, c) as the log's torques read them: an open tree's measured joints', a
@@ -130,9 +126,7 @@ class LogModel:
         """(N, torque joints): the model pm's joint torques at the states as the log reads them."""
         tau = joint_torques(pm, q, qd, qdd)
         if self.weightless:  # a counterbalanced joint's channel: less its gravity torque, Y(q, 0, 0) theta
-            rest = np.zeros_like(q)
-            gravity = regressor(pm, q, rest, rest).reshape(*q.shape, -1)[:, list(self.weightless)]
-            tau[:, list(self.weightless)] -= gravity @ true_parameters(pm)
+            tau[:, list(self.weightless)] -= gravity_rows(pm, q, self.weightless) @ true_parameters(pm)
         if self.chain is not None:
             return actuated_torques(projection(self.chain, q), tau)
         return tau if self.channels is None else tau[:, list(self.channels)]
