@@ -201,6 +201,12 @@ def test_a_bad_log_is_refused_in_one_line_naming_the_file_and_column(tmp_path, c
     ('validation = { from = 1.5 }', "outside the log"),
     ('columns = { t = "t", q = "q_{name}", tau = "tau{j}" }', "q_panda_joint1"),
     ('cutoff = 600.0', "Nyquist"),
+    ('prediction = { starts = -1 }', "data.prediction.starts"),
+    ('prediction = { horizons = [0.0205] }', "whole number of the simulation's 0.001 s steps"),
+    ('prediction = { horizons = [0.1, 0.05] }', "strictly increasing"),
+    ('prediction = { horizons = [] }', "starts = 0 for no forward simulation"),
+    ('prediction = { horizons = [11.0] }', "up to 10 s"),
+    ('prediction = { start = 5 }', "data.prediction.start"),
 ])
 def test_a_bad_data_table_is_refused_in_one_line(tmp_path, capsys, edit, message):
     pd.read_csv(LOG, nrows=400).to_csv(tmp_path / "log.csv", index=False)

@@ -28,6 +28,7 @@ from harness.model.friction import JointFriction
 from harness.runner.gates import Gate, check
 from harness.sources.bench import record, write_log
 from harness.sources.log import load
+from harness.sources.log.schema import Prediction
 from harness.sources.log.segments import guard_band
 from tests.conftest import ROOT, numbers_of, two_link_bench
 
@@ -267,12 +268,14 @@ SLIDE = """<robot name="slide"><link name="base"/>
 iyz="0"/></inertial></link></robot>"""
 
 
-def test_the_prediction_drifts_by_half_the_acceleration_error_times_the_horizon_squared(tmp_path):
+@pytest.mark.parametrize("plan", [Prediction(), Prediction(5, (0.003, 0.3))], ids=["default", "[data] prediction"])
+def test_the_prediction_drifts_by_half_the_acceleration_error_times_the_horizon_squared(tmp_path, plan):
     """A cart of 2 kg under a constant 3 N, logged exactly; a model of the cart with 2.5 kg, started
     from the logged states, drifts by 0.5 (3/2.5 - 3/2) h^2 at horizon h (RK4 integrates a parabola
-    exactly): each horizon's RMS error is that to 1e-9 of itself."""
+    exactly): each horizon's RMS error is that to 1e-9 of itself, at the horizons and from the number
+    of starts the plan asks for."""
     from harness.model.load import load_spec
-    from harness.stages.log_judge import HORIZONS, prediction
+    from harness.stages.log_judge import prediction
 
     (tmp_path / "cart.urdf").write_text(SLIDE.format(mass=2.5))
     (tmp_path / "cart.toml").write_text('[model]\nname = "cart"\n[urdf]\nfile = "cart.urdf"\n')
@@ -280,10 +283,14 @@ def test_the_prediction_drifts_by_half_the_acceleration_error_times_the_horizon_
     t = np.arange(0.0, 1.0, 0.001)
     a_true, a_model = 3.0 / 2.0, 3.0 / 2.5
     q, qd, tau = (0.5 * a_true * t**2)[:, None], (a_true * t)[:, None], np.full((len(t), 1), 3.0)
-    out = prediction(np.zeros(3), {"model": model}, t, q, qd, tau, "validation", ["x"])
-    for h in HORIZONS:
+    out = prediction(np.zeros(3), {"model": model}, t, q, qd, tau, "validation", ["x"], plan=plan)
+    assert out["starts"] == plan.starts and list(out["models"]["model"]) == [
+        f"h{round(h * 1e3)}ms" for h in plan.horizons]
+    for h in plan.horizons:
         assert out["models"]["model"][f"h{round(h * 1e3)}ms"]["q_rms"] == pytest.approx(
             0.5 * abs(a_model - a_true) * h**2, rel=1e-9), h
+    none = prediction(np.zeros(3), {"model": model}, t, q, qd, tau, "validation", ["x"], plan=Prediction(0))
+    assert not none["models"] and none["note"] == "not made: [data] prediction.starts = 0"
 
 
 def test_folds_are_held_out_with_a_guard_on_both_sides():

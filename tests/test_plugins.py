@@ -418,6 +418,7 @@ def test_a_simulated_scenario_loads_no_convex_solver_and_no_optimiser():
     assert out.stdout.strip() == "[]", out.stdout
 
 
+@pytest.mark.slow  # a few seconds: two processes, each loading a scenario and its libraries
 def test_a_log_scenario_imports_the_tools_it_names_and_no_other():
     """The field's tools are imported when a scenario names them (FIGAROH's import alone takes about
     1 s): tx40_motion names none, tx40 names FIGAROH; neither MuJoCo's sysid nor Dask nor rosbags."""

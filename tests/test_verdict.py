@@ -466,6 +466,7 @@ def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_
     assert len(results["gates"]) == 6 and all(g["passed"] for g in results["gates"])
 
 
+@pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 @pytest.mark.parametrize("robot", ["talos_reduced", "humanoid MJCF"])
 def test_init_at_humanoid_scale_passes_its_run_and_its_pytest_out_of_the_box(tmp_path, robot):
     """TALOS (example-robot-data's talos_reduced.urdf, 32 joints: the template method's pinv(W^T W) was

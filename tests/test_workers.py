@@ -255,7 +255,7 @@ except BaseException as exc:
 """
 
 
-@pytest.mark.parametrize("where", ["fork", "dask"])
+@pytest.mark.parametrize("where", ["fork", pytest.param("dask", marks=pytest.mark.slow)])  # a local cluster: seconds
 def test_a_trial_that_ends_its_worker_process_ends_the_map_with_an_error_not_a_wait(where):
     """sys.exit in a trial is raised in the caller as it would be in this process (the CLI reports
     it, exit 2); os._exit, which no worker can report, is a RuntimeError saying so (exit 3). Both

@@ -21,13 +21,12 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mujoco_rollout
 
-from harness.base.numerics import RK4_A, RK4_B, sampled
+from harness.base.numerics import PREDICTION_TIMESTEP, RK4_A, RK4_B, sampled
 from harness.engines.mujoco import ACCELERATION_STEP, acceleration_model, controlled
 from harness.model import drives as drive_law
 from harness.model import friction
 from harness.model.spec import RobotSpec
 
-PREDICTION_TIMESTEP = 0.001  # s: RK4 steps of a prediction (the log's torques read at every stage)
 ROWS_PER_THREAD = 64  # states a thread of the pool is given at least
 _CLOCK = 1.0  # s: the time of every state sent; MuJoCo's reset of a non-finite one sets it to 0
 

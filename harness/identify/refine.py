@@ -39,9 +39,15 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.optimize import least_squares, lsq_linear
 
-from harness.base.numerics import evenly_spaced, relative_residual, relative_residual_of_sums, sampled
+from harness.base.numerics import (
+    PREDICTION_TIMESTEP,
+    evenly_spaced,
+    relative_residual,
+    relative_residual_of_sums,
+    sampled,
+)
 from harness.base.series import room
-from harness.engines.rollout import PREDICTION_TIMESTEP, log_drives, rollouts
+from harness.engines.rollout import log_drives, rollouts
 from harness.identify import delay as channel_delay
 from harness.identify.friction_law import Law
 from harness.model.drives import Transmission

@@ -38,6 +38,7 @@ CLOSED = 1e-12  # a loop is closed when |Phi| <= CLOSED times the mechanism's si
 NULL_SPACE = 1e-12  # |J G| <= NULL_SPACE |J| |G|: G's columns in J's null space
 RANK = 1e-9  # J_p's smallest singular value over its largest: below, the passive joints are not determined
 CONTINUATION_STEP = 0.05  # rad (or this fraction of the size, m): the largest actuated step between solves
+CONTINUATION_BLOCK = 8  # stations closed by one Newton's method, each predicted from the last one kept
 
 
 class ClosureError(ValueError):
@@ -80,7 +81,15 @@ class ClosedChain:
     @property
     def actuated_span(self) -> np.ndarray:
         """(n_a,) what one unit of an actuated joint's travel is: 1 rad, or the mechanism's size (m)."""
-        return np.array([1.0 if self.spec.joints[k].revolute else self.size for k in self.actuated])
+        return self._span(self.actuated)
+
+    @property
+    def passive_span(self) -> np.ndarray:
+        """(n_p,) the same of the passive joints."""
+        return self._span(self.passive)
+
+    def _span(self, joints) -> np.ndarray:
+        return np.array([1.0 if self.spec.joints[k].revolute else self.size for k in joints])
 
     def _scale(self) -> np.ndarray:
         """(rows,) each constraint row's unit: the size for positions, 1 for a weld's rotation."""
@@ -187,8 +196,8 @@ def close_with_jacobian(chain: ClosedChain, q: np.ndarray, where: str = "sample"
 def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.ndarray:
     """q (N, n): the actuated joints at q_a (N, n_a), a motion in sample order, and the passive ones
     closing every loop, followed continuously from q_start (n,) (whose actuated entries need not be
-    q_a[0]'s): first along samples at most CONTINUATION_STEP apart (each solve predicted from the
-    last by G), then every sample at once from the nearest of those before it."""
+    q_a[0]'s): first along stations at most CONTINUATION_STEP apart (`_follow`), then every sample at
+    once from the nearest station before it."""
     q_a = np.atleast_2d(np.asarray(q_a, dtype=float))
     path = np.vstack([np.asarray(q_start, dtype=float)[list(chain.actuated)], q_a])
     travel = np.concatenate([[0.0], np.cumsum(np.max(np.abs(np.diff(path, axis=0)) / chain.actuated_span, axis=1))])
@@ -196,36 +205,78 @@ def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.nd
     # between two samples are cut into intermediate stations)
     stations_travel = np.arange(0.0, travel[-1] + CONTINUATION_STEP, CONTINUATION_STEP)
     stations = np.array([np.interp(stations_travel, travel, path[:, k]) for k in range(path.shape[1])]).T
-    q, J = close_with_jacobian(chain, np.asarray(q_start, dtype=float), "the starting configuration", numbered=False)
-    solved = np.empty((len(stations), chain.n))
-    for s, target in enumerate(stations):
-        k = min(int(np.searchsorted(travel[1:], stations_travel[s])), len(q_a) - 1)
-        where = f"sample {k} of the motion (q_a = {np.array2string(target, precision=4)}, reached from the one before)"
-        P = pinv_passive(chain, J, where, numbered=False)
-        J_before = J
-        q, J = close_with_jacobian(chain, predicted(chain, q, J, P, target[None]), where, numbered=False)
-        _no_fold(chain, J_before[0], J[0], where)
-        solved[s] = q[0]
+    sample = np.minimum(np.searchsorted(travel[1:], stations_travel), len(q_a) - 1)
+    solved = _follow(chain, np.asarray(q_start, dtype=float), stations, sample)
     nearest = np.clip(np.searchsorted(stations_travel, travel[1:], side="right") - 1, 0, len(stations) - 1)
     guess = solved[nearest]
     J = jacobian(chain.spec, chain.loops, guess)
     return close(chain, predicted(chain, guess, J, pinv_passive(chain, J, "sample"), q_a))
 
 
-def _no_fold(chain: ClosedChain, J_before: np.ndarray, J_now: np.ndarray, where: str) -> None:
-    """Refuses a step of the motion across a singular configuration: J_p (the passive joints' columns
-    of J) before and after the step, read in the frame of the range before (its first n_p left singular
-    vectors), have determinants of opposite signs where a singular value has passed through zero between
-    them (a parallelogram folding flat) or the solve has jumped to the mechanism's other assembly."""
+def _follow(chain: ClosedChain, q_start: np.ndarray, stations: np.ndarray, sample: np.ndarray) -> np.ndarray:
+    """Every station's closed q (len(stations), n), followed from q_start: a block of up to
+    CONTINUATION_BLOCK stations at a time, each predicted by G from the last one solved and all closed
+    by one Newton's method, kept where the block stays on the branch it started from (no fold between
+    neighbours, `_folded`, and no station's passive joints moved by Newton more than the block's travel,
+    CONTINUATION_STEP a station: a solve that jumped to another assembly moves them by the mechanism's
+    size); else its stations one at a time, each predicted from the one before, whose failures are
+    refused naming the station's sample (`sample`, its row of the motion)."""
+    q, J = close_with_jacobian(chain, q_start, "the starting configuration", numbered=False)
+    solved = np.empty((len(stations), chain.n))
+    s = 0
+    while s < len(stations):
+        block = stations[s: s + CONTINUATION_BLOCK]
+        kept = _block(chain, q, J, block) if len(block) > 1 else None
+        if kept is not None:
+            solved[s: s + len(block)], q, J = kept[0], kept[0][-1:], kept[1][-1:]
+            s += len(block)
+            continue
+        for target in block:
+            where = (f"sample {sample[s]} of the motion (q_a = {np.array2string(target, precision=4)}, reached "
+                     "from the one before)")
+            P = pinv_passive(chain, J, where, numbered=False)
+            J_before = J
+            q, J = close_with_jacobian(chain, predicted(chain, q, J, P, target[None]), where, numbered=False)
+            if _folded(chain, J_before, J)[0]:
+                raise _fold_error(chain, where)
+            solved[s] = q[0]
+            s += 1
+    return solved
+
+
+def _block(chain: ClosedChain, q: np.ndarray, J: np.ndarray, block: np.ndarray):
+    """The stations of `block` (B, n_a) closed at once from q (1, n) and its J, each predicted by G there:
+    (q (B, n), J (B, rows, n)), or None where the block is not kept (`_follow`)."""
+    B = len(block)
+    try:
+        P = pinv_passive(chain, J, "", numbered=False)
+        guess = predicted(chain, np.repeat(q, B, axis=0), np.repeat(J, B, axis=0), np.repeat(P, B, axis=0), block)
+        q_b, J_b = close_with_jacobian(chain, guess, "", numbered=False)
+    except ClosureError:
+        return None
+    moved = (np.abs(q_b - guess)[:, chain.passive] / chain.passive_span).max(axis=1)
+    reach = CONTINUATION_STEP * np.arange(1, B + 1)
+    if np.any(moved > reach) or np.any(_folded(chain, np.concatenate([J, J_b[:-1]]), J_b)):
+        return None
+    return q_b, J_b
+def _folded(chain: ClosedChain, J_before: np.ndarray, J_now: np.ndarray) -> np.ndarray:
+    """(N,) bool: a step of the motion across a singular configuration of the loops, from J_before to
+    J_now (N, rows, n) row by row: J_p (the passive joints' columns of J) before and after the step, read
+    in the frame of the range before (its first n_p left singular vectors), have determinants of
+    opposite signs where a singular value has passed through zero between them (a parallelogram
+    folding flat) or the solve has jumped to the mechanism's other assembly."""
     n_p = len(chain.passive)
     if not n_p:
-        return
-    J_p_before, J_p = J_before[:, chain.passive], J_now[:, chain.passive]
-    frame = np.linalg.svd(J_p_before)[0][:, :n_p]
-    if np.linalg.det(frame.T @ J_p_before) * np.linalg.det(frame.T @ J_p) <= 0.0:
-        raise ClosureError(f"{chain.spec.name}: the motion crosses a singular configuration of the loops before "
-                           f"{where} (the passive joints' Jacobian changes orientation: the mechanism folds, or "
-                           "changes assembly, and the actuated joints no longer drive it)")
+        return np.zeros(len(J_now), dtype=bool)
+    J_p_before, J_p = J_before[:, :, chain.passive], J_now[:, :, chain.passive]
+    frame = np.swapaxes(np.linalg.svd(J_p_before)[0][:, :, :n_p], 1, 2)
+    return np.linalg.det(frame @ J_p_before) * np.linalg.det(frame @ J_p) <= 0.0
+
+
+def _fold_error(chain: ClosedChain, where: str) -> ClosureError:
+    return ClosureError(f"{chain.spec.name}: the motion crosses a singular configuration of the loops before "
+                        f"{where} (the passive joints' Jacobian changes orientation: the mechanism folds, or "
+                        "changes assembly, and the actuated joints no longer drive it)")
 
 
 @dataclass(frozen=True, eq=False)

@@ -178,7 +178,8 @@ def refinement(r: dict) -> str:
     judged = (f"<h3>On the {esc(v['span'])} span, which the refinement never reads</h3>"
               + table(["model", "torque error", *(f"q RMS at {h[1:]}" for h in hs)],
                       [[esc(m), num(v["torque_rel_error"][m]), *(num(pm[m][h]["q_rms"]) for h in hs)]
-                       for m in ("consistent", "refined") if m in pm]))
+                       for m in ("consistent", "refined")])
+              + (f"<p>{esc(v['prediction']['note'])}.</p>" if not pm and v["prediction"].get("note") else ""))
     cost_rows = [[f"pass {k + 1}", num(p["rollouts"]), num(p["steps"]), num(p["evaluations"]), num(p["seconds"]),
                   esc(p["optimiser"])] for k, p in enumerate(rf["passes"])]
     cost_rows += [[esc(f"{name} ({m['plugin']})"), num(m["rollouts"]), DASH, DASH, num(m["seconds"]), ""]

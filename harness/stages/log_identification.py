@@ -447,7 +447,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     q, qd, _ = judged.states[span]
     models = {"consistent": identified, "model as given": robot, **({"truth": sc.truth} if sc.truth else {})}
     predicted = prediction(sc.gravity_W, models, judged.t[span], q, qd, judged.measured[span], span, joints,
-                           not_made=_not_driven(sc.data, model))
+                           not_made=_not_driven(sc.data, model), plan=sc.data.prediction)
     names = parameter_names(joints, True, robot.drive_names)
     exported = export_model(sc, robot, identified, frictions, fit.theta, scaled.training, fitted.W,
                             least_squares_fit(model, fitted, names, laws.laws, robot.drive_names))

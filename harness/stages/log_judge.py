@@ -9,12 +9,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import evenly_spaced, finite_or_null, sampled
+from harness.base.numerics import PREDICTION_TIMESTEP, evenly_spaced, finite_or_null, sampled
 from harness.base.series import TimeSeries, room
-from harness.engines.rollout import PREDICTION_TIMESTEP, log_drives, predict
-
-HORIZONS = (0.02, 0.05, 0.1, 0.2)  # s: how far ahead a model is judged by forward simulation
-PREDICTION_STARTS = 20  # starts spread evenly over the span
+from harness.engines.rollout import log_drives, predict
+from harness.sources.log.schema import Prediction
 
 
 def as_fitted(validation: TimeSeries | None, lags, factor: np.ndarray | None, joints: list[str]) -> TimeSeries | None:
@@ -41,13 +39,16 @@ def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
 
 def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
                tau: np.ndarray, span: str, joints: list[str], delays: dict | None = None,
-               not_made: str | None = None) -> dict:
-    """Each model forward-simulated in MuJoCo from measured states of a span (t (N,), q, q', tau (N, n))
-    under the measured torques (harness/engines/rollout.py, predict), each channel read delays[model]
-    (n,) s later where given: per horizon the RMS and largest position and velocity error. Not made
-    where the log's torques cannot drive the models (`not_made` says why: joints without a torque, a
-    counterweight the models lack), said."""
-    starts = _starts(t, HORIZONS[-1], PREDICTION_STARTS)
+               not_made: str | None = None, plan: Prediction | None = None) -> dict:
+    """Each model forward-simulated in MuJoCo from `plan.starts` measured states of a span (t (N,), q,
+    q', tau (N, n)) under the measured torques (harness/engines/rollout.py, predict), each channel read
+    delays[model] (n,) s later where given: at each of `plan.horizons` the RMS and largest position and
+    velocity error. Not made where the log's torques cannot drive the models (`not_made` says why:
+    joints without a torque, a counterweight the models lack) or no start is asked for, said. `plan`:
+    [data] prediction's (harness/sources/log/schema.py, Prediction; None, its defaults)."""
+    plan = plan or Prediction()
+    horizons = plan.horizons
+    starts = _starts(t, horizons[-1], plan.starts)
     out = {"definition": f"from {len(starts)} measured states along the {span} span, each model forward-simulated "
                          "in MuJoCo (RK4, 1 ms) under the measured joint torques less its dry friction (Coulomb, "
                          "offset and its family's terms); at each horizon q_sim - q_meas [rad or m] and "
@@ -55,19 +56,20 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
                          "The least-squares fit is not "
                          "simulated: its base parameters are not a full set of physical parameters",
            "span": span, "starts": len(starts), "timestep_s": PREDICTION_TIMESTEP,
-           "horizons_s": list(HORIZONS), "models": {}}
-    if not len(starts) or not_made:
-        out["note"] = not_made or f"no stretch of the {span} span is {HORIZONS[-1]:g} s long"
+           "horizons_s": list(horizons), "models": {}}
+    if not_made or not plan.starts or not len(starts):
+        out["note"] = not_made or ("not made: [data] prediction.starts = 0" if not plan.starts else
+                                   f"no stretch of the {span} span is {horizons[-1]:g} s long")
         return out
     chains = {name: spec for name, spec in models.items() if spec.loops}
     if chains:
         out["definition"] = CHAIN_PREDICTION + out["definition"].split("; at each horizon", 1)[1]
-        chains = predict_chains(chains, gravity_W, t, q, qd, tau, starts, HORIZONS)
+        chains = predict_chains(chains, gravity_W, t, q, qd, tau, starts, horizons)
     for name, spec in models.items():
-        q_err, qd_err = chains[name] if spec.loops else predict(spec, gravity_W, t, q, qd, tau, starts, HORIZONS,
+        q_err, qd_err = chains[name] if spec.loops else predict(spec, gravity_W, t, q, qd, tau, starts, horizons,
                                                                 delay=(delays or {}).get(name))
         per = {}
-        for h, horizon in enumerate(HORIZONS):
+        for h, horizon in enumerate(horizons):
             e, ed = q_err[:, h], qd_err[:, h]
             diverged = int(np.sum(~np.all(np.isfinite(e), axis=1)))
             per[f"h{round(horizon * 1e3)}ms"] = {

@@ -160,7 +160,7 @@ def _judged(ctx, li, chosen: Candidate, identified, refined, largest: float) -> 
               for name, spec, laws, lag in (("consistent", identified, li.laws.laws, np.zeros(len(joints))),
                                             ("refined", refined, chosen.laws, chosen.delay))}
     simulated = prediction(sc.gravity_W, {"consistent": identified, "refined": refined}, t, q, qd, tau, span, joints,
-                           {"refined": chosen.delay})
+                           {"refined": chosen.delay}, plan=sc.data.prediction)
     return {"span": span, "torque_rel_error": torque,
             "torque_rel_error_change": torque["refined"] - torque["consistent"], "prediction": simulated}
 

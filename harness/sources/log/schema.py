@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.base.numerics import PREDICTION_TIMESTEP
 from harness.base.tomlio import Table
 from harness.model.spec import RobotSpec
 from harness.sources.log.segments import GAP_FACTOR
@@ -20,6 +21,21 @@ SI = {"q": "rad", "qd": "rad/s", "tau": "N m", "t": "s"}
 SECONDS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # what one unit of a time column is
 DELAY_CHOICES = ("estimate", "correct", "none")
 MAX_REPEAT = 100
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """`[data] prediction = { starts, horizons }`: from how many measured states spread over the judged
+    span each model is forward-simulated under the measured torques, and at which horizons (s, whole
+    steps of the simulation, PREDICTION_TIMESTEP) its drift is read (harness/stages/log_judge.py). `starts = 0`
+    makes none (said in the results)."""
+
+    starts: int = 20
+    horizons: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2)
+
+
+MAX_PREDICTION_STARTS = 1000
+MAX_HORIZON = 10.0  # s: a rollout's length in 1 ms steps, every start's, at every horizon
 
 
 @dataclass(frozen=True)
@@ -71,6 +87,7 @@ class DataSource:
     unmeasured: tuple[str, ...] = ()  # joints without a torque channel: their motion in the model, no row of theirs
     joined: tuple[Path, ...] = ()  # a log in several files: the files after `file`, each with its own time
     # column, their rows joined on time to those of the file holding the positions (harness/sources/log/join.py)
+    prediction: Prediction = field(default_factory=Prediction)  # the judging's forward simulation
 
     @property
     def files(self) -> tuple[Path, ...]:
@@ -101,7 +118,8 @@ class DataSource:
                 "torque_file": str(self.torque_file) if self.torque_file else None, "sample_rate_hz": self.sample_rate,
                 "side": self.side, "window_s": list(self.window) if self.window else None,
                 "joint_map": dict(self.joint_map), "velocities": self.velocities,
-                "counterbalanced": list(self.counterbalanced), "unmeasured": list(self.unmeasured)}
+                "counterbalanced": list(self.counterbalanced), "unmeasured": list(self.unmeasured),
+                "prediction": {"starts": self.prediction.starts, "horizons_s": list(self.prediction.horizons)}}
 
     def measured(self, joints: list[str]) -> list[str]:
         """The joints among `joints` whose torque channel the log holds (all but `unmeasured`)."""
@@ -197,18 +215,46 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
                                        ", the validation span is a part of the log: validation = { from = ... }")
         vt.finish()
     velocities = t.string("velocities", default="checked", choices=VELOCITY_CHOICES)
-    counterbalanced = t.strings("counterbalanced", choices=joint_names) if t.has("counterbalanced") else ()
-    both = [j for j in counterbalanced if j in unmeasured]
-    if both:
-        raise t.error("counterbalanced", f"{both[0]!r} is unmeasured: it has no channel to be without gravity")
+    counterbalanced = _counterbalanced(t, joint_names, unmeasured)
     if unmeasured and side == "motor":
         raise t.error("unmeasured", 'a motor-side log\'s channels are its motors\': name unmeasured joints of a '
                                     'joint-side log (side = "joint")')
+    prediction = _prediction(t.table("prediction")) if t.has("prediction") else Prediction()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
                       ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
                       sample_rate, side, window, decimate_given, joint_map, velocities, counterbalanced, unmeasured,
-                      joined)
+                      joined, prediction)
+
+
+def _prediction(t: Table) -> Prediction:
+    """`prediction = { starts = 20, horizons = [0.02, 0.05, 0.1, 0.2] }`, validated: a count of starts
+    (0: no forward simulation) and strictly increasing horizons, each a whole number of the simulation's
+    steps up to MAX_HORIZON."""
+    starts = t.integer("starts", default=Prediction.starts, minimum=0)
+    if starts > MAX_PREDICTION_STARTS:
+        raise t.error("starts", f"{starts}: at most {MAX_PREDICTION_STARTS}")
+    horizons = tuple(float(h) for h in t.vector("horizons", length=None, default=list(Prediction.horizons)))
+    if not horizons:
+        raise t.error("horizons", "empty: at least one horizon (s), or starts = 0 for no forward simulation")
+    steps = np.asarray(horizons) / PREDICTION_TIMESTEP
+    if np.any(steps < 1.0) or np.any(steps > MAX_HORIZON / PREDICTION_TIMESTEP) or np.any(
+            np.abs(steps - np.round(steps)) > 1e-9 * steps):
+        raise t.error("horizons", f"{list(horizons)}: each a whole number of the simulation's "
+                                  f"{PREDICTION_TIMESTEP:g} s steps, up to {MAX_HORIZON:g} s")
+    if np.any(np.diff(steps) <= 0):
+        raise t.error("horizons", f"{list(horizons)}: strictly increasing")
+    t.finish()
+    return Prediction(starts, horizons)
+
+
+def _counterbalanced(t: Table, joint_names: list[str] | None, unmeasured: tuple[str, ...]) -> tuple[str, ...]:
+    """`counterbalanced = [...]`: the joints whose channel carries no gravity, none of them unmeasured."""
+    counterbalanced = t.strings("counterbalanced", choices=joint_names) if t.has("counterbalanced") else ()
+    both = [j for j in counterbalanced if j in unmeasured]
+    if both:
+        raise t.error("counterbalanced", f"{both[0]!r} is unmeasured: it has no channel to be without gravity")
+    return counterbalanced
 
 
 def _unmeasured(t: Table, joint_names: list[str] | None) -> tuple[str, ...]:
