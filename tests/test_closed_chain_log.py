@@ -265,6 +265,7 @@ def test_a_log_whose_actuated_joints_the_loops_cannot_follow_is_bad_input(exact,
     assert not out.exists()
 
 
+@pytest.mark.slow  # a built-in scenario whole (its gates run in .ci/run; this reads beyond them)
 def test_the_shipped_bench_log_is_identified_within_its_noise(tmp_path):
     """scenarios/parallelogram_bench_log.toml: MuJoCo's soft loops, 1 % torque noise. On the span the
     fit never saw, the consistent fit is within 0.3 % of the truth's torques, where the measured

@@ -142,6 +142,18 @@ def test_a_tree_from_toml_closes_with_its_stated_loops(tmp_path, fourbar):
             {"type": "connect", "body1": "coupler", "body2": "ghost", "point": [0, 0, 0]}]}}, tmp_path / "f.toml")
 
 
+def test_stations_closed_in_blocks_are_those_followed_one_at_a_time(parallelogram, monkeypatch):
+    """The continuation's blocks (CONTINUATION_BLOCK stations closed by one Newton's method, each predicted
+    from the last one kept) give the configurations of stations followed one at a time, to 1e-12 of the
+    mechanism's size (both closed to CLOSED = 1e-12), along 6 s of three actuated joints' sines."""
+    t = np.linspace(0.0, 6.0, 1200)
+    q_a = np.stack([0.8 * np.sin(0.9 * t), 0.5 * np.sin(1.3 * t), 0.4 * np.sin(1.7 * t)], axis=1)
+    blocks = closure.positions(parallelogram, q_a, np.zeros(5))
+    monkeypatch.setattr(closure, "CONTINUATION_BLOCK", 1)
+    np.testing.assert_allclose(blocks, closure.positions(parallelogram, q_a, np.zeros(5)), rtol=0,
+                               atol=1e-12 * parallelogram.size)
+
+
 # --- the three levels and G ----------------------------------------------------------------------------
 
 

@@ -37,10 +37,16 @@ def example(tmp_path_factory) -> Path:
     return folder
 
 
-def _project(tmp_path: Path, plugin: str, extra: str = "") -> Path:
-    """The `harness init` project with its model under test replaced by `plugin` (module hostile.py)."""
+def _project(tmp_path: Path, plugin: str, extra: str = "", seconds: float = 0.5) -> Path:
+    """The `harness init` project with its model under test replaced by `plugin` (module hostile.py), its
+    two trajectories `seconds` long (what these tests judge is the verdict, not the motion's length)."""
     assert main(["init", str(tmp_path / "p")]) == 0
     folder = tmp_path / "p"
+    for name in ("scenario.toml", "validation.toml"):
+        text = (folder / name).read_text()
+        assert "duration = 2.0\noutput_steps = 200\n" in text
+        (folder / name).write_text(text.replace("duration = 2.0\noutput_steps = 200\n",
+                                                f"duration = {seconds}\noutput_steps = {round(100 * seconds)}\n"))
     (folder / "hostile.py").write_text(textwrap.dedent(plugin))
     text = (folder / "scenario.toml").read_text().replace('python = "my_robot:make_model"',
                                                          'python = "hostile:make"')
@@ -176,7 +182,7 @@ def test_a_motion_that_diverges_is_bad_input_in_one_line(tmp_path, capsys, caplo
 
 def test_a_motion_beyond_the_limits_warns_and_is_gateable(tmp_path, capsys, caplog):
     path = _project(tmp_path, EXACT + "def make(robot, gravity_W, parameters): return TwoLinkArm(gravity_W)\n",
-                    '\n[[gates]]\nmetric = "motion.largest.position"\nlimit = 1.0\n')
+                    '\n[[gates]]\nmetric = "motion.largest.position"\nlimit = 1.0\n', seconds=2.0)
     path.write_text(path.read_text().replace("sin = [[0.9, 2.1]]", "sin = [[60.0, 2.1]]"))
     assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 1
     warned = [r.getMessage() for r in caplog.records if "beyond the model's limits" in r.getMessage()]
