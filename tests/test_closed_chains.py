@@ -154,6 +154,19 @@ def test_stations_closed_in_blocks_are_those_followed_one_at_a_time(parallelogra
                                atol=1e-12 * parallelogram.size)
 
 
+def test_a_block_whose_newton_moves_the_passive_joints_beyond_its_travel_is_not_kept(fourbar):
+    """The four-bar's crank in eight steps from its drawn configuration: 0.05 rad apart (the continuation's
+    step), the block is kept; 0.2 rad apart, every station still closes, with no fold between neighbours
+    (measured), but Newton moves the rocker from G's prediction by more than the block's travel (0.33 rad
+    at the fifth station, whose steps allow 0.25): the block is refused (its stations are then followed
+    one at a time)."""
+    q, J = closure.close_with_jacobian(fourbar, np.zeros(fourbar.n), "the start", numbered=False)
+    near, far = (np.arange(1, 9)[:, None] * step for step in (closure.CONTINUATION_STEP, 0.2))
+    kept = closure._block(fourbar, q, J, near)
+    assert kept is not None and np.allclose(kept[0][:, list(fourbar.actuated)], near, rtol=0, atol=1e-15)
+    assert closure._block(fourbar, q, J, far) is None
+
+
 # --- the three levels and G ----------------------------------------------------------------------------
 
 
