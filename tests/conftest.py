@@ -44,6 +44,8 @@ def kr500_csv(kr500_run: Path) -> TimeSeries:
 
 
 DATA = ROOT / "tests" / "data"
+# a log scenario's [data] line for tests that read the fit alone: no forward simulation of the models
+NO_PREDICTION = "prediction = { starts = 0 }"
 
 
 @pytest.fixture(scope="session")

@@ -24,7 +24,7 @@ from harness.model import closure
 from harness.model.load import load_spec, spec_from_data
 from harness.runner.scenario import load_scenario
 
-from .conftest import MODELS, ROOT, SCENARIOS
+from .conftest import MODELS, NO_PREDICTION, ROOT, SCENARIOS
 
 TRUTH = MODELS / "parallelogram_friction.toml"
 RATE = 500.0  # Hz
@@ -77,9 +77,6 @@ def _exact_log(path, truth, sines, rate: float, duration: float, noise: float = 
     kept = np.ones(len(t), dtype=bool) if cut is None else (t < cut[0]) | (t > cut[1])
     pd.DataFrame(columns)[kept].to_csv(path, index=False, float_format="%.17g")
     return chain, (q, qd, qdd), tau_a
-
-
-NO_PREDICTION = "prediction = { starts = 0 }"
 
 
 def _scenario_text(log, extra_data: str = "", extra: str = "", model=MODELS / "parallelogram.toml",

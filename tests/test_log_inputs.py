@@ -17,13 +17,12 @@ import pytest
 
 from harness.api import load_scenario
 from harness.cli import main
-from tests.conftest import SCENARIOS, bench_log
+from tests.conftest import NO_PREDICTION, SCENARIOS, bench_log
 from tests.conftest import late_log as lagging_log
 
 MODEL = SCENARIOS.parent / "models" / "ur5_friction.toml"
 GATE = '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1e-2\n'
 MODELS_LAW = "[friction_law]\nchoose = false\n"
-NO_PREDICTION = "prediction = { starts = 0 }"  # what is checked here is the reading: no forward simulation
 
 
 @pytest.fixture(scope="module")

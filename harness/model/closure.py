@@ -250,7 +250,7 @@ def _block(chain: ClosedChain, q: np.ndarray, J: np.ndarray, block: np.ndarray):
     B = len(block)
     try:
         P = pinv_passive(chain, J, "", numbered=False)
-        guess = predicted(chain, np.repeat(q, B, axis=0), np.repeat(J, B, axis=0), np.repeat(P, B, axis=0), block)
+        guess = predicted(chain, np.repeat(q, B, axis=0), J, P, block)  # J and P the start's, broadcast
         q_b, J_b = close_with_jacobian(chain, guess, "", numbered=False)
     except ClosureError:
         return None

@@ -35,7 +35,7 @@ class Prediction:
 
 
 MAX_PREDICTION_STARTS = 1000
-MAX_HORIZON = 10.0  # s: a rollout's length in 1 ms steps, every start's, at every horizon
+MAX_HORIZON = 10.0  # s: the longest rollout the prediction makes from each start
 
 
 @dataclass(frozen=True)
