@@ -45,6 +45,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from judging import figaroh_fits, rel  # noqa: E402
 
 LOG = ROOT / "harness" / "data" / "logs" / "staubli_tx40"
 SCENARIOS = ROOT / "harness" / "data" / "scenarios"
@@ -57,10 +60,6 @@ SG_WINDOW = 201  # samples: 40 ms at 5 kHz
 KEEP_EVERY = 10  # 500 Hz
 V_C = 0.02  # rad/s at the joints: the plain least squares' Coulomb smoothing (the model file's)
 SPLITS = {"whole": (0.0, 6.3, 9.0), "motion": (0.1, 5.28, 7.5)}  # (start, split, end) s
-
-
-def rel(pred: np.ndarray, measured: np.ndarray) -> float:
-    return float(np.linalg.norm(pred - measured) / np.linalg.norm(measured))
 
 
 def conditioned():
@@ -165,25 +164,6 @@ def harness_runs(folder: Path) -> dict:
     return out
 
 
-def figaroh_fits(t, q, qd, qdd, tau, train) -> dict:
-    """FIGAROH's least squares and physical fit on the training rows, as the harness's adapter runs them:
-    each its fitted model, or what it raised."""
-    try:
-        from harness.adapters import figaroh
-        from harness.model.load import load_spec
-    except ImportError as exc:  # pragma: no cover
-        return {"least_squares": str(exc), "physical": str(exc)}
-    spec = load_spec(ROOT / "harness" / "data" / "models" / "tx40.toml")
-    out = {}
-    for kind in ("least_squares", "physical"):
-        try:
-            method = figaroh.make(spec, np.array([0.0, 0.0, -GRAVITY]), {"fit": kind})
-            out[kind] = method.fit(q[train], qd[train], qdd[train], tau[train])
-        except Exception as exc:  # a tool's failure is its row
-            out[kind] = f"{type(exc).__name__}: {exc}"
-    return out
-
-
 def main() -> None:
     import harness
 
@@ -206,7 +186,9 @@ def main() -> None:
             row["published_drive_parameters"] = rel(published(Y[test], qd[test], qdd[test]), tau[test])
             row["published_drive_parameters_smooth_coulomb"] = rel(
                 published(Y[test], qd[test], qdd[test], lambda v: np.tanh(v / V_C)), tau[test])
-            for kind, fitted in figaroh_fits(t, q, qd, qdd, tau, train).items():
+            fits = figaroh_fits(ROOT / "harness" / "data" / "models" / "tx40.toml", GRAVITY, q[train], qd[train],
+                                qdd[train], tau[train])
+            for kind, fitted in fits.items():
                 row[f"figaroh_{kind}"] = fitted if isinstance(fitted, str) else \
                     rel(fitted.inverse_dynamics(q[test], qd[test], qdd[test]), tau[test])
         figures = {"splits": table, "published_drive_parameters_every_row": rel(published(Y, qd, qdd), tau),

@@ -1,12 +1,14 @@
 """The measured-log path's kernels, each on synthetic data against an independent reference, in the fast
 suite: a logger's hold is a whole repeated row, the torque constants' interval is the bootstrap draws'
 quantiles at its level, a delay between grid points is the vertex of its parabola, the refinement's
-second pass starts from the first pass's delays. Each pins a one-line mutant that only slow tests (or
+second pass starts from the first pass's delays, the default low-pass reads the accelerations' noise
+from the velocities they are differences of. Each pins a one-line mutant that only slow tests (or
 no test) saw: np.all -> np.any in the hold, a 90 % interval labelled 95 %, the vertex's sign, a second
 pass from zero delays."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -110,3 +112,55 @@ def test_the_refinements_second_pass_starts_from_the_first_pass_delays(monkeypat
     np.testing.assert_array_equal(started[0], [0.0, 0.0])
     np.testing.assert_allclose(started[1], [1e-3, -2e-3])
     np.testing.assert_allclose(started[2], [2e-3, -4e-3])
+
+
+@dataclasses.dataclass(frozen=True)
+class _Source:
+    """The [data] keys the defaults read: none given."""
+
+    cutoff: float | None = None
+    decimate: int = 1
+    decimate_given: bool = False
+
+
+def _slow_log(noise: float, with_velocities: bool = True, cut: slice | None = None):
+    """20 s at 500 Hz of two joints moving slowly (0.3 and 0.45 Hz: a lab's slow excitation), their
+    positions exact, their logged velocities exact plus white noise of `noise` rad/s (seed 0); `cut`
+    rows removed (a gap bridged by interpolation)."""
+    from harness.sources.log.raw import RawLog
+
+    t = np.arange(10_000) / 500.0
+    w = 2 * np.pi * np.array([0.3, 0.45])
+    q, qd, qdd = np.sin(w * t[:, None]), w * np.cos(w * t[:, None]), -(w**2) * np.sin(w * t[:, None])
+    qd = qd + noise * np.random.default_rng(0).standard_normal(qd.shape)
+    keep = np.ones(len(t), dtype=bool)
+    if cut is not None:
+        keep[cut] = False
+    raw = RawLog(t[keep], ("a", "b"), q[keep], qd[keep] if with_velocities else None, np.zeros((keep.sum(), 2)),
+                 Path("log.csv"))
+    return raw, qdd
+
+
+def test_the_default_filter_reads_the_noise_of_the_velocities_the_accelerations_come_from():
+    """Slow motion with a quiet velocity sensor: white noise of 1e-4 rad/s on logged velocities of RMS
+    1.3 and 2.0 rad/s is under the velocity's noise threshold (median level about 5e-5 and 3.4e-5 against
+    NOISY = 1e-4), but differentiated at 500 Hz it is sqrt(2) x 500 x 1e-4 = 0.071 rad/s^2 of noise on
+    accelerations of RMS 2.5 and 5.6 rad/s^2: the accelerations' noise level the defaults read is that
+    ratio (within 10 %: a white noise's median over 0.6745 is its RMS to 1 % on 10,000 samples), over
+    ACCELERATION_NOISE = 1 %, and a low-pass is chosen. The same exact positions without a velocity
+    column (their differences are what is differentiated), or logged without noise and with 50 ms cut
+    out (a kink where the gap is bridged: one sample, not noise), are left unfiltered."""
+    from harness.sources.log import defaults
+
+    raw, qdd = _slow_log(1e-4)
+    s = defaults.spectra(raw, 500.0)
+    expected = np.sqrt(2) * 500.0 * 1e-4 / np.sqrt(np.mean(qdd**2, axis=0))
+    np.testing.assert_allclose(s.acceleration_level, expected, rtol=0.1)
+    assert np.all(s.level < defaults.NOISY) and np.all(s.acceleration_level > defaults.ACCELERATION_NOISE)
+    source = _Source()
+    chosen, record = defaults.resolve(source, raw, 500.0)
+    assert record["differentiated"] == "logged velocities" and chosen.cutoff == record["cutoff_hz"]
+    assert defaults.CUTOFF_FACTOR * max(s.band) <= chosen.cutoff <= min(s.noise_cutoff)
+    for quiet in (_slow_log(1e-4, with_velocities=False)[0], _slow_log(0.0, cut=slice(4000, 4025))[0]):
+        assert not defaults.noisy(defaults.spectra(quiet, 500.0), 500.0)
+        assert defaults.resolve(source, quiet, 500.0) == (source, None)

@@ -67,7 +67,7 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
     pieces = segments(kept.t, longest)
     notes: list[str] = [late] if late else []
     if chosen is not None:
-        notes.append(f"no cutoff given, and the positions carry noise (the motion within "
+        notes.append(f"no cutoff given, and the accelerations would carry noise (the motion within "
                      f"{max(chosen['motion_band_hz']):.3g} Hz): a {chosen['cutoff_hz']:.3g} Hz low-pass chosen"
                      + ("" if source.decimate_given else f", decimate {chosen['decimate']}")
                      + " (data.conditioning.defaults)")
