@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 import pytest
+from threadpoolctl import threadpool_limits
 
 from harness.base.series import TimeSeries, read_csv
 from harness.cli import main
@@ -16,6 +18,13 @@ ROOT = Path(__file__).resolve().parents[1]
 BUILTIN = ROOT / "harness" / "data"  # the built-in models, scenarios and gate sets (package data)
 SCENARIOS = BUILTIN / "scenarios"
 MODELS = BUILTIN / "models"
+
+# The suite runs on two worker processes (README: `pytest`, `-n 2` in pyproject.toml), one per core: each
+# does its linear algebra on one BLAS thread, as the harness's own trial workers do (harness/base/workers.py).
+# Two threads in each oversubscribe the cores, and OpenBLAS's threads spin waiting for each other: the
+# pivoted QR and SVD of a structural base (1,400 x 98) took ten times as long so.
+BLAS_THREADS = threadpool_limits(1, user_api="blas")
+os.environ["OPENBLAS_NUM_THREADS"] = "1"  # and the processes a test starts (`harness` run fresh), from their start
 
 
 @pytest.fixture(scope="session")
