@@ -143,6 +143,27 @@ def test_velocities_in_degrees_per_second_read_as_radians_per_second_are_refused
     assert key == "qd1" and 'units = { qd = "deg/s" }' in err
 
 
+@pytest.mark.parametrize("reading", [0.0, 0.3])
+def test_a_velocity_channel_that_reads_one_value_while_its_joint_moves_is_refused_naming_it(si_log, tmp_path,
+                                                                                            capsys, reading):
+    """A dead velocity channel (0 on every row, or stuck at 0.3 rad/s) beside positions that move: no slope or
+    cosine can be read off a constant, and used, its zeros made the fit 88 % off the held-out torques. A
+    joint held still, its q' 0 beside positions that jitter by one encoder step, is read."""
+    df = si_log[1].copy()
+    df["qd4"] = reading
+    df.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    key, err = _refused(tmp_path, capsys)
+    assert key == "qd4" and "wrist_1_joint" in err and f"{reading:g} on every row" in err
+    from harness.sources.log.raw import RawLog
+    from harness.sources.log.units import check_velocities
+
+    robot = load_scenario(SCENARIOS / "ur5_friction.toml").robot
+    t, q, qd = df["t"].to_numpy(), df[[f"q{j}" for j in range(1, 7)]].to_numpy(), df[[f"qd{j}" for j in range(1, 7)]]
+    q[:, 3], qd = 0.25 + 1e-4 * (np.arange(len(t)) % 2), qd.to_numpy()  # one encoder step back and forth
+    qd[:, 3] = 0.0
+    check_velocities(RawLog(t, tuple(robot.joint_names), q, qd, np.zeros_like(q), tmp_path / "still.csv"), robot, None)
+
+
 def test_a_velocity_column_of_the_wrong_sign_is_refused_naming_it(si_log, tmp_path, capsys):
     df = si_log[1].copy()
     df["qd3"] = -df["qd3"]

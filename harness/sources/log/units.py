@@ -21,6 +21,7 @@ if TYPE_CHECKING:
 UNIT_FACTOR = 3.0  # positions beyond the joint limits by this factor or more look like a unit mistake
 VELOCITY_FACTOR = 3.0  # the positions' rate of change and the logged velocities this far apart: a unit mistake
 TRACKING = 0.5  # a joint whose logged velocity follows its positions' changes this closely (cosine) moves
+DEAD_TRAVEL = 10  # positions ranging over this many of their median step move (an encoder's jitter: 1 or 2)
 TIME_UNITS = ((1e-3, "milliseconds"), (1e-6, "microseconds"), (1e-9, "nanoseconds"))
 TIME_SYMBOL = {"milliseconds": "ms", "microseconds": "us", "nanoseconds": "ns"}
 ABSURD = 1e3  # a value this many times beyond what the model's size allows (`plausible`) is no measurement
@@ -97,7 +98,9 @@ def check_velocities(kept: RawLog, robot: RobotSpec, source: DataSource | None) 
     log), judged where the two follow each other (their cosine at least TRACKING: the joint moves). A
     k beyond VELOCITY_FACTOR either way, or negative, is a unit, time-base or sign mistake: refused,
     naming the likeliest one (t in milliseconds gives k = 1e-3 on every joint; q' in deg/s read as
-    rad/s, k = 1/57.3)."""
+    rad/s, k = 1/57.3). A velocity column that reads one value on every row (0: a channel that measures
+    nothing) while its joint's positions range over DEAD_TRAVEL of their median step or more is refused
+    too: its joint moves, and no slope or cosine can be read off a constant."""
     if kept.qd is None or len(kept.t) < 3:
         return
     step = np.diff(kept.t)
@@ -110,10 +113,18 @@ def check_velocities(kept: RawLog, robot: RobotSpec, source: DataSource | None) 
         k, cosine = dv / vv, dv / np.sqrt(vv * dd)
     moves = np.isfinite(cosine) & (np.abs(cosine) >= TRACKING)
     off = moves & ~((k >= 1.0 / VELOCITY_FACTOR) & (k <= VELOCITY_FACTOR))
-    if not off.any():
+    dead = _dead_velocities(kept)
+    if not off.any() and not dead.any():
         return
     columns = source is not None and source.topic is None and "qd" in source.columns
     names = column_names(source, robot) if columns else {"t": ["t"], "qd": list(robot.joint_names)}
+    if dead.any():
+        j = int(np.flatnonzero(dead)[0])
+        raise InputError(kept.file, names["qd"][j], f"joint {robot.joint_names[j]!r}: the logged q' is "
+                                                    f"{kept.qd[0, j]:g} on every row while q ranges over "
+                                                    f"{np.ptp(kept.q[:, j]):.3g}: a velocity channel that "
+                                                    "measures nothing; leave qd out of [data] columns, and q is "
+                                                    "differentiated")
     j = int(np.flatnonzero(off)[0])
 
     def near(x: float, to: float) -> bool:
@@ -135,6 +146,17 @@ def check_velocities(kept: RawLog, robot: RobotSpec, source: DataSource | None) 
     raise InputError(path, names["qd"][j], f"joint {robot.joint_names[j]!r}: q changes {k[j]:.3g} times as "
                                            f"fast as the logged q' says ({how}): {hint}; or leave qd out of "
                                            "[data] columns, and q is differentiated")
+
+
+def _dead_velocities(kept: RawLog) -> np.ndarray:
+    """(n,) bool: the joints whose logged velocity is one value on every row while their positions range
+    over DEAD_TRAVEL median steps (of those that change) or more."""
+    dead = np.zeros(kept.q.shape[1], dtype=bool)
+    for j in np.flatnonzero(np.all(kept.qd == kept.qd[0], axis=0)):
+        steps = np.abs(np.diff(kept.q[:, j]))
+        steps = steps[steps > 0]
+        dead[j] = len(steps) > 0 and np.ptp(kept.q[:, j]) >= DEAD_TRAVEL * np.median(steps)
+    return dead
 
 
 def check_positions(raw: RawLog, robot: RobotSpec, source: DataSource | None) -> None:
