@@ -358,3 +358,34 @@ def test_a_urdf_with_rotations_by_a_rounded_pi_identifies_as_well_as_one_written
         figures[name] = float(np.max(relative_error(tau, fresh.tau[:, c], load)))
     assert max(figures.values()) <= 1e-4, figures
     assert abs(figures["shipped"] - figures["exact"]) <= 1e-9, figures
+
+
+@pytest.mark.slow  # a whole pipeline of the real log
+def test_the_panda_at_its_defaults_is_filtered_from_its_velocities_and_predicts_as_its_tuning_does(panda, tmp_path):
+    """The Panda's log with no conditioning given (the shipped scenario less rate, cutoff, filter_order and
+    decimate): its clock jitters, so its positions' differences are noise from 250 Hz up, and the default
+    low-pass is read from the logged velocities it differentiates (a few hertz; unread, no filter was chosen
+    and the export was 14.8 % off). Judged on the data's README's conditioning of the test rows (10 Hz
+    Butterworth, benchmarks/plain_lstsq.py: no harness code), the export is within 3 % of the shipped,
+    hand-set 10 Hz run's (issue's bound for defaults against tuning; measured 1.36 % against 1.37 %)."""
+    import harness
+    from benchmarks import plain_lstsq
+
+    text = (SCENARIOS / "panda_gaz2019.toml").read_text().replace('"../', f'"{BUILTIN}/')
+    keys = ("rate", "cutoff", "filter_order", "decimate")
+    (tmp_path / "defaults.toml").write_text("\n".join(line for line in text.splitlines()
+                                                      if line.split(" = ")[0] not in keys) + "\n")
+    assert main(["run", str(tmp_path / "defaults.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    chosen = json.loads((tmp_path / "out" / "results.json").read_text())["data"]["conditioning"]["defaults"]
+    assert chosen["differentiated"] == "logged velocities" and 2.0 <= chosen["cutoff_hz"] <= 10.0
+    log = np.loadtxt(LOG, delimiter=",", skiprows=1)
+    log = log[np.r_[True, np.any(log[1:, 1:] != log[:-1, 1:], axis=1)]]
+    t = log[:, 0]
+    test = t >= t[0] + 0.7 * (t[-1] - t[0])
+    q, qd, qdd, tau = plain_lstsq.conditioned(t[test], log[test, 1:8], log[test, 8:15], log[test, 15:22])
+
+    def error(folder) -> float:
+        model = harness.identified_model(folder)
+        return float(np.linalg.norm(model.inverse_dynamics(q, qd, qdd) - tau) / np.linalg.norm(tau))
+
+    assert error(tmp_path / "out") <= 1.03 * error(panda[0])

@@ -31,7 +31,7 @@ small velocity noise than a fast one's), the cut-off is the lowest joint's noise
 CUTOFF_FACTOR x the largest f_m and at most MAX_CUTOFF of the grid's rate (the TX40 over its motion: 15
 Hz; its whole run: 30 Hz; the bench arm above read through a 16-bit motor encoder: 49 Hz) and, where no
 decimation is given either, the filtered grid keeps about SAMPLES_PER_CUTOFF samples per second per hertz
-of cut-off (decimate = rate // (SAMPLES_PER_CUTOFF x cut-off)). Positions without noise are left
+of cut-off (decimate = rate // (SAMPLES_PER_CUTOFF x cut-off)). A log whose accelerations carry no noise is left
 unfiltered. Either way the choice is recorded and said. The Panda's log (a 1 kHz clock that jitters by
 0.3 ms: its positions' differences are noise from 250 Hz up; its logged velocities' noise level 0.004 to
 0.007) gets 5 Hz and every 9th sample: held out, 1.36 % (the data's README's 10 Hz: 1.37 %; unfiltered,
