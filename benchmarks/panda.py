@@ -12,8 +12,8 @@ minutes; FIGAROH's rows need `pip install -e ".[figaroh]"`, else they say why no
 2. The judging conditioning, the data's README's (benchmarks/plain_lstsq.py, which imports nothing of
    the harness: whole rows repeated dropped, split at 70 % of the duration, each part resampled to
    1 kHz, a 10 Hz zero-phase Butterworth of order 4 on q, q' and tau, accelerations from the filtered
-   velocities, 0.3 s trimmed, every 10th sample): its last 30 % are the test rows, its first 70 % the
-   training rows of the fits made here.
+   velocities, 0.3 s trimmed, every 10th sample; plain_lstsq.panda_spans): its last 30 % are the test
+   rows, its first 70 % the training rows of the fits made here.
 3. On the test rows, the relative torque error ||tau_model - tau_measured|| / ||tau_measured|| over all
    samples and joints of: each run's exported models (`harness.identified_model`, its consistent fit
    and its least squares); the plain least squares of plain_lstsq.py (Pinocchio's regressor, per joint
@@ -44,15 +44,6 @@ SCENARIOS = ROOT / "harness" / "data" / "scenarios"
 GRAVITY = 9.80665  # m/s^2 along -z of the base, as the scenario
 CUTOFFS = (3.0, 5.0, 7.5, 15.0, 20.0)  # Hz: the hand tuning's other cut-offs beside the shipped 10 Hz
 CONDITIONING_KEYS = ("rate", "cutoff", "filter_order", "decimate")  # what the defaults run leaves to the data
-
-
-def judging_rows():
-    """The module's docstring, 2: (q, q', q'', tau) of the training and of the test rows."""
-    log = np.loadtxt(plain_lstsq.LOG, delimiter=",", skiprows=1)
-    log = log[np.r_[True, np.any(log[1:, 1:] != log[:-1, 1:], axis=1)]]
-    t, q, qd, tau = log[:, 0], log[:, 1:8], log[:, 8:15], log[:, 15:22]
-    split = t[0] + 0.7 * (t[-1] - t[0])
-    return [plain_lstsq.conditioned(t[side], q[side], qd[side], tau[side]) for side in (t < split, t >= split)]
 
 
 def variants(folder: Path) -> dict[str, Path]:
@@ -92,11 +83,9 @@ def harness_runs(folder: Path) -> dict:
 
 
 def main() -> None:
-    import pinocchio as pin
-
     import harness
 
-    (q1, qd1, qdd1, tau1), (q2, qd2, qdd2, tau2) = judging_rows()
+    (q1, qd1, qdd1, tau1), (q2, qd2, qdd2, tau2) = plain_lstsq.panda_spans()
     rows: dict[str, float | str] = {}
     with tempfile.TemporaryDirectory() as tmp:
         runs = harness_runs(Path(tmp))
@@ -104,10 +93,7 @@ def main() -> None:
             for fit in ("consistent", "least squares"):
                 model = harness.identified_model(run["folder"], fit=fit)
                 rows[f"harness {name}, {fit}"] = rel(model.inverse_dynamics(q2, qd2, qdd2), tau2)
-    full = pin.buildModelFromUrdf(plain_lstsq.urdf())
-    locked = [full.getJointId(n) for n in ("panda_finger_joint1", "panda_finger_joint2")]
-    model = pin.buildReducedModel(full, locked, pin.neutral(full))
-    data = model.createData()
+    model, data = plain_lstsq.panda_model()
     theta = np.linalg.lstsq(plain_lstsq.regressor(model, data, q1, qd1, qdd1), tau1.ravel(), rcond=None)[0]
     rows["plain least squares"] = rel((plain_lstsq.regressor(model, data, q2, qd2, qdd2) @ theta).reshape(-1, 7), tau2)
     fits = figaroh_fits(ROOT / "harness" / "data" / "models" / "panda_arm.toml", GRAVITY, q1, qd1, qdd1, tau1)

@@ -67,17 +67,27 @@ def regressor(model, data, q, qd, qdd):
     return np.hstack([W, F.reshape(N * n, -1)])
 
 
-def panda() -> float:
+def panda_spans():
+    """The Panda's log, its rows repeated whole (held) dropped, split at 70 % of its duration, each part
+    conditioned on its own: [(q, q', q'', tau) of the training part, of the held-out part]."""
     log = np.loadtxt(LOG, delimiter=",", skiprows=1)
     log = log[np.r_[True, np.any(log[1:, 1:] != log[:-1, 1:], axis=1)]]  # a row repeated whole: held
     t, q, qd, tau = log[:, 0], log[:, 1:8], log[:, 8:15], log[:, 15:22]
     split = t[0] + 0.7 * (t[-1] - t[0])
+    return [conditioned(t[side], q[side], qd[side], tau[side]) for side in (t < split, t >= split)]
+
+
+def panda_model():
+    """Pinocchio's model of the Panda's URDF with its fingers locked, and its data."""
     full = pin.buildModelFromUrdf(urdf())
     locked = [full.getJointId(name) for name in ("panda_finger_joint1", "panda_finger_joint2")]
     model = pin.buildReducedModel(full, locked, pin.neutral(full))
-    data = model.createData()
-    spans = [conditioned(t[side], q[side], qd[side], tau[side]) for side in (t < split, t >= split)]
-    (q1, qd1, qdd1, tau1), (q2, qd2, qdd2, tau2) = spans
+    return model, model.createData()
+
+
+def panda() -> float:
+    model, data = panda_model()
+    (q1, qd1, qdd1, tau1), (q2, qd2, qdd2, tau2) = panda_spans()
     theta = np.linalg.lstsq(regressor(model, data, q1, qd1, qdd1), tau1.ravel(), rcond=None)[0]
     predicted = regressor(model, data, q2, qd2, qdd2) @ theta
     error = float(np.linalg.norm(predicted - tau2.ravel()) / np.linalg.norm(tau2))

@@ -378,11 +378,7 @@ def test_the_panda_at_its_defaults_is_filtered_from_its_velocities_and_predicts_
     assert main(["run", str(tmp_path / "defaults.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     chosen = json.loads((tmp_path / "out" / "results.json").read_text())["data"]["conditioning"]["defaults"]
     assert chosen["differentiated"] == "logged velocities" and 2.0 <= chosen["cutoff_hz"] <= 10.0
-    log = np.loadtxt(LOG, delimiter=",", skiprows=1)
-    log = log[np.r_[True, np.any(log[1:, 1:] != log[:-1, 1:], axis=1)]]
-    t = log[:, 0]
-    test = t >= t[0] + 0.7 * (t[-1] - t[0])
-    q, qd, qdd, tau = plain_lstsq.conditioned(t[test], log[test, 1:8], log[test, 8:15], log[test, 15:22])
+    q, qd, qdd, tau = plain_lstsq.panda_spans()[1]
 
     def error(folder) -> float:
         model = harness.identified_model(folder)

@@ -162,5 +162,5 @@ def test_the_default_filter_reads_the_noise_of_the_velocities_the_accelerations_
     assert record["differentiated"] == "logged velocities" and chosen.cutoff == record["cutoff_hz"]
     assert defaults.CUTOFF_FACTOR * max(s.band) <= chosen.cutoff <= min(s.noise_cutoff)
     for quiet in (_slow_log(1e-4, with_velocities=False)[0], _slow_log(0.0, cut=slice(4000, 4025))[0]):
-        assert not defaults.noisy(defaults.spectra(quiet, 500.0), 500.0)
+        assert not defaults.noisy(defaults.spectra(quiet, 500.0))
         assert defaults.resolve(source, quiet, 500.0) == (source, None)

@@ -101,7 +101,7 @@ def spectra(kept: RawLog, rate: float) -> Spectra:
     return Spectra(band, level, acceleration_level, noise_cutoff)
 
 
-def noisy(s: Spectra, rate: float) -> bool:
+def noisy(s: Spectra) -> bool:
     """Whether some joint's unfiltered accelerations carry noise (the module's docstring)."""
     return bool(np.any(s.level > NOISY) or np.any(s.acceleration_level > ACCELERATION_NOISE))
 
@@ -113,24 +113,24 @@ def resolve(source, kept: RawLog, rate: float):
     if source.cutoff is not None:
         return source, None
     s = spectra(kept, rate)
-    if not noisy(s, rate):
+    if not noisy(s):
         return source, None
     cutoff = float(min(max(np.min(s.noise_cutoff), CUTOFF_FACTOR * np.max(s.band)), MAX_CUTOFF * rate))
     decimate = source.decimate if source.decimate_given else max(1, int(rate // (SAMPLES_PER_CUTOFF * cutoff)))
-    signal = "the logged velocities" if kept.qd is not None else "the positions' differences"
+    differentiated = "logged velocities" if kept.qd is not None else "positions' differences"
     record = {"cutoff_hz": cutoff, "decimate": decimate,
-              "definition": f"no cutoff given, and the accelerations (differences of {signal}) carry noise on some "
-                            f"joint: the median of its velocity high-passed at {NOISE_BAND:g} x the motion's band, "
-                            f"where {BAND_ENERGY:.0%} of its energy lies, over {NOISY:g} of its RMS, or the same "
-                            f"of its accelerations (over {GAUSSIAN_MEDIAN:g}: an RMS) over {ACCELERATION_NOISE:g} of "
-                            f"the RMS of the rest. The cutoff is the highest at which, on every joint, the "
-                            f"accelerations' energy beyond {NOISE_BAND:g} x the band let through stays within "
-                            f"({ACCELERATION_NOISE:g})^2 of the energy below it, at least {CUTOFF_FACTOR:g} x the "
-                            f"largest band and at most {MAX_CUTOFF:g} x the rate"
+              "definition": f"no cutoff given, and the accelerations (differences of the {differentiated}) carry "
+                            f"noise on some joint: the median of its velocity high-passed at {NOISE_BAND:g} x the "
+                            f"motion's band, where {BAND_ENERGY:.0%} of its energy lies, over {NOISY:g} of its RMS, "
+                            f"or the same of its accelerations (over {GAUSSIAN_MEDIAN:g}: an RMS) over "
+                            f"{ACCELERATION_NOISE:g} of the RMS of the rest. The cutoff is the highest at which, on "
+                            f"every joint, the accelerations' energy beyond {NOISE_BAND:g} x the band let through "
+                            f"stays within ({ACCELERATION_NOISE:g})^2 of the energy below it, at least "
+                            f"{CUTOFF_FACTOR:g} x the largest band and at most {MAX_CUTOFF:g} x the rate"
                             + ("" if source.decimate_given else
                                f"; the grid kept at about {SAMPLES_PER_CUTOFF:g} samples per second per hertz of "
                                "cutoff"),
-              "differentiated": "logged velocities" if kept.qd is not None else "positions' differences",
+              "differentiated": differentiated,
               "motion_band_hz": [float(b) for b in s.band], "noise_level": [float(x) for x in s.level],
               "acceleration_noise_level": [float(x) for x in s.acceleration_level],
               "noise_cutoff_hz": [float(x) for x in s.noise_cutoff],
