@@ -130,8 +130,26 @@ MARGIN_BOUND = (
     "1e-9); a margin relative to each link's own size is the fix, not yet made")
 
 
+def _selects_slow(config: pytest.Config) -> bool:
+    """Whether the run's mark expression (-m) selects a test marked slow (the fast suite's does not)."""
+    expression = config.getoption("markexpr")
+    if not expression:
+        return True
+    try:
+        from _pytest.mark.expression import Expression
+    except ImportError:  # pytest's own parser moved: read the robots anyway
+        return True
+    return Expression.compile(expression).evaluate(lambda name, **_: name == "slow")
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """The robots of the collection are read (a second) only where the slow checks run: the fast suite's
+    two workers each collect every test, the deselected ones too."""
+    if metafunc.definition.name == "test_every_robot_read_is_identified_from_its_own_bench_log":
+        metafunc.parametrize("name", _identifiable() if _selects_slow(metafunc.config) else [])
+
+
 @pytest.mark.slow  # the whole collection: about 4 minutes on 2 cores (tiago_dual, 101 joints, 75 s)
-@pytest.mark.parametrize("name", _identifiable())
 def test_every_robot_read_is_identified_from_its_own_bench_log(tmp_path, name):
     """A log of the robot's own bench recording (every joint on two sinusoids, 4 s at 250 Hz) read
     back through [data]: least squares and the consistent fit predict the held-out 30 % within

@@ -49,7 +49,7 @@ def test_a_scenarios_own_text_is_escaped_once_in_its_report(fast_run, tmp_path):
 
 
 def test_a_sweep_page_has_nothing_escaped_twice(tmp_path):
-    assert main(["sweep", "kr500_noise", "--trials", "3", "--out", str(tmp_path / "sweep")]) == 0
+    assert main(["sweep", "kr500_noise", "--trials", "2", "--out", str(tmp_path / "sweep")]) == 0
     assert not DOUBLE.findall((tmp_path / "sweep" / "sweep.html").read_text())
 
 

@@ -10,10 +10,11 @@ import tracemalloc
 import numpy as np
 import pytest
 
+from harness.base import numerics
 from harness.base.numerics import SideBySide
 from harness.cli import main
 from harness.engines.pinocchio import build_model
-from harness.identify import span_rows
+from harness.identify import lstsq, span_rows
 from harness.identify.span_rows import RowsOnDemand, span_regressor
 from harness.identify.torque_id import fit_base, put_coulomb, regressor, structural_base
 from harness.model.load import load_spec
@@ -58,18 +59,23 @@ def test_a_span_regressor_over_the_size_held_whole_is_made_on_demand(monkeypatch
     assert isinstance(span_regressor(pm, q, qd, qdd), RowsOnDemand)
 
 
-def test_a_least_squares_fit_on_rows_on_demand_is_the_fit_on_the_whole_and_its_memory_does_not_grow_with_it():
-    """The UR5 with friction at 10,000 and 20,000 random samples (40 and 81 MiB of regressor): the base
-    parameters and their standard deviations on demand equal those on the whole regressor to 1e-9;
-    what the fit on demand allocates at its peak (traced) is the same for both lengths within 10 %
-    (a few chunks of rows: the fit reads 32,768 rows at a time, and a product 8,192 samples), where
-    the whole regressor doubles."""
+def test_a_least_squares_fit_on_rows_on_demand_is_the_fit_on_the_whole_and_its_memory_does_not_grow_with_it(
+        monkeypatch):
+    """The UR5 with friction at 2,500 and 5,000 random samples (10 and 20 MiB of regressor), its rows
+    made 512 samples and read 4,096 rows at a time (the shipped chunks, 8,192 and 32,768, scaled down
+    with the spans, so that each span is many chunks): the base parameters and their standard deviations
+    on demand equal those on the whole regressor to 1e-9; what the fit on demand allocates at its peak
+    (traced) is the same for both lengths within 10 % (a few chunks of rows), where the whole regressor
+    doubles."""
+    monkeypatch.setattr(span_rows, "SAMPLES_AT_A_TIME", 512)
+    monkeypatch.setattr(lstsq, "ROWS_AT_A_TIME", 4096)
+    monkeypatch.setattr(numerics, "ROWS_AT_A_TIME", 4096)
     spec = load_spec(MODELS / "ur5_friction.toml")
     pm = build_model(spec, np.array([0.0, 0.0, -9.81]))
     base = structural_base(pm, spec.limits, with_friction=True)
     x = np.random.default_rng(8).standard_normal(84)
     peaks = []
-    for N in (10_000, 20_000):
+    for N in (2_500, 5_000):
         q, qd, qdd = _states(6, N, seed=7)
         lazy = SideBySide(((RowsOnDemand(pm, q, qd, qdd), base.independent),))
         tau = (lazy @ x[base.independent]).reshape(N, 6) + 0.01 * np.random.default_rng(9).standard_normal((N, 6))
@@ -79,12 +85,13 @@ def test_a_least_squares_fit_on_rows_on_demand_is_the_fit_on_the_whole_and_its_m
             peaks.append(tracemalloc.get_traced_memory()[1])
         finally:
             tracemalloc.stop()
-        if N == 10_000:
+        if N == 2_500:
             held = fit_base(SideBySide(((regressor(pm, q, qd, qdd, with_friction=True), base.independent),)), tau,
                             base.of(x))
             np.testing.assert_allclose(made.beta, held.beta, rtol=1e-9, atol=1e-9 * np.abs(held.beta).max())
             np.testing.assert_allclose(made.std, held.std, rtol=1e-9)
     assert peaks[1] <= 1.1 * peaks[0], peaks
+    assert peaks[1] < 0.5 * 5_000 * 6 * 84 * 8, peaks  # and well under the whole regressor's size
 
 
 def _numbers(out, *paths) -> list[float]:
