@@ -261,9 +261,9 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
     same every time it is asked for. Of a closed chain (`chain`, harness/model/closure.py): its
     actuated-torque regressor G^T Y at random consistent states (the actuated joints' q uniform within
     their limits, q'_a and q''_a within +-1, the passive joints' from the loops). `channels`: the joints
-    whose rows a log holds (an open tree's measured joints, harness/stages/log_model.py): the base of
-    their rows alone, every joint's motion in them; `weightless`: joints whose rows carry no gravity
-    (`without_gravity`)."""
+    whose rows a log holds (an open tree's measured joints, a closed chain's measured actuated joints:
+    harness/stages/log_model.py): the base of their rows alone, every joint's motion in them;
+    `weightless`: joints whose rows carry no gravity (`without_gravity`)."""
     if chain is not None:
         from harness.model.closure import random_motion
 
@@ -272,8 +272,8 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
         lo, hi = position_bounds(names, [pm.model.joints[pm.joint_ids[k]].shortname().startswith("JointModelR")
                                          for k in act], limits)
         m = random_motion(chain, lo, hi, np.ones(len(act)), np.ones(len(act)), STRUCTURAL_STATES, seed)
-        return base_parameters(chain_regressor(pm, chain, m.q, m.qd, m.qdd, with_friction, closed=True),
-                               with_friction)
+        W = chain_regressor(pm, chain, m.q, m.qd, m.qdd, with_friction, closed=True)
+        return base_parameters(W if channels is None else selected_rows(W, len(act), channels), with_friction)
     rng = np.random.default_rng(seed)
     n = len(pm.joint_ids)
     lo, hi = position_bounds([pm.model.names[jid] for jid in pm.joint_ids],

@@ -51,7 +51,6 @@ from harness.identify.torque_id import (
     parameter_names,
     with_structure,
 )
-from harness.model.closure import projection
 from harness.model.export import (
     LEAST_SQUARES_FILE,
     MJCF_FILE,
@@ -211,7 +210,7 @@ def _chain_laws(config: FrictionLawConfig, robot, model: LogModel, training: Tra
                                      f"{robot.joint(other).friction.family}")
     q, qd, qdd, tau = model.data(training)
     try:
-        choice = chain_law.choose(model.rows(model.pm, q, qd, qdd), projection(model.chain, q), qd, tau,
+        choice = chain_law.choose(model.rows(model.pm, q, qd, qdd), model.projection(q), qd, tau,
                                   model.base.independent, model.link_part, training.t, config.folds,
                                   training.reach_s, np.array([law.coulomb_velocity for law in kept]),
                                   filtered_columns(training))

@@ -4,7 +4,8 @@ log holds, and every regressor's and prediction's rows as those torques read the
 The log's torques are S^T tau of the tree's joint torques tau = Y theta (plus each joint's drive terms):
 of an open tree S selects its measured joints (every joint, or all but `[data] unmeasured`,
 harness/sources/log/channels.py); of a closed chain S = G, its actuated joints' projection
-(harness/model/closure.py, docs/closed_chains.md). A joint whose torque is not read keeps its motion in
+(harness/model/closure.py, docs/closed_chains.md), or of its measured actuated joints, G's columns of
+the channels the log holds. A joint whose torque is not read keeps its motion in
 every row: its velocity and acceleration move the links outboard and inboard of it in the other joints'
 rows, so those links are identified from them; the parameters only its own row sees (of an open tree,
 its drive's friction and rotor inertia, and the combinations of its outer links that reach no measured
@@ -36,7 +37,8 @@ from harness.identify.torque_id import (
     true_parameters,
     without_gravity,
 )
-from harness.model.closure import ClosedChain, actuated_torques, projection
+from harness.model.closure import ClosedChain, actuated_torques, projection, random_motion
+from harness.model.states import position_bounds
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,8 +46,8 @@ class LogModel:
     """The model as the fit reads it: its Pinocchio model, its structural base parameters with each
     joint's friction and rotor inertia, and its own values of all of them. Of a closed chain (`chain`,
     harness/model/closure.py) the log's torques are its actuated joints' and a regressor's rows are
-    the tree's projected onto them, G^T Y (docs/closed_chains.md); of an open tree with `channels`, its
-    measured joints' rows alone."""
+    the tree's projected onto them, G^T Y (docs/closed_chains.md); with `channels`, its measured
+    joints' rows alone (an open tree's joints', a closed chain's actuated joints')."""
 
     pm: PinocchioModel
     base: BaseParameters
@@ -53,8 +55,9 @@ class LogModel:
     link_part: tuple[np.ndarray, np.ndarray]  # BaseParameters.link_part at the model's values
     joints: list[str]  # every joint, in the spec's order
     chain: ClosedChain | None = None
-    channels: tuple[int, ...] | None = None  # the measured ones among the joints (an open tree's); None: all
+    channels: tuple[int, ...] | None = None  # the measured ones among the joints (a chain's: actuated); None: all
     weightless: tuple[int, ...] = ()  # joints (an open tree's) whose channel carries no gravity: counterbalanced
+    chain_reach: np.ndarray | None = None  # (n, m) of a closed chain with channels: `reached`
 
     @property
     def torque_joints(self) -> list[str]:
@@ -66,18 +69,22 @@ class LogModel:
     @property
     def measured(self) -> np.ndarray:
         """(n,) bool: each joint whose drive terms reach a torque the log holds: an open tree's measured
-        joints; every joint of a closed chain (through G^T)."""
-        if self.chain is not None or self.channels is None:
+        joints; of a closed chain, every joint whose torque G^T carries to a measured channel (all of
+        them where every actuated channel is read)."""
+        if self.chain is not None:
+            return self.reach.any(axis=1)
+        if self.channels is None:
             return np.ones(len(self.joints), dtype=bool)
         return np.isin(self.joints, self.torque_joints)
 
     @property
     def reach(self) -> np.ndarray | None:
         """(joints, torque channels) where each joint's drive terms reach a channel: a closed chain's
-        every actuated torque through G^T (consistent.fit_with_laws), an open tree's measured joint its
-        own channel; None: every joint its own."""
+        every measured actuated torque through G^T (consistent.fit_with_laws), an open tree's measured
+        joint its own channel; None: every joint its own."""
         if self.chain is not None:
-            return np.ones((len(self.joints), len(self.chain.actuated)), dtype=bool)
+            return np.ones((len(self.joints), len(self.torque_joints)), dtype=bool) if self.chain_reach is None \
+                else self.chain_reach
         if self.channels is None:
             return None
         return np.arange(len(self.joints))[:, None] == np.asarray(self.channels)[None, :]
@@ -89,14 +96,16 @@ class LogModel:
 
     def rows(self, pm: PinocchioModel, q, qd, qdd, coulomb=None) -> np.ndarray | RowsOnDemand:
         """The span's regressor with friction, (N m, 14 n) for the m torque channels: every joint's
-        (a long span's made on demand), an open tree's measured joints', or a closed chain's G^T Y."""
+        (a long span's made on demand), an open tree's measured joints', or a closed chain's G^T Y (its
+        measured actuated joints')."""
         if self.chain is None:
             W = span_regressor(pm, q, qd, qdd, coulomb)
             if self.channels is None and not self.weightless:
                 return W
             W = without_gravity(pm, q, W.whole() if isinstance(W, RowsOnDemand) else W, self.weightless)
             return self._selected(W, len(self.joints))
-        return chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True, coulomb=coulomb)
+        return self._selected(chain_regressor(pm, self.chain, q, qd, qdd, with_friction=True, coulomb=coulomb),
+                              len(self.chain.actuated))
 
     def joint_rows(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
         """(N, n, 14 n): every joint's rows with friction as its channel reads them: a counterbalanced
@@ -113,13 +122,19 @@ class LogModel:
         """Rows (N per_sample, c) of each sample's joints or actuated joints: the measured channels' alone."""
         return rows if self.channels is None else selected_rows(rows, per_sample, self.channels)
 
+    def projection(self, q: np.ndarray) -> np.ndarray:
+        """A closed chain's G (N, n, m) at q: every joint's velocity per unit velocity of each actuated
+        joint whose channel the log holds (its columns of closure.projection)."""
+        G = projection(self.chain, q)
+        return G if self.channels is None else G[:, :, list(self.channels)]
+
     def projected(self, q: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Per-joint rows (N n, c) as the log's torques read them: an open tree's measured joints', a
-        closed chain's projected onto its actuated joints by G^T, (N n_a, c)."""
+        closed chain's projected onto its measured actuated joints by G^T, (N m, c)."""
         if self.chain is None:
             return self._selected(rows, len(self.joints))
         N, n = q.shape
-        G = projection(self.chain, q)
+        G = self.projection(q)
         return np.einsum("nja,njc->nac", G, rows.reshape(N, n, -1)).reshape(N * G.shape[2], -1)
 
     def torques(self, pm: PinocchioModel, q, qd, qdd) -> np.ndarray:
@@ -128,7 +143,7 @@ class LogModel:
         if self.weightless:  # a counterbalanced joint's channel: less its gravity torque, Y(q, 0, 0) theta
             tau[:, list(self.weightless)] -= gravity_rows(pm, q, self.weightless) @ true_parameters(pm)
         if self.chain is not None:
-            return actuated_torques(projection(self.chain, q), tau)
+            return actuated_torques(self.projection(q), tau)
         return tau if self.channels is None else tau[:, list(self.channels)]
 
     def every_joint(self, x: np.ndarray) -> np.ndarray:
@@ -160,15 +175,34 @@ class LogModel:
 
 def log_model(robot, gravity_W: np.ndarray, unmeasured: tuple[str, ...] = (),
               counterbalanced: tuple[str, ...] = ()) -> LogModel:
-    """The robot's LogModel; `unmeasured`: joints of an open tree whose torque the log does not hold;
-    `counterbalanced`: joints of an open tree whose channel carries no gravity."""
+    """The robot's LogModel; `unmeasured`: joints whose torque the log does not hold (of a closed chain,
+    actuated joints); `counterbalanced`: joints of an open tree whose channel carries no gravity."""
     pm = build_model(robot, gravity_W)
     chain = ClosedChain.of(robot) if robot.loops else None
-    if (unmeasured or counterbalanced) and chain is not None:
-        raise ValueError("unmeasured and counterbalanced channels are read on an open tree")
-    channels = tuple(k for k, j in enumerate(robot.joint_names) if j not in unmeasured) if unmeasured else None
+    if counterbalanced and chain is not None:
+        raise ValueError("counterbalanced channels are read on an open tree")
+    logged = robot.joint_names if chain is None else list(robot.actuated)  # the joints with a channel
+    if not set(unmeasured) <= set(logged):
+        raise ValueError(f"unmeasured joints {sorted(set(unmeasured) - set(logged))} have no channel to leave out")
+    channels = tuple(k for k, j in enumerate(logged) if j not in unmeasured) if unmeasured else None
     weightless = tuple(robot.joint_names.index(j) for j in counterbalanced)
     base = structural_base(pm, robot.limits, with_friction=True, chain=chain, channels=channels, weightless=weightless)
     x_model = true_parameters(pm, with_friction=True)
+    chain_reach = None if chain is None or channels is None else reached(chain, robot, channels)
     return LogModel(pm, base, x_model, base.link_part(x_model, 10 * len(robot.joints)), robot.joint_names, chain,
-                    channels, weightless)
+                    channels, weightless, chain_reach)
+
+
+REACH_STATES = 32  # random consistent states at which a closed chain's G is read for `reached`
+
+
+def reached(chain: ClosedChain, robot, channels: tuple[int, ...]) -> np.ndarray:
+    """(n, m) bool: whether joint j's torque reaches measured actuated channel k, G[j, k] != 0 (beyond
+    1e-12 of |G|'s largest) at some of REACH_STATES random consistent states (as structural_base draws
+    them). An unmeasured actuated joint's row is G's identity row: it reaches no measured channel, and
+    its friction and rotor inertia stay the model's, as an open tree's unmeasured joint's do; a passive
+    joint that moves with the measured joints reaches theirs."""
+    lo, hi = position_bounds(list(robot.actuated), [robot.joint(a).revolute for a in robot.actuated], robot.limits)
+    ones = np.ones(len(chain.actuated))
+    G = random_motion(chain, lo, hi, ones, ones, REACH_STATES, seed=0).G[:, :, list(channels)]
+    return np.abs(G).max(axis=0) > 1e-12 * max(float(np.abs(G).max()), 1.0)

@@ -1,9 +1,10 @@
 """Which joints a log's torque channels measure: `[data] unmeasured` names the joints without one (no
-column, or a channel that reads nothing, as a mobile manipulator's wrist channels do). Their motion
-stays in the model: their torque row is left out of every fit and judgement (harness/stages/
-log_model.py, as a closed chain's passive joints' are), so the links they carry are identified from
-the other joints' rows; their own friction and rotor inertia reach no measured channel of an open tree
-and stay the model's."""
+column, or a channel that reads nothing, as a mobile manipulator's wrist channels do; of a closed chain,
+actuated joints). Their motion stays in the model: their torque row is left out of every fit and
+judgement (harness/stages/log_model.py, as a closed chain's passive joints' are), so the links they
+carry are identified from the other joints' rows; their own friction and rotor inertia reach no
+measured channel of an open tree and stay the model's (a closed chain's reach the measured actuated
+channels through G^T, as a passive joint's do)."""
 
 from __future__ import annotations
 
@@ -34,8 +35,9 @@ def every_joint(source: DataSource, robot: RobotSpec, tau: np.ndarray, names: li
 
 def supported(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
     """The `[data]` table `dt` of a scenario `root` on `robot`, read as `source`: what a closed chain's log
-    does not support (harness/sources/log/closed.py, and counterbalanced channels) and what reads every
-    joint's torque beside `unmeasured` joints refused in one line naming the key."""
+    does not support (harness/sources/log/closed.py, and counterbalanced channels), what reads every
+    joint's torque beside `unmeasured` joints, and unmeasured channels of a model with drives, refused
+    in one line naming the key."""
     if robot.loops:
         source = closed_chain_source(root, dt, robot, source)
         if source.counterbalanced:
@@ -50,7 +52,4 @@ def supported(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> D
     if robot.transmission is not None:
         raise dt.error("unmeasured", f"{robot.source} states drives ([drives]): a motor's law reaches several "
                                      "channels, and unmeasured channels are read on a model without drives")
-    if robot.loops:
-        raise dt.error("unmeasured", f"model {robot.name!r} is a closed chain: its actuated joints' channels are "
-                                     "all read (unmeasured channels are read on an open tree)")
     return source
