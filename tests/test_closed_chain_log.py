@@ -356,8 +356,8 @@ def test_a_closed_chain_log_without_a_channel_is_identified_from_the_others(unme
     the turret's and the shoulder's rows of G^T Y predicts the truth's torques of those two channels on
     the span it never saw within 1e-4 (6.0e-5 measured; 2.7e-5 with every channel), the smoothing velocity
     0.02 rad/s within 5 % (every joint's but the crank's); the crank's friction and rotor inertia are the
-    model's (none: they reach no measured channel), the passive joints' identified through G as with every channel (within 1 % of
-    that fit's); no forward run, said; the report names the joint."""
+    model's (none: they reach no measured channel), the passive joints' identified through G as with
+    every channel (within 1 % of that fit's); no forward run, said; the report names the joint."""
     absent, dead = (unmeasured_runs[name] for name in ("absent", "dead"))
     assert absent[0] == dead[0] == 0
     li, other = absent[1]["log_identification"], dead[1]["log_identification"]

@@ -441,3 +441,90 @@ def test_each_motors_law_comes_back_through_the_coupling(wrist_bench):
                  + (got["coulomb"] - law["coulomb"]) * np.tanh(qd_m[:, k] / law["coulomb_velocity"])
                  + got["offset"] - law["offset"])
         assert np.sqrt(np.mean(error**2)) <= 0.02 * np.sqrt(np.mean(tau_m[:, k] ** 2)), motor
+
+
+@pytest.mark.parametrize(("unmeasured", "reached"), [("elbow", [True, True]), ("shoulder", [False, True])])
+def test_a_coupled_arm_without_a_joints_channel_reads_the_other_and_keeps_the_law_of_a_motor_that_reaches_none(
+        tmp_path, unmeasured, reached):
+    """Motor 2 turns with 20 q1 - 30 q2, so its torque reaches both joints; motor 1's the shoulder's alone.
+    With one joint's channel unmeasured, at 200 random states the other joint's rows times the model's own
+    parameters are Pinocchio's rnea (rigid) plus N^T of the motors' laws at q'_m = N q' (computed here from
+    the test's laws), to 1e-12 of the largest torque; a motor's four drive terms are among the base
+    parameters only where it reaches the measured joint (reached), the others' none."""
+    import pinocchio as pin
+
+    from harness.identify.torque_id import drive_columns
+    from harness.stages.log_model import log_model
+
+    spec = load_spec(tmp_path / _drives_model(tmp_path))
+    model = log_model(spec, G, (unmeasured,))
+    k = 1 - spec.joint_names.index(unmeasured)  # the measured joint
+    assert model.torque_joints == [spec.joint_names[k]] and model.drives_reached.tolist() == reached
+    q, qd, qdd = _states()
+    pm = model.pm
+    data = pm.model.createData()
+    rigid = np.empty_like(q)
+    for i in range(len(q)):
+        x = [np.zeros(pm.model.nq) for _ in range(3)]  # one coordinate per hinge: q's index is v's
+        for full, spec_order in zip(x, (q[i], qd[i], qdd[i]), strict=True):
+            full[pm.q_index] = spec_order
+        rigid[i] = pin.rnea(pm.model, data, *x)[pm.q_index]
+    qd_m, qdd_m = qd @ N.T, qdd @ N.T
+    laws = list(MOTORS.values())
+    tau_m = np.column_stack([law["armature"] * qdd_m[:, m] + law["viscous"] * qd_m[:, m]
+                             + law["coulomb"] * np.tanh(qd_m[:, m] / law["coulomb_velocity"]) + law["offset"]
+                             for m, law in enumerate(laws)])
+    expected = (rigid + tau_m @ N)[:, k]
+    got = model.rows(pm, q, qd, qdd) @ model.x_model
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    independent = set(model.base.independent.tolist())
+    for m, reaches in enumerate(reached):
+        assert bool(set(range(*drive_columns(2, m).indices(28))) & independent) == reaches, m
+
+
+def test_a_coupled_arms_log_without_a_channel_identifies_what_reaches_the_other(coupled_bench):
+    """The bench log at the joints with the elbow's column absent, or the shoulder's reading 0, each
+    declared unmeasured: the consistent fit predicts the truth's held-out torque of the measured joint
+    within 1 % (the elbow left out: 0.32 %, both motors' laws through the shoulder's row alone; the
+    shoulder left out: 9.2e-5; 1.2e-4 with both channels); the shoulder left out, motor 1 (which moves it
+    alone) keeps the model's law exactly, motor 2's Coulomb term comes back within 1 %."""
+    folder = coupled_bench[0]
+    log = pd.read_csv(folder / "joints.csv")
+    log.drop(columns=["tau2"]).to_csv(folder / "no_elbow.csv", index=False, float_format="%.17g")
+    log.assign(tau1=0.0).to_csv(folder / "no_shoulder.csv", index=False, float_format="%.17g")
+    results = {}
+    for joint, tau in (("elbow", '["tau1"]'), ("shoulder", '"tau{j}"')):
+        _log_scenario(folder, f'file = "no_{joint}.csv"\ncolumns = {{ t = "t", q = "q{{j}}", tau = {tau} }}\n'
+                              f'truth = "coupled.toml"\nunmeasured = ["{joint}"]\n', f"no_{joint}")
+        assert main(["run", str(folder / f"no_{joint}.toml"), "--out", str(folder / f"no_{joint}"), "--quiet"]) == 0
+        results[joint] = json.loads((folder / f"no_{joint}" / "results.json").read_text())["log_identification"]
+    for joint, li in results.items():
+        assert li["unmeasured"]["joints"] == [joint] and li["truth"]["validation_rel_error"]["consistent"] <= 1e-2
+    friction = results["shoulder"]["consistent"]["friction"]
+    assert {key: friction["motor_1"][key] for key in MOTORS["motor_1"]} == MOTORS["motor_1"]
+    assert abs(friction["motor_2"]["coulomb"] / MOTORS["motor_2"]["coulomb"] - 1) <= 0.01
+
+
+def test_a_law_search_without_a_joints_channel_weighs_each_motor_on_the_measured_rows_alone(tmp_path):
+    """The friction law search (harness/identify/friction_law.py) on exact torques of the coupled arm (its
+    own laws, 3 s of sinusoids at 200 Hz) with the elbow unmeasured (its rows and torque zero): at the
+    model's laws, which made the torques, each fold is predicted by the fit on the others to round-off
+    (under 1e-9). Motor 2's columns counted on the elbow's rows too would predict torque where the log
+    holds none."""
+    from harness.engines.pinocchio import rnea
+    from harness.identify import friction_law
+    from harness.stages.log_model import log_model
+
+    spec = load_spec(tmp_path / _drives_model(tmp_path))
+    model = log_model(spec, G, ("elbow",))
+    t = np.arange(600) / 200.0
+    sines = ((-0.3, ((0.9, 2.1), (0.3, 5.3))), (0.0, ((1.0, 3.0), (0.2, 6.7))))
+    q = np.column_stack([o + sum(a * np.sin(w * t) for a, w in s) for o, s in sines])
+    qd = np.column_stack([sum(a * w * np.cos(w * t) for a, w in s) for _, s in sines])
+    qdd = np.column_stack([-sum(a * w * w * np.sin(w * t) for a, w in s) for _, s in sines])
+    W = model.joint_rows(model.pm, q, qd, qdd).reshape(len(t) * 2, -1)
+    tau = rnea(model.pm, q, qd, qdd).tau * model.measured
+    choice = friction_law.choose(W, model.base.independent, model.link_part, tau, qd, t, spec.frictions,
+                                 friction_law.FrictionLawConfig(families=("viscous_coulomb",)), 0.0,
+                                 spec.transmission, None, model.measured)
+    assert choice.model_error <= 1e-9, choice.model_error

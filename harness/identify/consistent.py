@@ -299,11 +299,12 @@ def fit_with_laws(W: np.ndarray, E: np.ndarray, tau: np.ndarray, laws: tuple[Law
     own values (theta_model (n, 10), friction_model (n, 4), extra_model (e,)) where the data cannot
     tell; and each drive's identified friction law (each joint's, or with a transmission each motor's).
     The torques' rows are every joint's (m = n), or `reach` (drives, m) says which of them each drive's
-    columns reach: a transmission's (N != 0), a closed chain's actuated joints (every one)."""
+    columns reach: a transmission's (N != 0; of every joint where `reach` is not given), a closed
+    chain's actuated joints, an open tree's measured joints (harness/stages/log_model.py)."""
     N, m = tau.shape
     n = len(theta_model)
     terms = extra_terms(laws)
-    if transmission is not None:
+    if transmission is not None and reach is None:
         reach = np.zeros((n, n), dtype=bool)  # (motors, joints): where each drive's columns are (drives.reach)
         for j, k, _ in drives.reach(transmission, n):
             reach[k, j] = True

@@ -330,7 +330,9 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     the rigid-body torque, N^-T tau_R. With a filtered span's `columns` (FilteredColumns), each law's
     nonlinear columns are filtered as the torques were (harness/identify/filtered.py). `measured` (n,)
     bool: the joints whose torque the log holds (harness/stages/log_model.py); an unmeasured joint's rows
-    are W's and tau's zeros, its law the model's, its columns none (they reach no measured row). Raises
+    are W's and tau's zeros; a drive that reaches none of the measured joints (`drives_reaching`) keeps
+    the model's law, its columns none, and a motor's columns are weighed on the measured joints' rows
+    alone. Raises
     ValueError when the span is too short to cut."""
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
@@ -350,8 +352,9 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     law_shaped = {drive_column(n, j, key) for j in range(n) for key in ("viscous", "coulomb")}  # a law's columns
     kept = np.array([k for k, c in enumerate(independent) if c not in law_shaped])
     rows_of = regressor_rows(W, n) if isinstance(W, np.ndarray) else W
+    measured = np.ones(n, dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
     normal = _Normal(rows_of, independent[kept], order, tuple(x[kept] for x in link_part), tau, folds, slot,
-                     None if transmission is None else transmission.N)
+                     None if transmission is None else transmission.N * measured)  # an unmeasured joint's: none
 
     def at_motor(x: np.ndarray) -> np.ndarray:  # a joint torque as its motors' share
         return x if transmission is None else transmission.motor_torques(x)
@@ -359,8 +362,8 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     if transmission is not None:
         qd = transmission.motor_rates(qd)
     columns_of = _LawColumns(qd, t[order], transmission, columns)
-    measured = np.ones(n, dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
-    moving = _searched(qd, measured)
+    reached = drives_reaching(measured, transmission)
+    moving = _searched(qd, reached)
     rigid = np.zeros((N, n))
     total = float(np.sum(tau**2))
 
@@ -373,7 +376,7 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
         point need not be the bilinear fit's least-squares minimum; on the bench of
         tests/test_friction_law.py, Levenberg-Marquardt on the whole bilinear fit moved f_l by 1e-4 of
         itself, and the alternation is kept."""
-        if not measured[j]:  # no row of its own: no column to place
+        if not reached[j]:  # no measured row of its own: no column to place
             normal.set(j, np.zeros((N, 0)))
             return
         normal.set(j, columns_of(j, law, rigid[:, j]))
@@ -413,6 +416,14 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     tau_rigid[order] = normal.rigid_torque()
     return FrictionChoice(tuple(laws), tuple(scores), model_error, chosen_error, config.folds, tau_rigid,
                           folds.guard * step, tuple(flat))
+
+
+def drives_reaching(measured: np.ndarray, transmission: Transmission | None) -> np.ndarray:
+    """(drives,) bool: each drive whose torque reaches a measured joint (`measured` (n,) bool): the joint's
+    own, or with a transmission a motor k with N[k, j] != 0 at some measured joint j."""
+    if transmission is None:
+        return np.asarray(measured, dtype=bool)
+    return np.any(transmission.N[:, np.asarray(measured, dtype=bool)] != 0, axis=1)
 
 
 def _searched(qd: np.ndarray, measured: np.ndarray) -> np.ndarray:

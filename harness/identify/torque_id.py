@@ -248,7 +248,8 @@ def without_gravity(pm: PinocchioModel, q: np.ndarray, W: np.ndarray, joints: tu
 
 def selected_rows(W: np.ndarray, per_sample: int, joints: tuple[int, ...]) -> np.ndarray:
     """Rows (N per_sample, c), sample by sample, of each sample's `joints` alone: (N len(joints), c)."""
-    return W.reshape(-1, per_sample, W.shape[1])[:, list(joints)].reshape(-1, W.shape[1])
+    N, c = len(W) // per_sample, W.shape[1]  # c may be 0 (no family's columns): no -1 in the shapes
+    return W.reshape(N, per_sample, c)[:, list(joints)].reshape(N * len(joints), c)
 
 
 def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0,

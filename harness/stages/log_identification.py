@@ -169,12 +169,12 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
 
         try:
             choice = friction_law.choose(rows_of, model.base.independent, model.link_part, tau * measured, qd,
-                                         training.t, unmeasured_plain(robot.frictions, measured), config,
+                                         training.t, unmeasured_plain(robot.frictions, model.drives_reached), config,
                                          training.reach_s, robot.transmission, filtered_columns(training), measured)
         except ValueError as exc:
             note = f"friction law not chosen, the model's kept: {exc}"
     laws = choice.laws if choice is not None else tuple(
-        Law.of(f) for f in unmeasured_plain(robot.frictions, model.measured))
+        Law.of(f) for f in unmeasured_plain(robot.frictions, model.drives_reached))
     if choice is not None:  # what the data could not tell, said with its range
         undecided = [(j, flat, law) for j, flat, law in zip(joints, choice.undecided, laws, strict=True) if flat]
         note = ("the held-out error of viscous and Coulomb friction is flat in the smoothing velocity (the data "
@@ -434,7 +434,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     fit, frictions = consistent.fit_with_laws(fitted.W, fitted.E, tau, laws.laws, model.theta,
                                               friction_values(robot.frictions), fitted.extra_model,
                                               robot.transmission, model.reach)
-    frictions = identified_frictions(frictions, robot.frictions, model.measured)
+    frictions = identified_frictions(frictions, robot.frictions, model.drives_reached)
     identified = identified_spec(robot, fit.theta, frictions)
     # the validation span as the fit's findings make it, by the judging (the fit never reads it)
     validation = as_fitted(ctx.validation.get(VALIDATION_SPAN), delayed.lags if delayed.corrected else None,
@@ -474,9 +474,12 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
     out, lags = [], li.delayed.lags  # the start check's findings are its own (log_judge.Start.said), said first
     unmeasured = [j for j, m in zip(li.joints, li.model.measured, strict=True) if not m]
     if unmeasured:
+        kept = [d for d, reached in zip(li.drives, li.model.drives_reached, strict=True) if not reached]
         out.append(f"torque channels unmeasured ([data] unmeasured): {', '.join(unmeasured)}: fitted and judged on the "
-                   f"other {len(li.model.torque_joints)} channels, their joints' motion in the model; their friction "
-                   "and rotor inertia the model's; no forward prediction (nothing drives them)")
+                   f"other {len(li.model.torque_joints)} channels, their joints' motion in the model; "
+                   + (f"the friction and rotor inertia of {', '.join(kept)} (reaching no measured channel) the model's"
+                      if kept else "every drive's friction and rotor inertia identified through the measured channels")
+                   + "; no forward prediction (nothing drives them)")
     if li.model.weightless:
         out.append("counterbalanced channels ([data] counterbalanced) fitted without their joints' gravity: "
                    f"{', '.join(li.joints[k] for k in li.model.weightless)}; the exported model has no counterweight "

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.engines.pinocchio import PinocchioModel, build_model, joint_torques
-from harness.identify.friction_law import Law, extra_regressor
+from harness.identify.friction_law import Law, drives_reaching, extra_regressor
 from harness.identify.span_rows import RowsOnDemand, span_regressor
 from harness.identify.torque_id import (
     BaseParameters,
@@ -78,15 +78,27 @@ class LogModel:
         return np.isin(self.joints, self.torque_joints)
 
     @property
+    def drives_reached(self) -> np.ndarray:
+        """(drives,) bool: each drive whose terms reach a torque the log holds (its friction and rotor
+        inertia identified; the others' stay the model's): a joint's own (`measured`), or with a
+        transmission each motor that moves a measured joint."""
+        if self.chain is not None:
+            return self.measured
+        return drives_reaching(self.measured, self.pm.transmission)
+
+    @property
     def reach(self) -> np.ndarray | None:
-        """(joints, torque channels) where each joint's drive terms reach a channel: a closed chain's
-        every measured actuated torque through G^T (consistent.fit_with_laws), an open tree's measured
-        joint its own channel; None: every joint its own."""
+        """(drives, torque channels) where each drive's terms reach a channel: a closed chain's every
+        measured actuated torque through G^T (consistent.fit_with_laws), an open tree's measured joint its
+        own channel, a transmission's motor k the measured joints j with N[k, j] != 0; None: every joint
+        its own, or every joint's channel read through the model's drives (the fit reads its N)."""
         if self.chain is not None:
             return np.ones((len(self.joints), len(self.torque_joints)), dtype=bool) if self.chain_reach is None \
                 else self.chain_reach
         if self.channels is None:
             return None
+        if self.pm.transmission is not None:
+            return self.pm.transmission.N[:, list(self.channels)] != 0
         return np.arange(len(self.joints))[:, None] == np.asarray(self.channels)[None, :]
 
     def data(self, series) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

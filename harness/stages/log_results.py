@@ -71,8 +71,9 @@ def serialise(li, ctx, config) -> dict:
 
 
 UNMEASURED = ("joints whose torque the log does not hold ([data] unmeasured): their motion is in every other "
-              "joint's row; no row of theirs is fitted or judged; their friction and rotor inertia reach no measured "
-              "row and are the model's in the identified model")
+              "joint's row; no row of theirs is fitted or judged; a drive whose torque reaches no measured row (an "
+              "open tree's unmeasured joint's own, a motor that moves only unmeasured joints, a closed chain's "
+              "unmeasured actuated joint's) keeps the model's friction and rotor inertia in the identified model")
 
 
 def _expression(li, k: int) -> str:

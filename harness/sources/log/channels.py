@@ -35,9 +35,8 @@ def every_joint(source: DataSource, robot: RobotSpec, tau: np.ndarray, names: li
 
 def supported(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
     """The `[data]` table `dt` of a scenario `root` on `robot`, read as `source`: what a closed chain's log
-    does not support (harness/sources/log/closed.py, and counterbalanced channels), what reads every
-    joint's torque beside `unmeasured` joints, and unmeasured channels of a model with drives, refused
-    in one line naming the key."""
+    does not support (harness/sources/log/closed.py, and counterbalanced channels) and what reads every
+    joint's torque beside `unmeasured` joints refused in one line naming the key."""
     if robot.loops:
         source = closed_chain_source(root, dt, robot, source)
         if source.counterbalanced:
@@ -49,7 +48,4 @@ def supported(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> D
     for table in ("identification", "refinement"):
         if root.has(table):
             raise root.error(table, "reads every joint's torque, and [data] unmeasured names joints without one")
-    if robot.transmission is not None:
-        raise dt.error("unmeasured", f"{robot.source} states drives ([drives]): a motor's law reaches several "
-                                     "channels, and unmeasured channels are read on a model without drives")
     return source
