@@ -111,7 +111,7 @@ def _joints_table(frictions: tuple[JointFriction, ...], names: list[str]) -> dic
 
 
 def drives_table(spec: RobotSpec, frictions: tuple[JointFriction, ...]) -> dict:
-    """A model file's `[drives]` (harness/model/load.py, read_drives): the motors, N whole, their
+    """A model file's `[drives]` (harness/model/drive_tables.py, read_drives): the motors, N whole, their
     offsets and each motor's law."""
     t = spec.transmission
     return {"drives": {"motors": list(t.motors), "transmission": [[float(x) for x in row] for row in t.N],
