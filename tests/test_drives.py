@@ -21,6 +21,7 @@ import pandas as pd
 import pytest
 
 from harness.api import load_scenario
+from harness.base.tomlio import InputError
 from harness.cli import main
 from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.drives import Transmission
@@ -528,3 +529,38 @@ def test_a_law_search_without_a_joints_channel_weighs_each_motor_on_the_measured
                                  friction_law.FrictionLawConfig(families=("viscous_coulomb",)), 0.0,
                                  spec.transmission, None, model.measured)
     assert choice.model_error <= 1e-9, choice.model_error
+
+
+def test_a_motor_side_log_without_a_motors_channel_is_the_joint_side_log_without_the_joints_it_turns(coupled_bench):
+    """Motor 1 turns the shoulder alone, motor 2 both joints. The motors' log with motor 1's channel reading
+    0, declared unmeasured: the shoulder's torque (N^T tau_m needs motor 1's) is unmeasured, and the fit is
+    the joint-side log's with the shoulder's channel left out (the truth's held-out error the same to 1e-6
+    of itself: the logs differ by the maps' round-off); motor 1's law is the model's. Motor 2 unmeasured
+    leaves no joint to read: refused in one line; a joint named on a motor-side log: refused naming the
+    motors."""
+    folder = coupled_bench[0]
+    pd.read_csv(folder / "cur.csv").assign(M1=0.0).to_csv(folder / "cur_dead.csv", index=False, float_format="%.17g")
+    pd.read_csv(folder / "joints.csv").assign(tau1=0.0).to_csv(folder / "joints_dead.csv", index=False,
+                                                                 float_format="%.17g")
+    t = pd.read_csv(folder / "joints.csv")["t"].to_numpy()
+    rate = float(1 / (t[1] - t[0]))  # as the fixture's motors' log states it
+    motors = (f'file = "pos.csv"\ntorque_file = "cur_dead.csv"\ncolumns = {{ q = "M{{j}}", tau = "M{{j}}" }}\n'
+              f'sample_rate = {rate!r}\nside = "motor"\ntruth = "coupled.toml"\n')
+    joints = 'file = "joints_dead.csv"\ncolumns = { t = "t", q = "q{j}", tau = "tau{j}" }\ntruth = "coupled.toml"\n'
+    results = {}
+    for name, data, unmeasured in (("motor_side", motors, "motor_1"), ("joint_side", joints, "shoulder")):
+        _log_scenario(folder, data + f'unmeasured = ["{unmeasured}"]\n', name)
+        assert main(["run", str(folder / f"{name}.toml"), "--out", str(folder / name), "--quiet"]) == 0
+        results[name] = json.loads((folder / name / "results.json").read_text())["log_identification"]
+    at_motors, at_joints = results["motor_side"], results["joint_side"]
+    assert at_motors["torque_joints"] == at_joints["torque_joints"] == ["elbow"]
+    assert at_motors["unmeasured"]["joints"] == ["shoulder"] and at_motors["unmeasured"]["motors"] == ["motor_1"]
+    errors = [r["truth"]["validation_rel_error"]["consistent"] for r in (at_motors, at_joints)]
+    assert abs(errors[0] / errors[1] - 1) <= 1e-6, errors
+    friction = at_motors["consistent"]["friction"]["motor_1"]
+    assert {key: friction[key] for key in MOTORS["motor_1"]} == MOTORS["motor_1"]
+    for unmeasured, said in (("motor_2", "turn every joint"), ("shoulder", "is not one of motor_1, motor_2")):
+        _log_scenario(folder, motors + f'unmeasured = ["{unmeasured}"]\n', "refused")
+        with pytest.raises(InputError) as err:
+            load_scenario(folder / "refused.toml")
+        assert err.value.key == "data.unmeasured" and said in str(err.value), str(err.value)

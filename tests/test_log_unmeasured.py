@@ -100,7 +100,7 @@ def test_the_measured_columns_are_read_into_their_joints_places_an_unmeasured_jo
     from harness.sources.log.channels import every_joint
 
     robot = load_scenario(SCENARIOS / "ur5_friction.toml").robot
-    source = SimpleNamespace(unmeasured=("elbow_joint",))
+    source = SimpleNamespace(unmeasured=("elbow_joint",), unmeasured_motors=())
     tau = np.arange(1.0, 11.0).reshape(2, 5)
     out, names = every_joint(source, robot, tau, [f"c{k}" for k in range(5)])
     np.testing.assert_array_equal(out, [[1, 2, 0, 3, 4, 5], [6, 7, 0, 8, 9, 10]])

@@ -65,7 +65,9 @@ def serialise(li, ctx, config) -> dict:
         "export_mjcf_not_written": li.exported.refused,
         "joints": len(li.joints),
         "torque_joints": li.model.torque_joints,
-        "unmeasured": {"joints": list(ctx.scenario.data.unmeasured), "definition": UNMEASURED},
+        "unmeasured": {"joints": list(ctx.scenario.data.unmeasured), "definition": UNMEASURED,
+                       **({"motors": list(ctx.scenario.data.unmeasured_motors)}
+                          if ctx.scenario.data.unmeasured_motors else {})},
         "series": _series(li),
     }
 

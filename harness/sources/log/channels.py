@@ -20,14 +20,17 @@ __all__ = ["every_joint", "logged", "supported"]  # logged: the robot as its log
 
 def every_joint(source: DataSource, robot: RobotSpec, tau: np.ndarray, names: list[str]
                 ) -> tuple[np.ndarray, list[str]]:
-    """The torque columns read (the measured joints', in the model's order) as one column per joint, an
-    unmeasured joint's zero (never read: harness/stages/log_model.py); and each column's name."""
-    if not source.unmeasured:
+    """The torque columns read (the measured joints', in the model's order; of a motor-side log, the
+    measured motors', in the motors' order) as one column per joint (motor), an unmeasured one's zero
+    (never read: harness/stages/log_model.py); and each column's name."""
+    channels = list(robot.transmission.motors) if source.unmeasured_motors else robot.joint_names
+    without = source.unmeasured_motors or source.unmeasured
+    if not without:
         return tau, names
-    measured = [k for k, j in enumerate(robot.joint_names) if j not in source.unmeasured]
-    out = np.zeros((len(tau), len(robot.joint_names)))
+    measured = [k for k, j in enumerate(channels) if j not in without]
+    out = np.zeros((len(tau), len(channels)))
     out[:, measured] = tau
-    every = [f"(unmeasured: {j})" for j in robot.joint_names]
+    every = [f"(unmeasured: {j})" for j in channels]
     for k, name in zip(measured, names, strict=True):
         every[k] = name
     return out, every

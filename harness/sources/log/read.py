@@ -375,11 +375,14 @@ def at_joints(source: DataSource, robot: RobotSpec, q: np.ndarray, qd: np.ndarra
               tau: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """A motor-side log's motor positions, velocities and torques (`side = "motor"`) at the joints,
     through the model's transmission (harness/model/drives.py): q = N^-1 (q_m - offset),
-    q' = N^-1 q'_m, tau = N^T tau_m. A joint-side log as it is."""
+    q' = N^-1 q'_m, tau = N^T tau_m; a joint that an unmeasured motor turns has no torque read (zero:
+    schema.with_unmeasured_motors). A joint-side log as it is."""
     if source.side != "motor":
         return q, qd, tau
     t = robot.transmission
-    return t.joint_positions(q), None if qd is None else t.joint_rates(qd), t.joint_torques(tau)
+    tau = t.joint_torques(tau)
+    tau[:, [robot.joint_names.index(j) for j in source.unmeasured]] = 0.0
+    return t.joint_positions(q), None if qd is None else t.joint_rates(qd), tau
 
 
 def _windowed(source: DataSource, series: RawLog) -> RawLog:

@@ -4,6 +4,7 @@ with the log (delays, torque constants, repeatability)."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -88,6 +89,8 @@ class DataSource:
     joined: tuple[Path, ...] = ()  # a log in several files: the files after `file`, each with its own time
     # column, their rows joined on time to those of the file holding the positions (harness/sources/log/join.py)
     prediction: Prediction = field(default_factory=Prediction)  # the judging's forward simulation
+    unmeasured_motors: tuple[str, ...] = ()  # a motor-side log's motors without a channel (`unmeasured`: the
+    # joints they reach, `with_unmeasured_motors`)
 
     @property
     def files(self) -> tuple[Path, ...]:
@@ -119,6 +122,7 @@ class DataSource:
                 "side": self.side, "window_s": list(self.window) if self.window else None,
                 "joint_map": dict(self.joint_map), "velocities": self.velocities,
                 "counterbalanced": list(self.counterbalanced), "unmeasured": list(self.unmeasured),
+                **({"unmeasured_motors": list(self.unmeasured_motors)} if self.unmeasured_motors else {}),
                 "prediction": {"starts": self.prediction.starts, "horizons_s": list(self.prediction.horizons)}}
 
     def measured(self, joints: list[str]) -> list[str]:
@@ -128,13 +132,14 @@ class DataSource:
 
 
 def read_source(t: Table, scenario_file: Path, joints: int | None = None,
-                joint_names: list[str] | None = None) -> DataSource:
+                joint_names: list[str] | None = None, motor_names: list[str] | None = None) -> DataSource:
     """The `[data]` table, validated (the file must exist and be inside reach of the scenario);
     `joints`, the model's number of joints, checks explicit column lists and per-joint constants;
     `joint_names`, the model's joints, the values of `joint_map`."""
     topic = None
     joint_map = _joint_map(t, joint_names) if t.has("joint_map") else {}
-    unmeasured = _unmeasured(t, joint_names)
+    at_motors = t.data.get("side") == "motor" and motor_names is not None  # its channels are the motors'
+    unmeasured = _unmeasured(t, motor_names if at_motors else joint_names)
     if t.either("file", "bag", "file (a CSV log) or bag (a ROS bag: a rosbag2 folder or a ROS 1 .bag file)") == "bag":
         file = (scenario_file.parent / t.string("bag")).resolve()
         if not file.exists():
@@ -215,16 +220,16 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
                                        ", the validation span is a part of the log: validation = { from = ... }")
         vt.finish()
     velocities = t.string("velocities", default="checked", choices=VELOCITY_CHOICES)
-    counterbalanced = _counterbalanced(t, joint_names, unmeasured)
-    if unmeasured and side == "motor":
-        raise t.error("unmeasured", 'a motor-side log\'s channels are its motors\': name unmeasured joints of a '
-                                    'joint-side log (side = "joint")')
+    counterbalanced = _counterbalanced(t, joint_names, () if at_motors else unmeasured)
+    if unmeasured and side == "motor" and not at_motors:
+        raise t.error("unmeasured", "a motor-side log's channels are its motors': the model states none ([drives])")
+    unmeasured, unmeasured_motors = ((), unmeasured) if side == "motor" else (unmeasured, ())
     prediction = _prediction(t.table("prediction")) if t.has("prediction") else Prediction()
     t.finish()
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
                       ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
                       sample_rate, side, window, decimate_given, joint_map, velocities, counterbalanced, unmeasured,
-                      joined, prediction)
+                      joined, prediction, unmeasured_motors)
 
 
 def _prediction(t: Table) -> Prediction:
@@ -259,7 +264,8 @@ def _counterbalanced(t: Table, joint_names: list[str] | None, unmeasured: tuple[
 
 def _unmeasured(t: Table, joint_names: list[str] | None) -> tuple[str, ...]:
     """`unmeasured = [...]`: the joints whose torque the log does not measure (no column, or a channel that
-    reads nothing): each a joint of the model, once, and at least one joint left measured."""
+    reads nothing; of a motor-side log, its motors): each a joint (motor) of the model, once, and at least
+    one left measured."""
     if not t.has("unmeasured"):
         return ()
     names = t.strings("unmeasured", choices=joint_names)
@@ -412,3 +418,17 @@ def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
     if source.unmeasured and len(out["tau"]) == len(robot.joint_names):  # the measured joints' channels alone
         out["tau"] = [c for c, j in zip(out["tau"], robot.joint_names, strict=True) if j not in source.unmeasured]
     return out
+
+
+def with_unmeasured_motors(source: DataSource, t: Table, transmission, joint_names: list[str]) -> DataSource:
+    """A motor-side log's unmeasured motors (`[data]` table t) as the joints whose torque it cannot give:
+    tau_J = N^T tau_m needs every motor k with N[k, j] != 0, so each joint an unmeasured motor turns is
+    unmeasured (harness/model/drives.py); refused where that leaves no joint measured."""
+    if not source.unmeasured_motors or transmission is None:
+        return source
+    rows = [transmission.motors.index(m) for m in source.unmeasured_motors]
+    reached = np.any(transmission.N[rows] != 0, axis=0)
+    if reached.all():
+        raise t.error("unmeasured", f"{', '.join(source.unmeasured_motors)} turn every joint: no joint's torque is "
+                                    "left to read (tau_J = N^T tau_m needs each motor that turns the joint)")
+    return dataclasses.replace(source, unmeasured=tuple(j for j, r in zip(joint_names, reached, strict=True) if r))
