@@ -332,8 +332,7 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     bool: the joints whose torque the log holds (harness/stages/log_model.py); an unmeasured joint's rows
     are W's and tau's zeros; a drive that reaches none of the measured joints (`drives_reaching`) keeps
     the model's law, its columns none, and a motor's columns are weighed on the measured joints' rows
-    alone. Raises
-    ValueError when the span is too short to cut."""
+    alone. Raises ValueError when the span is too short to cut."""
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
     tau, qd = tau[order], qd[order]
@@ -362,8 +361,7 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     if transmission is not None:
         qd = transmission.motor_rates(qd)
     columns_of = _LawColumns(qd, t[order], transmission, columns)
-    reached = drives_reaching(measured, transmission)
-    moving = _searched(qd, reached)
+    moving = _searched(qd, reached := drives_reaching(measured, transmission))
     rigid = np.zeros((N, n))
     total = float(np.sum(tau**2))
 

@@ -47,7 +47,6 @@ from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate, read_gates
 from harness.sources.log import DataSource, check_columns, read_source
 from harness.sources.log.channels import logged, supported
-from harness.sources.log.schema import with_unmeasured_motors
 from harness.sources.measurement import Measurement, read_measurement
 from harness.sources.motion import Motion, read_motion
 
@@ -278,9 +277,7 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     gravity = _gravity(gravity, robot)
     dt = root.table("data")
     read_as = logged(robot)  # a closed chain's log holds its actuated joints' channels (sources/log/closed.py)
-    motors = None if robot.transmission is None else list(robot.transmission.motors)
-    source = read_source(dt, path, len(read_as.joints), read_as.joint_names, motors)
-    source = with_unmeasured_motors(source, dt, robot.transmission, robot.joint_names)  # a motor-side log's
+    source = read_source(dt, path, len(read_as.joints), read_as.joint_names, list(robot.drive_names))
     source = supported(root, dt, robot, source)  # what a closed chain's log, or unmeasured channels, do not allow
     if source.side == "motor" and robot.transmission is None:
         raise dt.error("side", f'"motor": the log is mapped to the joints through the model\'s drives, and '

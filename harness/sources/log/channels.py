@@ -13,7 +13,7 @@ import numpy as np
 from harness.base.tomlio import Table
 from harness.model.spec import RobotSpec
 from harness.sources.log.closed import closed_chain_source, logged
-from harness.sources.log.schema import DataSource
+from harness.sources.log.schema import DataSource, with_unmeasured_motors
 
 __all__ = ["every_joint", "logged", "supported"]  # logged: the robot as its log is read
 
@@ -39,7 +39,9 @@ def every_joint(source: DataSource, robot: RobotSpec, tau: np.ndarray, names: li
 def supported(root: Table, dt: Table, robot: RobotSpec, source: DataSource) -> DataSource:
     """The `[data]` table `dt` of a scenario `root` on `robot`, read as `source`: what a closed chain's log
     does not support (harness/sources/log/closed.py, and counterbalanced channels) and what reads every
-    joint's torque beside `unmeasured` joints refused in one line naming the key."""
+    joint's torque beside `unmeasured` joints refused in one line naming the key; a motor-side log's
+    unmeasured motors as the joints they turn (schema.with_unmeasured_motors)."""
+    source = with_unmeasured_motors(source, dt, robot.transmission, robot.joint_names)  # a motor-side log's
     if robot.loops:
         source = closed_chain_source(root, dt, robot, source)
         if source.counterbalanced:
