@@ -122,3 +122,21 @@ def test_a_transmission_not_read_is_refused_in_one_line(tmp_path, text, drives, 
     with pytest.raises(InputError) as err:
         load_spec(_model(tmp_path, text, drives))
     assert err.value.key == key and said in str(err.value) and "\n" not in str(err.value), str(err.value)
+
+
+def test_a_urdfs_joint_friction_beside_its_transmissions_is_left_out_where_the_model_file_says(tmp_path):
+    """A published URDF with <dynamics> on a joint and transmissions: read with its drives, refused in one
+    line naming the joint and the way out (the motors carry the friction); with [urdf] dynamics = false,
+    read, every motor without friction but what [drives.MOTOR] states."""
+    path = _model(tmp_path, SIMPLE_ROS1)
+    urdf = path.with_suffix(".urdf")
+    urdf.write_text(urdf.read_text().replace('<joint name="elbow" type="revolute">',
+                                             '<joint name="elbow" type="revolute"><dynamics damping="0.2"/>'))
+    with pytest.raises(InputError) as err:
+        load_spec(path)
+    assert err.value.key == "drives" and "'elbow' has friction of its own" in str(err.value)
+    assert "dynamics = false" in str(err.value)
+    path.write_text(path.read_text().replace("[drives]", "dynamics = false\n[drives]")
+                    + "[drives.elbow_motor]\nviscous = 1e-4\n")
+    spec = load_spec(path)
+    assert [f.viscous for f in spec.frictions] == [0.0, 1e-4]

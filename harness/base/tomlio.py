@@ -120,7 +120,8 @@ class Table:
         self._used: set[str] = set()
 
     def key(self, name: str) -> str:
-        return f"{self.path}.{name}" if self.path else name
+        """The dotted key of `name` in this table; the table's own where `name` is empty."""
+        return f"{self.path}.{name}" if self.path and name else self.path or name
 
     def error(self, name: str, message: str) -> InputError:
         return InputError(self.file, self.key(name), message)

@@ -56,7 +56,8 @@ def read_drives(t: Table, joints: list[Joint], urdf: Path | None = None) -> tupl
     with_friction = [j.name for j in joints if not j.friction.none]
     if with_friction:
         raise t.error("", f"joint {with_friction[0]!r} has friction of its own (a URDF's <dynamics> or "
-                          "[joints.NAME]): with [drives] the motors carry it ([drives.MOTOR])")
+                          "[joints.NAME]): with [drives] the motors carry it ([drives.MOTOR]; [urdf] dynamics = "
+                          "false leaves a URDF's <dynamics> out)")
     if t.has("urdf_transmissions"):
         return _urdf_drives(t, joints, urdf)
     motors = tuple(t.strings("motors", choices=None)) if t.has("motors") else tuple(f"motor_{k + 1}" for k in range(n))

@@ -27,6 +27,7 @@ import numpy as np
 from harness.base.tomlio import InputError, Table, read_toml
 from harness.model.drive_tables import invertible, read_drives, read_friction
 from harness.model.drives import Transmission
+from harness.model.friction import NO_FRICTION
 from harness.model.inertia import MOMENT_FLOOR, not_rigid, union
 from harness.model.spec import BODY_SHAPES, JOINT_TYPES, WORLD, Body, Cylinder, Joint, RobotSpec
 from harness.model.urdf import example_robot_data_path, read_urdf
@@ -76,8 +77,11 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
             if not urdf_path.is_file():
                 raise ut.error("file", f"URDF file {urdf_path} not found")
         fixed = ut.strings("fixed", choices=None) if ut.has("fixed") else ()
+        dynamics = ut.boolean("dynamics", default=True)  # false: the joints' <dynamics> left out
         ut.finish()
         bodies, joints, limits, drive_limits, urdf_notes = read_urdf(urdf_path, ut, fixed)
+        if not dynamics:
+            joints = [dataclasses.replace(j, friction=NO_FRICTION) for j in joints]
         notes = tuple(urdf_notes)
         joints = _joint_friction(root, joints, "the URDF")
         body_tables = [Table({"name": b.name}, path, f"urdf.{b.name}") for b in bodies]
