@@ -31,7 +31,8 @@ model's joint order and `{name}` for a joint's name, or a list of column names i
     validation = { from = 0.7 }           # the last 30 % by time is kept for validation
     velocities = "checked"                # logged q' realigned where it lags the positions (velocity.py); "used"
     counterbalanced = ["torso_lift"]      # channels without gravity (a spring, a counterweight): read so
-    unmeasured = ["wrist_2", "wrist_3"]   # joints without a torque channel: their motion kept (channels.py)
+    unmeasured = ["wrist_2", "wrist_3"]   # joints without a torque channel: their motion kept (channels.py);
+                                          # a closed chain's actuated joints, a motor-side log's motors
 
 Instead of `file` and `columns`, `bag` (a rosbag2 folder or a ROS 1 .bag file) and `topic` (its
 sensor_msgs/JointState topic) read a ROS bag, matching joints by name (harness/sources/bag.py); a
