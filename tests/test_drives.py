@@ -532,19 +532,20 @@ def test_a_law_search_without_a_joints_channel_weighs_each_motor_on_the_measured
 
 
 def test_a_motor_side_log_without_a_motors_channel_is_the_joint_side_log_without_the_joints_it_turns(coupled_bench):
-    """Motor 1 turns the shoulder alone, motor 2 both joints. The motors' log with motor 1's channel reading
-    0, declared unmeasured: the shoulder's torque (N^T tau_m needs motor 1's) is unmeasured, and the fit is
+    """Motor 1 turns the shoulder alone, motor 2 both joints. The motors' log without motor 1's channel (its
+    torque file holds motor 2's column alone), declared unmeasured: the shoulder's torque (N^T tau_m needs
+    motor 1's) is unmeasured, and the fit is
     the joint-side log's with the shoulder's channel left out (the truth's held-out error the same to 1e-6
     of itself: the logs differ by the maps' round-off); motor 1's law is the model's. Motor 2 unmeasured
     leaves no joint to read: refused in one line; a joint named on a motor-side log: refused naming the
     motors."""
     folder = coupled_bench[0]
-    pd.read_csv(folder / "cur.csv").assign(M1=0.0).to_csv(folder / "cur_dead.csv", index=False, float_format="%.17g")
+    pd.read_csv(folder / "cur.csv")[["M2"]].to_csv(folder / "cur_m2.csv", index=False, float_format="%.17g")
     pd.read_csv(folder / "joints.csv").assign(tau1=0.0).to_csv(folder / "joints_dead.csv", index=False,
                                                                  float_format="%.17g")
     t = pd.read_csv(folder / "joints.csv")["t"].to_numpy()
     rate = float(1 / (t[1] - t[0]))  # as the fixture's motors' log states it
-    motors = (f'file = "pos.csv"\ntorque_file = "cur_dead.csv"\ncolumns = {{ q = "M{{j}}", tau = "M{{j}}" }}\n'
+    motors = (f'file = "pos.csv"\ntorque_file = "cur_m2.csv"\ncolumns = {{ q = "M{{j}}", tau = ["M2"] }}\n'
               f'sample_rate = {rate!r}\nside = "motor"\ntruth = "coupled.toml"\n')
     joints = 'file = "joints_dead.csv"\ncolumns = { t = "t", q = "q{j}", tau = "tau{j}" }\ntruth = "coupled.toml"\n'
     results = {}

@@ -175,6 +175,7 @@ def test_the_log_pipeline_recovers_a_known_robot_from_itsbench_log(tmp_path):
 
 BAD_LOGS = {
     "not a CSV": (lambda df, p: p.write_bytes(b"\x00\x01\x02 not, a\x00 log \xff\xfe"), "not a CSV log"),
+    "separated by semicolons": (lambda df, p: df.to_csv(p, index=False, sep=";"), "not separated by commas"),
     "missing column": (lambda df, p: df.drop(columns=["tau3"]).to_csv(p, index=False), "tau3"),
     "time backwards": (lambda df, p: df.assign(t=df["t"].where(df.index != 50, 0.0001)).to_csv(p, index=False),
                        "time goes backwards"),

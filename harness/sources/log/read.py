@@ -77,8 +77,11 @@ def _header(path: Path, line: bytes) -> list[str]:
         parsed = pd.read_csv(io.BytesIO(line), nrows=0).columns
     except (UnicodeDecodeError, ValueError) as exc:
         raise InputError(path, "", f"not a CSV log ({str(exc).splitlines()[0]})") from None
-    if len(parsed) < 2:
-        raise InputError(path, "", f"not a CSV log (one column, {str(parsed[0])[:40] if len(parsed) else ''!r})")
+    if not len(parsed) or (len(parsed) == 1 and any(c in str(parsed[0]) for c in " \t;|")):
+        # one column whose name holds a separator: a file separated by something other than commas; one
+        # plain name is a column (a torque file of the one channel a log measures)
+        raise InputError(path, "", f"not a CSV log (one column, {str(parsed[0])[:40] if len(parsed) else ''!r}: "
+                                   "its columns are not separated by commas)")
     header = [name.strip() for name in next(csv.reader([line.decode("utf-8-sig", errors="replace")]), [])]
     repeated = [name for k, name in enumerate(header) if name in header[:k]]
     if repeated:
