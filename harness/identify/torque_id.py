@@ -266,15 +266,12 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
     harness/stages/log_model.py): the base of their rows alone, every joint's motion in them;
     `weightless`: joints whose rows carry no gravity (`without_gravity`)."""
     if chain is not None:
-        from harness.model.closure import random_motion
+        from harness.model.closure import random_within_limits
 
-        act = list(chain.actuated)
-        names = [pm.model.names[pm.joint_ids[k]] for k in act]
-        lo, hi = position_bounds(names, [pm.model.joints[pm.joint_ids[k]].shortname().startswith("JointModelR")
-                                         for k in act], limits)
-        m = random_motion(chain, lo, hi, np.ones(len(act)), np.ones(len(act)), STRUCTURAL_STATES, seed)
+        m = random_within_limits(chain, limits, STRUCTURAL_STATES, seed)
         W = chain_regressor(pm, chain, m.q, m.qd, m.qdd, with_friction, closed=True)
-        return base_parameters(W if channels is None else selected_rows(W, len(act), channels), with_friction)
+        return base_parameters(W if channels is None else selected_rows(W, len(chain.actuated), channels),
+                               with_friction)
     rng = np.random.default_rng(seed)
     n = len(pm.joint_ids)
     lo, hi = position_bounds([pm.model.names[jid] for jid in pm.joint_ids],

@@ -353,6 +353,17 @@ def reach(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> tuple[np.
     return q, ok
 
 
+def random_within_limits(chain: ClosedChain, limits: dict | None, count: int, seed: int) -> ChainMotion:
+    """`count` random consistent states (`random_motion`): the actuated joints' q uniform within their
+    position limits (or +-pi rad, +-1 m: harness/model/states.py), q'_a and q''_a within +-1."""
+    from harness.model.states import position_bounds
+
+    act = [chain.spec.joints[k] for k in chain.actuated]
+    lo, hi = position_bounds([j.name for j in act], [j.revolute for j in act], limits)
+    ones = np.ones(len(act))
+    return random_motion(chain, lo, hi, ones, ones, count, seed)
+
+
 def random_motion(chain: ClosedChain, lo: np.ndarray, hi: np.ndarray, qd_scale: np.ndarray, qdd_scale: np.ndarray,
                   count: int, seed: int) -> ChainMotion:
     """`count` random consistent states: the actuated joints' (q_a, q'_a, q''_a) uniform within

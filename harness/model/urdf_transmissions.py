@@ -98,6 +98,11 @@ def read(path: Path, joint_names: list[str]) -> UrdfDrives:
         root = ET.fromstring(read_bounded(path, MAX_XML_BYTES))
     except ET.ParseError as exc:
         raise InputError(path, "", f"cannot read URDF ({exc})") from None
+    return _drives(root, joint_names)
+
+
+def _drives(root, joint_names: list[str]) -> UrdfDrives:
+    """`read` of a parsed URDF."""
     n = len(joint_names)
     N, joint_offset, motors = np.zeros((n, n)), np.zeros(n), [""] * n
     for tr, joints, actuators in _stated(root, joint_names):
@@ -143,13 +148,17 @@ def read(path: Path, joint_names: list[str]) -> UrdfDrives:
 
 def unread_note(path: Path, joint_names: list[str]) -> str | None:
     """A URDF's note where its transmissions state more than each joint driven directly (a reduction other
-    than 1, an offset, a differential) and the model does not read them."""
-    root = ET.fromstring(read_bounded(path, MAX_XML_BYTES))
+    than 1, an offset, a differential) and the model does not read them. The file is read once more (after
+    harness/model/urdf.py's reading) and parsed only where it holds a <transmission> element."""
+    content = read_bounded(path, MAX_XML_BYTES)
+    if b"<transmission" not in content:
+        return None
+    root = ET.fromstring(content)
     stated = _stated(root, joint_names)
     if not stated:
         return None
     try:
-        drives = read(path, joint_names)
+        drives = _drives(root, joint_names)
     except ValueError:
         drives = None
     if drives is not None and np.array_equal(drives.N, np.eye(len(joint_names))) and not drives.joint_offset.any():

@@ -37,8 +37,7 @@ from harness.identify.torque_id import (
     true_parameters,
     without_gravity,
 )
-from harness.model.closure import ClosedChain, actuated_torques, projection, random_motion
-from harness.model.states import position_bounds
+from harness.model.closure import ClosedChain, actuated_torques, projection, random_within_limits
 
 
 @dataclass(frozen=True, eq=False)
@@ -210,11 +209,9 @@ REACH_STATES = 32  # random consistent states at which a closed chain's G is rea
 
 def reached(chain: ClosedChain, robot, channels: tuple[int, ...]) -> np.ndarray:
     """(n, m) bool: whether joint j's torque reaches measured actuated channel k, G[j, k] != 0 (beyond
-    1e-12 of |G|'s largest) at some of REACH_STATES random consistent states (as structural_base draws
-    them). An unmeasured actuated joint's row is G's identity row: it reaches no measured channel, and
-    its friction and rotor inertia stay the model's, as an open tree's unmeasured joint's do; a passive
-    joint that moves with the measured joints reaches theirs."""
-    lo, hi = position_bounds(list(robot.actuated), [robot.joint(a).revolute for a in robot.actuated], robot.limits)
-    ones = np.ones(len(chain.actuated))
-    G = random_motion(chain, lo, hi, ones, ones, REACH_STATES, seed=0).G[:, :, list(channels)]
+    1e-12 of |G|'s largest) at some of REACH_STATES random consistent states (closure.random_within_limits,
+    as structural_base draws them). An unmeasured actuated joint's row is G's identity row: it reaches no
+    measured channel, and its friction and rotor inertia stay the model's, as an open tree's unmeasured
+    joint's do; a passive joint that moves with the measured joints reaches theirs."""
+    G = random_within_limits(chain, robot.limits, REACH_STATES, seed=0).G[:, :, list(channels)]
     return np.abs(G).max(axis=0) > 1e-12 * max(float(np.abs(G).max()), 1.0)
