@@ -154,6 +154,28 @@ def log_scenario(folder, model, gates: str) -> None:
         'columns = { t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }\nvalidation = { from = 0.7 }\n' + gates)
 
 
+def pinocchio_rnea(pm, q, qd, qdd):
+    """(N, n) Pinocchio's own rnea, state by state, in the spec's joint order: the rigid bodies' torques with
+    no harness code but the model's coordinate index (one coordinate per hinge or slide: q's index is v's)."""
+    import numpy as np
+    import pinocchio as pin
+
+    data, x, out = pm.model.createData(), np.zeros((3, pm.model.nq)), np.empty_like(q)
+    for k in range(len(q)):
+        x[:, pm.q_index] = q[k], qd[k], qdd[k]
+        out[k] = pin.rnea(pm.model, data, x[0], x[1], x[2])[pm.q_index]
+    return out
+
+
+def viscous_coulomb(frictions, qd, qdd):
+    """(N, n) each joint's drive law written out here: I q'' + f_v q' + f_c tanh(q' / v_c) + f_o."""
+    import numpy as np
+
+    return np.column_stack([f.armature * qdd[:, k] + f.viscous * qd[:, k]
+                            + f.coulomb * np.tanh(qd[:, k] / f.coulomb_velocity) + f.offset
+                            for k, f in enumerate(frictions)])
+
+
 KINOVA_JOINTS = [f"j2s6s200_joint_{k}" for k in range(1, 7)]
 KINOVA_MIDDLE = [0.0, 3.141592653589793, 3.141592653589793, 0.0, 3.141592653589793, 0.0]  # away from its limits
 

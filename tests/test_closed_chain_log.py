@@ -24,7 +24,7 @@ from harness.model import closure
 from harness.model.load import load_spec, spec_from_data
 from harness.runner.scenario import load_scenario
 
-from .conftest import MODELS, NO_PREDICTION, ROOT, SCENARIOS
+from .conftest import MODELS, NO_PREDICTION, ROOT, SCENARIOS, pinocchio_rnea, viscous_coulomb
 
 TRUTH = MODELS / "parallelogram_friction.toml"
 RATE = 500.0  # Hz
@@ -300,8 +300,6 @@ def test_an_unmeasured_actuated_channel_leaves_its_row_and_its_drive_terms_out_o
     actuated joints, to 1e-12 of the largest torque. The crank's own drive terms reach no measured
     channel (its row of G is the identity's: not measured, none of its four terms a base parameter); the
     passive joints' reach them through G (measured)."""
-    import pinocchio as pin
-
     from harness.identify.torque_id import drive_columns
     from harness.model.states import position_bounds
     from harness.stages.log_model import log_model
@@ -313,15 +311,7 @@ def test_an_unmeasured_actuated_channel_leaves_its_row_and_its_drive_terms_out_o
     lo, hi = position_bounds(list(spec.actuated), [True] * 3, spec.limits)
     m = closure.random_motion(chain, lo, hi, np.ones(3), np.ones(3), 30, seed=4)
     pm = model.pm
-    data = pm.model.createData()
-    tau = np.empty_like(m.q)
-    for i in range(30):
-        q, v, a = np.zeros(pm.model.nq), np.zeros(pm.model.nv), np.zeros(pm.model.nv)
-        q[pm.q_index], v[pm.q_index], a[pm.q_index] = m.q[i], m.qd[i], m.qdd[i]
-        tau[i] = pin.rnea(pm.model, data, q, v, a)[pm.q_index]
-    for k, f in enumerate(spec.frictions):
-        tau[:, k] += (f.armature * m.qdd[:, k] + f.viscous * m.qd[:, k]
-                      + f.coulomb * np.tanh(m.qd[:, k] / f.coulomb_velocity) + f.offset)
+    tau = pinocchio_rnea(pm, m.q, m.qd, m.qdd) + viscous_coulomb(spec.frictions, m.qd, m.qdd)
     act = [spec.joint_names.index(j) for j in spec.actuated]
     G = m.G[:, :, [0, 1]]  # the turret's and the shoulder's columns
     assert np.array_equal(m.G[:, act, :], np.broadcast_to(np.eye(3), (30, 3, 3)))

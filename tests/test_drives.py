@@ -27,7 +27,7 @@ from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.drives import Transmission
 from harness.model.load import load_spec
 from harness.sources.bench import record
-from tests.conftest import ROOT, two_link_bench
+from tests.conftest import ROOT, pinocchio_rnea, two_link_bench
 
 URDF = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"
 N = np.array([[50.0, 0.0], [20.0, -30.0]])
@@ -452,8 +452,6 @@ def test_a_coupled_arm_without_a_joints_channel_reads_the_other_and_keeps_the_la
     parameters are Pinocchio's rnea (rigid) plus N^T of the motors' laws at q'_m = N q' (computed here from
     the test's laws), to 1e-12 of the largest torque; a motor's four drive terms are among the base
     parameters only where it reaches the measured joint (reached), the others' none."""
-    import pinocchio as pin
-
     from harness.identify.torque_id import drive_columns
     from harness.stages.log_model import log_model
 
@@ -463,13 +461,7 @@ def test_a_coupled_arm_without_a_joints_channel_reads_the_other_and_keeps_the_la
     assert model.torque_joints == [spec.joint_names[k]] and model.drives_reached.tolist() == reached
     q, qd, qdd = _states()
     pm = model.pm
-    data = pm.model.createData()
-    rigid = np.empty_like(q)
-    for i in range(len(q)):
-        x = [np.zeros(pm.model.nq) for _ in range(3)]  # one coordinate per hinge: q's index is v's
-        for full, spec_order in zip(x, (q[i], qd[i], qdd[i]), strict=True):
-            full[pm.q_index] = spec_order
-        rigid[i] = pin.rnea(pm.model, data, *x)[pm.q_index]
+    rigid = pinocchio_rnea(pm, q, qd, qdd)
     qd_m, qdd_m = qd @ N.T, qdd @ N.T
     laws = list(MOTORS.values())
     tau_m = np.column_stack([law["armature"] * qdd_m[:, m] + law["viscous"] * qd_m[:, m]

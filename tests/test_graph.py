@@ -10,7 +10,7 @@ from harness.engines.mujoco import build_model
 from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, D, D_dot, angles_from_rotation
 from harness.papers.graph_theory_2021.dynamics import angle_rates, body_series
 from harness.papers.graph_theory_2021.topology import build_topology
-from tests.conftest import DATA, SCENARIOS, graph_model, readings
+from tests.conftest import DATA, SCENARIOS, graph_model, pinocchio_rnea, readings
 
 # Eqs. 7 and 16 as printed for the 6R robot (the extraction lost the signs of S; S_e keeps them):
 # O_i ends at B_i (-1) and O_(i+1) starts at B_i (+1).
@@ -129,8 +129,6 @@ def test_torques_from_joint_coordinates_in_blocks_are_pinocchios_state_by_state(
     """The graph model from (q, q', q'') alone evaluates BLOCK states at a time (bounded scratch memory):
     over two and a half blocks, including a last partial one, every state's torques equal Pinocchio's
     rnea of the same state to 1e-12 of the largest torque (round-off: measured about 1e-15)."""
-    import pinocchio as pin
-
     from harness.engines.pinocchio import build_model
     from harness.papers.graph_theory_2021.inverse import BLOCK
     from harness.papers.graph_theory_2021.model import make
@@ -140,13 +138,7 @@ def test_torques_from_joint_coordinates_in_blocks_are_pinocchios_state_by_state(
     rng = np.random.default_rng(11)
     q, qd, qdd = rng.uniform(-1, 1, (states, n)), rng.uniform(-1, 1, (states, n)), rng.uniform(-2, 2, (states, n))
     tau = make(spec, kr500_rail.gravity_W).solve(q, qd, qdd).tau
-    pm = build_model(spec, kr500_rail.gravity_W)
-    data = pm.model.createData()
-    ref = np.empty_like(tau)
-    x = np.zeros((3, pm.model.nq))
-    for k in range(states):
-        x[:, pm.q_index] = q[k], qd[k], qdd[k]
-        ref[k] = pin.rnea(pm.model, data, x[0], x[1], x[2])[pm.q_index]
+    ref = pinocchio_rnea(build_model(spec, kr500_rail.gravity_W), q, qd, qdd)
     assert np.max(np.abs(tau - ref)) <= 1e-12 * np.max(np.abs(ref))
 
 

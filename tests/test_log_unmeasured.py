@@ -17,7 +17,7 @@ from harness.cli import main
 from harness.identify.torque_id import drive_columns
 from harness.model.friction import IDENTIFIED_KEYS
 from harness.stages.log_model import log_model
-from tests.conftest import SCENARIOS, bench_log
+from tests.conftest import SCENARIOS, bench_log, pinocchio_rnea, viscous_coulomb
 
 MODEL = SCENARIOS.parent / "models" / "ur5_friction.toml"
 UNMEASURED = ("wrist_2_joint", "wrist_3_joint")
@@ -34,8 +34,6 @@ def test_the_rows_of_the_measured_joints_are_pinocchios_torques_of_those_joints(
     model's own parameters are pinocchio.rnea's torques of those joints plus their drive terms
     (computed here from the model file, not by the harness), to 1e-12 of the largest torque: the
     difference is the order of summation. The unmeasured joints' rows are absent, not zero."""
-    import pinocchio as pin
-
     robot = load_scenario(SCENARIOS / "ur5_friction.toml").robot
     model = log_model(robot, GRAVITY_W, UNMEASURED)
     q, qd, qdd = _states(6, 30, 1)
@@ -44,18 +42,7 @@ def test_the_rows_of_the_measured_joints_are_pinocchios_torques_of_those_joints(
     W = model.rows(model.pm, q, qd, qdd)
     assert W.shape == (30 * len(measured), 14 * 6)
     pm = model.pm
-    data = pm.model.createData()
-    full = np.zeros(pm.model.nq)
-    expected = np.empty((30, len(measured)))
-    for i in range(30):
-        full[pm.q_index] = q[i]  # one coordinate per hinge: q's index is v's
-        v, a = np.zeros(pm.model.nv), np.zeros(pm.model.nv)
-        v[pm.q_index], a[pm.q_index] = qd[i], qdd[i]
-        tau = pin.rnea(pm.model, data, full, v, a)[pm.q_index]
-        for c, k in enumerate(measured):
-            f = robot.frictions[k]
-            expected[i, c] = (tau[k] + f.armature * qdd[i, k] + f.viscous * qd[i, k]
-                              + f.coulomb * np.tanh(qd[i, k] / f.coulomb_velocity) + f.offset)
+    expected = (pinocchio_rnea(pm, q, qd, qdd) + viscous_coulomb(robot.frictions, qd, qdd))[:, measured]
     got = (W @ model.x_model).reshape(30, len(measured))
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
     np.testing.assert_allclose(model.torques(pm, q, qd, qdd), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
