@@ -301,15 +301,13 @@ def test_an_unmeasured_actuated_channel_leaves_its_row_and_its_drive_terms_out_o
     channel (its row of G is the identity's: not measured, none of its four terms a base parameter); the
     passive joints' reach them through G (measured)."""
     from harness.identify.torque_id import drive_columns
-    from harness.model.states import position_bounds
     from harness.stages.log_model import log_model
 
     spec = load_spec(TRUTH)
     model = log_model(spec, spec.gravity_W, ("crank",))
     assert model.torque_joints == ["turret", "shoulder"]
     chain = model.chain
-    lo, hi = position_bounds(list(spec.actuated), [True] * 3, spec.limits)
-    m = closure.random_motion(chain, lo, hi, np.ones(3), np.ones(3), 30, seed=4)
+    m = closure.random_within_limits(chain, spec.limits, 30, seed=4)
     pm = model.pm
     tau = pinocchio_rnea(pm, m.q, m.qd, m.qdd) + viscous_coulomb(spec.frictions, m.qd, m.qdd)
     act = [spec.joint_names.index(j) for j in spec.actuated]
