@@ -116,6 +116,9 @@ def test_transmissions_a_model_does_not_read_are_said(tmp_path):
     (SIMPLE_ROS1.replace("<mechanicalReduction>30", "<mechanicalReduction>0"), "urdf_transmissions = true\n",
      "drives.urdf_transmissions", "reduction of 0"),
     (SIMPLE_ROS1, "urdf_transmissions = true\ngear_ratio = [1, 1]\n", "drives.gear_ratio", "<transmission>"),
+    (SIMPLE_ROS1.replace('<transmission name="shoulder_trans"><type>transmission_interface/SimpleTransmission</type>',
+                         '<transmission name="shoulder_trans" type="pr2_mechanism_model/SimpleTransmission">'),
+     "urdf_transmissions = true\n", "drives.urdf_transmissions", "is pr2_mechanism_model/SimpleTransmission"),
     (SIMPLE_ROS1, "urdf_transmissions = false\n", "drives.urdf_transmissions", "leave the key out"),
 ])
 def test_a_transmission_not_read_is_refused_in_one_line(tmp_path, text, drives, key, said):

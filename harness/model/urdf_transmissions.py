@@ -76,7 +76,9 @@ def _ordered(elements: list, prefix: str) -> list:
 
 
 def _kind(element) -> str:
-    return _text(element, "type", "plugin") or "(none stated)"
+    """A transmission's kind: its <type> (ROS 1) or <plugin> (ROS 2), else the `type` attribute of the
+    PR2's older form (named in the refusal: that form is not read)."""
+    return _text(element, "type", "plugin") or element.get("type") or "(none stated)"
 
 
 def _stated(root, joint_names: list[str]) -> list[tuple[str, list, list]]:
