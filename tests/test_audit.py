@@ -187,7 +187,7 @@ def test_a_model_file_that_fixes_joints_of_its_urdf_is_not_compared_with_the_urd
     from harness.runner.audit import _read
 
     path = next(iter(resolve([str(ROOT / "harness" / "data" / "models" / "panda_arm.toml")]).values()))
-    spec, described = _read(path)
+    spec, described, _ = _read(path)
     assert spec.urdf_fixed and described == spec.urdf
     row = audit("panda_arm", path)
     assert row.verdict == "agrees" and row.torques_vs_pinocchio is None
@@ -244,7 +244,8 @@ REFUSED = {
                  "joint 'elbow0' is a ball joint"),
     "coupled.xml": ('<mujoco><worldbody><body name="a"><joint name="l" type="slide"/><geom size=".1"/></body><body '
                     'name="b" pos="0 1 0"><joint name="r" type="slide"/><geom size=".1"/></body></worldbody><equality>'
-                    '<joint joint1="r" joint2="l"/></equality></mujoco>', "is a joint coupling"),
+                    '<joint joint1="r" joint2="l" polycoef="0 1 1 0 0"/></equality></mujoco>',
+                    "by a polynomial of degree above 1"),
     "included.xml": ('<mujoco><include file="missing.xml"/><worldbody><body name="a"><joint name="l" type="hinge"/>'
                      '<geom size=".1"/></body></worldbody></mujoco>', "Error opening file 'missing.xml'"),
     "floating.urdf": ('<robot name="f"><link name="world"/><link name="base"><inertial><mass value="1"/><inertia '

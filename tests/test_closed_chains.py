@@ -36,6 +36,12 @@ def parallelogram():
     return closure.ClosedChain.of(load_spec(MODELS / "parallelogram.toml"))
 
 
+@pytest.fixture(scope="module")
+def gripper():
+    """Two joint couplings (MJCF joint equalities), one of them with an offset and a joint `ref`."""
+    return closure.ClosedChain.of(load_spec(MODELS / "gripper.toml"))
+
+
 def _mjcf(tmp_path, xml: str, extra: str = ""):
     (tmp_path / "m.xml").write_text(xml)
     return spec_from_data({"mjcf": {"file": "m.xml"}, **({"closed_chain": extra} if extra else {})},
@@ -69,9 +75,17 @@ def test_the_parallelogram_arm_names_three_actuated_joints(parallelogram):
 
 
 REFUSED = {
-    "a joint coupling": ('<connect name="coupler_rocker" body1="coupler" body2="rocker" anchor="0.24 0 0.12"/>',
-                         '<joint name="geared" joint1="crank" joint2="rocker"/>',
-                         "equality constraint 'geared' is a joint coupling"),
+    # a joint equality is read as a coupling where its polynomial is linear (tests/test_couplings.py)
+    "a nonlinear coupling": ('<connect name="coupler_rocker" body1="coupler" body2="rocker" anchor="0.24 0 0.12"/>',
+                             '<joint name="geared" joint1="rocker" joint2="crank" polycoef="0 1 0.5 0 0"/>',
+                             "equality constraint 'geared' couples its joints by a polynomial of degree above 1"),
+    "a joint held by an equality": ('<connect name="coupler_rocker" body1="coupler" body2="rocker" '
+                                    'anchor="0.24 0 0.12"/>', '<joint name="held" joint1="rocker"/>',
+                                    "equality constraint 'held' holds joint 'rocker' at a constant"),
+    "a coupling the loop contradicts": ('<motor name="crank" joint="crank"/>',
+                                        '<motor name="crank" joint="crank"/></actuator><equality><joint name="geared" '
+                                        'joint1="rocker" joint2="crank"/></equality><actuator>',
+                                        "the actuated joints are not independent"),
     "a tendon loop": ('<connect name="coupler_rocker" body1="coupler" body2="rocker" anchor="0.24 0 0.12"/>',
                       '<tendon name="pinned" tendon1="loop_tendon"/>', "equality constraint 'pinned' is a tendon"),
     "inactive": ('anchor="0.24 0 0.12"/>', 'anchor="0.24 0 0.12" active="false"/>', "starts inactive"),
@@ -206,7 +220,7 @@ def test_the_parallelogram_s_forearm_keeps_the_crank_s_angle(parallelogram):
     np.testing.assert_allclose(c["rod"], c["shoulder"] - c["crank"], atol=1e-12)
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper"])
 def test_the_constraint_jacobian_and_bias_are_the_derivatives_of_phi(name, request):
     """J against central differences of Phi (step 1e-6: error ~ h^2 |Phi'''| ~ 1e-12, round-off
     ~ eps |x| / h ~ 1e-10: tolerance 1e-8); b against central differences of J q' along the
@@ -227,7 +241,7 @@ def test_the_constraint_jacobian_and_bias_are_the_derivatives_of_phi(name, reque
     np.testing.assert_allclose(loops.bias(spec, chain.loops, q, qd), (Jd @ qd[:, :, None])[:, :, 0], atol=1e-7)
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper"])
 def test_velocity_and_acceleration_levels_are_the_motion_s_derivatives(name, request):
     """q' = G q'_a and q'' = G q''_a + g against central differences of the solved positions along
     a smooth actuated motion (step 1e-4 s: truncation ~ h^2 |q'''| ~ 1e-7)."""
@@ -246,7 +260,7 @@ def test_velocity_and_acceleration_levels_are_the_motion_s_derivatives(name, req
     assert np.abs(loops.residual(chain.spec, chain.loops, q)).max() <= closure.CLOSED * chain.size
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper"])
 def test_g_lies_in_mujoco_s_constraint_null_space(name, request):
     """MuJoCo's own reading of the file: its equality rows' residual efc_pos is zero at our closed
     configurations, and its constraint Jacobian efc_J annihilates G, to 1e-12 of their sizes."""
@@ -307,7 +321,7 @@ def test_a_weld_closes_as_mujoco_reads_it(tmp_path, weld):
 # --- torques -------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper"])
 def test_two_engines_agree_on_the_actuated_torques_and_raw_torques_are_not_them(name, request):
     """G^T rnea (Pinocchio) and G^T qfrc_inverse (MuJoCo, with the loop as an equality constraint) at
     200 random consistent states: to 1e-9 of the largest (round-off is ~1e-15; above 1e-9 is a bug).
@@ -323,7 +337,7 @@ def test_two_engines_agree_on_the_actuated_torques_and_raw_torques_are_not_them(
     assert np.abs(raw - a_pin).max() >= 0.1 * scale
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper"])
 def test_the_actuated_torques_drive_the_rigid_chain_through_its_motion(name, request):
     """Forward check: with Pinocchio's M(q) and h(q, q') (RNEA at q'' = 0), the rigid KKT system
     [M  -J^T; J  0] [q''; lambda] = [S^T tau_a - h; -b] under tau_a = G^T tau returns the motion's q''
@@ -536,7 +550,7 @@ def test_friction_on_a_closed_chain_is_simulated_judged_and_identified(tmp_path)
     assert err.value.key == "joints.crank.load_coulomb" and "depend on the load" in str(err.value)
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper"])
 def test_a_closed_chains_base_parameters_come_from_g_t_y(name, request):
     """The actuated-torque regressor G^T Y: the four-bar's 30 standard parameters leave 9 base
     parameters with every joint driven and 8 as a closed chain (the figures the issue measured outside
@@ -566,18 +580,21 @@ def test_a_closed_chains_base_parameters_come_from_g_t_y(name, request):
     assert np.abs(ti.validation_error).max() <= 1e-9 * np.abs(tau_a(check_states)).max()
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper"])
 def test_a_closed_chain_written_as_mjcf_reads_back_with_its_loops(tmp_path, name, request):
-    """write_mjcf keeps the loops (site-based equalities at full precision) and puts motors on the
-    actuated joints only: the file reads back as the same closed chain, its joined points to 1e-15 m."""
+    """write_mjcf keeps the loops (site-based equalities at full precision, a coupling a joint equality)
+    and puts motors on the actuated joints only: the file reads back as the same closed chain, its joined
+    points to 1e-15 m, its couplings' ratio and offset to the bit."""
     from harness.model.mjcf import write_mjcf
 
     spec = request.getfixturevalue(name).spec
     (tmp_path / "w.xml").write_text(write_mjcf(spec, GRAVITY_W))
     back = spec_from_data({"mjcf": {"file": "w.xml"}}, tmp_path / "w.toml")
-    assert back.actuated == spec.actuated and len(back.loops) == len(spec.loops) == 1
+    assert back.actuated == spec.actuated and len(back.loops) == len(spec.loops) >= 1
     for ours, theirs in zip(spec.loops, back.loops, strict=True):
         assert (theirs.kind, theirs.body_a, theirs.body_b) == (ours.kind, ours.body_a, ours.body_b)
+        assert (theirs.follower, theirs.leader, theirs.ratio, theirs.offset) == (ours.follower, ours.leader,
+                                                                                 ours.ratio, ours.offset)
         np.testing.assert_allclose(theirs.point_a_W0, ours.point_a_W0, atol=1e-15)
         np.testing.assert_allclose(theirs.point_b_W0, ours.point_b_W0, atol=1e-15)
 
@@ -598,7 +615,7 @@ def _driven(chain, h: float, steps: int, spec=None):
     return m, np.stack([tau[0:-1:2], tau[1::2], tau[1::2], tau[2::2]], axis=1), pm  # t, t + h/2 (twice), t + h
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper"])
 def test_pinocchios_rigid_loops_move_the_chain_as_its_actuated_torques_say(name, request):
     """Pinocchio's constraintDynamics (the loops as RigidConstraintModels, harness/engines/pinocchio.py,
     constrained_rollout) under tau_a = G^T rnea of a smooth consistent motion, given at each RK4 stage's

@@ -107,8 +107,9 @@ REFUSED = {
                                   '<freejoint name="loose"/>', "free joint can only be used on top level; Element"),
     "tendon": ("</worldbody>", '</worldbody><tendon><fixed name="couple"><joint joint="shoulder" coef="1"/>'
                                '<joint joint="elbow" coef="-1"/></fixed></tendon>', "tendon 'couple'"),
-    "equality": ("</worldbody>", '</worldbody><equality><joint name="geared" joint1="shoulder" joint2="elbow"/>'
-                                 "</equality>", "equality constraint 'geared'"),
+    "equality": ("</worldbody>", '</worldbody><equality><joint name="geared" joint1="shoulder" joint2="elbow" '
+                                 'polycoef="0 1 0.5 0 0"/></equality>', "equality constraint 'geared' couples its "
+                                 "joints by a polynomial of degree above 1"),
     "spring": ('range="-170 170" frictionloss="0.3"/>', 'range="-170 170" stiffness="5"/>', "stiffness"),
     "not MJCF": ("<mujoco", "<notmujoco", "MuJoCo cannot compile it"),
 }

@@ -192,26 +192,33 @@ def test_a_urdf_inertia_no_rigid_body_has_is_read_as_the_nearest_that_is_with_on
     assert np.abs(I_read @ I - I @ I_read).max() <= 1e-12 * np.max(np.abs(p)) ** 2
 
 
-def test_a_mimic_joint_is_read_as_a_joint_of_its_own_and_said_so(tmp_path, capsys):
-    """A URDF's <mimic> couples a joint to another; the harness moves and identifies every joint
-    independently, and says so once on the terminal (and in results.json's model notes)."""
-    mimic = '<child link="fore"/>\n    <mimic joint="shoulder"/>'
-    text = EXAMPLE_URDF.read_text().replace('<child link="fore"/>', mimic)
-    (tmp_path / "arm.urdf").write_text(text)
+def test_a_mimic_joint_follows_its_leader_on_the_bench(tmp_path, capsys):
+    """A URDF's <mimic> is a coupling (tests/test_couplings.py): the bench moves the shoulder alone,
+    MuJoCo's joint equality moves the elbow, and the engines agree on the shoulder's torque through G
+    and on the coupling's generalised force (MuJoCo's qfrc_constraint), nothing said on the terminal.
+    Read as a joint of its own ([urdf] mimic = "independent") it is moved on its own, said once."""
+    mimic = '<child link="fore"/>\n    <mimic joint="shoulder" multiplier="-0.7" offset="0.2"/>'
+    (tmp_path / "arm.urdf").write_text(EXAMPLE_URDF.read_text().replace('<child link="fore"/>', mimic))
     (tmp_path / "arm.toml").write_text('[urdf]\nfile = "arm.urdf"\n')
-    (tmp_path / "s.toml").write_text('[scenario]\nmodel = "arm.toml"\nduration = 1.0\noutput_steps = 10\n'
-                                     '[motion.shoulder]\ntype = "locked"\n[motion.elbow]\ntype = "locked"\n'
-                                     '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n')
+    gates = "".join(f'[[gates]]\nmetric = "{m}"\nlimit = 1e-9\n' for m in (
+        "torques.pinocchio_vs_mujoco.max_rel_error", "torques.closed_chain.loop_forces_vs_mujoco_max_rel_error"))
+    (tmp_path / "s.toml").write_text('[scenario]\nmodel = "arm.toml"\nduration = 0.5\noutput_steps = 10\n'
+                                     '[motion.shoulder]\ntype = "sinusoids"\noffset = 0.1\nsin = [[0.5, 3.0]]\n'
+                                     + gates)
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
-    err = capsys.readouterr().err
-    assert err.count("joint 'elbow' mimics 'shoulder'") == 1, err
-    notes = json.loads((tmp_path / "out" / "results.json").read_text())["scenario"]["model_notes"]
-    assert [n.startswith("joint 'elbow' mimics 'shoulder'") for n in notes] == [True]
-    (tmp_path / "arm.toml").write_text('[urdf]\nfile = "arm.urdf"\nfixed = ["elbow"]\n')
-    scenario = (tmp_path / "s.toml").read_text()
-    (tmp_path / "s.toml").write_text(scenario.replace('[motion.elbow]\ntype = "locked"\n', ""))
+    assert "mimics" not in capsys.readouterr().err
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert results["torques"]["closed_chain"]["loops"] == {"mimic_elbow": {
+        "type": "joint", "follower": "elbow", "leader": "shoulder", "ratio": -0.7, "offset": 0.2}}
+    assert results["torques"]["closed_chain"]["loop_gap_max"] <= 1e-7  # MuJoCo's soft coupling's gap, rad
+    (tmp_path / "arm.toml").write_text('[urdf]\nfile = "arm.urdf"\nmimic = "independent"\n')
+    scenario = (tmp_path / "s.toml").read_text().replace("[[gates]]", '[motion.elbow]\ntype = "locked"\n[[gates]]', 1)
+    (tmp_path / "s.toml").write_text(scenario.replace("torques.closed_chain.loop_forces_vs_mujoco_max_rel_error",
+                                                      "torques.pinocchio_vs_mujoco.max_rel_error"))
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out2"), "--quiet"]) == 0
-    assert "mimics" not in capsys.readouterr().err  # held at 0: nothing to say
+    assert capsys.readouterr().err.count("joint 'elbow' mimics 'shoulder'") == 1
+    notes = json.loads((tmp_path / "out2" / "results.json").read_text())["scenario"]["model_notes"]
+    assert [n.startswith("joint 'elbow' mimics 'shoulder'") for n in notes] == [True]
 
 
 def test_a_massless_link_fixed_to_a_body_adds_its_rotational_inertia(tmp_path):

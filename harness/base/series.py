@@ -104,9 +104,12 @@ class TimeSeries:
     omega_W: np.ndarray | None = None  # (N, nb, 3)
     omegadot_W: np.ndarray | None = None  # (N, nb, 3)
     loops: tuple[str, ...] = ()  # a closed chain's loops (harness/model/loops.py)
-    loop_gap: np.ndarray | None = None  # (N, n_loops) m: how far each loop's joined points are apart
+    loop_gap: np.ndarray | None = None  # (N, n_loops) m: how far each loop's joined points are apart (a coupling's
+    # |q_f - r q_l - o|, rad or m as its follower moves)
     loop_F_W: np.ndarray | None = None  # (N, nb, 3) the loops' force on each body (a closed chain's)
     loop_M_W: np.ndarray | None = None  # (N, nb, 3) and their moment about its centre of mass
+    loop_tau: np.ndarray | None = None  # (N, nj) the loops' generalised force on each joint (MuJoCo's
+    # qfrc_constraint): J^T lambda, a coupling's torque pair included, which acts on no body from outside
     drive: Drive | None = None  # a recording's: how the engine drove it (None for a log, or read from CSV)
     meta: dict = field(default_factory=dict)
 
@@ -134,8 +137,9 @@ class TimeSeries:
 
     def columns(self) -> dict[str, np.ndarray]:
         """The CSV's columns in order, {name: (N,) values}: the joints', then the bodies' and the joint
-        wrenches where they are recorded, then a closed chain's loop gaps (`gap[<loop>]`, m) and the
-        loops' force and moment on each body (`loopFx[<body>]` .. `loopMz[<body>]`)."""
+        wrenches where they are recorded, then a closed chain's loop gaps (`gap[<loop>]`, m, or rad for a
+        coupling of hinges), the loops' force and moment on each body (`loopFx[<body>]` .. `loopMz[<body>]`)
+        and their generalised force on each joint (`loopTau[<joint>]`)."""
         cols: dict[str, np.ndarray] = {"t": self.t}
         for j, name in enumerate(self.joints):
             for k in JOINT_CHANNELS:
@@ -161,6 +165,9 @@ class TimeSeries:
                 for arr, kind in ((self.loop_F_W, "F"), (self.loop_M_W, "M")):
                     for k, s in enumerate(XYZ):
                         cols[f"loop{kind}{s}[{name}]"] = arr[:, b, k]
+        if self.loop_tau is not None:
+            for j, name in enumerate(self.joints):
+                cols[f"loopTau[{name}]"] = self.loop_tau[:, j]
         return cols
 
     def write_csv(self, path: Path) -> None:
@@ -230,6 +237,8 @@ def _with_bodies(df, series: dict, joints: tuple[str, ...]) -> TimeSeries:
     if all(f"loopFx[{b}]" in df.columns for b in names) and names:
         series.update({f"loop_{kind}_W": np.stack([df[[f"loop{kind}{s}[{b}]" for s in XYZ]].to_numpy() for b in names],
                                                   axis=1) for kind in ("F", "M")})
+    if all(f"loopTau[{j}]" in df.columns for j in joints):
+        series["loop_tau"] = df[[f"loopTau[{j}]" for j in joints]].to_numpy()
     return TimeSeries(**series, bodies=names, F_W=vec(joints, "{n}_F{s}"), M_W=vec(joints, "{n}_M{s}"),
                       p_W=vec(names, "{n}_{s}"), v_W=vec(names, "{n}_v{s}"), R_WB=R.reshape(len(df), len(names), 3, 3),
                       a_W=vec(names, "{n}_a{s}"), omega_W=vec(names, "{n}_w{s}"), omegadot_W=vec(names, "{n}_wd{s}"))

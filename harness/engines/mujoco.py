@@ -61,6 +61,7 @@ def _driven(spec: RobotSpec, gravity_W: np.ndarray, integrator: str,
                         gear=[1.0, 0, 0, 0, 0, 0])
     if spec.loops:  # stiff loops (LOOP_SOLIMP), their Jacobian dense for the drive's projection
         ms.option.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
+        ms.option.tolerance = LOOP_SOLVER_TOLERANCE
         for eq in ms.equalities:
             eq.solref, eq.solimp = [LOOP_TIME_CONSTANT_STEPS * float(timestep), 1.0], list(LOOP_SOLIMP)
     return ms, elements
@@ -75,6 +76,14 @@ def _driven(spec: RobotSpec, gravity_W: np.ndarray, integrator: str,
 # 0.95 0.001 0.5 2) at 1 ms; the joints then track the motion to 8.8e-8, 2.2e-8 and 1.4e-3 rad.
 LOOP_TIME_CONSTANT_STEPS = 2.0
 LOOP_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+# MuJoCo's constraint solver stops where its gradient is below tolerance times its scale; warm-started
+# from the last step's accelerations it often stops there before its first Newton step, with the
+# constraint forces off by about that tolerance (MuJoCo's default 1e-8). The loops' soft constraints
+# make its cost quadratic, so one Newton step solves them to round-off: 1e-13 lets it take that step.
+# The built-in gripper (two joint couplings, RK4, 0.25 ms) then agrees with Pinocchio to 1.5e-15 in its
+# actuated torques, where the default left 1.7e-9; the four-bar's and parallelogram's figures, set by
+# their loops' gaps, are as they were (7.7e-13 and 8.2e-13).
+LOOP_SOLVER_TOLERANCE = 1e-13
 
 
 def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
@@ -298,6 +307,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     gap_rows = np.empty((n_rows, len(spec.loops)))
     body_ids = np.array([model.body(b.name).id for b in spec.massive_bodies])
     wrench_rows = np.empty((n_rows, len(body_ids), 6)) if spec.loops else None
+    constraint_rows = np.empty((n_rows, drive.n)) if spec.loops else None
     with controlled(drive.callback()) as warned:
         for row in range(n_rows):
             data.time = row * substeps * dt
@@ -307,6 +317,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
             if spec.loops:
                 gap_rows[row] = _loop_gaps(model, data)
                 wrench_rows[row] = _loop_wrenches(model, data, body_ids)
+                constraint_rows[row] = data.qfrc_constraint[drive.vadr]  # contacts and limits off: the loops' alone
             if row < n_rows - 1:
                 drive.captured[1] = True
                 mujoco.mj_step(model, data, substeps)  # one call for the steps to the next row
@@ -324,7 +335,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
         return rec
     meta["loop_settings"] = {"solref": model.eq_solref[0].tolist(), "solimp": model.eq_solimp[0].tolist()}
     return dataclasses.replace(rec, loops=tuple(loop.name for loop in spec.loops), loop_gap=gap_rows,
-                               loop_F_W=wrench_rows[:, :, :3], loop_M_W=wrench_rows[:, :, 3:])
+                               loop_F_W=wrench_rows[:, :, :3], loop_M_W=wrench_rows[:, :, 3:], loop_tau=constraint_rows)
 
 
 def _loop_wrenches(model: mujoco.MjModel, data: mujoco.MjData, body_ids: np.ndarray) -> np.ndarray:
@@ -340,7 +351,8 @@ def _loop_wrenches(model: mujoco.MjModel, data: mujoco.MjData, body_ids: np.ndar
 
 def _loop_gaps(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     """(n_loops,) m: how far apart each loop's joined points are (the norm of its first three
-    constraint residuals, efc_pos, in MuJoCo's order of equalities)."""
+    constraint residuals, efc_pos, in MuJoCo's order of equalities); a coupling's one residual, rad or m
+    as its follower moves."""
     rows = np.flatnonzero(data.efc_type[: data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY))
     ids = data.efc_id[rows]
     return np.array([np.linalg.norm(data.efc_pos[rows[ids == k][:3]]) for k in range(model.neq)])

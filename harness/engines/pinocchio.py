@@ -181,12 +181,13 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
                         stage_tau: np.ndarray, timestep: float, every: int) -> tuple[np.ndarray, np.ndarray]:
     """A closed chain's rigid forward dynamics, Pinocchio's constraintDynamics with every loop of the
     spec a RigidConstraintModel (a connect CONTACT_3D at its joined points, a weld CONTACT_6D at its
-    joined frames; PROXIMAL settings), integrated by RK4 from (q0, v0) (n,) under the joint torques
-    given at each of its four stages, stage_tau (steps, 4, n) (the bench's drive stages), less each
-    joint's friction at the stage's velocity (viscous, Coulomb, offset), its rotor inertia Pinocchio's
-    armature: q and q' every `every` steps, each (steps // every + 1, n), spec joint order. Raises
-    NotSimulated for friction that depends on the load (it would need the rigid-body torque the solve
-    gives) and for drives through a transmission."""
+    joined frames; PROXIMAL settings), or, where every loop is a joint coupling (constant G), Pinocchio's
+    CRBA and nonlinear effects projected, G^T M G q''_a = G^T (tau - h); integrated by RK4 from (q0, v0)
+    (n,) under the joint torques given at each of its four stages, stage_tau (steps, 4, n) (the bench's
+    drive stages), less each joint's friction at the stage's velocity (viscous, Coulomb, offset), its
+    rotor inertia Pinocchio's armature: q and q' every `every` steps, each (steps // every + 1, n), spec
+    joint order. Raises NotSimulated for friction that depends on the load (it would need the rigid-body
+    torque the solve gives), for drives through a transmission and for couplings beside point loops."""
     model = pm.model
     law = pm.frictions if any(not f.none for f in pm.frictions) else ()
     if law:
@@ -201,9 +202,13 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
         model.armature[pm.q_index] = values[:, 0]
         viscous = values[:, 1]
     data = model.createData()
+    couplings = [lp for lp in spec.loops if not lp.joins_points]
+    if couplings and len(couplings) < len(spec.loops):
+        raise NotSimulated("joint couplings beside point loops are not simulated with rigid loops (Pinocchio's "
+                           "constraint models join frames, not joint coordinates)")
     pin.forwardKinematics(model, data, np.zeros(model.nq))
     cmodels, cdatas = pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
-    for loop in spec.loops:
+    for loop in spec.loops if not couplings else ():
         ends = []
         for body, p, R in ((loop.body_a, loop.point_a_W0, loop.R_W_frame_a0),
                            (loop.body_b, loop.point_b_W0, loop.R_W_frame_b0)):
@@ -219,9 +224,19 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
     qq, vv, tt = np.zeros(model.nq), np.zeros(model.nv), np.zeros(model.nv)
     idx = pm.q_index
 
+    if couplings:  # q' = G q'_a with G constant (harness/model/loops.py): G^T (M G q''_a + h) = G^T tau
+        from harness.model.closure import ClosedChain, projection
+
+        G = projection(ClosedChain.of(spec), np.zeros(len(idx)))[0]
+
     def qdd(q, v, tau):
         qq[idx], vv[idx], tt[idx] = q, v, (tau - viscous * v - dry(v)) if law else tau
-        return pin.constraintDynamics(model, data, qq, vv, tt, cmodels, cdatas, prox)[idx]
+        if not couplings:
+            return pin.constraintDynamics(model, data, qq, vv, tt, cmodels, cdatas, prox)[idx]
+        M = pin.crba(model, data, qq)  # with the armature; CRBA fills the upper triangle
+        M = (np.triu(M) + np.triu(M, 1).T)[np.ix_(idx, idx)]
+        h = pin.nonLinearEffects(model, data, qq, vv)[idx]
+        return G @ np.linalg.solve(G.T @ M @ G, G.T @ (tt[idx] - h))
 
     h = timestep
     q, v = np.array(q0, dtype=float), np.array(v0, dtype=float)

@@ -69,7 +69,8 @@ class ClosedChain:
             raise ClosureError(f"{spec.name}: actuated joint {missing[0]!r} is not one of its joints")
         act = tuple(names.index(a) for a in actuated)
         passive = tuple(i for i in range(len(names)) if i not in act)
-        points = [j.p_W0 for j in spec.joints] + [p for lp in loops for p in (lp.point_a_W0, lp.point_b_W0)]
+        points = [j.p_W0 for j in spec.joints] + [p for lp in loops if lp.joins_points
+                                                  for p in (lp.point_a_W0, lp.point_b_W0)]
         P = np.array(points)
         size = float(np.max(np.linalg.norm(P[:, None] - P[None], axis=-1))) or 1.0
         return cls(spec, tuple(loops), act, passive, size)
@@ -92,8 +93,11 @@ class ClosedChain:
         return np.array([1.0 if self.spec.joints[k].revolute else self.size for k in joints])
 
     def _scale(self) -> np.ndarray:
-        """(rows,) each constraint row's unit: the size for positions, 1 for a weld's rotation."""
-        return np.concatenate([[self.size] * 3 + ([1.0] * 3 if lp.kind == "weld" else []) for lp in self.loops])
+        """(rows,) each constraint row's unit: the size for positions, 1 for a weld's rotation; a coupling's,
+        its follower's travel unit (1 rad, or the size)."""
+        names = self.spec.joint_names
+        return np.concatenate([self._span([names.index(lp.follower)]) if not lp.joins_points
+                               else [self.size] * 3 + ([1.0] * 3 if lp.kind == "weld" else []) for lp in self.loops])
 
 
 def pinv_passive(chain: ClosedChain, J: np.ndarray, where: str, numbered: bool = True) -> np.ndarray:
@@ -390,15 +394,19 @@ def loop_wrenches(chain: ClosedChain, q: np.ndarray, lam: np.ndarray
                   ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
     """The loops' forces as forces on the bodies, (body, x_W, f_W, m_W) each (N, 3): lambda's force
     (and, for a weld, its moment) on body a at its joined point, the opposite on body b at its own
-    (a world side left out). J^T lambda is their generalised force."""
+    (a world side left out). J^T lambda is their generalised force. A coupling's multiplier is a torque
+    (or force) pair on its two joints, lambda on the follower and -r lambda on the leader, within the
+    joints: no force on a body from outside them, left out (as MuJoCo's external wrenches leave it out)."""
     from harness.model.loops import joined_points
 
     out, row = [], 0
     for loop, (x_a, x_b) in zip(chain.loops, joined_points(chain.spec, chain.loops, q), strict=True):
         f = lam[:, row:row + 3]
         m = lam[:, row + 3:row + 6] if loop.kind == "weld" else None
+        row += loop.rows
+        if not loop.joins_points:
+            continue
         for body, x, sign in ((loop.body_a, x_a, 1.0), (loop.body_b, x_b, -1.0)):
             if body != WORLD:
                 out.append((body, x, sign * f, None if m is None else sign * m))
-        row += loop.rows
     return out

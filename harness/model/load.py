@@ -78,8 +78,16 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
                 raise ut.error("file", f"URDF file {urdf_path} not found")
         fixed = ut.strings("fixed", choices=None) if ut.has("fixed") else ()
         dynamics = ut.boolean("dynamics", default=True)  # false: the joints' <dynamics> left out
+        mimic = ut.string("mimic", default="coupled", choices=MIMIC_READINGS)
         ut.finish()
-        bodies, joints, limits, drive_limits, urdf_notes = read_urdf(urdf_path, ut, fixed)
+        bodies, joints, limits, drive_limits, urdf_notes, couplings = read_urdf(urdf_path, ut, fixed)
+        if couplings and mimic == "independent":
+            urdf_notes += [f"joint {c.follower!r} mimics {c.leader!r} in the URDF: read as a joint of its own, moved "
+                           "and identified as the others ([urdf] mimic = \"independent\")" for c in couplings]
+            couplings = ()
+        if couplings:  # <mimic>: the followers are the passive joints
+            followers = {c.follower for c in couplings}
+            closure = (couplings, tuple(j.name for j in joints if j.name not in followers))
         if not dynamics:
             joints = [dataclasses.replace(j, friction=NO_FRICTION) for j in joints]
         notes = tuple(urdf_notes)
@@ -125,14 +133,21 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
         unread = urdf_transmissions.unread_note(urdf_path, spec.joint_names)
         spec = spec if unread is None else dataclasses.replace(spec, notes=(*spec.notes, unread))
     if closure is not None or chain_table is not None:
-        spec = _closed_chain(spec, closure, chain_table, Table({}, path, "mjcf") if mjcf_path else root)
+        spec = _closed_chain(spec, closure, chain_table, Table({}, path, "mjcf" if mjcf_path else "urdf")
+                             if closure is not None else root)
     return spec
+
+
+MIMIC_READINGS = ("coupled", "independent")  # a URDF's <mimic>: a coupling (the follower no degree of freedom),
+# or each mimic joint a joint of its own (the tree every joint of which a scenario moves)
 
 
 def _closed_chain(spec: RobotSpec, from_file: tuple | None, t: Table | None, file_table: Table) -> RobotSpec:
     """The spec with its loops (an MJCF file's, or `[[closed_chain.loops]]`'s for a TOML or URDF tree:
     `name`, `type` connect or weld, `body1`, `body2` (a body or "world") and `point`, the world point at
-    q = 0 where they are joined, a weld keeping their relative orientation at q = 0) and its actuated
+    q = 0 where they are joined, a weld keeping their relative orientation at q = 0; or `type` joint,
+    `follower`, `leader`, `ratio` (default 1) and `offset` (default 0): a coupling q_follower = ratio
+    q_leader + offset, as a URDF's <mimic> states one and the model reads there) and its actuated
     joints (`closed_chain.actuated`, else the MJCF file's actuated joints), checked: the loops close
     near q = 0 and the actuated joints determine the passive ones there (harness/model/closure.py)."""
     from harness.model.closure import ClosedChain, ClosureError, close, projection
@@ -140,18 +155,21 @@ def _closed_chain(spec: RobotSpec, from_file: tuple | None, t: Table | None, fil
 
     loops, actuated = from_file if from_file is not None else ((), ())
     key, where = ("file", file_table) if from_file is not None else ("closed_chain", t)
-    origin = f"{spec.mjcf}: " if from_file is not None else ""
+    origin = f"{spec.mjcf or spec.urdf}: " if from_file is not None else ""
     if t is not None:
         if t.has("actuated"):
             actuated = t.strings("actuated", choices=spec.joint_names)
             key, where, origin = "actuated", t, ""
         if t.has("loops"):
-            if from_file is not None:
+            if from_file is not None and spec.mjcf is not None:
                 raise t.error("loops", f"{spec.mjcf} states its loops (<equality>): give them there or here, not both")
             bodies = [b.name for b in spec.bodies] + [WORLD]
             read = []
             for lt in t.tables("loops"):
                 kind = lt.string("type", choices=LOOP_KINDS)
+                if kind == "joint":
+                    read.append(_coupling(lt, spec, f"loop{len(read) + 1}"))
+                    continue
                 a, b = lt.string("body1", choices=bodies), lt.string("body2", choices=bodies)
                 if a == b:
                     raise lt.error("body2", f"joins body {a!r} to itself")
@@ -160,7 +178,7 @@ def _closed_chain(spec: RobotSpec, from_file: tuple | None, t: Table | None, fil
                 read.append(Loop(lt.string("name", default=f"loop{len(read) + 1}"), kind, a, b, point, point,
                                  frame, frame))
                 lt.finish()
-            loops = tuple(read)
+            loops = (*loops, *read)  # a URDF's couplings (<mimic>) and the loops stated here
         t.finish()
     if not loops:
         raise where.error(key, "a closed chain needs loops: none is stated")
@@ -173,7 +191,7 @@ def _closed_chain(spec: RobotSpec, from_file: tuple | None, t: Table | None, fil
                          "a closed chain's friction cannot depend on the load: which load a joint in a loop "
                          "carries (the tree's rigid-body torque, or with the loops' forces) the law does not say")
     for loop in loops:
-        for body in (loop.body_a, loop.body_b):
+        for body in (loop.body_a, loop.body_b) if loop.joins_points else ():
             if body != WORLD and spec.body(body).massless:
                 raise where.error(key, f"{origin}loop {loop.name!r} joins body {body!r}, which has no mass (a carriage "
                                        "merged into its child): join the body that moves")
@@ -187,6 +205,22 @@ def _closed_chain(spec: RobotSpec, from_file: tuple | None, t: Table | None, fil
     except ClosureError as exc:
         raise where.error(key, f"{origin}{exc}") from None
     return spec
+
+
+def _coupling(lt: Table, spec: RobotSpec, default_name: str):
+    """A `type = "joint"` loop of `[[closed_chain.loops]]`: a coupling of two of the spec's joints."""
+    from harness.model.spec import Loop
+
+    follower = lt.string("follower", choices=spec.joint_names)
+    leader = lt.string("leader", choices=spec.joint_names)
+    if leader == follower:
+        raise lt.error("leader", f"couples joint {follower!r} to itself")
+    ratio, offset = lt.number("ratio", default=1.0), lt.number("offset", default=0.0)
+    if ratio == 0.0:
+        raise lt.error("ratio", "is 0: the follower would be held, not coupled (fix the joint instead)")
+    loop = Loop.coupling(lt.string("name", default=default_name), follower, leader, ratio, offset)
+    lt.finish()
+    return loop
 
 
 def _degenerate(bodies: list[Body], source: str) -> tuple[str, ...]:

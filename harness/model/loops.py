@@ -7,6 +7,12 @@ seed's graph, its incidence matrices' cut) and loops that close it. A loop joins
     connect: a point of a and a point of b coincide        Phi = x_a - x_b              (3 rows)
     weld:    a frame of a and a frame of b coincide         Phi = [x_a - x_b; phi_ab]    (6 rows)
 
+or couples two joints' coordinates (a URDF <mimic>, an MJCF joint equality of a linear polynomial):
+
+    joint:   q_f = r q_l + o                                Phi = q_f - r q_l - o        (1 row)
+
+whose Jacobian row is e_f - r e_l, the same at every q, and whose acceleration bias is zero.
+
 with x the joined point now and phi_ab the rotation vector of R_a R_b^T (the joined frames now,
 world components; zero when they coincide). Each point or frame is given where it is at q = 0 (all
 joint coordinates zero) in the world frame, as the spec gives every body, and moves with its body:
@@ -78,19 +84,31 @@ def _at(spec: RobotSpec, q: np.ndarray) -> TreeKinematics:
 def residual(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> np.ndarray:
     """Phi(q), (N, rows): each loop's x_a - x_b (m), then for a weld phi_ab (rad), loop by loop."""
     q = np.atleast_2d(q)
-    return _residual(spec, loops, _at(spec, q), len(q))
+    return _residual(spec, loops, _at(spec, q), q)
 
 
 def residual_and_jacobian(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(Phi(q), J(q)) from one evaluation of the tree's positions (`residual`, `jacobian`)."""
     q = np.atleast_2d(q)
     kin = _at(spec, q)
-    return _residual(spec, loops, kin, len(q)), _jacobian(spec, loops, kin, len(q))
+    return _residual(spec, loops, kin, q), _jacobian(spec, loops, kin, len(q))
 
 
-def _residual(spec: RobotSpec, loops: tuple[Loop, ...], kin: TreeKinematics, N: int) -> np.ndarray:
+def _coupling_row(spec: RobotSpec, loop: Loop) -> np.ndarray:
+    """(n_joints,) a coupling's Jacobian row e_f - r e_l."""
+    row = np.zeros(len(spec.joints))
+    row[spec.joint_names.index(loop.follower)] = 1.0
+    row[spec.joint_names.index(loop.leader)] -= loop.ratio
+    return row
+
+
+def _residual(spec: RobotSpec, loops: tuple[Loop, ...], kin: TreeKinematics, q: np.ndarray) -> np.ndarray:
+    N = len(q)
     out = []
     for loop in loops:
+        if not loop.joins_points:
+            out.append((q @ _coupling_row(spec, loop) - loop.offset)[:, None])
+            continue
         out.append(_point_now(spec, kin, loop.body_a, loop.point_a_W0)
                    - _point_now(spec, kin, loop.body_b, loop.point_b_W0))
         if loop.kind == "weld":
@@ -130,6 +148,9 @@ def jacobian(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> np.ndar
 def _jacobian(spec: RobotSpec, loops: tuple[Loop, ...], kin: TreeKinematics, N: int) -> np.ndarray:
     out = []
     for loop in loops:
+        if not loop.joins_points:
+            out.append(np.broadcast_to(_coupling_row(spec, loop), (N, 1, len(spec.joints))))
+            continue
         out.append(_point_columns(spec, kin, loop.body_a, _point_now(spec, kin, loop.body_a, loop.point_a_W0))
                    - _point_columns(spec, kin, loop.body_b, _point_now(spec, kin, loop.body_b, loop.point_b_W0)))
         if loop.kind == "weld":
@@ -153,6 +174,9 @@ def bias(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray, qd: np.ndarray
     kin = forward_kinematics(spec, q, qd, np.zeros_like(q), velocities=False)
     out = []
     for loop in loops:
+        if not loop.joins_points:  # a coupling's row is constant: no bias
+            out.append(np.zeros((len(q), 1)))
+            continue
         x_a = _point_now(spec, kin, loop.body_a, loop.point_a_W0)
         x_b = _point_now(spec, kin, loop.body_b, loop.point_b_W0)
         out.append(_point_acceleration(spec, kin, loop.body_a, x_a) - _point_acceleration(spec, kin, loop.body_b, x_b))
@@ -164,7 +188,7 @@ def bias(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray, qd: np.ndarray
 
 
 def joined_points(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Each loop's joined points now, (x_a, x_b), each (N, 3)."""
+    """Each loop's joined points now, (x_a, x_b), each (N, 3) (a coupling joins none: both at the origin)."""
     q = np.atleast_2d(q)
     kin = _at(spec, q)
     return [(_point_now(spec, kin, lp.body_a, lp.point_a_W0), _point_now(spec, kin, lp.body_b, lp.point_b_W0))

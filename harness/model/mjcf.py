@@ -22,12 +22,14 @@ joints is the same). Every joint must then be on a drive tendon (N is square and
 no armature, damping or frictionloss of its own; MJCF has no motor offsets (they are read as zero).
 
 Loops: `<equality>` `connect` and `weld` elements (of two bodies or two sites) close the tree into a
-closed chain (harness/model/loops.py), its actuated joints those a joint actuator drives.
+closed chain (harness/model/loops.py), its actuated joints those a joint actuator drives; a `joint`
+equality of two joints whose polynomial is linear (polycoef a_0 a_1 0 0 0) couples them, joint1
+following joint2 (q_1 = a_1 q_2 + a_0 + ref_1 - a_1 ref_2, in the harness's q, MuJoCo's qpos).
 
 Refused, with a line naming the element: ball joints, free joints below the root, a body with more
-than one joint, tendons that are not such drives, joint, tendon and flex equalities (couplings, a
-tendon loop), an equality that starts inactive, loops beside drive tendons, joint stiffness
-(springs) and gravity compensation, which the harness's models do not carry.
+than one joint, tendons that are not such drives, tendon and flex equalities (a tendon loop), a
+joint equality of higher degree or of one joint, an equality that starts inactive, loops beside drive
+tendons, joint stiffness (springs) and gravity compensation, which the harness's models do not carry.
 """
 
 from __future__ import annotations
@@ -179,10 +181,18 @@ def _check_equalities(model, mujoco) -> None:
     obj, eq = mujoco.mjtObj, mujoco.mjtEq
     for i in range(model.neq):
         name, kind = _name(model, obj.mjOBJ_EQUALITY, i), mujoco.mjtEq(int(model.eq_type[i]))
-        if kind not in (eq.mjEQ_CONNECT, eq.mjEQ_WELD):
-            what = {eq.mjEQ_JOINT: "a joint coupling", eq.mjEQ_TENDON: "a tendon coupling or tendon loop"}.get(
-                kind, "a flex constraint")
-            raise _Refused(f"equality constraint {name!r} is {what}: only connect and weld loops are supported")
+        if kind not in (eq.mjEQ_CONNECT, eq.mjEQ_WELD, eq.mjEQ_JOINT):
+            what = "a tendon coupling or tendon loop" if kind == eq.mjEQ_TENDON else "a flex constraint"
+            raise _Refused(f"equality constraint {name!r} is {what}: only connect, weld and linear joint equalities "
+                           "are supported")
+        if kind == eq.mjEQ_JOINT and int(model.eq_obj2id[i]) < 0:
+            held = _name(model, obj.mjOBJ_JOINT, int(model.eq_obj1id[i]))
+            raise _Refused(f"equality constraint {name!r} holds joint {held!r} at a constant (no joint2): fix the "
+                           "joint in the file instead")
+        if kind == eq.mjEQ_JOINT and np.any(model.eq_data[i, 2:5] != 0.0):
+            raise _Refused(f"equality constraint {name!r} couples its joints by a polynomial of degree above 1 "
+                           f"(polycoef {' '.join(f'{c:g}' for c in model.eq_data[i, :5])}): only a linear coupling "
+                           "is supported")
         if not model.eq_active0[i]:
             raise _Refused(f"equality constraint {name!r} starts inactive: a loop switched on and off is not "
                            "supported")
@@ -191,9 +201,10 @@ def _check_equalities(model, mujoco) -> None:
 def _closure(model, data, mujoco, owner: dict) -> tuple[tuple, tuple[str, ...]]:
     """The file's loops (harness/model/loops.py: each `connect` or `weld` of two bodies or two sites,
     its points and frames where they are at q = 0, `data` holding the kinematics there) and its actuated
-    joints (those a joint actuator drives). A body without a joint belongs to the body it is merged into
-    (`owner`). Refused: joint, tendon and flex equalities (couplings, a tendon loop), an equality that
-    starts inactive, a loop whose two sides are one body."""
+    joints (those a joint actuator drives; with couplings alone and no actuator, every joint that follows
+    none). A body without a joint belongs to the body it is merged into
+    (`owner`); a linear joint equality as a coupling. Refused: tendon and flex equalities (a tendon loop),
+    an equality that starts inactive, a loop whose two sides are one body."""
     from harness.model.spec import Loop
 
     obj, eq = mujoco.mjtObj, mujoco.mjtEq
@@ -201,6 +212,12 @@ def _closure(model, data, mujoco, owner: dict) -> tuple[tuple, tuple[str, ...]]:
     for i in range(model.neq):
         name, kind = _name(model, obj.mjOBJ_EQUALITY, i), mujoco.mjtEq(int(model.eq_type[i]))
         d = model.eq_data[i]
+        if kind == eq.mjEQ_JOINT:  # q_1 - ref_1 = a_0 + a_1 (q_2 - ref_2), q here MuJoCo's qpos
+            j1, j2 = int(model.eq_obj1id[i]), int(model.eq_obj2id[i])
+            ref1, ref2 = (float(model.qpos0[model.jnt_qposadr[j]]) for j in (j1, j2))
+            loops.append(Loop.coupling(name, _name(model, obj.mjOBJ_JOINT, j1), _name(model, obj.mjOBJ_JOINT, j2),
+                                       d[1], ref1 + d[0] - d[1] * ref2))
+            continue
         ends = []
         for side, obj_id in ((0, int(model.eq_obj1id[i])), (1, int(model.eq_obj2id[i]))):
             if int(model.eq_objtype[i]) == int(obj.mjOBJ_SITE):
@@ -226,6 +243,11 @@ def _closure(model, data, mujoco, owner: dict) -> tuple[tuple, tuple[str, ...]]:
                           ends[0][2] if weld else None, ends[1][2] if weld else None))
     actuated = tuple(dict.fromkeys(_name(model, obj.mjOBJ_JOINT, int(model.actuator_trnid[a, 0]))
                                    for a in range(model.nu) if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT))
+    if not actuated and all(not lp.joins_points for lp in loops):  # couplings alone: every joint not a follower
+        followers = {lp.follower for lp in loops}
+        one_dof = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+        actuated = tuple(n for j in range(model.njnt) if (n := _name(model, obj.mjOBJ_JOINT, j)) not in followers
+                         and int(model.jnt_type[j]) in one_dof)
     return tuple(loops), actuated
 
 
@@ -339,6 +361,11 @@ def _exact_numbers(el, ms, root) -> None:
     elif el.tag == "fixed":
         source = ms.tendon(el.get("name"))
     elif el.tag == "joint" and el.get("name") is None:  # a tendon's wrap: its coefficient is set by the caller
+        return
+    elif el.tag == "joint" and el.get("joint1") is not None:  # an equality's: a coupling's polynomial
+        if el.get("polycoef") is not None:
+            eq = next(e for e in ms.equalities if e.name == el.get("name"))
+            el.set("polycoef", " ".join(repr(float(v)) for v in eq.data[:5]))
         return
     else:
         source = {"body": ms.body, "joint": ms.joint, "general": ms.actuator, "site": ms.site}[el.tag](el.get("name"))

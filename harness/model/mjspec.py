@@ -79,9 +79,16 @@ def add_loops(ms: mujoco.MjSpec, spec: RobotSpec, elements: dict, frames: dict) 
     """Each loop of the spec (harness/model/loops.py) as an equality constraint between two sites,
     `<loop>_1` on body a and `<loop>_2` on body b, at its joined points (and, for a weld, with its
     joined frames): MuJoCo's site-based connect and weld make the sites' points (and frames)
-    coincide, whatever the configuration the model is compiled at."""
+    coincide, whatever the configuration the model is compiled at. A coupling is MuJoCo's joint
+    equality of joint1 the follower and joint2 the leader, its polynomial q_1 - q_1,0 = a_0 + a_1 (q_2 -
+    q_2,0) with a_0 the offset and a_1 the ratio (the joints' reference positions q_0 are zero here)."""
     kinds = {"connect": mujoco.mjtEq.mjEQ_CONNECT, "weld": mujoco.mjtEq.mjEQ_WELD}
     for loop in spec.loops:
+        if not loop.joins_points:
+            eq = ms.add_equality(name=loop.name, type=mujoco.mjtEq.mjEQ_JOINT, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                                 name1=loop.follower, name2=loop.leader)
+            eq.data[:5] = [loop.offset, loop.ratio, 0.0, 0.0, 0.0]
+            continue
         names = []
         for side, (body, point, R) in enumerate(((loop.body_a, loop.point_a_W0, loop.R_W_frame_a0),
                                                  (loop.body_b, loop.point_b_W0, loop.R_W_frame_b0)), start=1):

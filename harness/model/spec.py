@@ -18,7 +18,7 @@ from harness.model.friction import NO_FRICTION, JointFriction
 WORLD = "world"
 JOINT_TYPES = ("revolute", "prismatic")
 BODY_SHAPES = ("cylinder", "rod", "point", "explicit", "massless")
-LOOP_KINDS = ("connect", "weld")
+LOOP_KINDS = ("connect", "weld", "joint")
 
 
 @dataclass(frozen=True)
@@ -86,21 +86,38 @@ class Joint:
 
 @dataclass(frozen=True, eq=False)
 class Loop:
-    """A loop closure: a point (connect) or a frame (weld) of body a joined to one of body b
-    (harness/model/loops.py gives its constraint equations)."""
+    """A loop closure: a point (connect) or a frame (weld) of body a joined to one of body b, or a
+    coupling of two joints (joint: q_follower = ratio q_leader + offset, a URDF <mimic> or an MJCF
+    joint equality) (harness/model/loops.py gives its constraint equations)."""
 
     name: str
-    kind: str  # "connect" or "weld"
-    body_a: str  # a spec body, or WORLD
+    kind: str  # "connect", "weld" or "joint"
+    body_a: str  # a spec body, or WORLD (a coupling: WORLD, it joins no point)
     body_b: str
     point_a_W0: np.ndarray  # (3,) the joined point of body a where it is at q = 0, world components
     point_b_W0: np.ndarray  # (3,) that of body b
     R_W_frame_a0: np.ndarray | None = None  # weld: (3, 3) the joined frame of body a at q = 0
     R_W_frame_b0: np.ndarray | None = None
+    follower: str = ""  # joint: the joint that follows (no degree of freedom of its own)
+    leader: str = ""  # joint: the joint it follows
+    ratio: float = 1.0  # joint: q_follower = ratio q_leader + offset (rad or m, as each joint moves)
+    offset: float = 0.0
+
+    @classmethod
+    def coupling(cls, name: str, follower: str, leader: str, ratio: float, offset: float) -> Loop:
+        """A joint coupling q_follower = ratio q_leader + offset."""
+        zero = np.zeros(3)
+        return cls(name, "joint", WORLD, WORLD, zero, zero, follower=follower, leader=leader, ratio=float(ratio),
+                   offset=float(offset))
 
     @property
     def rows(self) -> int:
-        return 3 if self.kind == "connect" else 6
+        return {"connect": 3, "weld": 6, "joint": 1}[self.kind]
+
+    @property
+    def joins_points(self) -> bool:
+        """Whether the loop joins two points (connect, weld), not two joints' coordinates."""
+        return self.kind != "joint"
 
 
 @dataclass(frozen=True, eq=False)

@@ -170,11 +170,12 @@ def _dynamics(joint) -> JointFriction:
 
 
 def read_urdf(path: Path, table: Table,
-              fixed: tuple[str, ...] = ()) -> tuple[list[Body], list[Joint], dict, dict, list[str]]:
+              fixed: tuple[str, ...] = ()) -> tuple[list[Body], list[Joint], dict, dict, list[str], tuple]:
     """Bodies and joints (world frame at q = 0) of a URDF, plus joint position limits by name,
-    velocity and effort limits by name ({"velocity": .., "effort": ..}, where given) and notes on
-    what the reading assumed (a mimic joint read as a joint of its own). The joints named in `fixed`
-    are taken as fixed at q = 0 (a gripper's fingers), their bodies merged."""
+    velocity and effort limits by name ({"velocity": .., "effort": ..}, where given), notes on what
+    the reading assumed, and each <mimic> as a coupling of its joint to the one it follows (`_couplings`).
+    The joints named in `fixed` are taken as fixed at q = 0 (a gripper's fingers), their bodies merged
+    (a mimic joint among them is held, not coupled)."""
     content = read_bounded(path, MAX_XML_BYTES)
     try:
         root = ET.fromstring(content)
@@ -189,7 +190,7 @@ def read_urdf(path: Path, table: Table,
 
 
 def _read(path: Path, root, table: Table,
-          fixed: tuple[str, ...]) -> tuple[list[Body], list[Joint], dict, dict, list[str]]:
+          fixed: tuple[str, ...]) -> tuple[list[Body], list[Joint], dict, dict, list[str], tuple]:
     links, joints, parent_of, child_of = _structure(path, root)
     unknown = sorted(set(fixed) - {j.get("name") for j in joints})
     if unknown:
@@ -214,10 +215,34 @@ def _read(path: Path, root, table: Table,
         spec_joints.append(Joint(j.get("name"), jtype, owner[parent_of[j.get("name")]], child, p_c,
                                  axis / np.linalg.norm(axis), _dynamics(j)))
         _limits(j, limits, drive_limits)
-    notes += [f"joint {j.get('name')!r} mimics {j.find('mimic').get('joint')!r} in the URDF: read as a joint of its "
-             "own, moved and identified as the others (list it in [urdf] fixed to hold it at 0)"
-             for j in kept if j.find("mimic") is not None]
-    return bodies, spec_joints, limits, drive_limits, notes
+    return bodies, spec_joints, limits, drive_limits, notes, _couplings(kept, fixed)
+
+
+def _couplings(kept: list, fixed: tuple[str, ...]) -> tuple:
+    """Each kept joint's <mimic joint multiplier offset> as a coupling (harness/model/loops.py):
+    q_joint = multiplier q_mimicked + offset (defaults 1 and 0)."""
+    from harness.model.spec import Loop
+
+    names = {j.get("name") for j in kept}
+    out = []
+    for j in kept:
+        m = j.find("mimic")
+        if m is None:
+            continue
+        name, leader = j.get("name"), m.get("joint")
+        where = f"joint {name!r} <mimic>"
+        if leader in fixed:
+            raise _Bad(f"{where}: it follows {leader!r}, which [urdf] fixed holds at 0: fix {name!r} too")
+        if leader not in names:
+            raise _Bad(f"{where}: joint = {leader!r} is not a moving joint of the URDF")
+        if leader == name:
+            raise _Bad(f"{where}: the joint follows itself")
+        ratio = float(_numbers(m.get("multiplier", "1"), f"{where} multiplier", 1)[0])
+        offset = float(_numbers(m.get("offset", "0"), f"{where} offset", 1)[0])
+        if ratio == 0.0:
+            raise _Bad(f"{where}: multiplier = 0 holds the joint, not couples it: list it in [urdf] fixed")
+        out.append(Loop.coupling(f"mimic_{name}", name, leader, ratio, offset))
+    return tuple(out)
 
 
 def _poses(root: str, joints: list, parent_of: dict, child_of: dict) -> tuple[dict, list[str]]:

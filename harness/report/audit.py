@@ -28,6 +28,7 @@ def render_audit(document: dict) -> str:
         rows.append([esc(r["robot"]), verdict, DASH if r["dof"] is None else str(r["dof"]), esc(r["root"] or "-"),
                      num(r["torques_vs_pinocchio"]), num(r["mass_matrix_vs_pinocchio"]), num(r["torques_vs_mujoco"]),
                      num(r.get("drives_vs_pinocchio")),
+                     DASH if not r.get("couplings") else f"{r['couplings']}: {num(r['couplings_vs_pinocchio'])}",
                      num(r["torques_urdf_vs_mjcf"] if r["torques_urdf_vs_mjcf"] is not None
                          else r.get("torques_vs_mujoco_file")) if r["mjcf"] in ("read", "the file itself")
                      else esc(r["mjcf"] or "-"),
@@ -44,6 +45,7 @@ def render_audit(document: dict) -> str:
             f"{t['seconds']:.1f} s.</p>")
     body = head + table(["robot", "verdict", "dof", "root", "torques vs Pinocchio's parser", "mass matrix",
                          "torques vs MuJoCo", "with drives, MuJoCo vs Pinocchio",
+                         "couplings: through G vs Pinocchio's mimic joints",
                          "vs MuJoCo's reading of the file (URDF: its MJCF conversion)",
                          "base parameters", "bodies not physical",
                          "identified from its bench log (held out)", "why"], rows)

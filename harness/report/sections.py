@@ -224,7 +224,9 @@ def _closed_chain(cc: dict | None) -> str:
     """A closed chain's part of the torques section: what the actuated torques are, and its loops."""
     if not cc:
         return ""
-    loops = [[esc(name), esc(v["type"]), esc(v["body1"]), esc(v["body2"]), num(cc["loop_gap_per_loop"][name])]
+    loops = [[esc(name), esc(v["type"]), *((esc(v["body1"]), esc(v["body2"])) if "body1" in v else (
+                 esc(f"joint {v['follower']}"), esc(f"joint {v['leader']} (ratio {num(v['ratio'])}, offset "
+                                                    f"{num(v['offset'])})"))), num(cc["loop_gap_per_loop"][name])]
              for name, v in cc["loops"].items()]
     settings = cc.get("loop_settings") or {}
     return (
@@ -232,7 +234,8 @@ def _closed_chain(cc: dict | None) -> str:
         f"<p>Actuated joints: {esc(', '.join(cc['actuated']))}; passive: {esc(', '.join(cc['passive']))}. "
         f"The torques compared are the actuated joints': {esc(cc['projection'])}. Here the tree's own torques at "
         f"the actuated joints differ from the chain's by up to {num(cc['raw_tree_vs_actuated_max_rel_error'])} "
-        "of the joint's load. With the loops' forces (the multipliers) applied to Pinocchio's bodies its passive "
+        "of the joint's load. With the loops' forces (the multipliers) applied to Pinocchio's bodies (a "
+        "coupling's to its two joints) its passive "
         f"joints need at most {num(cc['passive_torque_with_loop_forces_max'])} N m; the loops' generalised "
         f"forces agree with MuJoCo's to {num(cc['loop_forces_vs_mujoco_max_rel_error'])} "
         f"({esc(cc['loop_forces_definition'])}). MuJoCo's loops are soft constraints (solref "
@@ -240,7 +243,8 @@ def _closed_chain(cc: dict | None) -> str:
         f"{esc(' '.join(num(x) for x in settings.get('solimp', [])))}): each stays open by its gap"
         + _against_rigid_loops(cc.get("mujoco_vs_rigid_loops"))
         + ".</p>" + _forward_of_models(cc.get("forward"))
-        + table(["loop", "type", "body 1", "body 2", "largest gap [m]"], loops)
+        + table(["loop", "type", "body 1 (a coupling: follower)", "body 2 (leader)",
+                 "largest gap [m; a coupling of hinges: rad]"], loops)
     )
 
 

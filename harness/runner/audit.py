@@ -78,6 +78,8 @@ class AuditRow:
     mjcf: str | None = None  # "read", or why MuJoCo's conversion or its reading failed
     torques_urdf_vs_mjcf: float | None = None
     drives_vs_pinocchio: float | None = None  # torques with the drives' law, MuJoCo's bench against Pinocchio
+    couplings: int = 0  # joint couplings (a URDF's <mimic>, an MJCF joint equality): followers, no dof of their own
+    couplings_vs_pinocchio: float | None = None  # G^T tau and G^T M G against Pinocchio's mimic joints
     bodies: int | None = None
     invalid_bodies: list[str] = field(default_factory=list)
     base_parameters: int | None = None
@@ -127,11 +129,11 @@ def resolve(arguments: list[str]) -> dict[str, Path]:
 
 
 def _against_pinocchios_parser(row: AuditRow, spec: RobotSpec, described: Path | None, states, ours: np.ndarray,
-                               M: np.ndarray) -> str:
+                               M: np.ndarray, coupled: RobotSpec | None = None) -> str:
     """The harness's torques and mass matrix against Pinocchio's own parse of the file, and its
     regressor's rank, into `row`; why the parser could not be compared with ("" where it was): it
     refuses the file, or reads other joints (a file it cannot represent, not a disagreement: the
-    harness's reading is still compared with MuJoCo's)."""
+    harness's reading is still compared with MuJoCo's). `coupled`: the robot with its joint couplings."""
     if _not_the_files(spec, described):
         row.notes.append(f"not compared with Pinocchio's parser: {_not_the_files(spec, described)}")
         return ""
@@ -148,6 +150,34 @@ def _against_pinocchios_parser(row: AuditRow, spec: RobotSpec, described: Path |
     row.torques_vs_pinocchio = _largest(ours, theirs)
     row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
     row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
+    return "" if coupled is None else _couplings_against_pinocchio(row, coupled, pin_model)
+
+
+def _couplings_against_pinocchio(row: AuditRow, spec: RobotSpec, pin_model: _Pinocchio) -> str:
+    """A chain of joint couplings: the actuated torques G^T tau and mass matrix G^T M G of the harness's
+    tree at STATES random consistent states against Pinocchio's own parse with each follower made its
+    leader's mimic joint (transformJointIntoMimic: the reduction inside Pinocchio's RNEA and CRBA, no
+    G), into `row`; why not compared ("" where it was)."""
+    from harness.engines.pinocchio import build_model, crba, rnea
+    from harness.model.closure import ClosedChain, ClosureError, actuated_torques, random_within_limits
+
+    pin = pin_model.pin
+    model = pin_model.model
+    try:
+        for loop in spec.loops:
+            model = pin.transformJointIntoMimic(model, model.getJointId(loop.leader), model.getJointId(loop.follower),
+                                                loop.ratio, loop.offset)
+        chain = ClosedChain.of(spec)
+        m = random_within_limits(chain, spec.limits, STATES, seed=3)
+    except (ClosureError, RuntimeError, ValueError) as exc:
+        return f"couplings not compared with Pinocchio's mimic joints: {in_one_line(str(exc))}"
+    pm = build_model(spec.rigid(), GRAVITY_W)
+    ours, M = actuated_torques(m.G, rnea(pm, m.q, m.qd, m.qdd).tau), np.swapaxes(m.G, 1, 2) @ crba(pm, m.q) @ m.G
+    act = list(chain.actuated)
+    reduced = _Pinocchio.reduced(pin_model, model, [spec.joint_names[k] for k in act])
+    theirs, M_pin = reduced.torques_and_mass(m.q[:, act], m.qd[:, act], m.qdd[:, act])
+    row.couplings = len(spec.loops)
+    row.couplings_vs_pinocchio = max(_largest(ours, theirs), float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin))))
     return ""
 
 
@@ -170,10 +200,11 @@ def _not_the_files(spec: RobotSpec, described: Path | None) -> str:
     return ""
 
 
-def _read(path: Path) -> tuple[RobotSpec, Path | None]:
-    """The robot as the harness reads it, and the URDF or MJCF file that describes it (a model file's,
+def _read(path: Path) -> tuple[RobotSpec, Path | None, RobotSpec | None]:
+    """The robot as the harness reads it, the URDF or MJCF file that describes it (a model file's,
     None for a model file of the harness's own tree). A closed chain's tree is what is audited (its
-    loops are the closed-chain scenarios': docs/closed_chains.md)."""
+    loops are the closed-chain scenarios': docs/closed_chains.md); a chain of joint couplings alone is
+    also judged through them (`_couplings_against_pinocchio`, from `coupled`, the spec with its loops)."""
     import dataclasses
 
     from harness.model.load import load_spec, spec_from_data
@@ -184,7 +215,8 @@ def _read(path: Path) -> tuple[RobotSpec, Path | None]:
     else:
         kind = "mjcf" if path.suffix.lower() == ".xml" else "urdf"
         spec, source = spec_from_data({kind: {"file": str(path.resolve())}}, path), path
-    return dataclasses.replace(spec, loops=(), actuated=()), source
+    coupled = spec if spec.loops and all(not lp.joins_points for lp in spec.loops) else None
+    return dataclasses.replace(spec, loops=(), actuated=()), source, coupled
 
 
 def _states(spec: RobotSpec, count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -248,6 +280,15 @@ class _Pinocchio:
         if not self.other_joints:
             self.joints = [self.model.joints[self.model.getJointId(j)] for j in spec.joint_names]
         self.data = self.model.createData()
+
+    @classmethod
+    def reduced(cls, parsed: _Pinocchio, model, joints: list[str]) -> _Pinocchio:
+        """`parsed` with `model` (its mimic joints made) evaluated at `joints`' coordinates alone."""
+        out = cls.__new__(cls)
+        out.pin, out.model, out.notes, out.other_joints = parsed.pin, model, [], []
+        out.joints = [model.joints[model.getJointId(j)] for j in joints]
+        out.data = model.createData()
+        return out
 
     def configuration(self, q: np.ndarray) -> np.ndarray:
         """Pinocchio's configuration vector: a continuous joint (nq = 2) as (cos q, sin q)."""
@@ -338,7 +379,7 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
     t0 = time.perf_counter()
     row = AuditRow(name, str(path), "refused")
     try:
-        spec, described = _read(path)
+        spec, described, coupled = _read(path)
     except InputError as exc:
         row.reason = exc.message.removeprefix(f"{path.resolve()}: ")
         row.seconds = time.perf_counter() - t0
@@ -359,7 +400,8 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
     ours, M = rnea(pm, q, qd, qdd).tau, crba(pm, q)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        uncompared = [why for why in [_against_pinocchios_parser(row, spec, described, (q, qd, qdd), ours, M)] if why]
+        uncompared = [why for why in [_against_pinocchios_parser(row, spec, described, (q, qd, qdd), ours, M,
+                                                                         coupled)] if why]
         row.torques_vs_mujoco = _largest(inverse_dynamics(rigid, GRAVITY_W, q, qd, qdd), ours)
         if spec.transmission is not None or any(not f.none for f in spec.frictions):
             with_drives = rnea(build_model(spec, GRAVITY_W), q, qd, qdd).tau
@@ -370,7 +412,9 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
                          ("mass matrix against Pinocchio", row.mass_matrix_vs_pinocchio),
                          ("torques against MuJoCo", row.torques_vs_mujoco),
                          ("torques against MuJoCo's own model of the file", row.torques_vs_mujoco_file),
-                         ("torques with the drives, MuJoCo against Pinocchio", row.drives_vs_pinocchio)):
+                         ("torques with the drives, MuJoCo against Pinocchio", row.drives_vs_pinocchio),
+                         ("actuated torques through the couplings against Pinocchio's mimic joints",
+                          row.couplings_vs_pinocchio)):
         if value is not None and not value <= TOLERANCE:
             problems.append(f"{label} {value:.2g}")
     if row.pinocchio_regressor_rank is not None and row.pinocchio_regressor_rank != row.base_parameters:
@@ -459,8 +503,8 @@ BENCH_SECONDS, BENCH_RATE = 4.0, 250.0  # the bench log of the identification co
 
 
 def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
-    """The robot identified from its own bench log, as a lab's log is: every joint on two
-    incommensurate sinusoids about the middle of its range (a third of it, at most 1 rad or 0.1 m),
+    """The robot identified from its own bench log, as a lab's log is: every joint (a closed chain's
+    actuated ones, a coupling's leader) on two incommensurate sinusoids about the middle of its range (a third of it, at most 1 rad or 0.1 m),
     simulated in MuJoCo for BENCH_SECONDS, written as a log of t, q, q', tau at BENCH_RATE, and read
     back through `[data]` (harness/sources/log/) with its last 30 % held out, with the model's own
     friction law (what is audited is the reading; `[friction_law]` is not chosen). Returns the relative
@@ -483,10 +527,11 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
                                              "mjcf" if path.suffix.lower() == ".xml" else "urdf":
                                              {"file": str(path.resolve())}}))
     spec = load_spec(model_file)
-    lo, hi = position_bounds(spec.joint_names, [j.revolute for j in spec.joints], spec.limits)
+    moved = [spec.joint(a) for a in spec.actuated] if spec.loops else list(spec.joints)  # a closed chain's: actuated
+    lo, hi = position_bounds([j.name for j in moved], [j.revolute for j in moved], spec.limits)
     rng = np.random.default_rng(0)
     motion = {}
-    for k, j in enumerate(spec.joints):
+    for k, j in enumerate(moved):
         amp = float(min((hi[k] - lo[k]) / 6, 1.0 if j.revolute else 0.1))
         motion[j.name] = {"type": "sinusoids", "offset": float((lo[k] + hi[k]) / 2),
                           "sin": [[0.7 * amp, float(rng.uniform(0.6, 1.4))]],
@@ -500,7 +545,7 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
                      "output_steps": int(BENCH_SECONDS * BENCH_RATE)},
         "simulation": {"integrator": "RK4", "timestep": 0.0005}, "motion": motion,
         "gates": gate("torques.pinocchio_vs_mujoco.max_rel_error")}))
-    write_log(record(load_scenario(folder / "bench.toml")), spec.joint_names, folder / "log.csv")
+    write_log(record(load_scenario(folder / "bench.toml")), [j.name for j in moved], folder / "log.csv")
     (folder / "log.toml").write_text(tomli_w.dumps({
         "scenario": {"model": str(model_file)},
         "data": {"file": "log.csv", "columns": {"t": "t", "q": "q{j}", "qd": "qd{j}", "tau": "tau{j}"},

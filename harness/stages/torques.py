@@ -248,7 +248,12 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
     mj_forces = tuple(PointForce(joints.index(robot.inner_joint(b).name), rec.p_W[:, k], rec.loop_F_W[:, k],
                                  rec.loop_M_W[:, k]) for k, b in enumerate(rec.bodies))
     pin_mj = rnea(pm, q, qd, qdd, mj_forces)
-    ours, theirs = tree - pin.tau, tree - pin_mj.tau
+    # a coupling's lambda acts within its two joints, on no body from outside (closure.loop_wrenches): J^T lambda
+    coupled = np.concatenate([np.full(lp.rows, not lp.joins_points) for lp in chain.loops])
+    within = np.einsum("nrj,nr->nj", J[:, coupled], lam[:, coupled])
+    ours = tree - pin.tau + within
+    # MuJoCo's own generalised constraint force where recorded; else through its loop wrenches on the bodies
+    theirs = rec.loop_tau[:, [rec.joint_index(j) for j in joints]] if rec.loop_tau is not None else tree - pin_mj.tau
     generalised = float(np.max(np.abs(ours - theirs)) / np.max(np.abs(ours))) if np.any(ours) else 0.0
     a_cols = [joints.index(a) for a in actuated]
     passive = [j for j in joints if j not in actuated]
@@ -281,14 +286,16 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
         "actuated": actuated, "passive": passive,
         "mujoco_vs_rigid_loops": _against_rigid_loops(pm, robot, rec),
         "forward": _forward_of_models(ctx, pm, chain, rec),
-        "loops": {lp.name: {"type": lp.kind, "body1": lp.body_a, "body2": lp.body_b} for lp in chain.loops},
+        "loops": {lp.name: _loop_info(lp) for lp in chain.loops},
         "projection": PROJECTION,
         "raw_tree_vs_actuated_max_rel_error": float(np.max(raw)),
-        "passive_torque_with_loop_forces_max": float(np.max(np.abs(pin.tau[:, p_cols]))) if p_cols else 0.0,
+        "passive_torque_with_loop_forces_max": float(np.max(np.abs((pin.tau - within)[:, p_cols]))) if p_cols else 0.0,
         "loop_forces_vs_mujoco_max_rel_error": generalised,
         "loop_forces_definition": "the loops' generalised force J^T lambda (lambda from J^T lambda = tau - S^T "
-                                  "tau_a, Pinocchio's tree torques) against MuJoCo's (its constraint forces on "
-                                  "the bodies, through Pinocchio's RNEA): largest |difference| / largest |J^T lambda|",
+                                  "tau_a, Pinocchio's tree torques; the point loops' forces applied to the bodies "
+                                  "through Pinocchio's RNEA, a coupling's torque pair on its joints) against "
+                                  "MuJoCo's generalised constraint force (qfrc_constraint): largest |difference| / "
+                                  "largest |J^T lambda|",
         "loop_gap_max": float(np.max(gap)) if gap.size else 0.0,
         "loop_acceleration_residual_max_rel": float(residual.max() / reach) if reach > 0 else 0.0,
         "loop_acceleration_residual_definition": "largest |J q'' + b| over the recorded rows / largest |J| |q''| "
@@ -301,6 +308,14 @@ def _closed_chain(ctx, config: RandomStatesConfig) -> TorqueComparison:
     return TorqueComparison(actuated, rec.t, load[a_cols], rec.tau[:, [rec.joint_index(a) for a in actuated]], tau_a,
                             pin_mj.F_W, pin_mj.M_W, rec.F_W[:, cols], rec.M_W[:, cols], tuple(models), random,
                             wrench_joints=joints, closed_chain=info)
+
+
+def _loop_info(loop) -> dict:
+    """A loop as results.json states it: its type and the two bodies it joins, or a coupling's joints."""
+    if loop.joins_points:
+        return {"type": loop.kind, "body1": loop.body_a, "body2": loop.body_b}
+    return {"type": loop.kind, "follower": loop.follower, "leader": loop.leader, "ratio": loop.ratio,
+            "offset": loop.offset}
 
 
 def _rk4_stages(rec) -> np.ndarray | None:

@@ -17,6 +17,12 @@ where a planar loop leaves its out-of-plane force to no equation); the actuated 
 These are the first seed's Lagrange multipliers of the loops, from its incidence matrices rather than
 from a constraint Jacobian, and independent of harness/model/closure.py's projection.
 
+A joint coupling (q_f = r q_l + o: a mimic joint, a joint equality) acts inside its two joints: a
+torque (or force) lambda on the follower's child about its axis, -r lambda on the leader's (the
+coupling's power lambda (q'_f - r q'_l) is zero), so that the follower's drive is tau_f^0 - lambda and the
+leader's tau_l^0 + r lambda; the joints' force elements and moments, which carry whatever drives the
+joint, are unchanged.
+
 Joint friction and rotor inertia (harness/model/friction.py) act between a joint's bodies and its
 drive: a joint's drive gives tau_j + f_j, f_j its law at (q'_j, q''_j) and at the tree's rigid-body
 torque tau_j^0 where the law reads the load. A passive joint has no drive, so its equation is
@@ -40,7 +46,8 @@ from harness.papers.graph_theory_2021.inverse import joint_drives, motion_terms,
 @dataclass(frozen=True, eq=False)
 class ClosedChainInverse:
     tau: np.ndarray  # (N, joints of the spec): the actuated joints' drives, zero on the passive ones
-    lam: np.ndarray  # (N, loop rows): each loop's force on body a (world), then a weld's moment
+    lam: np.ndarray  # (N, loop rows): each loop's force on body a (world), then a weld's moment; a coupling's
+    # torque on its follower
     F_W: np.ndarray  # (N, joints, 3) force element of each joint (inner on outer), loops' forces included
     M_W: np.ndarray  # (N, joints, 3) its moment about the joint point
 
@@ -66,7 +73,14 @@ def closed_chain_inverse(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: 
     still = np.broadcast_to(model.g_W[:, None, None], a.shape)
     zero = np.zeros_like(w)
     columns = []
+    n = len(spec.joints)
     for loop in spec.loops:
+        if not loop.joins_points:  # a coupling's torque lambda on its follower, -r lambda on its leader
+            t_c = np.zeros((n, N))
+            t_c[spec.joint_names.index(loop.follower)] -= 1.0
+            t_c[spec.joint_names.index(loop.leader)] += loop.ratio
+            columns.append((t_c, np.zeros((3, n, N)), np.zeros((3, n, N))))
+            continue
         ends = [(loop.body_a, loop.point_a_W0, 1.0), (loop.body_b, loop.point_b_W0, -1.0)]
         for kind in ("force", "moment") if loop.kind == "weld" else ("force",):
             for c in range(3):
