@@ -70,10 +70,15 @@ def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str |
             files[name] = text if text is not None else files[name]
             files.update(named)
         head = f"# The robot the harness simulates (MuJoCo) and takes as the truth (Pinocchio): your {kind} file.\n"
+        joints, mimic = _joints(robot, key, flag)
+        if mimic:
+            head += ("# Its <mimic> joints are read as joints of their own (the project moves every joint and runs\n"
+                     "# your model and method, a tree's); remove `mimic` to read them as couplings\n"
+                     "# (docs/closed_chains.md).\n")
         files["robot.toml"] = head + tomli_w.dumps({"model": {"name": "my_robot",
                                                               "description": f"My robot, from its {kind} file"},
-                                                    key: {"file": name}})
-        files["scenario.toml"], files["validation.toml"] = scenarios(_joints(robot, key, flag))
+                                                    key: {"file": name, **({"mimic": "independent"} if mimic else {})}})
+        files["scenario.toml"], files["validation.toml"] = scenarios(joints)
         files["my_robot.py"] = ((TEMPLATE / "urdf" / "model.py").read_text() + method).replace(
             'ROBOT_FILE = "robot.urdf"', f'ROBOT_FILE = "{name}"')
     files["ci-job.yml"] = files["ci-job.yml"].replace("HARNESS_DISTRIBUTION", DISTRIBUTION)
@@ -124,22 +129,30 @@ def named_files(robot: Path, flag: str) -> tuple[str | None, dict[str, Path]]:
     return robot_text, out
 
 
-def _joints(robot: Path, key: str, flag: str) -> list[tuple[str, float, float, float | None]]:
+def _joints(robot: Path, key: str, flag: str) -> tuple[list[tuple[str, float, float, float | None]], bool]:
     """(name, middle, half range, velocity limit) of every joint of the robot file (`key`: urdf or
-    mjcf), read as the harness reads it; a file it refuses is refused here, naming the file."""
+    mjcf), read as the harness reads it, and whether a URDF's <mimic> joints are read as joints of their
+    own (the project moves every joint); a file it refuses is refused here, naming the file."""
     from harness.model.load import load_spec
 
     path = Path(robot).resolve()
-    with tempfile.TemporaryDirectory() as tmp:
-        (Path(tmp) / "robot.toml").write_text(tomli_w.dumps({"model": {"name": "my_robot"}, key: {"file": str(path)}}))
-        try:
-            spec = load_spec(Path(tmp) / "robot.toml")
-        except InputError as exc:
-            raise InputError(robot, flag, exc.message.removeprefix(f"{path}: ")) from None
+
+    def read(table: dict):
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / "robot.toml").write_text(tomli_w.dumps({"model": {"name": "my_robot"}, key: table}))
+            try:
+                return load_spec(Path(tmp) / "robot.toml")
+            except InputError as exc:
+                raise InputError(robot, flag, exc.message.removeprefix(f"{path}: ")) from None
+
+    spec = read({"file": str(path)})
+    mimic = key == "urdf" and bool(spec.loops)  # a URDF's loops are its <mimic> couplings
+    if mimic:
+        spec = read({"file": str(path), "mimic": "independent"})
     if spec.loops:
         raise InputError(robot, flag, f"a closed chain (loop {spec.loops[0].name!r}): the project written here moves "
-                                      "every joint; start from the built-in fourbar or parallelogram scenario "
-                                      "(docs/closed_chains.md)")
+                                      "every joint; start from the built-in fourbar, parallelogram or gripper "
+                                      "scenario (docs/closed_chains.md)")
     out = []
     for j in spec.joints:
         lo, hi = (spec.limits or {}).get(j.name, (-np.inf, np.inf))
@@ -148,7 +161,7 @@ def _joints(robot: Path, key: str, flag: str) -> list[tuple[str, float, float, f
         else:
             middle, half = 0.0, DEFAULT_HALF_RANGE[j.revolute]
         out.append((j.name, float(middle), float(half), (spec.drive_limits or {}).get(j.name, {}).get("velocity")))
-    return out
+    return out, mimic
 
 
 def scenarios(joints: list[tuple[str, float, float, float | None]]) -> tuple[str, str]:

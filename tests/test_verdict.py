@@ -436,6 +436,27 @@ def test_init_from_a_urdf_moves_every_joint_within_its_limits_and_passes(tmp_pat
     assert "nothing.urdf" in capsys.readouterr().err and not (tmp_path / "q").exists()
 
 
+def test_init_reads_a_urdfs_mimic_joints_as_its_own_and_refuses_other_couplings(tmp_path, capsys):
+    """The project moves every joint and runs a tree's model and method: a URDF's <mimic> joints are read
+    as joints of their own there (`mimic = "independent"` in robot.toml, said at its head) and the project
+    passes; an MJCF file's joint equalities (a closed chain of couplings) are refused in one line."""
+    import tomllib
+
+    from tests.conftest import MODELS, ROOT
+
+    arm = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"
+    (tmp_path / "arm.urdf").write_text(arm.read_text().replace('<child link="fore"/>',
+                                                               '<child link="fore"/><mimic joint="shoulder"/>'))
+    assert main(["init", str(tmp_path / "p"), "--urdf", str(tmp_path / "arm.urdf")]) == 0
+    robot = tomllib.loads((tmp_path / "p" / "robot.toml").read_text())
+    assert robot["urdf"]["mimic"] == "independent"
+    assert main(["run", str(tmp_path / "p" / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    assert set(json.loads((tmp_path / "o" / "results.json").read_text())["scenario"]["motion"]) == {"shoulder", "elbow"}
+    capsys.readouterr()
+    assert main(["init", str(tmp_path / "q"), "--mjcf", str(MODELS / "gripper.xml")]) == 2
+    assert "a closed chain (loop 'fingers')" in capsys.readouterr().err and not (tmp_path / "q").exists()
+
+
 @pytest.mark.parametrize("flag", ["--mjcf", "--urdf", "--robot"])
 def test_init_from_an_mjcf_file_passes_with_its_armature_damping_and_frictionloss(tmp_path, capsys, flag):
     """An MJCF arm written as MJCF files are (tests/test_mjcf.py's: defaults, degrees, a joint `ref`, a

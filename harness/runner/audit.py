@@ -504,8 +504,9 @@ BENCH_SECONDS, BENCH_RATE = 4.0, 250.0  # the bench log of the identification co
 
 def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
     """The robot identified from its own bench log, as a lab's log is: every joint (a closed chain's
-    actuated ones, a coupling's leader) on two incommensurate sinusoids about the middle of its range (a third of it, at most 1 rad or 0.1 m),
-    simulated in MuJoCo for BENCH_SECONDS, written as a log of t, q, q', tau at BENCH_RATE, and read
+    actuated ones: a coupling's leader, not its follower) on two incommensurate sinusoids about the
+    middle of its range (a third of it, at most 1 rad or 0.1 m), simulated in MuJoCo for BENCH_SECONDS,
+    written as a log of t, q, q', tau at BENCH_RATE (those joints' columns), and read
     back through `[data]` (harness/sources/log/) with its last 30 % held out, with the model's own
     friction law (what is audited is the reading; `[friction_law]` is not chosen). Returns the relative
     torque errors on that span and the seconds it took; the files stay in `folder`."""
@@ -527,7 +528,7 @@ def identify_from_bench(name: str, path: Path, folder: Path) -> dict:
                                              "mjcf" if path.suffix.lower() == ".xml" else "urdf":
                                              {"file": str(path.resolve())}}))
     spec = load_spec(model_file)
-    moved = [spec.joint(a) for a in spec.actuated] if spec.loops else list(spec.joints)  # a closed chain's: actuated
+    moved = [spec.joint(a) for a in spec.actuated] if spec.loops else list(spec.joints)  # a closed chain's actuated
     lo, hi = position_bounds([j.name for j in moved], [j.revolute for j in moved], spec.limits)
     rng = np.random.default_rng(0)
     motion = {}
