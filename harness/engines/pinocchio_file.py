@@ -9,6 +9,9 @@ dynamics; what it is given is the file with those parts made readable, each said
   differs from MuJoCo's where the file has a free joint ("Keyframe size does not match model size");
 - several bodies under `<worldbody>` put under one massless body at the world's origin: its parser
   reads the first and drops the rest (a four-bar's rocker, a humanoid's second tree);
+- a body of several joints written as nested bodies at its frame, one joint each, the last holding the
+  body's inertial, geoms and children (MuJoCo applies a body's joints in order, each after the ones
+  before it: the same chain); its parser would make them one composite joint named otherwise;
 - a free joint held at the file's pose (Pinocchio's neutral configuration of its free-flyer), as the
   harness holds it: the joints that remain are the harness's.
 A file it still cannot read raises its own error (a ValueError or RuntimeError with its message).
@@ -16,6 +19,7 @@ A file it still cannot read raises its own error (a ValueError or RuntimeError w
 
 from __future__ import annotations
 
+import itertools
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -77,6 +81,25 @@ def _readable(root: ET.Element, folder: Path) -> list[str]:
         world.append(holder)
         notes.append(f"its {len(bodies)} root bodies put under one massless body (Pinocchio's parser reads the first "
                      "alone)")
+    chains = 0
+    for body in list(root.iter("body")):
+        joints = body.findall("joint")
+        if len(joints) < 2:
+            continue
+        chains += 1
+        rest = [c for c in body if c.tag != "joint"]
+        for c in list(body):
+            if c is not joints[0]:
+                body.remove(c)
+        holder = body
+        for before, joint in itertools.pairwise(joints):
+            holder = ET.SubElement(holder, "body", {"name": f"{body.get('name', 'body')}[{before.get('name', '')}]"})
+            holder.append(joint)
+        for c in rest:
+            holder.append(c)
+    if chains:
+        notes.append(f"{chains} body(ies) of several joints written as nested bodies, one joint each (its parser "
+                     "makes them one composite joint of another name)")
     return notes
 
 

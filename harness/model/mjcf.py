@@ -2,7 +2,10 @@
 defaults, classes, includes, `inertiafromgeom` and every other MJCF rule mean what MuJoCo makes of
 them.
 
-Hinge (revolute) and slide (prismatic) joints, one per body; a body without a joint is welded to its
+Hinge (revolute) and slide (prismatic) joints; a body of several joints is the chain they are (MuJoCo
+applies them in order), each joint after its first carried by a massless body `<body>[<joint before>]`,
+where they share one point and those after the first are hinges (a universal joint, a gimbal; the
+massless carriage the harness's models carry); a body without a joint is welded to its
 parent and merged into it (masses add, centres of mass combine, inertias by the parallel-axis
 theorem), as a URDF's fixed joint is. The geometry is taken at q = 0 (every hinge and slide
 coordinate zero, which is MuJoCo's qpos, not `ref`), in the world frame. Per joint: its range as
@@ -26,10 +29,11 @@ closed chain (harness/model/loops.py), its actuated joints those a joint actuato
 equality of two joints whose polynomial is linear (polycoef a_0 a_1 0 0 0) couples them, joint1
 following joint2 (q_1 = a_1 q_2 + a_0 + ref_1 - a_1 ref_2, in the harness's q, MuJoCo's qpos).
 
-Refused, with a line naming the element: ball joints, free joints below the root, a body with more
-than one joint, tendons that are not such drives, tendon and flex equalities (a tendon loop), a
-joint equality of higher degree or of one joint, an equality that starts inactive, loops beside drive
-tendons, joint stiffness (springs) and gravity compensation, which the harness's models do not carry.
+Refused, with a line naming the element: ball joints, free joints below the root, a body whose joints
+are apart or have a slide after the first, tendons that are not such drives, tendon and flex
+equalities (a tendon loop), a joint equality of higher degree or of one joint, an equality that starts
+inactive, loops beside drive tendons, joint stiffness (springs) and gravity compensation, which the
+harness's models do not carry.
 """
 
 from __future__ import annotations
@@ -111,9 +115,6 @@ def _read(model, mujoco, path: Path) -> tuple:
                 raise _Refused(f"joint {name!r}: a second floating body (one robot per file)")
             free_root = j
             continue
-        if model.body_jntnum[body] > 1:
-            raise _Refused(f"body {_name(model, obj.mjOBJ_BODY, body)!r} has {model.body_jntnum[body]} joints "
-                           "(one hinge or slide joint per body is supported)")
         if model.jnt_stiffness[j] != 0:
             raise _Refused(f"joint {name!r}: stiffness {model.jnt_stiffness[j]:g} (a spring) is not supported")
     data = mujoco.MjData(model)
@@ -125,6 +126,7 @@ def _read(model, mujoco, path: Path) -> tuple:
         notes = (f"{path.name}: free joint {_name(model, obj.mjOBJ_JOINT, free_root)!r} of body "
                  f"{_name(model, obj.mjOBJ_BODY, int(model.jnt_bodyid[free_root]))!r}: {FLOATING_BASE_FIXED}",)
     mujoco.mj_kinematics(model, data)
+    _check_joint_chains(model, data, mujoco)
 
     # every body belongs to the nearest body at or above it with a hinge or slide joint, or to the world
     moving = {int(model.jnt_bodyid[j]) for j in range(model.njnt) if j != free_root}
@@ -157,9 +159,16 @@ def _read(model, mujoco, path: Path) -> tuple:
         friction = JointFriction(armature=float(model.dof_armature[dof]), viscous=float(model.dof_damping[dof]),
                                  coulomb=float(model.dof_frictionloss[dof]))
         parent = owner[int(model.body_parentid[b])]
+        inner, outer = (_name(model, obj.mjOBJ_BODY, parent) if parent else "world"), _name(model, obj.mjOBJ_BODY, b)
+        first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+        if count > 1:  # joints of one body: a chain, each after the first carried by a massless body at their point
+            if j > first:
+                inner = _carriage(model, obj, b, j - 1)
+            if j < first + count - 1:
+                outer = _carriage(model, obj, b, j)
+                bodies.append(Body(outer, 0.0, np.zeros((3, 3)), np.eye(3), data.xanchor[j].copy()))
         joints.append(Joint(name, "revolute" if model.jnt_type[j] == jt.mjJNT_HINGE else "prismatic",
-                            _name(model, obj.mjOBJ_BODY, parent) if parent else "world",
-                            _name(model, obj.mjOBJ_BODY, b), data.xanchor[j].copy(), data.xaxis[j].copy(), friction))
+                            inner, outer, data.xanchor[j].copy(), data.xaxis[j].copy(), friction))
         if model.jnt_limited[j]:
             limits[name] = (float(model.jnt_range[j, 0]), float(model.jnt_range[j, 1]))
     for a in range(model.nu):
@@ -173,6 +182,34 @@ def _read(model, mujoco, path: Path) -> tuple:
         efforts[name] = {"effort": effort + efforts.get(name, {}).get("effort", 0.0)}  # actuators on one joint add
     closure = _closure(model, data, mujoco, owner) if model.neq else None
     return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives, closure
+
+
+def _carriage(model, obj, body: int, joint: int) -> str:
+    """The massless body between `joint` and the next joint of the same MuJoCo body."""
+    return f"{_name(model, obj.mjOBJ_BODY, body)}[{_name(model, obj.mjOBJ_JOINT, joint)}]"
+
+
+def _check_joint_chains(model, data, mujoco) -> None:
+    """A body with several joints (MuJoCo applies them in order, each about its axis as the ones before
+    it have turned it) is the chain of joints it is, each after the first carried by a massless body:
+    read where its joints share one point and every joint after the first is a hinge (what a carriage
+    of the harness carries); refused in one line otherwise."""
+    obj = mujoco.mjtObj
+    for b in range(1, model.nbody):
+        first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
+        if count < 2:
+            continue
+        name = _name(model, obj.mjOBJ_BODY, b)
+        later = range(first + 1, first + count)
+        if any(model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE for j in later):
+            slide = next(j for j in later if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE)
+            raise _Refused(f"body {name!r} has {count} joints and joint {_name(model, obj.mjOBJ_JOINT, slide)!r}, "
+                           "not its first, is not a hinge (a chain of joints in one body is read with hinges after "
+                           "its first joint)")
+        apart = float(np.max(np.linalg.norm(data.xanchor[list(later)] - data.xanchor[first], axis=1)))
+        if apart > 1e-12 * max(1.0, float(np.linalg.norm(data.xanchor[first]))):
+            raise _Refused(f"body {name!r} has {count} joints {apart:.3g} m apart (a chain of joints in one body is "
+                           "read where they share one point)")
 
 
 def _check_equalities(model, mujoco) -> None:

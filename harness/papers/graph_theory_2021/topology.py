@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.model.kinematics import cross, rotate
-from harness.model.spec import RobotSpec
+from harness.model.spec import WORLD, RobotSpec
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,7 +89,13 @@ class Topology:
 
 
 def build_topology(spec: RobotSpec) -> Topology:
-    """S and c for any tree of the spec; nothing here is specific to six bodies."""
+    """S and c for any tree of the spec; nothing here is specific to six bodies. A massless carriage is
+    read on the ground only (the moving base of the module docstring); one carried by a joint from a
+    body (a body of several joints in an MJCF file) is refused."""
+    for b in spec.bodies:
+        if b.massless and spec.inner_joint(b.name).parent != WORLD:
+            raise ValueError(f"body {b.name!r} is a massless carriage on body {spec.inner_joint(b.name).parent!r}: the "
+                             "graph-theory model carries one on the ground only (the first paper's rail)")
     bodies = tuple(b.name for b in spec.massive_bodies)
     joints = tuple(spec.inner_joint(b).name for b in bodies)
     index = {b: i for i, b in enumerate(bodies)}
