@@ -211,7 +211,8 @@ def test_a_closed_chain_and_a_humanoid_with_a_free_joint_agree_with_both_readers
         assert r["verdict"] == "agrees", r
         assert max(r["torques_vs_pinocchio"], r["mass_matrix_vs_pinocchio"], r["torques_vs_mujoco_file"]) <= TOLERANCE
         assert r["base_parameters"] == r["pinocchio_regressor_rank"]
-    assert rows[1]["dof"] == 10 and rows[1]["root"] == "floating (fixed to the world)"
+    assert rows[1]["dof"] == 10 and rows[1]["root"] == "floating (judged free, and fixed at the file's pose)"
+    assert max(rows[1]["floating"].values()) <= TOLERANCE  # free: tests/test_floating.py
     assert any("keyframe" in n for n in rows[1]["notes"]) and any("root bodies" in n for n in rows[0]["notes"])
 
 
@@ -248,10 +249,12 @@ REFUSED = {
                     "by a polynomial of degree above 1"),
     "included.xml": ('<mujoco><include file="missing.xml"/><worldbody><body name="a"><joint name="l" type="hinge"/>'
                      '<geom size=".1"/></body></worldbody></mujoco>', "Error opening file 'missing.xml'"),
-    "floating.urdf": ('<robot name="f"><link name="world"/><link name="base"><inertial><mass value="1"/><inertia '
-                      'ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link><joint name="floating_base" '
-                      'type="floating"><parent link="world"/><child link="base"/></joint></robot>',
-                      "joint 'floating_base' has type 'floating'"),
+    # a floating joint from the root link is a floating base (tests/test_floating.py); below it, refused
+    "floating.urdf": ('<robot name="f"><link name="world"/><link name="mount"/><link name="base"><inertial><mass '
+                      'value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link><joint '
+                      'name="bolt" type="fixed"><parent link="world"/><child link="mount"/></joint><joint '
+                      'name="floating_base" type="floating"><parent link="mount"/><child link="base"/></joint></robot>',
+                      "joint 'floating_base' has type 'floating' below the root link"),
 }
 
 

@@ -131,6 +131,15 @@ def test_a_coupling_stated_in_the_model_file_is_the_mimic_one(tmp_path):
         ours.kind, ours.follower, ours.leader, ours.ratio, ours.offset)
 
 
+def test_a_mimic_of_no_moving_joint_is_a_joint_of_its_own_said(tmp_path):
+    """A <mimic> naming a joint the URDF does not move (a published hand's misspelt reference): nothing to
+    couple to, so the joint is the robot's own, said in one note."""
+    assert _arm(tmp_path, '<mimic joint="wrist"/>') is None
+    notes = load_spec(tmp_path / "arm.toml").notes
+    assert notes == ("joint 'elbow' mimics 'wrist', which is not a moving joint of the URDF: read as a joint of its "
+                     "own",)
+
+
 def test_a_mimic_joint_can_be_read_as_a_joint_of_its_own_and_is_then_said_so(tmp_path):
     """[urdf] mimic = "independent": the follower moves as any joint (no loop), said in the model's notes;
     a mimic joint listed in `fixed` is held, with nothing to say."""
@@ -147,7 +156,6 @@ COUPLING_REFUSALS = {
     "a mimic of a fixed joint": (MIMIC, 'fixed = ["shoulder"]\n', "urdf.urdf", "which [urdf] fixed holds at 0"),
     "a zero multiplier": ('<mimic joint="shoulder" multiplier="0"/>', "", "urdf.urdf",
                           "multiplier = 0 holds the joint"),
-    "a mimic of no joint": ('<mimic joint="wrist"/>', "", "urdf.urdf", "joint = 'wrist' is not a moving joint"),
     "an unknown reading": (MIMIC, 'mimic = "ignored"\n', "urdf.mimic", "is not one of coupled, independent"),
     "a joint coupled to itself": ("", '[[closed_chain.loops]]\ntype = "joint"\nfollower = "elbow"\nleader = "elbow"\n',
                                   "closed_chain.loops[0].leader", "couples joint 'elbow' to itself"),

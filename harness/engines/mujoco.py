@@ -179,13 +179,8 @@ def inverse_dynamics(spec: RobotSpec, gravity_W: np.ndarray, q: np.ndarray, qd: 
     return tau + dry(qd, inverse_dynamics(spec.rigid(), gravity_W, q, qd, qdd))
 
 
-def file_inverse_dynamics(path: Path, joints: list[str], gravity_W: np.ndarray, q: np.ndarray, qd: np.ndarray,
-                          qdd: np.ndarray) -> np.ndarray:
-    """MuJoCo's inverse dynamics (mj_inverse, (N, n) in the order of `joints`, named as in the file) of its
-    own model of the MJCF file at `path`, compiled from the file, rigid bodies alone: the joints' armature,
-    damping, stiffness and the bodies' gravity compensation zeroed, the equality constraints (a closed
-    chain's loops), contacts, joint limits and friction loss off, no fluid; a free joint held at the
-    file's pose (qpos0) at rest, as the harness holds it. ValueError: the file's model lacks a joint."""
+def rigid_file_model(path: Path, gravity_W: np.ndarray) -> mujoco.MjModel:
+    """MuJoCo's own model of the MJCF file at `path`, rigid bodies alone (`file_inverse_dynamics`)."""
     model = mujoco.MjModel.from_xml_path(str(path))
     model.opt.gravity[:] = gravity_W
     model.opt.density = model.opt.viscosity = 0.0
@@ -194,6 +189,17 @@ def file_inverse_dynamics(path: Path, joints: list[str], gravity_W: np.ndarray, 
                                | flag.mjDSBL_FRICTIONLOSS)
     model.dof_armature[:] = model.dof_damping[:] = model.jnt_stiffness[:] = model.body_gravcomp[:] = 0.0
     model.tendon_armature[:] = model.tendon_damping[:] = model.tendon_stiffness[:] = 0.0
+    return model
+
+
+def file_inverse_dynamics(path: Path, joints: list[str], gravity_W: np.ndarray, q: np.ndarray, qd: np.ndarray,
+                          qdd: np.ndarray) -> np.ndarray:
+    """MuJoCo's inverse dynamics (mj_inverse, (N, n) in the order of `joints`, named as in the file) of its
+    own model of the MJCF file at `path`, compiled from the file, rigid bodies alone: the joints' armature,
+    damping, stiffness and the bodies' gravity compensation zeroed, the equality constraints (a closed
+    chain's loops), contacts, joint limits and friction loss off, no fluid; a free joint held at the
+    file's pose (qpos0) at rest, as the harness holds it. ValueError: the file's model lacks a joint."""
+    model = rigid_file_model(path, gravity_W)
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
     # an unnamed joint is '#k' in the harness's reading (harness/model/mjcf.py): MuJoCo's joint k
     ids = [int(j[1:]) if i < 0 and re.fullmatch(r"#\d+", j) else i for i, j in zip(ids, joints, strict=True)]

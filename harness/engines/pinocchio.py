@@ -35,18 +35,34 @@ class PinocchioModel:
     transmission: Transmission | None = None  # the drives' (harness/model/drives.py)
 
 
-def build_model(spec: RobotSpec, gravity_W: np.ndarray) -> PinocchioModel:
+def build_model(spec: RobotSpec, gravity_W: np.ndarray, floating: bool = False) -> PinocchioModel:
+    """The spec as a Pinocchio model; with `floating`, its floating base (spec.floating) a free-flyer
+    joint first, its frame the file's base frame F (harness/model/floating.py), the joints from the
+    world on it."""
     model = pin.Model()
     model.name = spec.name
-    ids: dict[str, int] = {}
+    ids: dict[str, int] = {WORLD: 0}
+    R_WF, p_WF = np.eye(3), np.zeros(3)  # the frame of the joints from the world: the world's, or the base's
+    if floating:
+        fb = spec.floating
+        R_WF, p_WF = fb.R_WF0, fb.p_WF0
+        ids[WORLD] = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), fb.joint)
+        I_F = R_WF.T @ fb.body.R_WB0 @ fb.body.I_B @ fb.body.R_WB0.T @ R_WF
+        model.appendBodyToJoint(ids[WORLD], pin.Inertia(fb.body.mass, R_WF.T @ (fb.body.p_W_com0 - p_WF), I_F),
+                                pin.SE3.Identity())
     # depth first: Pinocchio's CRBA and regressors take every subtree to occupy consecutive
     # velocity indices (in root-first, breadth-first order a branched tree's M loses its couplings)
     for joint in _depth_first(spec):
-        parent = 0 if joint.parent == WORLD else ids[joint.parent]
-        origin = np.zeros(3) if joint.parent == WORLD else spec.inner_joint(joint.parent).p_W0
+        parent = ids[joint.parent]
         jm = (pin.JointModelRevoluteUnaligned if joint.revolute else pin.JointModelPrismaticUnaligned)(
             np.asarray(joint.axis_W0, dtype=float))
-        jid = model.addJoint(parent, jm, pin.SE3(np.eye(3), joint.p_W0 - origin), joint.name)
+        if joint.parent == WORLD and floating and joint.name not in spec.floating.joints:  # on the ground
+            parent, placement = 0, pin.SE3(np.eye(3), joint.p_W0)
+        elif joint.parent == WORLD:  # every joint frame world-aligned at q = 0
+            placement = pin.SE3(R_WF.T, R_WF.T @ (joint.p_W0 - p_WF))
+        else:
+            placement = pin.SE3(np.eye(3), joint.p_W0 - spec.inner_joint(joint.parent).p_W0)
+        jid = model.addJoint(parent, jm, placement, joint.name)
         ids[joint.child] = jid
         body = spec.body(joint.child)
         if not body.massless:

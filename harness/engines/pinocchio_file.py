@@ -12,8 +12,9 @@ dynamics; what it is given is the file with those parts made readable, each said
 - a body of several joints written as nested bodies at its frame, one joint each, the last holding the
   body's inertial, geoms and children (MuJoCo applies a body's joints in order, each after the ones
   before it: the same chain); its parser would make them one composite joint named otherwise;
-- a free joint held at the file's pose (Pinocchio's neutral configuration of its free-flyer), as the
-  harness holds it: the joints that remain are the harness's.
+- a free joint held at the file's pose, as the harness holds it (an MJCF body's pose is its free-flyer's
+  configuration, MuJoCo's qpos0, not its neutral one; a URDF floating joint's is its origin): the joints
+  that remain are the harness's. With `free`, the free-flyer is kept.
 A file it still cannot read raises its own error (a ValueError or RuntimeError with its message).
 """
 
@@ -32,24 +33,49 @@ ROOT_BODY = "pinocchio_reading_root"  # the body that takes a file's root bodies
 MAX_INCLUDES = 100  # nested or repeated includes beyond this: a file that includes itself
 
 
-def parse(path: Path) -> tuple[pin.Model, list[str]]:
+def parse(path: Path, free: bool = False) -> tuple[pin.Model, list[str]]:
     """Pinocchio's model of the URDF or MJCF file at `path` (told by its root element, <robot> or
-    <mujoco>), with every free joint held at the file's pose, and what was done to let its parser read
-    the file, one line each."""
+    <mujoco>), with every free joint held at the file's pose (with `free`, kept: a floating base's
+    free-flyer, placed where the file draws the base), and what was done to let its parser read the
+    file, one line each."""
     root = ET.fromstring(read_bounded(path, MAX_XML_BYTES))
+    notes = []
     if root.tag != "mujoco":
-        return pin.buildModelFromUrdf(str(path)), []
-    notes = _readable(root, Path(path).parent)
-    with tempfile.TemporaryDirectory() as folder:  # meshes are not read: the model's inertias are its own
-        copy = Path(folder) / Path(path).name
-        copy.write_text(ET.tostring(root, encoding="unicode"))
-        model = pin.buildModelFromMJCF(str(copy))
-    free = [j for j in range(1, model.njoints) if model.joints[j].shortname() == "JointModelFreeFlyer"]
-    if free:
-        notes.append(f"free joint {', '.join(repr(model.names[j]) for j in free)} held at the file's pose, as the "
+        model = pin.buildModelFromUrdf(str(path))  # a `floating` joint: its free-flyer
+    else:
+        notes = _readable(root, Path(path).parent)
+        with tempfile.TemporaryDirectory() as folder:  # meshes are not read: the model's inertias are its own
+            copy = Path(folder) / Path(path).name
+            copy.write_text(ET.tostring(root, encoding="unicode"))
+            model = pin.buildModelFromMJCF(str(copy))
+    flyers = [j for j in range(1, model.njoints) if model.joints[j].shortname() == "JointModelFreeFlyer"]
+    if flyers and not free:
+        notes.append(f"free joint {', '.join(repr(model.names[j]) for j in flyers)} held at the file's pose, as the "
                      "harness holds it")
-        model = pin.buildReducedModel(model, free, pin.neutral(model))
+        model = pin.buildReducedModel(model, flyers, _at_the_files_pose(model, flyers, path, root.tag))
     return model, notes
+
+
+def _at_the_files_pose(model: pin.Model, flyers: list[int], path: Path, tag: str):
+    """Pinocchio's configuration with each free-flyer where the file draws its body: a URDF's floating
+    joint at its origin (the free-flyer's placement: its neutral configuration), an MJCF free joint at
+    MuJoCo's qpos0 (the body's pose, which Pinocchio's MJCF parser leaves to the free-flyer's
+    configuration: its neutral one is the world's origin and axes)."""
+    q = pin.neutral(model)
+    if tag != "mujoco":
+        return q
+    import mujoco
+
+    mj = mujoco.MjModel.from_xml_path(str(path))
+    for j in flyers:
+        k = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, model.names[j])
+        if k < 0:  # an unnamed free joint: MuJoCo's only one
+            k = int(next(i for i in range(mj.njnt) if mj.jnt_type[i] == mujoco.mjtJoint.mjJNT_FREE))
+        p, w = mj.qpos0[mj.jnt_qposadr[k]:mj.jnt_qposadr[k] + 3], mj.qpos0[mj.jnt_qposadr[k] + 3:mj.jnt_qposadr[k] + 7]
+        pose = pin.SE3(pin.Quaternion(w[0], w[1], w[2], w[3]).matrix(), p)
+        at = model.joints[j].idx_q
+        q[at:at + 7] = pin.SE3ToXYZQUAT(model.jointPlacements[j].inverse() * pose)
+    return q
 
 
 def _readable(root: ET.Element, folder: Path) -> list[str]:

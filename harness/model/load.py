@@ -52,7 +52,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
     model.finish()
-    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = tendons = closure = None
+    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = tendons = closure = floating = None
     fixed: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     if root.has("dh"):
@@ -79,8 +79,10 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
         fixed = ut.strings("fixed", choices=None) if ut.has("fixed") else ()
         dynamics = ut.boolean("dynamics", default=True)  # false: the joints' <dynamics> left out
         mimic = ut.string("mimic", default="coupled", choices=MIMIC_READINGS)
+        floating_root = ut.boolean("floating", default=False)  # the root link floats (a legged robot's base)
         ut.finish()
-        bodies, joints, limits, drive_limits, urdf_notes, couplings = read_urdf(urdf_path, ut, fixed)
+        bodies, joints, limits, drive_limits, urdf_notes, couplings, floating = read_urdf(urdf_path, ut, fixed,
+                                                                                          floating_root)
         if couplings and mimic == "independent":
             urdf_notes += [f"joint {c.follower!r} mimics {c.leader!r} in the URDF: read as a joint of its own, moved "
                            "and identified as the others ([urdf] mimic = \"independent\")" for c in couplings]
@@ -102,7 +104,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
         if not mjcf_path.is_file():
             raise mt.error("file", f"MJCF file {mjcf_path} not found")
         mt.finish()
-        bodies, joints, limits, drive_limits, gravity, notes, tendons, closure = read_mjcf(mjcf_path, mt)
+        bodies, joints, limits, drive_limits, gravity, notes, tendons, closure, floating = read_mjcf(mjcf_path, mt)
         joints = _joint_friction(root, joints, "the MJCF file")
         body_tables = [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies]
         joint_tables = [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints]
@@ -119,7 +121,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     if urdf_path or mjcf_path:
         notes = notes + _degenerate(bodies, "the URDF" if urdf_path else "the MJCF file")
     spec = _assemble(RobotSpec(name, description, path, tuple(bodies), tuple(joints), dh, limits, urdf_path, fixed,
-                               drive_limits, gravity, mjcf_path, notes), body_tables, joint_tables)
+                               drive_limits, gravity, mjcf_path, notes, floating=floating), body_tables, joint_tables)
     if root.has("mjcf") and tendons is not None:
         if drives is not None:
             raise drives.error("", f"{mjcf_path} states its drives (tendons): give them there or here, not both")
@@ -272,9 +274,9 @@ def spec_from_mjmodel(model, path: Path, name: str) -> RobotSpec:
     from harness.model.mjcf import read_model
 
     table = Table({}, path)
-    bodies, joints, limits, drive_limits, gravity, notes, tendons, closure = read_model(model, path, table)
+    bodies, joints, limits, drive_limits, gravity, notes, tendons, closure, floating = read_model(model, path, table)
     spec = _assemble(RobotSpec(name, "", path, tuple(bodies), tuple(joints), None, limits, None, (), drive_limits,
-                               gravity, path, notes),
+                               gravity, path, notes, floating=floating),
                      [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies],
                      [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints])
     spec = spec if tendons is None else with_tendon_drives(spec, tendons, table)

@@ -15,7 +15,9 @@ actuator that drives one joint alone gives its force range, times its gear, as t
 limit. Gravity is the file's (`<option gravity>`, MuJoCo's default 0 0 -9.81 when it states none).
 
 A free joint on a body of the world (a floating base) is fixed to the world at the file's pose, as
-a URDF's root link is, and said so (RobotSpec.notes, printed as a warning and kept in results.json).
+a URDF's root link is, and said so (RobotSpec.notes, printed as a warning and kept in results.json);
+the base itself is kept (RobotSpec.floating: the body and those fixed to it, its frame, the joints on
+it), which harness/engines/floating.py judges free.
 Drives (harness/model/drives.py) are read where the file states them as MuJoCo writes a coupled
 drive: one fixed tendon per motor over the joints it turns with, carrying the motor's `armature`,
 `damping` and `frictionloss`, and at most one motor actuator on it with gear g. Motor k's row of N is
@@ -45,9 +47,7 @@ import numpy as np
 from harness.base.tomlio import MAX_XML_BYTES, Table, read_bounded
 from harness.model.friction import JointFriction
 from harness.model.inertia import union
-from harness.model.spec import Body, Joint, RobotSpec
-
-FLOATING_BASE_FIXED = "the floating base is taken as fixed to the world at the file's pose"  # ends its note
+from harness.model.spec import FLOATING_BASE_FIXED, Body, Joint, RobotSpec
 
 
 def read_mjcf(path: Path, table: Table, key: str = "file") -> tuple:
@@ -181,7 +181,35 @@ def _read(model, mujoco, path: Path) -> tuple:
         name = _name(model, obj.mjOBJ_JOINT, j)
         efforts[name] = {"effort": effort + efforts.get(name, {}).get("effort", 0.0)}  # actuators on one joint add
     closure = _closure(model, data, mujoco, owner) if model.neq else None
-    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives, closure
+    floating = None if free_root is None else _floating_base(model, data, mujoco, free_root, owner)
+    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives, closure, floating
+
+
+def _floating_base(model, data, mujoco, free_root: int, owner: dict):
+    """The free joint's body and every body without a joint below it, at the file's pose, as one
+    rigid body (harness/model/spec.py, FloatingBase)."""
+    from harness.model.spec import FloatingBase
+
+    obj = mujoco.mjtObj
+    base = int(model.jnt_bodyid[free_root])
+
+    def on_base(b: int) -> bool:
+        while b and owner[b] == 0:
+            if b == base:
+                return True
+            b = int(model.body_parentid[b])
+        return False
+
+    parts = []
+    for k in (b for b in range(1, model.nbody) if on_base(b)):
+        R = data.ximat[k].reshape(3, 3)
+        parts.append((float(model.body_mass[k]), data.xipos[k].copy(), R @ np.diag(model.body_inertia[k]) @ R.T))
+    mass, com, moments, axes = union(parts)
+    on_it = tuple(_name(model, obj.mjOBJ_JOINT, j) for j in range(model.njnt)
+                  if j != free_root and on_base(int(model.body_parentid[model.jnt_bodyid[j]])))
+    return FloatingBase(_name(model, obj.mjOBJ_JOINT, free_root),
+                        Body(_name(model, obj.mjOBJ_BODY, base), mass, np.diag(moments), axes, com),
+                        data.xmat[base].reshape(3, 3).copy(), data.xpos[base].copy(), on_it)
 
 
 def _carriage(model, obj, body: int, joint: int) -> str:

@@ -43,17 +43,36 @@ def massive_parent(spec: RobotSpec, body: Body) -> tuple[str, list[Joint]]:
     return parent, chain
 
 
-def add_robot(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False) -> dict[str, mujoco.MjsBody]:
+def add_robot(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False,
+              floating: bool = False) -> dict[str, mujoco.MjsBody]:
     """The robot's bodies, joints and inertials added to `ms`, and its drives' tendons (`add_drives`,
-    with their Coulomb friction as `frictionloss` where asked): its bodies by name."""
-    elements = {WORLD: ms.worldbody}
+    with their Coulomb friction as `frictionloss` where asked): its bodies by name. With `floating`, its
+    floating base (spec.floating) a body on a free joint named as the file names it, its frame the file's
+    base frame F (harness/model/floating.py: the free joint's qpos is F's pose) and its inertial stated in
+    it, the joints from the world on it."""
+    carried = [*spec.massive_bodies, *([spec.floating.body] if floating else [])]
+    floor = MOMENT_FLOOR * max(float(np.max(b.principal_inertia)) for b in carried)
+    root = ms.worldbody
     frames = {WORLD: (np.eye(3), np.zeros(3))}
-    floor = MOMENT_FLOOR * max(float(np.max(b.principal_inertia)) for b in spec.massive_bodies)
+    if floating:
+        fb = spec.floating
+        R_WF, p_WF = fb.R_WF0, fb.p_WF0
+        root = ms.worldbody.add_body(name=fb.body.name, pos=p_WF, quat=_quat(R_WF))
+        root.add_freejoint(name=fb.joint)
+        root.explicitinertial = True
+        root.mass, root.ipos = fb.body.mass, R_WF.T @ (fb.body.p_W_com0 - p_WF)
+        root.iquat = _quat(R_WF.T @ fb.body.R_WB0)
+        root.inertia = np.maximum(fb.body.principal_inertia, floor)
+        frames[WORLD] = (R_WF, p_WF)
+    elements = {WORLD: root}
     for body in spec.massive_bodies:
         parent, chain = massive_parent(spec, body)
         R_WP, p_WP = frames[parent]
+        holder = elements[parent]
+        if floating and parent == WORLD and chain[0].name not in spec.floating.joints:  # on the ground
+            (R_WP, p_WP), holder = (np.eye(3), np.zeros(3)), ms.worldbody
         R_WB, p_WB = body.R_WB0, body.p_W_com0
-        el = elements[parent].add_body(name=body.name, pos=R_WP.T @ (p_WB - p_WP), quat=_quat(R_WP.T @ R_WB))
+        el = holder.add_body(name=body.name, pos=R_WP.T @ (p_WB - p_WP), quat=_quat(R_WP.T @ R_WB))
         elements[body.name], frames[body.name] = el, (R_WB, p_WB)
         for joint in chain:
             # rotor inertia enters MuJoCo's mass matrix, viscous friction its passive force -f_v q';

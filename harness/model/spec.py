@@ -19,6 +19,7 @@ WORLD = "world"
 JOINT_TYPES = ("revolute", "prismatic")
 BODY_SHAPES = ("cylinder", "rod", "point", "explicit", "massless")
 LOOP_KINDS = ("connect", "weld", "joint")
+FLOATING_BASE_FIXED = "the floating base is taken as fixed to the world at the file's pose"  # ends its note
 
 
 @dataclass(frozen=True)
@@ -121,6 +122,20 @@ class Loop:
 
 
 @dataclass(frozen=True, eq=False)
+class FloatingBase:
+    """A floating base (harness/model/floating.py): the file's six-degree-of-freedom joint from the world
+    and the rigid body it moves, in the world frame at q = 0 (the file's pose), with what is fixed to it.
+    The spec's joints from the world are on this body; a reader of fixed bases takes it fixed there."""
+
+    joint: str  # the file's name of the free (MJCF) or floating (URDF) joint
+    body: Body
+    R_WF0: np.ndarray  # (3, 3) the base's frame F (the MJCF body's, the URDF link's) at q = 0
+    p_WF0: np.ndarray  # (3,) its origin: the free joint's pose is F's (harness/model/floating.py)
+    joints: tuple[str, ...] = ()  # the spec's joints from the world that are on the base (an MJCF file's other
+    # root bodies' joints are on the ground)
+
+
+@dataclass(frozen=True, eq=False)
 class RobotSpec:
     """A validated tree. Bodies and joints are ordered from the root outwards."""
 
@@ -141,6 +156,8 @@ class RobotSpec:
     # joint driven on its own through a ratio already folded into its friction and rotor inertia
     loops: tuple[Loop, ...] = ()  # loop closures (harness/model/loops.py): the tree is a closed chain's
     actuated: tuple[str, ...] = ()  # a closed chain's actuated joints (the others are passive)
+    floating: FloatingBase | None = None  # the file's floating base, which every fixed-base reading fixes at
+    # the file's pose (said in `notes`); harness/engines/floating.py judges the robot with it free
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)

@@ -21,7 +21,7 @@ import numpy as np
 from harness.base.tomlio import MAX_XML_BYTES, InputError, Table, read_bounded
 from harness.model.friction import JointFriction
 from harness.model.inertia import union
-from harness.model.spec import WORLD, Body, Joint
+from harness.model.spec import FLOATING_BASE_FIXED, WORLD, Body, Joint
 
 KNOWN_ROBOTS = {
     "panda": "panda_description/urdf/panda.urdf",
@@ -169,13 +169,14 @@ def _dynamics(joint) -> JointFriction:
     return JointFriction(viscous=viscous, coulomb=coulomb)
 
 
-def read_urdf(path: Path, table: Table,
-              fixed: tuple[str, ...] = ()) -> tuple[list[Body], list[Joint], dict, dict, list[str], tuple]:
+def read_urdf(path: Path, table: Table, fixed: tuple[str, ...] = (), floating_root: bool = False) -> tuple:
     """Bodies and joints (world frame at q = 0) of a URDF, plus joint position limits by name,
     velocity and effort limits by name ({"velocity": .., "effort": ..}, where given), notes on what
     the reading assumed, and each <mimic> as a coupling of its joint to the one it follows (`_couplings`).
     The joints named in `fixed` are taken as fixed at q = 0 (a gripper's fingers), their bodies merged
-    (a mimic joint among them is held, not coupled)."""
+    (a mimic joint among them is held, not coupled); and the root link's `floating` joint with the body
+    it moves (`_floating_base`, None without; with `floating_root`, the root link floats), which the
+    tree takes fixed at the file's pose (said)."""
     content = read_bounded(path, MAX_XML_BYTES)
     try:
         root = ET.fromstring(content)
@@ -184,13 +185,12 @@ def read_urdf(path: Path, table: Table,
     except RecursionError:
         raise InputError(path, "", "cannot read URDF (nested too deeply)") from None
     try:
-        return _read(path, root, table, fixed)
+        return _read(path, root, table, fixed, floating_root)
     except _Bad as exc:
         raise table.error("urdf", f"{path}: {exc}") from None
 
 
-def _read(path: Path, root, table: Table,
-          fixed: tuple[str, ...]) -> tuple[list[Body], list[Joint], dict, dict, list[str], tuple]:
+def _read(path: Path, root, table: Table, fixed: tuple[str, ...], floating_root: bool = False) -> tuple:
     links, joints, parent_of, child_of = _structure(path, root)
     unknown = sorted(set(fixed) - {j.get("name") for j in joints})
     if unknown:
@@ -204,6 +204,9 @@ def _read(path: Path, root, table: Table,
     owner, kept = _owners(path, table, order, joints, parent_of, child_of, fixed)
     notes: list[str] = []
     bodies = _bodies(order, owner, inertial, pose, notes)
+    floating = _floating_base(order, joints, parent_of, child_of, owner, inertial, pose, floating_root)
+    if floating is not None:
+        notes.append(f"floating joint {floating.joint!r} of link {floating.body.name!r}: {FLOATING_BASE_FIXED}")
     spec_joints, limits, drive_limits = [], {}, {}
     for j in kept:
         child = child_of[j.get("name")]
@@ -215,12 +218,51 @@ def _read(path: Path, root, table: Table,
         spec_joints.append(Joint(j.get("name"), jtype, owner[parent_of[j.get("name")]], child, p_c,
                                  axis / np.linalg.norm(axis), _dynamics(j)))
         _limits(j, limits, drive_limits)
-    return bodies, spec_joints, limits, drive_limits, notes, _couplings(kept, fixed)
+    return bodies, spec_joints, limits, drive_limits, notes, _couplings(kept, fixed, notes), floating
 
 
-def _couplings(kept: list, fixed: tuple[str, ...]) -> tuple:
+ROOT_FLOATING_JOINT = "root_joint"  # a floating root link's free joint (Pinocchio's name for a root joint it adds)
+
+
+def _floating_base(order: list[str], joints: list, parent_of: dict, child_of: dict, owner: dict, inertial: dict,
+                   pose: dict, root: bool = False):
+    """The root link's `floating` joint and the rigid body it moves (its child link and every link fixed
+    to it), at the file's pose (harness/model/spec.py, FloatingBase); with `root` and no such joint, the
+    root link and the links fixed to it, on a free joint named ROOT_FLOATING_JOINT; None otherwise."""
+    from harness.model.spec import FloatingBase
+
+    joint = next((j for j in joints if j.get("type") == "floating"), None)
+    if joint is None and not root:
+        return None
+    if joint is None:  # the root link floats (a model file's `floating = true`)
+        joint = ET.Element("joint", {"name": ROOT_FLOATING_JOINT, "type": "floating"})
+        base = order[0]
+    else:
+        base = child_of[joint.get("name")]
+    link_parent = {child_of[j.get("name")]: parent_of[j.get("name")] for j in joints}
+
+    def on_base(link: str) -> bool:
+        while owner[link] == WORLD:
+            if link == base:
+                return True
+            if link == order[0]:
+                return False
+            link = link_parent[link]
+        return False
+
+    parts = [inertial[n] for n in order if on_base(n)]
+    if not sum(p[0] for p in parts) > 0:
+        raise _Bad(f"floating joint {joint.get('name')!r}: its link {base!r} and those fixed to it have no mass")
+    mass, com, moments, axes = union(parts)
+    on_it = tuple(j.get("name") for j in joints if j.get("type") in ("revolute", "continuous", "prismatic")
+                  and owner.get(child_of[j.get("name")]) != WORLD and on_base(parent_of[j.get("name")]))
+    return FloatingBase(joint.get("name"), Body(base, mass, np.diag(moments), axes, com), *pose[base], on_it)
+
+
+def _couplings(kept: list, fixed: tuple[str, ...], notes: list[str]) -> tuple:
     """Each kept joint's <mimic joint multiplier offset> as a coupling (harness/model/loops.py):
-    q_joint = multiplier q_mimicked + offset (defaults 1 and 0)."""
+    q_joint = multiplier q_mimicked + offset (defaults 1 and 0); one that names no moving joint is a joint
+    of its own, said in `notes`."""
     from harness.model.spec import Loop
 
     names = {j.get("name") for j in kept}
@@ -233,8 +275,10 @@ def _couplings(kept: list, fixed: tuple[str, ...]) -> tuple:
         where = f"joint {name!r} <mimic>"
         if leader in fixed:
             raise _Bad(f"{where}: it follows {leader!r}, which [urdf] fixed holds at 0: fix {name!r} too")
-        if leader not in names:
-            raise _Bad(f"{where}: joint = {leader!r} is not a moving joint of the URDF")
+        if leader not in names:  # a reference the file cannot resolve: nothing to couple to, said
+            notes.append(f"joint {name!r} mimics {leader!r}, which is not a moving joint of the URDF: read as a joint "
+                         "of its own")
+            continue
         if leader == name:
             raise _Bad(f"{where}: the joint follows itself")
         ratio = float(_numbers(m.get("multiplier", "1"), f"{where} multiplier", 1)[0])
@@ -301,9 +345,14 @@ def _owners(path: Path, table: Table, order: list[str], joints: list, parent_of:
         elif j.get("type") in ("revolute", "continuous", "prismatic"):
             owner[name] = name
             kept.append(j)
+        elif j.get("type") == "floating" and parent == order[0]:  # the base: on the ground for a fixed reading
+            owner[name] = WORLD
         else:
             raise table.error("urdf", f"{path}: joint {j.get('name')!r} has type {j.get('type')!r} "
-                                      "(revolute, continuous, prismatic and fixed are supported)")
+                                      + ("below the root link (a floating base is the root link's child)"
+                                         if j.get("type") == "floating" else
+                                         "(revolute, continuous, prismatic, fixed and, from the root link, floating "
+                                         "are supported)"))
     return owner, kept
 
 

@@ -17,6 +17,14 @@ def _identified(ident: dict | None):
     return esc(f"least squares {e['least squares']:.2g}, consistent {e['consistent']:.2g} ({ident['seconds']:.1f} s)")
 
 
+def _floating(figures: dict | None):
+    if not figures:
+        return DASH
+    f = figures
+    return esc(f"{num(f['floating_engines'])}, {num(f['floating_mass_matrix'])}; "
+               f"{num(f.get('floating_vs_pinocchio_parser'))}; {num(f.get('floating_vs_mujoco_file'))}")
+
+
 def render_audit(document: dict) -> str:
     t = document["totals"]
     rows = []
@@ -29,6 +37,7 @@ def render_audit(document: dict) -> str:
                      num(r["torques_vs_pinocchio"]), num(r["mass_matrix_vs_pinocchio"]), num(r["torques_vs_mujoco"]),
                      num(r.get("drives_vs_pinocchio")),
                      DASH if not r.get("couplings") else f"{r['couplings']}: {num(r['couplings_vs_pinocchio'])}",
+                     _floating(r.get("floating")),
                      num(r["torques_urdf_vs_mjcf"] if r["torques_urdf_vs_mjcf"] is not None
                          else r.get("torques_vs_mujoco_file")) if r["mjcf"] in ("read", "the file itself")
                      else esc(r["mjcf"] or "-"),
@@ -46,6 +55,8 @@ def render_audit(document: dict) -> str:
     body = head + table(["robot", "verdict", "dof", "root", "torques vs Pinocchio's parser", "mass matrix",
                          "torques vs MuJoCo", "with drives, MuJoCo vs Pinocchio",
                          "couplings: through G vs Pinocchio's mimic joints",
+                         "floating base, free: MuJoCo vs Pinocchio (torques, mass matrix); vs Pinocchio's parser; "
+                         "vs MuJoCo's file",
                          "vs MuJoCo's reading of the file (URDF: its MJCF conversion)",
                          "base parameters", "bodies not physical",
                          "identified from its bench log (held out)", "why"], rows)

@@ -78,6 +78,7 @@ class AuditRow:
     mjcf: str | None = None  # "read", or why MuJoCo's conversion or its reading failed
     torques_urdf_vs_mjcf: float | None = None
     drives_vs_pinocchio: float | None = None  # torques with the drives' law, MuJoCo's bench against Pinocchio
+    floating: dict | None = None  # a floating base's figures, free (harness/runner/audit_floating.py)
     couplings: int = 0  # joint couplings (a URDF's <mimic>, an MJCF joint equality): followers, no dof of their own
     couplings_vs_pinocchio: float | None = None  # G^T tau and G^T M G against Pinocchio's mimic joints
     bodies: int | None = None
@@ -170,7 +171,7 @@ def _couplings_against_pinocchio(row: AuditRow, spec: RobotSpec, pin_model: _Pin
         chain = ClosedChain.of(spec)
         m = random_within_limits(chain, spec.limits, STATES, seed=3)
     except (ClosureError, RuntimeError, ValueError) as exc:
-        return f"couplings not compared with Pinocchio's mimic joints: {in_one_line(str(exc))}"
+        return f"couplings not compared: Pinocchio's mimic joints cannot represent them ({in_one_line(str(exc))})"
     pm = build_model(spec.rigid(), GRAVITY_W)
     ours, M = actuated_torques(m.G, rnea(pm, m.q, m.qd, m.qdd).tau), np.swapaxes(m.G, 1, 2) @ crba(pm, m.q) @ m.G
     act = list(chain.actuated)
@@ -374,7 +375,7 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
     from harness.engines.mujoco import inverse_dynamics
     from harness.engines.pinocchio import build_model, crba, rnea
     from harness.identify.torque_id import structural_base
-    from harness.model.mjcf import FLOATING_BASE_FIXED
+    from harness.model.spec import FLOATING_BASE_FIXED
 
     t0 = time.perf_counter()
     row = AuditRow(name, str(path), "refused")
@@ -386,8 +387,8 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
         return row
     row.notes = list(spec.notes)
     row.dof = len(spec.joints)
-    floating = any(note.endswith(FLOATING_BASE_FIXED) for note in spec.notes)  # an MJCF's free joint, held
-    row.root = "floating (fixed to the world)" if floating else "fixed"
+    floating = spec.floating is not None or any(note.endswith(FLOATING_BASE_FIXED) for note in spec.notes)
+    row.root = "floating (judged free, and fixed at the file's pose)" if floating else "fixed"
     row.bodies = len(spec.massive_bodies)
     row.invalid_bodies = _invalid_bodies(spec)
     if not spec.joints:
@@ -407,6 +408,13 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
             with_drives = rnea(build_model(spec, GRAVITY_W), q, qd, qdd).tau
             row.drives_vs_pinocchio = _largest(inverse_dynamics(spec, GRAVITY_W, q, qd, qdd), with_drives)
         problems = _against_mujocos_reading(row, spec, described, name, (q, qd, qdd), ours, uncompared)
+    if spec.floating is not None:
+        from harness.runner.audit_floating import floating_figures
+
+        row.floating = floating_figures(spec, None if _not_the_files(spec, described) else described, (q, qd, qdd),
+                                        seed=3, largest=_largest)
+        problems += [f"floating base: {k.removeprefix('floating_').replace('_', ' ')} {v:.2g}"
+                     for k, v in row.floating.items() if not v <= TOLERANCE]
     row.base_parameters = len(structural_base(pm, spec.limits).independent)
     for label, value in (("torques against Pinocchio", row.torques_vs_pinocchio),
                          ("mass matrix against Pinocchio", row.mass_matrix_vs_pinocchio),

@@ -1,0 +1,149 @@
+"""A floating-base robot's inverse dynamics and mass matrix in each engine, in the harness's
+convention (harness/model/floating.py): MuJoCo's free joint (mj_inverse, mj_fullM) and Pinocchio's
+free-flyer (rnea, crba), each built from the spec (harness/model/mjspec.py, add_robot;
+harness/engines/pinocchio.py, build_model), rigid bodies alone. External wrenches (`Wrench`) act on
+bodies beside gravity: the base rows are then what the world must exert on the base besides them."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from harness.model import floating
+from harness.model.floating import BaseMotion
+from harness.model.spec import RobotSpec
+
+ENGINES = ("mujoco", "pinocchio")
+
+
+@dataclass(frozen=True, eq=False)
+class Wrench:
+    """A wrench on a body (the base's name, or a spec body's): force F_W (N, 3) at its centre of mass
+    and moment M_W (N, 3), world axes."""
+
+    body: str
+    F_W: np.ndarray
+    M_W: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class FloatingDynamics:
+    """base (N, 6) [F_W, M_W] the world's wrench on the base about its frame's origin; tau (N, n) the
+    joints' torques, spec order."""
+
+    base: np.ndarray
+    tau: np.ndarray
+
+
+def _check(spec: RobotSpec) -> None:
+    if spec.floating is None:
+        raise ValueError(f"{spec.name}: no floating base")
+    if spec.loops:
+        raise ValueError(f"{spec.name}: a floating base with loops is not judged free (its tree is)")
+
+
+def _mujoco(spec: RobotSpec, gravity_W: np.ndarray):
+    from harness.model.mjspec import add_robot, new_spec
+
+    ms = new_spec(spec.name, gravity_W)
+    ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    add_robot(ms, spec.rigid(), floating=True)
+    model = ms.compile()
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
+    return model, mujoco.MjData(model), model.jnt_qposadr[ids], model.jnt_dofadr[ids]
+
+
+def inverse_dynamics(spec: RobotSpec, gravity_W: np.ndarray, base: BaseMotion, q: np.ndarray, qd: np.ndarray,
+                     qdd: np.ndarray, engine: str, wrenches: tuple[Wrench, ...] = ()) -> FloatingDynamics:
+    """The engine's inverse dynamics at the states (base, q, q', q''), q each (N, n) spec order."""
+    _check(spec)
+    if engine == "mujoco":
+        return _mujoco_inverse(spec, gravity_W, base, q, qd, qdd, wrenches)
+    if engine == "pinocchio":
+        return _pinocchio_inverse(spec, gravity_W, base, q, qd, qdd, wrenches)
+    raise ValueError(f"no engine {engine!r}")
+
+
+def _mujoco_inverse(spec, gravity_W, base, q, qd, qdd, wrenches) -> FloatingDynamics:
+    model, data, qadr, vadr = _mujoco(spec, gravity_W)
+    qpos, qvel, qacc = floating.to_mujoco(base)
+    body_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, w.body) for w in wrenches]
+    out, applied = np.empty((len(q), model.nv)), np.zeros(model.nv)
+    for k in range(len(q)):
+        data.qpos[:7], data.qvel[:6], data.qacc[:6] = qpos[k], qvel[k], qacc[k]
+        data.qpos[qadr], data.qvel[vadr], data.qacc[vadr] = q[k], qd[k], qdd[k]
+        mujoco.mj_inverse(model, data)  # the generalised force of everything but gravity and inertia
+        out[k] = data.qfrc_inverse
+        for w, b in zip(wrenches, body_ids, strict=True):  # J^T of each wrench, at its body's centre of mass
+            applied[:] = 0.0
+            mujoco.mj_applyFT(model, data, w.F_W[k], w.M_W[k], data.xipos[b], b, applied)
+            out[k] -= applied
+    return FloatingDynamics(floating.base_rows_from_mujoco(base, out[:, :6]), out[:, vadr])
+
+
+def _pinocchio_inverse(spec, gravity_W, base, q, qd, qdd, wrenches) -> FloatingDynamics:
+    from harness.engines.pinocchio import build_model
+
+    pm = build_model(spec.rigid(), gravity_W, floating=True)
+    model, data = pm.model, pm.model.createData()
+    qi = [model.joints[i].idx_q for i in pm.joint_ids]
+    vi = [model.joints[i].idx_v for i in pm.joint_ids]
+    q_ff, v_ff, a_ff = floating.to_pinocchio(base)
+    at = [1 if w.body == spec.floating.body.name else pm.joint_ids[spec.joint_names.index(
+        spec.inner_joint(w.body).name)] for w in wrenches]
+    out = np.empty((len(q), model.nv))
+    for k in range(len(q)):
+        qq, vv, aa = np.empty(model.nq), np.empty(model.nv), np.empty(model.nv)
+        qq[:7], vv[:6], aa[:6] = q_ff[k], v_ff[k], a_ff[k]
+        qq[qi], vv[vi], aa[vi] = q[k], qd[k], qdd[k]
+        if not wrenches:
+            out[k] = pin.rnea(model, data, qq, vv, aa)
+            continue
+        pin.forwardKinematics(model, data, qq)
+        fext = pin.StdVec_Force()
+        for _ in range(model.njoints):
+            fext.append(pin.Force.Zero())
+        for w, j in zip(wrenches, at, strict=True):  # about the world's origin, then in the joint's frame
+            c_W = data.oMi[j].act(model.inertias[j].lever)
+            fext[j] = fext[j] + data.oMi[j].actInv(pin.Force(w.F_W[k], w.M_W[k] + np.cross(c_W, w.F_W[k])))
+        out[k] = pin.rnea(model, data, qq, vv, aa, fext)
+    return FloatingDynamics(floating.base_rows_from_pinocchio(base, out[:, :6]), out[:, vi])
+
+
+def mass_matrix(spec: RobotSpec, base: BaseMotion, q: np.ndarray, engine: str) -> np.ndarray:
+    """(N, 6 + n, 6 + n) the engine's mass matrix in the harness's velocities (base twist in world axes,
+    then the joints in spec order): T^T M T (harness/model/floating.py, velocity_map)."""
+    _check(spec)
+    g = np.zeros(3)
+    n = len(spec.joints)
+    M = np.empty((len(q), 6 + n, 6 + n))
+    if engine == "mujoco":
+        model, data, qadr, vadr = _mujoco(spec, g)
+        qpos = floating.to_mujoco(base)[0]
+        order = np.r_[0:6, vadr]
+        full = np.empty((model.nv, model.nv))
+        for k in range(len(q)):
+            data.qpos[:7], data.qpos[qadr] = qpos[k], q[k]
+            mujoco.mj_forward(model, data)
+            mujoco.mj_fullM(model, data, full)
+            M[k] = full[np.ix_(order, order)]
+    elif engine == "pinocchio":
+        from harness.engines.pinocchio import build_model
+
+        pm = build_model(spec.rigid(), g, floating=True)
+        model, data = pm.model, pm.model.createData()
+        qi = [model.joints[i].idx_q for i in pm.joint_ids]
+        order = np.r_[0:6, [model.joints[i].idx_v for i in pm.joint_ids]]
+        q_ff = floating.to_pinocchio(base)[0]
+        for k in range(len(q)):
+            qq = np.empty(model.nq)
+            qq[:7], qq[qi] = q_ff[k], q[k]
+            full = pin.crba(model, data, qq)
+            M[k] = (np.triu(full) + np.triu(full, 1).T)[np.ix_(order, order)]
+    else:
+        raise ValueError(f"no engine {engine!r}")
+    T = floating.velocity_map(base, engine, n)
+    return np.swapaxes(T, 1, 2) @ M @ T

@@ -1,0 +1,115 @@
+"""The audit's figures for a floating base (harness/runner/audit.py): the robot with its base free
+(harness/engines/floating.py) at random states (base poses uniform on SO(3), the joints within their
+limits), with a wrench on the base and one on the outermost body, in the harness's convention
+(harness/model/floating.py):
+- MuJoCo's free joint against Pinocchio's free-flyer, both built from the harness's reading: the
+  inverse dynamics (the base's six rows and the joints') and the mass matrix;
+- Pinocchio's own parser of the file, its free-flyer kept (placed where the file draws the base: its
+  configuration is that placement's inverse times the base's pose; its velocities are the base's, in
+  base axes), against the harness's Pinocchio model, without wrenches;
+- an MJCF file's own model in MuJoCo (its free joint's qpos the base's pose), the same.
+Errors are relative to each row's largest |value| over the states (the mass matrix: its largest entry)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from harness.model.spec import RobotSpec
+
+
+def floating_figures(spec: RobotSpec, described: Path | None, states, seed: int, largest) -> dict:
+    """{figure: value} for the robot's floating base; `states` (q, q', q'') of its joints, `largest`
+    the audit's relative error (a, reference) -> float."""
+    from harness.engines.floating import Wrench, inverse_dynamics, mass_matrix
+    from harness.model.floating import random_base_motion
+
+    q, qd, qdd = states
+    N = len(q)
+    base = random_base_motion(N, seed)
+    rng = np.random.default_rng(seed)
+    outer = spec.massive_bodies[-1].name if spec.massive_bodies else spec.floating.body.name
+    wrenches = tuple(Wrench(b, rng.uniform(-10, 10, (N, 3)), rng.uniform(-1, 1, (N, 3)))
+                     for b in dict.fromkeys((spec.floating.body.name, outer)))
+    g = np.array([0.0, 0.0, -9.81])
+    mj, pn = (inverse_dynamics(spec, g, base, q, qd, qdd, e, wrenches) for e in ("mujoco", "pinocchio"))
+    M_mj, M_pn = (mass_matrix(spec, base, q, e) for e in ("mujoco", "pinocchio"))
+    out = {"floating_engines": max(largest(mj.base, pn.base), largest(mj.tau, pn.tau) if q.shape[1] else 0.0),
+           "floating_mass_matrix": float(np.max(np.abs(M_mj - M_pn)) / np.max(np.abs(M_pn)))}
+    if described is None:
+        return out
+    ours = inverse_dynamics(spec, g, base, q, qd, qdd, "pinocchio")
+    theirs = _pinocchio_parse(spec, described, g, base, states)
+    out["floating_vs_pinocchio_parser"] = max(largest(ours.base, theirs[0]), largest(ours.tau, theirs[1])
+                                              if q.shape[1] else 0.0)
+    if described.suffix.lower() == ".xml":
+        theirs = _mujoco_file(spec, described, g, base, states)
+        out["floating_vs_mujoco_file"] = max(largest(ours.base, theirs[0]), largest(ours.tau, theirs[1])
+                                             if q.shape[1] else 0.0)
+    return out
+
+
+def _pinocchio_parse(spec: RobotSpec, path: Path, g: np.ndarray, base, states) -> tuple[np.ndarray, np.ndarray]:
+    """Pinocchio's own parse of the file with its free-flyer: the base rows [F_W, M_W] and joint torques."""
+    import pinocchio as pin
+
+    from harness.engines.pinocchio_file import parse
+    from harness.model.floating import base_rows_from_pinocchio
+    from harness.model.urdf import ROOT_FLOATING_JOINT
+
+    model, _ = parse(path, free=True)
+    if not model.existJointName(spec.floating.joint) and spec.floating.joint == ROOT_FLOATING_JOINT:
+        model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())  # a model file's floating root link
+    model.gravity.linear = g
+    model.armature[:] = 0.0
+    data = model.createData()
+    flyer = model.getJointId(spec.floating.joint)
+    if flyer >= model.njoints or model.joints[flyer].shortname() != "JointModelFreeFlyer":
+        raise ValueError(f"Pinocchio's parser has no free-flyer {spec.floating.joint!r}")
+    placement = model.jointPlacements[flyer]
+    joints = [model.joints[model.getJointId(j)] for j in spec.joint_names]
+    q, qd, qdd = states
+    R = base.R_WB
+    tau_base, tau = np.empty((len(q), 6)), np.empty_like(q)
+    from harness.model.floating import to_pinocchio
+
+    _, v_ff, a_ff = to_pinocchio(base)  # velocities in base axes: the same in its free-flyer
+    for k in range(len(q)):
+        qq, vv, aa = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+        pose = placement.inverse() * pin.SE3(R[k], base.p_W[k])
+        fj = model.joints[flyer]
+        qq[fj.idx_q:fj.idx_q + 7] = pin.SE3ToXYZQUAT(pose)
+        vv[fj.idx_v:fj.idx_v + 6], aa[fj.idx_v:fj.idx_v + 6] = v_ff[k], a_ff[k]
+        for j, jm in enumerate(joints):
+            qq[jm.idx_q:jm.idx_q + jm.nq] = [np.cos(q[k, j]), np.sin(q[k, j])] if jm.nq == 2 else q[k, j]
+            vv[jm.idx_v], aa[jm.idx_v] = qd[k, j], qdd[k, j]
+        full = pin.rnea(model, data, qq, vv, aa)
+        tau_base[k] = full[fj.idx_v:fj.idx_v + 6]
+        tau[k] = [full[jm.idx_v] for jm in joints]
+    return base_rows_from_pinocchio(base, tau_base), tau
+
+
+def _mujoco_file(spec: RobotSpec, path: Path, g: np.ndarray, base, states) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's own model of the MJCF file (rigid bodies, as harness/engines/mujoco.py's
+    file_inverse_dynamics prepares it) with its free joint: the base rows and joint torques."""
+    import mujoco
+
+    from harness.engines.mujoco import rigid_file_model
+    from harness.model.floating import base_rows_from_mujoco, to_mujoco
+
+    model = rigid_file_model(path, g)
+    data = mujoco.MjData(model)
+    free = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, spec.floating.joint)
+    qf, vf = model.jnt_qposadr[free], model.jnt_dofadr[free]
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
+    qa, va = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
+    qpos, qvel, qacc = to_mujoco(base)
+    q, qd, qdd = states
+    out = np.empty((len(q), model.nv))
+    for k in range(len(q)):
+        data.qpos[qf:qf + 7], data.qvel[vf:vf + 6], data.qacc[vf:vf + 6] = qpos[k], qvel[k], qacc[k]
+        data.qpos[qa], data.qvel[va], data.qacc[va] = q[k], qd[k], qdd[k]
+        mujoco.mj_inverse(model, data)
+        out[k] = data.qfrc_inverse
+    return base_rows_from_mujoco(base, out[:, vf:vf + 6]), out[:, va]
