@@ -189,3 +189,27 @@ def test_the_conventions_round_trip_through_each_engine():
     np.testing.assert_allclose(np.einsum("nij,nj->ni", R, v[:, 3:]), base.omega_W, atol=1e-14)
     # Pinocchio's a is the derivative of v in base axes: a_W = R (a_B + omega_B x v_B)
     np.testing.assert_allclose(np.einsum("nij,nj->ni", R, a[:, :3] + cross(v[:, 3:], v[:, :3])), base.a_W, atol=1e-13)
+
+
+def test_a_scenario_on_a_floating_robot_judges_it_free_beside_its_fixed_run(tmp_path, capsys):
+    """`harness run` on the trunk-and-legs MJCF: the bench runs with the base fixed at the file's pose (said
+    once on the terminal), and results.json's torques.floating judges the robot with its base free at the
+    recording's joint states (the engines' base rows, joints' torques and mass matrices), gated like any
+    metric: to 1e-9 and 1e-12 (round-off ~1e-15)."""
+    import json
+
+    from harness.cli import main
+
+    (tmp_path / "robot.xml").write_text(DOG)
+    (tmp_path / "m.toml").write_text('[mjcf]\nfile = "robot.xml"\n')
+    motion = "".join(f'[motion.{j}]\ntype = "sinusoids"\noffset = 0.1\nsin = [[0.5, {w}]]\n'
+                     for j, w in (("hip", 3.0), ("knee", 4.0), ("a1", 2.0), ("a2", 2.5)))
+    gates = "".join(f'[[gates]]\nmetric = "{m}"\nlimit = {v}\n' for m, v in (
+        ("torques.pinocchio_vs_mujoco.max_rel_error", 1e-9), ("torques.floating.engines_max_rel_error", 1e-9),
+        ("torques.floating.mass_matrix_max_rel_error", 1e-12)))
+    head = '[scenario]\nmodel = "m.toml"\nduration = 0.2\noutput_steps = 20\n'
+    (tmp_path / "s.toml").write_text(head + motion + gates)
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert capsys.readouterr().err.count("the floating base is taken as fixed to the world") == 1
+    fl = json.loads((tmp_path / "out" / "results.json").read_text())["torques"]["floating"]
+    assert (fl["base"], fl["joint"], fl["states"]) == ("trunk", "root", 20)

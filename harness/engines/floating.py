@@ -147,3 +147,29 @@ def mass_matrix(spec: RobotSpec, base: BaseMotion, q: np.ndarray, engine: str) -
         raise ValueError(f"no engine {engine!r}")
     T = floating.velocity_map(base, engine, n)
     return np.swapaxes(T, 1, 2) @ M @ T
+
+
+def _largest(a: np.ndarray, ref: np.ndarray) -> float:
+    """Largest |a - ref| over each column's largest |ref| (a column that carries nothing: skipped)."""
+    if not ref.size:
+        return 0.0
+    scale = np.max(np.abs(ref), axis=0)
+    keep = scale > 1e-12 * max(float(np.max(scale)), 1e-300)
+    return float(np.max(np.abs(a - ref)[:, keep] / scale[keep], initial=0.0))
+
+
+def engines_agreement(spec: RobotSpec, gravity_W: np.ndarray, base: BaseMotion, q: np.ndarray, qd: np.ndarray,
+                      qdd: np.ndarray, seed: int) -> dict[str, float]:
+    """MuJoCo's free joint against Pinocchio's free-flyer at the states (base, q, q', q''), with a wrench on
+    the base and on the outermost body (uniform within +-10 N and +-1 N m, drawn with `seed`): the largest
+    relative difference of the base rows and of the joints' torques (each row's or joint's over its
+    largest |value|), and of the mass matrices (over its largest entry)."""
+    N = len(q)
+    rng = np.random.default_rng(seed)
+    outer = spec.massive_bodies[-1].name if spec.massive_bodies else spec.floating.body.name
+    wrenches = tuple(Wrench(b, rng.uniform(-10, 10, (N, 3)), rng.uniform(-1, 1, (N, 3)))
+                     for b in dict.fromkeys((spec.floating.body.name, outer)))
+    mj, pn = (inverse_dynamics(spec, gravity_W, base, q, qd, qdd, e, wrenches) for e in ENGINES)
+    M_mj, M_pn = (mass_matrix(spec, base, q, e) for e in ENGINES)
+    return {"engines": max(_largest(mj.base, pn.base), _largest(mj.tau, pn.tau)),
+            "mass_matrix": float(np.max(np.abs(M_mj - M_pn)) / np.max(np.abs(M_pn)))}

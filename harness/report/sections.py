@@ -220,6 +220,16 @@ def estimator_comparison(r: dict) -> str:
         + fig_bias + fig_cov)
 
 
+def _floating(fl: dict | None) -> str:
+    """A floating base's part of the torques section: the robot judged with its base free."""
+    if not fl:
+        return ""
+    return (f"<h3>A floating base</h3><p>The base {esc(fl['base'])} (joint {esc(fl['joint'])}) judged free at "
+            f"{fl['states']} states: the engines differ by {num(fl['engines_max_rel_error'])} in the base's rows and "
+            f"the joints' torques and by {num(fl['mass_matrix_max_rel_error'])} in the mass matrix "
+            f"({esc(fl['definition'])}).</p>")
+
+
 def _closed_chain(cc: dict | None) -> str:
     """A closed chain's part of the torques section: what the actuated torques are, and its loops."""
     if not cc:
@@ -325,7 +335,7 @@ def torques(r: dict) -> str:
         "torques",
         "Joint torques",
         intro
-        + _closed_chain(tq.get("closed_chain"))
+        + _closed_chain(tq.get("closed_chain")) + _floating(tq.get("floating"))
         + table(["pair", "largest abs error", "where", "largest rel error", "where"], rows)
         + "<h3>Largest relative error per joint</h3>"
         + table(["pair", *tq["joints"]], per_joint)

@@ -1,9 +1,9 @@
 """The audit's figures for a floating base (harness/runner/audit.py): the robot with its base free
 (harness/engines/floating.py) at random states (base poses uniform on SO(3), the joints within their
-limits), with a wrench on the base and one on the outermost body, in the harness's convention
-(harness/model/floating.py):
+limits), in the harness's convention (harness/model/floating.py):
 - MuJoCo's free joint against Pinocchio's free-flyer, both built from the harness's reading: the
-  inverse dynamics (the base's six rows and the joints') and the mass matrix;
+  inverse dynamics (the base's six rows and the joints'), with a wrench on the base and one on the
+  outermost body, and the mass matrix (harness/engines/floating.py, engines_agreement);
 - Pinocchio's own parser of the file, its free-flyer kept (placed where the file draws the base: its
   configuration is that placement's inverse times the base's pose; its velocities are the base's, in
   base axes), against the harness's Pinocchio model, without wrenches;
@@ -22,21 +22,13 @@ from harness.model.spec import RobotSpec
 def floating_figures(spec: RobotSpec, described: Path | None, states, seed: int, largest) -> dict:
     """{figure: value} for the robot's floating base; `states` (q, q', q'') of its joints, `largest`
     the audit's relative error (a, reference) -> float."""
-    from harness.engines.floating import Wrench, inverse_dynamics, mass_matrix
+    from harness.engines.floating import engines_agreement, inverse_dynamics
     from harness.model.floating import random_base_motion
 
     q, qd, qdd = states
-    N = len(q)
-    base = random_base_motion(N, seed)
-    rng = np.random.default_rng(seed)
-    outer = spec.massive_bodies[-1].name if spec.massive_bodies else spec.floating.body.name
-    wrenches = tuple(Wrench(b, rng.uniform(-10, 10, (N, 3)), rng.uniform(-1, 1, (N, 3)))
-                     for b in dict.fromkeys((spec.floating.body.name, outer)))
+    base = random_base_motion(len(q), seed)
     g = np.array([0.0, 0.0, -9.81])
-    mj, pn = (inverse_dynamics(spec, g, base, q, qd, qdd, e, wrenches) for e in ("mujoco", "pinocchio"))
-    M_mj, M_pn = (mass_matrix(spec, base, q, e) for e in ("mujoco", "pinocchio"))
-    out = {"floating_engines": max(largest(mj.base, pn.base), largest(mj.tau, pn.tau) if q.shape[1] else 0.0),
-           "floating_mass_matrix": float(np.max(np.abs(M_mj - M_pn)) / np.max(np.abs(M_pn)))}
+    out = {f"floating_{k}": v for k, v in engines_agreement(spec, g, base, q, qd, qdd, seed).items()}
     if described is None:
         return out
     ours = inverse_dynamics(spec, g, base, q, qd, qdd, "pinocchio")

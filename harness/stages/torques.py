@@ -65,6 +65,7 @@ class TorqueComparison:
     random: RandomStates | None = None  # when there is a model under test
     wrench_joints: list[str] | None = None  # the joints of F_pin .. M_rec where they are not `joints` (a closed chain)
     closed_chain: dict | None = None  # a closed chain's projection, its loops and their figures
+    floating: dict | None = None  # a floating base's figures with the base free (`_floating`)
 
     def sources(self) -> dict[str, np.ndarray]:
         return {"mujoco": self.mujoco, "pinocchio": self.pinocchio, **{m.name: m.tau for m in self.models}}
@@ -85,6 +86,7 @@ class TorqueComparison:
         return {
             "joints": joints,
             **({"closed_chain": self.closed_chain} if self.closed_chain is not None else {}),
+            **({"floating": self.floating} if self.floating is not None else {}),
             "definition": DEFINITION,
             "load_scale": dict(zip(joints, floats(self.load_scale), strict=True)),
             "models": {m.name: {"plugin": m.reference, "model_file": m.model_file,
@@ -199,7 +201,30 @@ def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
                                            random.q, random.qd, random.qdd))
             for m, e in zip(models, sc.models, strict=True))
     return TorqueComparison(joints, rec.t, joint_load_scale(sc.robot, rec), rec.tau[:, cols], pin.tau,
-                            pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models, random)
+                            pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models, random,
+                            floating=_floating(sc, q[rows], qd[rows], qdd[rows], (config or RandomStatesConfig()).seed))
+
+
+FLOATING_DEFINITION = (
+    "the robot with its floating base free (harness/engines/floating.py): MuJoCo's free joint against Pinocchio's "
+    "free-flyer, both built from the model, at the recording's joint states at the mass-matrix rows, each with a "
+    "random base state (orientation uniform on SO(3)) and a wrench on the base and on the outermost body: the "
+    "largest difference of the base's six rows and of the joints' torques over each one's largest |value|, and of "
+    "the mass matrices over their largest entry. The simulation and every other figure take the base fixed at the "
+    "file's pose")
+
+
+def _floating(sc, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, seed: int) -> dict | None:
+    """A floating base's figures with the base free (FLOATING_DEFINITION), None without one."""
+    if sc.robot.floating is None:
+        return None
+    from harness.engines.floating import engines_agreement
+    from harness.model.floating import random_base_motion
+
+    figures = engines_agreement(sc.robot, sc.gravity_W, random_base_motion(len(q), seed), q, qd, qdd, seed)
+    return {"base": sc.robot.floating.body.name, "joint": sc.robot.floating.joint, "states": len(q),
+            "engines_max_rel_error": figures["engines"], "mass_matrix_max_rel_error": figures["mass_matrix"],
+            "definition": FLOATING_DEFINITION}
 
 
 
