@@ -70,7 +70,7 @@ def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str |
             files[name] = text if text is not None else files[name]
             files.update(named)
         head = f"# The robot the harness simulates (MuJoCo) and takes as the truth (Pinocchio): your {kind} file.\n"
-        joints, mimic = _joints(robot, key, flag)
+        joints, mimic, floating = _joints(robot, key, flag)
         if mimic:
             head += ("# Its <mimic> joints are read as joints of their own (the project moves every joint and runs\n"
                      "# your model and method, a tree's); remove `mimic` to read them as couplings\n"
@@ -78,7 +78,7 @@ def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str |
         files["robot.toml"] = head + tomli_w.dumps({"model": {"name": "my_robot",
                                                               "description": f"My robot, from its {kind} file"},
                                                     key: {"file": name, **({"mimic": "independent"} if mimic else {})}})
-        files["scenario.toml"], files["validation.toml"] = scenarios(joints)
+        files["scenario.toml"], files["validation.toml"] = scenarios(joints, floating)
         files["my_robot.py"] = ((TEMPLATE / "urdf" / "model.py").read_text() + method).replace(
             'ROBOT_FILE = "robot.urdf"', f'ROBOT_FILE = "{name}"')
     files["ci-job.yml"] = files["ci-job.yml"].replace("HARNESS_DISTRIBUTION", DISTRIBUTION)
@@ -129,10 +129,11 @@ def named_files(robot: Path, flag: str) -> tuple[str | None, dict[str, Path]]:
     return robot_text, out
 
 
-def _joints(robot: Path, key: str, flag: str) -> tuple[list[tuple[str, float, float, float | None]], bool]:
+def _joints(robot: Path, key: str, flag: str) -> tuple[list[tuple[str, float, float, float | None]], bool, bool]:
     """(name, middle, half range, velocity limit) of every joint of the robot file (`key`: urdf or
-    mjcf), read as the harness reads it, and whether a URDF's <mimic> joints are read as joints of their
-    own (the project moves every joint); a file it refuses is refused here, naming the file."""
+    mjcf), read as the harness reads it, whether a URDF's <mimic> joints are read as joints of their
+    own (the project moves every joint), and whether it has a floating base; a file it refuses is
+    refused here, naming the file."""
     from harness.model.load import load_spec
 
     path = Path(robot).resolve()
@@ -161,11 +162,17 @@ def _joints(robot: Path, key: str, flag: str) -> tuple[list[tuple[str, float, fl
         else:
             middle, half = 0.0, DEFAULT_HALF_RANGE[j.revolute]
         out.append((j.name, float(middle), float(half), (spec.drive_limits or {}).get(j.name, {}).get("velocity")))
-    return out, mimic
+    return out, mimic, spec.floating is not None
 
 
-def scenarios(joints: list[tuple[str, float, float, float | None]]) -> tuple[str, str]:
-    """scenario.toml (the model, the method, the gates) and validation.toml, both moving every joint."""
+FLOATING_GATES = [  # a floating base judged free (docs/floating_base.md): round-off, about 1e-15
+    ("torques.floating.engines_max_rel_error", 1e-9), ("torques.floating.mass_matrix_max_rel_error", 1e-9),
+]
+
+
+def scenarios(joints: list[tuple[str, float, float, float | None]], floating: bool = False) -> tuple[str, str]:
+    """scenario.toml (the model, the method, the gates) and validation.toml, both moving every joint;
+    with a `floating` base (which the bench fixes at the file's pose), the gates on it judged free."""
     def motion(base: float, step: float, shift: float) -> dict:
         table = {}
         for k, (name, middle, half, velocity) in enumerate(joints):
@@ -183,11 +190,14 @@ def scenarios(joints: list[tuple[str, float, float, float | None]]) -> tuple[str
             "motion": motion(1.1, 0.3, 0.0),
             "model_under_test": {"name": "mine", "python": "my_robot:make_model"},
             "identification": {"name": "ls", "python": "my_robot:make_method", "validation": "validation.toml"},
-            "gates": [{"metric": m, "limit": limit} for m, limit in GATES]}
+            "gates": [{"metric": m, "limit": limit} for m, limit in GATES + (FLOATING_GATES if floating else [])]}
     validation = {"scenario": {"description": "Validation trajectory for my robot", **head},
                   "motion": motion(0.8, 0.25, 0.1),
                   "gates": [{"metric": "torques.pinocchio_vs_mujoco.max_rel_error", "limit": 1e-9}]}
     note = ("# Written by `harness init` from your robot file: every joint moves about the middle of its range, at\n"
             "# most a third of the way to its limits and at half its velocity limit. Change the motions to the ones\n"
             "# your robot runs.\n")
+    if floating:
+        note += ("# Its floating base is fixed at the file's pose while the joints move; torques.floating judges the\n"
+                 "# robot with the base free (docs/floating_base.md).\n")
     return note + tomli_w.dumps(main), note + tomli_w.dumps(validation)
