@@ -501,8 +501,8 @@ def test_init_at_humanoid_scale_passes_its_run_and_its_pytest_out_of_the_box(tmp
     their own, a keyframe, a free joint and a second root body on a hinge (its meshes were not copied,
     Pinocchio's parser stopped at the keyframe and read the first root body alone): `harness init`, then
     `harness run scenario.toml` passes, every joint judged, its report saying the humanoid's floating base
-    was fixed on the bench (and two gates judging it free), and the project's own pytest (the same run through the harness_run fixture: run for the
-    MJCF project, whose run is the shorter)."""
+    was fixed on the bench (and two gates judging it free), and the project's own pytest (the same run
+    through the harness_run fixture: run for the MJCF project, whose run is the shorter)."""
     from harness.model.urdf import example_robot_data_path
     from tests.conftest import humanoid_mjcf
 
