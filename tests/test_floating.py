@@ -195,7 +195,7 @@ def test_a_scenario_on_a_floating_robot_judges_it_free_beside_its_fixed_run(tmp_
     """`harness run` on the trunk-and-legs MJCF: the bench runs with the base fixed at the file's pose (said
     once on the terminal), and results.json's torques.floating judges the robot with its base free at the
     recording's joint states (the engines' base rows, joints' torques and mass matrices), gated like any
-    metric: to 1e-9 and 1e-12 (round-off ~1e-15)."""
+    metric: to 1e-9 and 1e-12 (round-off ~1e-15), the base where [base_motion] puts it at those times."""
     import json
 
     from harness.cli import main
@@ -208,8 +208,71 @@ def test_a_scenario_on_a_floating_robot_judges_it_free_beside_its_fixed_run(tmp_
         ("torques.pinocchio_vs_mujoco.max_rel_error", 1e-9), ("torques.floating.engines_max_rel_error", 1e-9),
         ("torques.floating.mass_matrix_max_rel_error", 1e-12)))
     head = '[scenario]\nmodel = "m.toml"\nduration = 0.2\noutput_steps = 20\n'
-    (tmp_path / "s.toml").write_text(head + motion + gates)
+    base = '[base_motion.yaw]\ntype = "sinusoids"\noffset = 0.3\nsin = [[1.0, 2.0]]\n'
+    (tmp_path / "s.toml").write_text(head + motion + base + gates)
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     assert capsys.readouterr().err.count("the floating base is taken as fixed to the world") == 1
     fl = json.loads((tmp_path / "out" / "results.json").read_text())["torques"]["floating"]
-    assert (fl["base"], fl["joint"], fl["states"]) == ("trunk", "root", 20)
+    assert (fl["base"], fl["joint"], fl["states"], fl["base_motion"]) == ("trunk", "root", 20, "[base_motion]")
+
+
+def _trajectory():
+    from harness.base.tomlio import Table
+    from harness.model.spec import Body, FloatingBase
+    from harness.sources.base_motion import read_base_motion
+
+    tilt = quaternion.to_matrix(np.array([0.9, 0.2, -0.3, 0.1]) / np.linalg.norm([0.9, 0.2, -0.3, 0.1]))
+    fb = FloatingBase("root", Body("trunk", 1.0, np.eye(3), np.eye(3), np.zeros(3)), tilt, np.array([0.1, -0.2, 0.5]))
+    table = {"x": {"type": "sinusoids", "offset": 0.05, "sin": [[0.2, 1.5]]},
+             "z": {"type": "polynomial", "coefficients": [0.0, 0.3, -0.2]},
+             "roll": {"type": "sinusoids", "offset": 0.1, "sin": [[0.6, 3.0]], "cos": [[0.2, 1.1]]},
+             "pitch": {"type": "sinusoids", "offset": 1.4, "sin": [[0.5, 2.3]]},  # through pitch = pi / 2
+             "yaw": {"type": "polynomial", "coefficients": [0.3, -1.0, 0.8]}}
+    return read_base_motion(Table(table, Path("s.toml"), "base_motion"), fb)
+
+
+def test_a_prescribed_base_motion_s_twist_and_acceleration_are_its_pose_s_derivatives():
+    """[base_motion]'s base twist and acceleration (exact, harness/sources/base_motion.py) against central
+    differences of its pose (h = 1e-5 s: truncation ~ h^2 |x'''| ~ 1e-9, round-off ~ eps / h ~ 1e-11; bound
+    1e-7), through pitch = pi/2, where roll-pitch-yaw angles would be singular and the product of rotations
+    is not; every quaternion unit (a product of rotations, never a sum of quaternions)."""
+    trajectory = _trajectory()
+    t, h = np.linspace(0.0, 2.0, 41), 1e-5
+    now, ahead, behind = (trajectory.evaluate(t + d) for d in (0.0, h, -h))
+    assert np.abs(np.linalg.norm(now.quat_wxyz, axis=1) - 1.0).max() <= 1e-15
+    dR = (ahead.R_WB - behind.R_WB) / (2 * h) @ np.swapaxes(now.R_WB, 1, 2)  # [omega_W]x
+    omega = np.stack([dR[:, 2, 1], dR[:, 0, 2], dR[:, 1, 0]], axis=1)
+    np.testing.assert_allclose(omega, now.omega_W, atol=1e-7)
+    np.testing.assert_allclose((ahead.omega_W - behind.omega_W) / (2 * h), now.alpha_W, atol=1e-7)
+    np.testing.assert_allclose((ahead.p_W - behind.p_W) / (2 * h), now.v_W, atol=1e-7)
+    np.testing.assert_allclose((ahead.v_W - behind.v_W) / (2 * h), now.a_W, atol=1e-7)
+    at_rest = trajectory.evaluate(np.zeros(1))
+    expected = quaternion.from_matrix(trajectory.R_WF0 @ _rotation(0, 0.1 + 0.2) @ _rotation(1, 1.4)
+                                      @ _rotation(2, 0.3))
+    np.testing.assert_allclose(at_rest.quat_wxyz[0], expected, atol=1e-15)
+
+
+def _rotation(axis: int, angle: float) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_rotvec(angle * np.eye(3)[axis]).as_matrix()
+
+
+def test_a_base_motion_for_a_robot_without_a_floating_base_or_of_another_coordinate_is_refused(tmp_path):
+    from harness.base.tomlio import InputError
+    from harness.runner.scenario import load_scenario
+
+    (tmp_path / "robot.xml").write_text(DOG)
+    (tmp_path / "fixed.xml").write_text(DOG.replace('<freejoint name="root"/>', ""))
+    motion = "".join(f'[motion.{j}]\ntype = "locked"\n' for j in ("hip", "knee", "a1", "a2"))
+    for model, base, key, said in (("fixed.xml", "[base_motion.x]\ntype = \"locked\"\n", "base_motion",
+                                    "has no floating base"),
+                                   ("robot.xml", "[base_motion.surge]\ntype = \"locked\"\n", "base_motion.surge",
+                                    "unknown key")):
+        (tmp_path / "m.toml").write_text(f'[mjcf]\nfile = "{model}"\n')
+        gate = '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n'
+        (tmp_path / "s.toml").write_text('[scenario]\nmodel = "m.toml"\nduration = 0.2\noutput_steps = 20\n'
+                                         + motion + base + gate)
+        with pytest.raises(InputError) as err:
+            load_scenario(tmp_path / "s.toml")
+        assert err.value.key == key and said in str(err.value) and "\n" not in err.value.one_line()

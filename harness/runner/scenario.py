@@ -1,18 +1,16 @@
 """Scenario: which model, how every joint moves, for how long, what is sampled; scenarios/*.toml.
 
-A scenario names its model by a path relative to the scenario file, prescribes the motion of
-every joint of that model (no joint is left implicit), and states the output grid: `duration`
-split into `output_steps` equal steps, so the recording has output_steps + 1 rows from t = 0.
-`sample_times` (the identification instants of the paper, section 3.1) must lie on that grid, or
-be "all" for every output step. `[measurement]` states what the test bench reports
-(harness.sources.measurement).
+A scenario names its model by a path relative to the scenario file, prescribes the motion of every
+joint of that model (no joint is left implicit; a floating base's in `[base_motion]`), and states the
+output grid: `duration` split into `output_steps` equal steps, so the recording has output_steps + 1
+rows from t = 0. `sample_times` (the identification instants of the paper, section 3.1) must lie on
+that grid, or be "all". `[measurement]` states what the bench reports (harness.sources.measurement).
 
 What is judged is named, never implied: `[model_under_test]` (one table, or `[[model_under_test]]`
 for several) names each model under test, `[identification]` each identification method, both
 plugins (harness/base/plugins.py); `[studies.NAME]` asks for a study's stages (a paper's, or a user's)
 and holds its settings. `[scenario] gate_sets` includes shared gate files; the scenario's own
-`[[gates]]` add to them and replace an included gate on the same metric.
-"""
+`[[gates]]` add to them and replace an included gate on the same metric."""
 
 from __future__ import annotations
 
@@ -45,6 +43,7 @@ from harness.engines.simulation import INTEGRATORS, Simulation
 from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate, read_gates
+from harness.sources.base_motion import read_scenario_base_motion
 from harness.sources.log import DataSource, check_columns, read_source
 from harness.sources.log.channels import logged, supported
 from harness.sources.measurement import Measurement, read_measurement
@@ -112,6 +111,7 @@ class Scenario:
     methods: tuple[PluginEntry, ...] = ()  # identification methods under test
     studies: tuple[tuple[Study, Any], ...] = ()  # (study, its configuration), in the file's order
     configs: dict[str, Any] = field(default_factory=dict)  # a core stage's key -> its configuration, from its table
+    base_motion: Any = None  # a floating base's [base_motion] (harness/sources/base_motion.py), else None
 
     def related(self, t: Table, key: str) -> Scenario:
         """Another scenario this one names under `key` of table `t` (relative to this file)."""
@@ -389,8 +389,10 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         if root.has(table):
             raise root.error(table, "a table of a run on a measured log: the scenario needs [data]")
     studies = _read_studies(root, scenario, path)
+    base_motion = read_scenario_base_motion(root, robot)
     root.finish()
-    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies))
+    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies),
+                               base_motion=base_motion)
 
 
 # a closed chain's scenario judges its actuated torques, its loops and its joint-torque identification
@@ -399,8 +401,7 @@ CLOSED_CHAIN_LATER = ("excitation", "identification", "studies", "estimators", "
 
 
 def _read_motions(motion_table: Table, robot: RobotSpec, duration: float, output_steps: int) -> dict[str, Motion]:
-    """`[motion]`: every joint of the robot (of a closed chain, every actuated joint), and no other, each
-    finite over the run."""
+    """`[motion]`: every joint of the robot (a closed chain's actuated ones), no other, finite over the run."""
     motion = {}
     for name in motion_table.data:
         if name not in robot.joint_names:
@@ -559,8 +560,7 @@ def _gravity(given: list | None, robot: RobotSpec) -> np.ndarray:
 def _read_plugin(t: Table, path: Path, scenario: Scenario, group: str, protocol: type) -> PluginEntry:
     """[model_under_test] / [identification]: name; python = "module:attribute" or plugin = entry
     point name; model = a robot description file to build it from (default: the scenario's robot);
-    validation = another scenario (identification methods); any further keys are passed to the
-    factory as `parameters`."""
+    validation = another scenario (identification methods); further keys: the factory's `parameters`."""
     name = t.string("name")
     if not name.isidentifier():
         raise t.error("name", f"{name!r} must be a plain identifier (letters, digits, _): it names metrics")

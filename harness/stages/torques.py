@@ -202,27 +202,30 @@ def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
             for m, e in zip(models, sc.models, strict=True))
     return TorqueComparison(joints, rec.t, joint_load_scale(sc.robot, rec), rec.tau[:, cols], pin.tau,
                             pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models, random,
-                            floating=_floating(sc, q[rows], qd[rows], qdd[rows], (config or RandomStatesConfig()).seed))
+                            floating=_floating(sc, rec.t[rows], q[rows], qd[rows], qdd[rows],
+                                               (config or RandomStatesConfig()).seed))
 
 
 FLOATING_DEFINITION = (
     "the robot with its floating base free (harness/engines/floating.py): MuJoCo's free joint against Pinocchio's "
-    "free-flyer, both built from the model, at the recording's joint states at the mass-matrix rows, each with a "
-    "random base state (orientation uniform on SO(3)) and a wrench on the base and on the outermost body: the "
-    "largest difference of the base's six rows and of the joints' torques over each one's largest |value|, and of "
-    "the mass matrices over their largest entry. The simulation and every other figure take the base fixed at the "
-    "file's pose")
+    "free-flyer, both built from the model, at the recording's joint states at the mass-matrix rows, the base "
+    "where [base_motion] puts it at those times (else a random state, its orientation uniform on SO(3)), with a "
+    "wrench on the base and on the outermost body: the largest difference of the base's six rows and of the "
+    "joints' torques over each one's largest |value|, and of the mass matrices over their largest entry. The "
+    "simulation and every other figure take the base fixed at the file's pose")
 
 
-def _floating(sc, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, seed: int) -> dict | None:
+def _floating(sc, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, seed: int) -> dict | None:
     """A floating base's figures with the base free (FLOATING_DEFINITION), None without one."""
     if sc.robot.floating is None:
         return None
     from harness.engines.floating import engines_agreement
     from harness.model.floating import random_base_motion
 
-    figures = engines_agreement(sc.robot, sc.gravity_W, random_base_motion(len(q), seed), q, qd, qdd, seed)
+    base = sc.base_motion.evaluate(t) if sc.base_motion is not None else random_base_motion(len(q), seed)
+    figures = engines_agreement(sc.robot, sc.gravity_W, base, q, qd, qdd, seed)
     return {"base": sc.robot.floating.body.name, "joint": sc.robot.floating.joint, "states": len(q),
+            "base_motion": "[base_motion]" if sc.base_motion is not None else "random",
             "engines_max_rel_error": figures["engines"], "mass_matrix_max_rel_error": figures["mass_matrix"],
             "definition": FLOATING_DEFINITION}
 
