@@ -149,7 +149,7 @@ def mass_matrix(spec: RobotSpec, base: BaseMotion, q: np.ndarray, engine: str) -
     return np.swapaxes(T, 1, 2) @ M @ T
 
 
-def _largest(a: np.ndarray, ref: np.ndarray) -> float:
+def largest_difference(a: np.ndarray, ref: np.ndarray) -> float:
     """Largest |a - ref| over each column's largest |ref| (a column that carries nothing: skipped)."""
     if not ref.size:
         return 0.0
@@ -171,5 +171,5 @@ def engines_agreement(spec: RobotSpec, gravity_W: np.ndarray, base: BaseMotion, 
                      for b in dict.fromkeys((spec.floating.body.name, outer)))
     mj, pn = (inverse_dynamics(spec, gravity_W, base, q, qd, qdd, e, wrenches) for e in ENGINES)
     M_mj, M_pn = (mass_matrix(spec, base, q, e) for e in ENGINES)
-    return {"engines": max(_largest(mj.base, pn.base), _largest(mj.tau, pn.tau)),
+    return {"engines": max(largest_difference(mj.base, pn.base), largest_difference(mj.tau, pn.tau)),
             "mass_matrix": float(np.max(np.abs(M_mj - M_pn)) / np.max(np.abs(M_pn)))}

@@ -227,7 +227,28 @@ def _floating(sc, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
     return {"base": sc.robot.floating.body.name, "joint": sc.robot.floating.joint, "states": len(q),
             "base_motion": "[base_motion]" if sc.base_motion is not None else "random",
             "engines_max_rel_error": figures["engines"], "mass_matrix_max_rel_error": figures["mass_matrix"],
-            "definition": FLOATING_DEFINITION}
+            **_floating_models(sc, base, q, qd, qdd), "definition": FLOATING_DEFINITION}
+
+
+def _floating_models(sc, base, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> dict[str, float]:
+    """Each model under test that answers with the base free (an optional `floating_inverse_dynamics(base, q,
+    q', q'')`: the base's six rows, then its joints' torques, rigid bodies) against Pinocchio's free-flyer:
+    `<name>_vs_pinocchio_max_rel_error`, each row and joint over its largest |value|."""
+    from harness.base.plugins import call, column_maps
+    from harness.engines.floating import inverse_dynamics, largest_difference
+
+    ref = inverse_dynamics(sc.robot, sc.gravity_W, base, q, qd, qdd, "pinocchio")
+    reference = np.concatenate([ref.base, ref.tau], axis=1)
+    out = {}
+    for e in sc.models:
+        if not callable(getattr(e.instance, "floating_inverse_dynamics", None)):
+            continue
+        to_model, back = column_maps(e.instance.joint_names, sc.robot.joint_names)
+        theirs = call(e.reference, "floating_inverse_dynamics", e.instance.floating_inverse_dynamics, base,
+                      q[:, to_model], qd[:, to_model], qdd[:, to_model], shape=(len(q), 6 + q.shape[1]))
+        theirs = np.concatenate([theirs[:, :6], theirs[:, 6:][:, back]], axis=1)
+        out[f"{e.name}_vs_pinocchio_max_rel_error"] = largest_difference(theirs, reference)
+    return out
 
 
 

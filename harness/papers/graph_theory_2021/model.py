@@ -46,6 +46,16 @@ class GraphTheoryModel:
         out = self.solve(q, qd, qdd)
         return out.F_W, out.M_W
 
+    def floating_inverse_dynamics(self, base, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        """With the robot's floating base free (harness/model/floating.py, BaseMotion `base`): the base's six
+        rows [F_W, M_W] (the world's wrench on it about its frame's origin) and the joints' torques, (N,
+        6 + n), rigid bodies (harness/papers/graph_theory_2021/floating.py: the base a six-degree-of-freedom
+        joint to the ground)."""
+        from harness.papers.graph_theory_2021.floating import floating_inverse_dynamics
+
+        rows, tau = floating_inverse_dynamics(self.spec, self.graph, base, q, qd, qdd)
+        return np.concatenate([rows, tau], axis=1)
+
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """M(q) column by column from the same equations: with no velocity, M e_k is the torque of a
         unit acceleration of joint k less that of none (gravity cancels)."""
