@@ -481,8 +481,8 @@ def test_init_from_an_mjcf_file_passes_with_its_armature_damping_and_frictionlos
 
 def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_does(tmp_path):
     """The same arm on a free joint: the harness fixes the base where the file puts it, and so does the
-    placeholder (Pinocchio's MJCF parser builds the free joint; it is locked at its neutral pose), so
-    the project passes all six gates."""
+    placeholder (Pinocchio's MJCF parser builds the free joint; it is locked at MuJoCo's qpos0, the
+    file's pose), so the project passes all six gates, and the two that judge the base free."""
     from tests.test_mjcf import ARM
 
     base = '<body name="base" pos="0 0 0.1">'
@@ -490,7 +490,8 @@ def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_
     assert main(["init", str(tmp_path / "p"), "--mjcf", str(tmp_path / "arm.xml")]) == 0
     assert main(["run", str(tmp_path / "p" / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
     results = json.loads((tmp_path / "o" / "results.json").read_text())
-    assert len(results["gates"]) == 6 and all(g["passed"] for g in results["gates"])
+    assert len(results["gates"]) == 8 and all(g["passed"] for g in results["gates"])
+    assert sum(g["metric"].startswith("torques.floating.") for g in results["gates"]) == 2
 
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
