@@ -46,6 +46,14 @@ def relative_error(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> np.ndarra
         return np.abs(a - b) / scale
 
 
+def largest_relative_difference(a: np.ndarray, ref: np.ndarray) -> float:
+    """Largest |a - ref| over each column's largest |ref| ((N, m) each; a column that carries nothing, below
+    1e-12 of the largest, skipped): two readings of the same torques, joint by joint."""
+    scale = np.max(np.abs(ref), axis=0)
+    scale = np.where(scale > 1e-12 * max(float(np.max(scale, initial=0.0)), 1e-300), scale, np.inf)
+    return float(np.max(relative_error(a, ref, scale), initial=0.0))
+
+
 def relative_residual(e: np.ndarray, reference: np.ndarray) -> float:
     """||e||_F / ||reference||_F: a fit's residual e (or predicted - measured) relative to what it fits,
     over every sample and joint at once (the figure published identifications quote). 0/0 is NaN."""

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from harness.base.numerics import largest_relative_difference
 from harness.model import floating
 from harness.model.floating import BaseMotion
 from harness.model.spec import RobotSpec
@@ -149,15 +150,6 @@ def mass_matrix(spec: RobotSpec, base: BaseMotion, q: np.ndarray, engine: str) -
     return np.swapaxes(T, 1, 2) @ M @ T
 
 
-def largest_difference(a: np.ndarray, ref: np.ndarray) -> float:
-    """Largest |a - ref| over each column's largest |ref| (a column that carries nothing: skipped)."""
-    if not ref.size:
-        return 0.0
-    scale = np.max(np.abs(ref), axis=0)
-    keep = scale > 1e-12 * max(float(np.max(scale)), 1e-300)
-    return float(np.max(np.abs(a - ref)[:, keep] / scale[keep], initial=0.0))
-
-
 def engines_agreement(spec: RobotSpec, gravity_W: np.ndarray, base: BaseMotion, q: np.ndarray, qd: np.ndarray,
                       qdd: np.ndarray, seed: int) -> dict[str, float]:
     """MuJoCo's free joint against Pinocchio's free-flyer at the states (base, q, q', q''), with a wrench on
@@ -171,5 +163,5 @@ def engines_agreement(spec: RobotSpec, gravity_W: np.ndarray, base: BaseMotion, 
                      for b in dict.fromkeys((spec.floating.body.name, outer)))
     mj, pn = (inverse_dynamics(spec, gravity_W, base, q, qd, qdd, e, wrenches) for e in ENGINES)
     M_mj, M_pn = (mass_matrix(spec, base, q, e) for e in ENGINES)
-    return {"engines": max(largest_difference(mj.base, pn.base), largest_difference(mj.tau, pn.tau)),
+    return {"engines": max(largest_relative_difference(mj.base, pn.base), largest_relative_difference(mj.tau, pn.tau)),
             "mass_matrix": float(np.max(np.abs(M_mj - M_pn)) / np.max(np.abs(M_pn)))}

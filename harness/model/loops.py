@@ -94,7 +94,7 @@ def residual_and_jacobian(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarra
     return _residual(spec, loops, kin, q), _jacobian(spec, loops, kin, len(q))
 
 
-def _coupling_row(spec: RobotSpec, loop: Loop) -> np.ndarray:
+def coupling_row(spec: RobotSpec, loop: Loop) -> np.ndarray:
     """(n_joints,) a coupling's Jacobian row e_f - r e_l."""
     row = np.zeros(len(spec.joints))
     row[spec.joint_names.index(loop.follower)] = 1.0
@@ -107,7 +107,7 @@ def _residual(spec: RobotSpec, loops: tuple[Loop, ...], kin: TreeKinematics, q: 
     out = []
     for loop in loops:
         if not loop.joins_points:
-            out.append((q @ _coupling_row(spec, loop) - loop.offset)[:, None])
+            out.append((q @ coupling_row(spec, loop) - loop.offset)[:, None])
             continue
         out.append(_point_now(spec, kin, loop.body_a, loop.point_a_W0)
                    - _point_now(spec, kin, loop.body_b, loop.point_b_W0))
@@ -149,7 +149,7 @@ def _jacobian(spec: RobotSpec, loops: tuple[Loop, ...], kin: TreeKinematics, N: 
     out = []
     for loop in loops:
         if not loop.joins_points:
-            out.append(np.broadcast_to(_coupling_row(spec, loop), (N, 1, len(spec.joints))))
+            out.append(np.broadcast_to(coupling_row(spec, loop), (N, 1, len(spec.joints))))
             continue
         out.append(_point_columns(spec, kin, loop.body_a, _point_now(spec, kin, loop.body_a, loop.point_a_W0))
                    - _point_columns(spec, kin, loop.body_b, _point_now(spec, kin, loop.body_b, loop.point_b_W0)))

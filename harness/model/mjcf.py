@@ -139,10 +139,7 @@ def _read(model, mujoco, path: Path) -> tuple:
             groups.setdefault(owner[b], []).append(b)
     bodies = []
     for b, members in groups.items():
-        parts = []
-        for k in members:
-            R = data.ximat[k].reshape(3, 3)
-            parts.append((float(model.body_mass[k]), data.xipos[k].copy(), R @ np.diag(model.body_inertia[k]) @ R.T))
+        parts = _parts(model, data, members)
         mass = sum(p[0] for p in parts)
         name = _name(model, obj.mjOBJ_BODY, b)
         if mass <= 0:
@@ -200,16 +197,21 @@ def _floating_base(model, data, mujoco, free_root: int, owner: dict):
             b = int(model.body_parentid[b])
         return False
 
-    parts = []
-    for k in (b for b in range(1, model.nbody) if on_base(b)):
-        R = data.ximat[k].reshape(3, 3)
-        parts.append((float(model.body_mass[k]), data.xipos[k].copy(), R @ np.diag(model.body_inertia[k]) @ R.T))
-    mass, com, moments, axes = union(parts)
+    mass, com, moments, axes = union(_parts(model, data, [b for b in range(1, model.nbody) if on_base(b)]))
     on_it = tuple(_name(model, obj.mjOBJ_JOINT, j) for j in range(model.njnt)
                   if j != free_root and on_base(int(model.body_parentid[model.jnt_bodyid[j]])))
     return FloatingBase(_name(model, obj.mjOBJ_JOINT, free_root),
                         Body(_name(model, obj.mjOBJ_BODY, base), mass, np.diag(moments), axes, com),
                         data.xmat[base].reshape(3, 3).copy(), data.xpos[base].copy(), on_it)
+
+
+def _parts(model, data, bodies: list[int]) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """Each MuJoCo body's (mass, centre of mass, inertia about it), world frame, for `union`."""
+    out = []
+    for k in bodies:
+        R = data.ximat[k].reshape(3, 3)
+        out.append((float(model.body_mass[k]), data.xipos[k].copy(), R @ np.diag(model.body_inertia[k]) @ R.T))
+    return out
 
 
 def _carriage(model, obj, body: int, joint: int) -> str:

@@ -232,13 +232,12 @@ def _floating_base(order: list[str], joints: list, parent_of: dict, child_of: di
     from harness.model.spec import FloatingBase
 
     joint = next((j for j in joints if j.get("type") == "floating"), None)
-    if joint is None and not root:
-        return None
-    if joint is None:  # the root link floats (a model file's `floating = true`)
-        joint = ET.Element("joint", {"name": ROOT_FLOATING_JOINT, "type": "floating"})
-        base = order[0]
+    if joint is not None:
+        name, base = joint.get("name"), child_of[joint.get("name")]
+    elif root:  # the root link floats (a model file's `floating = true`)
+        name, base = ROOT_FLOATING_JOINT, order[0]
     else:
-        base = child_of[joint.get("name")]
+        return None
     link_parent = {child_of[j.get("name")]: parent_of[j.get("name")] for j in joints}
 
     def on_base(link: str) -> bool:
@@ -252,11 +251,11 @@ def _floating_base(order: list[str], joints: list, parent_of: dict, child_of: di
 
     parts = [inertial[n] for n in order if on_base(n)]
     if not sum(p[0] for p in parts) > 0:
-        raise _Bad(f"floating joint {joint.get('name')!r}: its link {base!r} and those fixed to it have no mass")
+        raise _Bad(f"floating joint {name!r}: its link {base!r} and those fixed to it have no mass")
     mass, com, moments, axes = union(parts)
     on_it = tuple(j.get("name") for j in joints if j.get("type") in ("revolute", "continuous", "prismatic")
                   and owner.get(child_of[j.get("name")]) != WORLD and on_base(parent_of[j.get("name")]))
-    return FloatingBase(joint.get("name"), Body(base, mass, np.diag(moments), axes, com), *pose[base], on_it)
+    return FloatingBase(name, Body(base, mass, np.diag(moments), axes, com), *pose[base], on_it)
 
 
 def _couplings(kept: list, fixed: tuple[str, ...], notes: list[str]) -> tuple:

@@ -19,9 +19,9 @@ import numpy as np
 from harness.model.spec import RobotSpec
 
 
-def floating_figures(spec: RobotSpec, described: Path | None, states, seed: int, largest) -> dict:
-    """{figure: value} for the robot's floating base; `states` (q, q', q'') of its joints, `largest`
-    the audit's relative error (a, reference) -> float."""
+def floating_figures(spec: RobotSpec, described: Path | None, states, seed: int) -> dict:
+    """{figure: value} for the robot's floating base; `states` (q, q', q'') of its joints."""
+    from harness.base.numerics import largest_relative_difference as largest
     from harness.engines.floating import engines_agreement, inverse_dynamics
     from harness.model.floating import random_base_motion
 
@@ -33,12 +33,10 @@ def floating_figures(spec: RobotSpec, described: Path | None, states, seed: int,
         return out
     ours = inverse_dynamics(spec, g, base, q, qd, qdd, "pinocchio")
     theirs = _pinocchio_parse(spec, described, g, base, states)
-    out["floating_vs_pinocchio_parser"] = max(largest(ours.base, theirs[0]), largest(ours.tau, theirs[1])
-                                              if q.shape[1] else 0.0)
+    out["floating_vs_pinocchio_parser"] = max(largest(ours.base, theirs[0]), largest(ours.tau, theirs[1]))
     if described.suffix.lower() == ".xml":
         theirs = _mujoco_file(spec, described, g, base, states)
-        out["floating_vs_mujoco_file"] = max(largest(ours.base, theirs[0]), largest(ours.tau, theirs[1])
-                                             if q.shape[1] else 0.0)
+        out["floating_vs_mujoco_file"] = max(largest(ours.base, theirs[0]), largest(ours.tau, theirs[1]))
     return out
 
 

@@ -234,8 +234,9 @@ def _floating_models(sc, base, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -
     """Each model under test that answers with the base free (an optional `floating_inverse_dynamics(base, q,
     q', q'')`: the base's six rows, then its joints' torques, rigid bodies) against Pinocchio's free-flyer:
     `<name>_vs_pinocchio_max_rel_error`, each row and joint over its largest |value|."""
+    from harness.base.numerics import largest_relative_difference
     from harness.base.plugins import call, column_maps
-    from harness.engines.floating import inverse_dynamics, largest_difference
+    from harness.engines.floating import inverse_dynamics
 
     ref = inverse_dynamics(sc.robot, sc.gravity_W, base, q, qd, qdd, "pinocchio")
     reference = np.concatenate([ref.base, ref.tau], axis=1)
@@ -247,7 +248,7 @@ def _floating_models(sc, base, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -
         theirs = call(e.reference, "floating_inverse_dynamics", e.instance.floating_inverse_dynamics, base,
                       q[:, to_model], qd[:, to_model], qdd[:, to_model], shape=(len(q), 6 + q.shape[1]))
         theirs = np.concatenate([theirs[:, :6], theirs[:, 6:][:, back]], axis=1)
-        out[f"{e.name}_vs_pinocchio_max_rel_error"] = largest_difference(theirs, reference)
+        out[f"{e.name}_vs_pinocchio_max_rel_error"] = largest_relative_difference(theirs, reference)
     return out
 
 

@@ -38,6 +38,7 @@ import numpy as np
 
 from harness.model import friction
 from harness.model.kinematics import KinematicsBuffers, cross
+from harness.model.loops import coupling_row
 from harness.model.spec import WORLD, RobotSpec
 from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.papers.graph_theory_2021.inverse import joint_drives, motion_terms, newton_euler
@@ -76,9 +77,7 @@ def closed_chain_inverse(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: 
     n = len(spec.joints)
     for loop in spec.loops:
         if not loop.joins_points:  # a coupling's torque lambda on its follower, -r lambda on its leader
-            t_c = np.zeros((n, N))
-            t_c[spec.joint_names.index(loop.follower)] -= 1.0
-            t_c[spec.joint_names.index(loop.leader)] += loop.ratio
+            t_c = np.repeat(-coupling_row(spec, loop)[:, None], N, axis=1)  # the drives give the rest
             columns.append((t_c, np.zeros((3, n, N)), np.zeros((3, n, N))))
             continue
         ends = [(loop.body_a, loop.point_a_W0, 1.0), (loop.body_b, loop.point_b_W0, -1.0)]
