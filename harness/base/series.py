@@ -14,7 +14,8 @@ conditioned log).
 
 CSV columns (`columns`): t; q_J qd_J qdd_J tau_J; then, where recorded, B_x B_y B_z; B_vx B_vy B_vz;
 B_R11 B_R12 B_R13 B_R21 ... B_R33 (R_WB row by row); B_ax B_ay B_az; B_wx B_wy B_wz; B_wdx B_wdy
-B_wdz; J_Fx J_Fy J_Fz; J_Mx J_My J_Mz. Floats are written with 17 significant digits, so a series read
+B_wdz; J_Fx J_Fy J_Fz; J_Mx J_My J_Mz; a closed chain's loops' and a moving floating base's columns
+(`TimeSeries.columns`). Floats are written with 17 significant digits, so a series read
 back from CSV is bit-for-bit the one written.
 """
 
@@ -34,6 +35,10 @@ ROTATION = tuple(f"R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))  # R_WB row b
 JOINT_CHANNELS = ("q", "qd", "qdd", "tau")
 WRENCH_CHANNELS = ("F_W", "M_W")
 BODY_CHANNELS = ("p_W", "v_W", "R_WB", "a_W", "omega_W", "omegadot_W")
+BASE_COLUMNS = {"base_pose": ("x", "y", "z", "qw", "qx", "qy", "qz"),
+                "base_twist_W": ("vx", "vy", "vz", "wx", "wy", "wz"),
+                "base_rate_W": ("ax", "ay", "az", "wdx", "wdy", "wdz"),
+                "base_wrench_W": ("Fx", "Fy", "Fz", "Mx", "My", "Mz")}  # a moving base's CSV columns, base[<name>]
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,6 +115,11 @@ class TimeSeries:
     loop_M_W: np.ndarray | None = None  # (N, nb, 3) and their moment about its centre of mass
     loop_tau: np.ndarray | None = None  # (N, nj) the loops' generalised force on each joint (MuJoCo's
     # qfrc_constraint): J^T lambda, a coupling's torque pair included, which acts on no body from outside
+    # a floating base moved by the bench (harness/model/floating.py, BaseMotion.rows; world axes):
+    base_pose: np.ndarray | None = None  # (N, 7) the base frame's origin p_W and quaternion w x y z
+    base_twist_W: np.ndarray | None = None  # (N, 6) its origin's velocity v_W and angular velocity omega_W
+    base_rate_W: np.ndarray | None = None  # (N, 6) their rates a_W, alpha_W
+    base_wrench_W: np.ndarray | None = None  # (N, 6) the world's wrench on the base, F_W and M_W about its origin
     drive: Drive | None = None  # a recording's: how the engine drove it (None for a log, or read from CSV)
     meta: dict = field(default_factory=dict)
 
@@ -139,7 +149,8 @@ class TimeSeries:
         """The CSV's columns in order, {name: (N,) values}: the joints', then the bodies' and the joint
         wrenches where they are recorded, then a closed chain's loop gaps (`gap[<loop>]`, m, or rad for a
         coupling of hinges), the loops' force and moment on each body (`loopFx[<body>]` .. `loopMz[<body>]`)
-        and their generalised force on each joint (`loopTau[<joint>]`)."""
+        and their generalised force on each joint (`loopTau[<joint>]`); a moving floating base's pose,
+        twist, their rate and the world's wrench on it (`base[x]` .. `base[Mz]`, BASE_COLUMNS)."""
         cols: dict[str, np.ndarray] = {"t": self.t}
         for j, name in enumerate(self.joints):
             for k in JOINT_CHANNELS:
@@ -168,6 +179,10 @@ class TimeSeries:
         if self.loop_tau is not None:
             for j, name in enumerate(self.joints):
                 cols[f"loopTau[{name}]"] = self.loop_tau[:, j]
+        if self.base_pose is not None:
+            for field_name, names in BASE_COLUMNS.items():
+                for k, c in enumerate(names):
+                    cols[f"base[{c}]"] = getattr(self, field_name)[:, k]
         return cols
 
     def write_csv(self, path: Path) -> None:
@@ -207,6 +222,8 @@ def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:
         expected += [*(f"{j}_{k}{a}" for j in joints for k in ("F", "M") for a in XYZ),
                      *(f"{b}_{k}{a}" for b in names for k in ("", "v", "a", "w", "wd") for a in XYZ),
                      *(f"{b}_{r}" for b in names for r in ROTATION)]
+        if any(c.startswith("base[") for c in df.columns):  # a moving floating base's, all of them
+            expected += [f"base[{c}]" for columns in BASE_COLUMNS.values() for c in columns]
     missing = [c for c in expected if c not in df.columns]
     if missing:
         raise InputError(path, missing[0], f"column missing: not a complete {kind}")
@@ -239,6 +256,9 @@ def _with_bodies(df, series: dict, joints: tuple[str, ...]) -> TimeSeries:
                                                   axis=1) for kind in ("F", "M")})
     if all(f"loopTau[{j}]" in df.columns for j in joints):
         series["loop_tau"] = df[[f"loopTau[{j}]" for j in joints]].to_numpy()
+    if any(c.startswith("base[") for c in df.columns):
+        for field_name, columns in BASE_COLUMNS.items():  # every one there (read_csv)
+            series[field_name] = df[[f"base[{c}]" for c in columns]].to_numpy()
     return TimeSeries(**series, bodies=names, F_W=vec(joints, "{n}_F{s}"), M_W=vec(joints, "{n}_M{s}"),
                       p_W=vec(names, "{n}_{s}"), v_W=vec(names, "{n}_v{s}"), R_WB=R.reshape(len(df), len(names), 3, 3),
                       a_W=vec(names, "{n}_a{s}"), omega_W=vec(names, "{n}_w{s}"), omegadot_W=vec(names, "{n}_wd{s}"))

@@ -22,6 +22,7 @@ from harness.cli.common import (
     write_ci,
 )
 from harness.runner.gates import summary_line
+from harness.sources.base_motion import model_notes
 
 BORN: float | None = None  # time.perf_counter() when the `harness` command started (its package imported), by `entry`
 ENDS_WITH_COMMAND = False  # True in the child `entry` forks: the process ends when the command does
@@ -71,7 +72,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         seen.add(s.name)
     _claim_folders(args, scenarios)
     for s in scenarios:
-        for note in s.robot.notes:  # what reading the model assumed: said before any work
+        for note in model_notes(s.robot, getattr(s, "base_motion", None)):  # what reading the model assumed
             print(f"harness: warning: {s.name}: {note}", file=sys.stderr)
         for entry in s.methods:
             if entry.skipped is not None:

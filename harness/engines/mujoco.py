@@ -47,15 +47,16 @@ _MJ_INTEGRATOR = {"RK4": mujoco.mjtIntegrator.mjINT_RK4, "Euler": mujoco.mjtInte
                   "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}
 
 
-def _driven(spec: RobotSpec, gravity_W: np.ndarray, integrator: str,
-            timestep: float) -> tuple[mujoco.MjSpec, dict[str, mujoco.MjsBody]]:
+def _driven(spec: RobotSpec, gravity_W: np.ndarray, integrator: str, timestep: float,
+            floating: bool = False) -> tuple[mujoco.MjSpec, dict[str, mujoco.MjsBody]]:
     """The robot with its integrator and timestep, contacts off, and one motor per joint
-    (`drive_<joint>`, control = torque): what `build_spec` and `dynamics_spec` share."""
+    (`drive_<joint>`, control = torque): what `build_spec` and `dynamics_spec` share. With `floating`,
+    its floating base on a free joint (harness/model/mjspec.py, add_robot)."""
     ms = new_spec(spec.name, gravity_W)
     ms.option.integrator = _MJ_INTEGRATOR[integrator]
     ms.option.timestep = float(timestep)
     ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-    elements = add_robot(ms, spec)
+    elements = add_robot(ms, spec, floating=floating)
     for joint in spec.joints:
         ms.add_actuator(name=f"drive_{joint.name}", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
                         gear=[1.0, 0, 0, 0, 0, 0])
@@ -87,11 +88,11 @@ LOOP_SOLVER_TOLERANCE = 1e-13
 
 
 def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
-               timestep: float = 5e-4) -> mujoco.MjSpec:
+               timestep: float = 5e-4, floating: bool = False) -> mujoco.MjSpec:
     """The robot as MuJoCo's own model description (mujoco.MjSpec), which `build_model` compiles.
     Every number is set as the double it is, never through text (MuJoCo's own XML writer,
     `MjSpec.to_xml`, keeps six significant digits: harness/model/mjcf.py writes a file that reloads)."""
-    ms, elements = _driven(spec, gravity_W, integrator, timestep)
+    ms, elements = _driven(spec, gravity_W, integrator, timestep, floating)
     for body in spec.massive_bodies:
         el = elements[body.name]
         el.add_site(name=f"com_{body.name}", pos=np.zeros(3))
@@ -223,8 +224,9 @@ def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
     return spec.carried_joint(joint.name)
 
 
-def build_model(spec: RobotSpec, gravity_W: np.ndarray, simulation: Simulation) -> mujoco.MjModel:
-    return build_spec(spec, gravity_W, simulation.integrator, simulation.timestep).compile()
+def build_model(spec: RobotSpec, gravity_W: np.ndarray, simulation: Simulation,
+                floating: bool = False) -> mujoco.MjModel:
+    return build_spec(spec, gravity_W, simulation.integrator, simulation.timestep, floating).compile()
 
 
 def _log_warning(message: str) -> None:
@@ -293,11 +295,13 @@ def _diverged(model: mujoco.MjModel, data: mujoco.MjData, t: float, message: str
 
 
 def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, output_steps: int, output_dt: float,
-             simulation: Simulation) -> TimeSeries:
+             simulation: Simulation, base: Callable | None = None) -> TimeSeries:
     """Forward-simulate the robot with mj_step along the prescribed motion (`prescribed(t)` ->
     (q, q', q''), each (len(t), n) in the spec's joint order) and record `output_steps + 1` rows
-    from t = 0, `output_dt` apart. `simulation.timestep` must divide `output_dt`."""
-    model = build_model(spec, gravity_W, simulation)
+    from t = 0, `output_dt` apart. `simulation.timestep` must divide `output_dt`. With `base` (t ->
+    harness.model.floating.BaseMotion), the floating base moves along it, driven by the world's wrench
+    (harness/engines/free_base.py), and the recording keeps the base's motion and that wrench."""
+    model = build_model(spec, gravity_W, simulation, floating=base is not None)
     data = mujoco.MjData(model)
     dt = simulation.timestep
     substeps = round(output_dt / dt)
@@ -305,8 +309,15 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     n_steps = (n_rows - 1) * substeps
     # The integrators evaluate the dynamics at whole and half steps (RK4 stages): the prescribed
     # motion is evaluated once, batched, on that half-step grid
-    in_spec_order = prescribed(np.arange(2 * n_steps + 2) * (dt / 2.0))
-    drive = _ComputedTorque(spec, model, data, in_spec_order, simulation, n_steps)
+    half_steps = np.arange(2 * n_steps + 2) * (dt / 2.0)
+    in_spec_order = prescribed(half_steps)
+    if base is None:
+        drive = _ComputedTorque(spec, model, data, in_spec_order, simulation, n_steps)
+    else:
+        from harness.engines.free_base import FreeBaseDrive
+
+        drive = FreeBaseDrive(spec, model, in_spec_order, base(half_steps), simulation, n_steps)
+    base_rows = np.empty((n_rows, 25)) if base is not None else None
     data.qpos[:], data.qvel[:] = drive.q_d[0], drive.qd_d[0]
     sensor_rows = np.empty((n_rows, model.nsensordata))
     qacc_rows = np.empty((n_rows, drive.n))
@@ -320,6 +331,8 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
             mujoco.mj_forward(model, data)
             sensor_rows[row] = data.sensordata
             qacc_rows[row] = data.qacc[drive.vadr]
+            if base_rows is not None:
+                base_rows[row] = drive.base_rows(data)
             if spec.loops:
                 gap_rows[row] = _loop_gaps(model, data)
                 wrench_rows[row] = _loop_wrenches(model, data, body_ids)
@@ -337,6 +350,10 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     driven = Drive(simulation.integrator, dt, substeps, drive.stages_by_step(),
                    *(x[::2 * substeps] for x in in_spec_order))
     rec = dataclasses.replace(_recorded(spec, model, gravity_W, t, sensor_rows, qacc_rows, meta), drive=driven)
+    if base_rows is not None:
+        from harness.engines.free_base import recorded_base
+
+        rec = dataclasses.replace(rec, **recorded_base(base_rows))
     if not spec.loops:
         return rec
     meta["loop_settings"] = {"solref": model.eq_solref[0].tolist(), "solimp": model.eq_solimp[0].tolist()}

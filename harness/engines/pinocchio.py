@@ -92,6 +92,7 @@ class InverseDynamics:
     tau: np.ndarray  # (N, joints) drive force or torque along each axis, spec order
     F_W: np.ndarray  # (N, joints, 3) force of the inner on the outer body across each joint
     M_W: np.ndarray  # (N, joints, 3) its moment about the joint point
+    base: np.ndarray | None = None  # (N, 6) a moving floating base's rows: the world's wrench [F_W, M_W] on it
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,21 +107,28 @@ class PointForce:
 
 
 def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-         external: tuple[PointForce, ...] = ()) -> InverseDynamics:
+         external: tuple[PointForce, ...] = (), base=None) -> InverseDynamics:
     """RNEA at every sample (one call per state), with the joint wrenches data.f moved to world
     components: data.f[i] is the spatial force across joint i, [linear; angular] about the joint
     frame origin in the joint frame; oMi rotates it to the world. RNEA works with local placements
     and leaves data.oMi as it was, so forwardKinematics sets it for the same q. `external` forces
     act on the bodies (Pinocchio's fext, in each joint's frame about its origin): the torques are
-    then M q'' + h - J^T f."""
+    then M q'' + h - J^T f. With `base` (harness.model.floating.BaseMotion) and a model built with its
+    floating base, the base moves so, and its six rows, the world's wrench on it, are kept (`base`)."""
     model = pm.model
     data = model.createData()
     N, nj = q.shape
     tau = np.empty((N, nj))
     F = np.empty((N, nj, 3))
     M = np.empty((N, nj, 3))
-    qq, vv, aa = (np.zeros((N, model.nq)) for _ in range(3))
-    qq[:, pm.q_index], vv[:, pm.q_index], aa[:, pm.q_index] = q, qd, qdd
+    v_index = np.array([model.joints[i].idx_v for i in pm.joint_ids], dtype=int)
+    qq, vv, aa = np.zeros((N, model.nq)), np.zeros((N, model.nv)), np.zeros((N, model.nv))
+    qq[:, pm.q_index], vv[:, v_index], aa[:, v_index] = q, qd, qdd
+    rows = np.empty((N, 6)) if base is not None else None
+    if base is not None:
+        from harness.model.floating import to_pinocchio
+
+        qq[:, :7], vv[:, :6], aa[:, :6] = to_pinocchio(base)
     fext = pin.StdVec_Force()
     for _ in range(model.njoints):
         fext.append(pin.Force.Zero())
@@ -138,14 +146,20 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
         else:
             full = pin.rnea(model, data, qq[k], vv[k], aa[k])
             pin.forwardKinematics(model, data, qq[k])
-        tau[k] = full[pm.q_index]
+        tau[k] = full[v_index]
+        if rows is not None:
+            rows[k] = full[:6]
         for j, jid in enumerate(pm.joint_ids):
             R = data.oMi[jid].rotation
             F[k, j] = R @ data.f[jid].linear
             M[k, j] = R @ data.f[jid].angular
     # the drives' friction and rotor inertia act between the bodies and their motors: in the
     # torques, not in the wrenches the joints transmit
-    return InverseDynamics(tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau), F, M)
+    if rows is not None:
+        from harness.model.floating import base_rows_from_pinocchio
+
+        rows = base_rows_from_pinocchio(base, rows)
+    return InverseDynamics(tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau), F, M, rows)
 
 
 def joint_torques(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:

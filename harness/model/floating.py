@@ -54,6 +54,22 @@ class BaseMotion:
     def __len__(self) -> int:
         return len(self.p_W)
 
+    def take(self, rows: np.ndarray) -> BaseMotion:
+        """The states at `rows` (indices or a mask)."""
+        return BaseMotion(*(x[rows] for x in (self.p_W, self.quat_wxyz, self.v_W, self.omega_W, self.a_W,
+                                              self.alpha_W)))
+
+    def rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The motion as three row arrays, what a recording keeps (harness/base/series.py): the pose
+        [p_W, quaternion w x y z] (N, 7), the twist [v_W, omega_W] (N, 6) and its rate [a_W, alpha_W] (N, 6)."""
+        return (np.concatenate([self.p_W, self.quat_wxyz], axis=1), np.concatenate([self.v_W, self.omega_W], axis=1),
+                np.concatenate([self.a_W, self.alpha_W], axis=1))
+
+    @classmethod
+    def from_rows(cls, pose: np.ndarray, twist: np.ndarray, rate: np.ndarray) -> BaseMotion:
+        """The motion from `rows`' three arrays."""
+        return cls(pose[:, :3], pose[:, 3:7], twist[:, :3], twist[:, 3:], rate[:, :3], rate[:, 3:])
+
 
 def _in_base(R_WB: np.ndarray, x_W: np.ndarray) -> np.ndarray:
     """(N, 3) world vectors x_W in base axes, R^T x."""
@@ -70,6 +86,24 @@ def to_mujoco(base: BaseMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return (np.concatenate([base.p_W, base.quat_wxyz], axis=1),
             np.concatenate([base.v_W, _in_base(R, base.omega_W)], axis=1),
             np.concatenate([base.a_W, _in_base(R, base.alpha_W)], axis=1))
+
+
+def from_mujoco(qpos: np.ndarray, qvel: np.ndarray, qacc: np.ndarray) -> BaseMotion:
+    """The motion from MuJoCo's free joint's qpos (N, 7), qvel (N, 6) and qacc (N, 6): `to_mujoco`'s inverse."""
+    quat = qpos[:, 3:7] / np.linalg.norm(qpos[:, 3:7], axis=1, keepdims=True)
+    R = quaternion.to_matrix(quat)
+    return BaseMotion(qpos[:, :3], quat, qvel[:, :3], _in_world(R, qvel[:, 3:]), qacc[:, :3], _in_world(R, qacc[:, 3:]))
+
+
+def tracking_error(actual: BaseMotion, wanted: BaseMotion) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) m and (N,) rad: how far the base's origin is from where it is wanted, and the angle of the
+    rotation between the two orientations, 2 atan2(|v|, |w|) of the quaternion q_wanted^-1 q (on SO(3):
+    the same for q and -q)."""
+    w1, v1 = wanted.quat_wxyz[:, 0], wanted.quat_wxyz[:, 1:]
+    w2, v2 = actual.quat_wxyz[:, 0], actual.quat_wxyz[:, 1:]
+    w = w1 * w2 + np.sum(v1 * v2, axis=1)  # the relative quaternion's scalar and vector parts
+    v = w1[:, None] * v2 - w2[:, None] * v1 - np.cross(v1, v2)
+    return np.linalg.norm(actual.p_W - wanted.p_W, axis=1), 2.0 * np.arctan2(np.linalg.norm(v, axis=1), np.abs(w))
 
 
 def to_pinocchio(base: BaseMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -227,7 +227,18 @@ def _floating(fl: dict | None) -> str:
     return (f"<h3>A floating base</h3><p>The base {esc(fl['base'])} (joint {esc(fl['joint'])}) judged free at "
             f"{fl['states']} states: the engines differ by {num(fl['engines_max_rel_error'])} in the base's rows and "
             f"the joints' torques and by {num(fl['mass_matrix_max_rel_error'])} in the mass matrix "
-            f"({esc(fl['definition'])}).</p>")
+            f"({esc(fl['definition'])}).</p>" + _moved(fl))
+
+
+def _moved(fl: dict) -> str:
+    """A floating base the bench moved: how closely, and each model's finding of the world's wrench on it."""
+    if "base_tracking_position_m" not in fl:
+        return ""
+    found = "; ".join(f"{esc(k.removeprefix('base_wrench_').removesuffix('_vs_mujoco_max_rel_error'))} "
+                      f"{num(v)}" for k, v in fl.items() if k.startswith("base_wrench_"))
+    return (f"<p>The bench moved the base along [base_motion] to within {num(fl['base_tracking_position_m'])} m and "
+            f"{num(fl['base_tracking_angle_rad'])} rad, and recorded the world's wrench on it; found again from the "
+            f"recorded states by {found} ({esc(fl['moved_definition'])}).</p>")
 
 
 def _closed_chain(cc: dict | None) -> str:

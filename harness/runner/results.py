@@ -27,6 +27,7 @@ from harness.base.numerics import floats
 from harness.base.series import TimeSeries
 from harness.model.spec import RobotSpec
 from harness.runner.scenario import Scenario
+from harness.sources.base_motion import model_notes
 
 if TYPE_CHECKING:
     from harness.runner.pipeline import RunOutput
@@ -42,7 +43,7 @@ def scenario_section(s: Scenario) -> dict:
         "file": str(s.source),
         "description": s.description,
         "model_file": str(s.robot.source),
-        "model_notes": list(s.robot.notes),
+        "model_notes": model_notes(s.robot, getattr(s, "base_motion", None)),
         "gravity": floats(s.gravity_W),
         "duration": s.duration,
         "output_steps": s.output_steps,

@@ -43,11 +43,11 @@ from harness.engines.simulation import INTEGRATORS, Simulation
 from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate, read_gates
-from harness.sources.base_motion import read_scenario_base_motion
+from harness.sources.base_motion import read_scenario_base_motion, refuse_fixed_base_tables
 from harness.sources.log import DataSource, check_columns, read_source
 from harness.sources.log.channels import logged, supported
 from harness.sources.measurement import Measurement, read_measurement
-from harness.sources.motion import Motion, read_motion
+from harness.sources.motion import Motion, read_scenario_motions
 
 if TYPE_CHECKING:
     from harness.identify.excitation import Excitation
@@ -356,6 +356,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         if root.has(table):
             raise root.error(table, f"model {robot.name!r} is a closed chain (loop {robot.loops[0].name!r}): "
                                     f"[{table}] is not supported on closed chains (docs/closed_chains.md)")
+    refuse_fixed_base_tables(root)
     simulation = _read_simulation(root.table("simulation", default={}))
     measurement = read_measurement(root.table("measurement", default={}))
     gates = _read_all_gates(root, gate_files)
@@ -370,7 +371,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             raise root.error("motion", "a scenario with [excitation] gets its motion from the optimisation: "
                                        "leave [motion] out")
         root.data["motion"] = {j: {"type": "locked"} for j in robot.joint_names}  # replaced when run
-    motion = _read_motions(root.table("motion"), robot, duration, output_steps)
+    motion = read_scenario_motions(root.table("motion"), robot, duration, output_steps)
     _check_grid(path, s, sample_times, duration, output_steps, measurement, simulation)
     scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                         np.asarray(sample_times), motion, simulation, measurement, gates, text, excitation)
@@ -389,7 +390,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         if root.has(table):
             raise root.error(table, "a table of a run on a measured log: the scenario needs [data]")
     studies = _read_studies(root, scenario, path)
-    base_motion = read_scenario_base_motion(root, robot)
+    base_motion = read_scenario_base_motion(root, robot, models)
     root.finish()
     return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies),
                                base_motion=base_motion)
@@ -398,31 +399,6 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
 # a closed chain's scenario judges its actuated torques, its loops and its joint-torque identification
 # (through G^T Y); these tables read an open tree
 CLOSED_CHAIN_LATER = ("excitation", "identification", "studies", "estimators", "payload")
-
-
-def _read_motions(motion_table: Table, robot: RobotSpec, duration: float, output_steps: int) -> dict[str, Motion]:
-    """`[motion]`: every joint of the robot (a closed chain's actuated ones), no other, finite over the run."""
-    motion = {}
-    for name in motion_table.data:
-        if name not in robot.joint_names:
-            raise motion_table.error(name, f"joint {name!r} is not in model {robot.name!r} "
-                                           f"(joints: {', '.join(robot.joint_names)})")
-        if robot.loops and name not in robot.actuated:
-            raise motion_table.error(name, f"joint {name!r} is passive: its motion follows from the loops of "
-                                           f"{robot.name!r} (actuated: {', '.join(robot.actuated)})")
-    for j in (robot.actuated if robot.loops else robot.joint_names):
-        if j not in motion_table.data:
-            raise motion_table.error(j, f"missing: every joint of model {robot.name!r} needs a "
-                                        "motion (use type = \"locked\" to hold it)")
-        motion[j] = read_motion(motion_table.table(j))
-        with np.errstate(over="ignore", invalid="ignore"):
-            values = np.stack(motion[j].evaluate(np.linspace(0.0, duration, output_steps + 1)))
-        if not np.all(np.isfinite(values)):
-            bad = np.flatnonzero(~np.all(np.isfinite(values), axis=0))[0]
-            raise motion_table.error(j, f"the motion is not finite within the run (from t = "
-                                        f"{bad * duration / output_steps:g} s on, q, q' or q'' overflows)")
-    motion_table.finish()
-    return motion
 
 
 def _check_grid(path: Path, s: Table, sample_times, duration: float, output_steps: int, measurement: Measurement,
@@ -503,7 +479,9 @@ def judging_metrics(kind: str, name: str, on_log: bool = False) -> tuple[str, ..
                 f"torques.{name}_random_vs_pinocchio.max_rel_error",
                 f"torques.mass_matrix.{name}_vs_pinocchio.max_rel_error",
                 f"torques.reactions.{name}_vs_mujoco.force.max_rel_error",
-                f"torques.reactions.{name}_vs_mujoco.moment.max_rel_error")
+                f"torques.reactions.{name}_vs_mujoco.moment.max_rel_error",
+                f"torques.floating.{name}_vs_pinocchio_max_rel_error (a floating base)",
+                f"torques.floating.base_wrench_{name}_vs_mujoco_max_rel_error (a floating base the bench moves)")
     return (f"identification_methods.{name}.base_parameters.max_rel_error",
             f"identification_methods.{name}.validation.max_rel_error",
             f"identification_methods.{name}.validation.rms_rel_error")
@@ -512,7 +490,8 @@ def judging_metrics(kind: str, name: str, on_log: bool = False) -> tuple[str, ..
 def judged(kind: str, name: str, gates: tuple[Gate, ...]) -> bool:
     """Whether a gate judges the model under test or identification method `name`."""
     prefixes = ({f"torques.{name}_vs_", f"torques.{name}_random_vs_", f"torques.mass_matrix.{name}_vs_",
-                 f"torques.reactions.{name}_vs_"} if kind == "model_under_test"
+                 f"torques.reactions.{name}_vs_", f"torques.floating.{name}_vs_",
+                 f"torques.floating.base_wrench_{name}_vs_"} if kind == "model_under_test"
                 else {f"identification_methods.{name}."})
     return any(g.metric.startswith(p) for g in gates for p in prefixes)
 

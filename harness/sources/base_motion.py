@@ -25,7 +25,7 @@ from harness.base.tomlio import Table
 from harness.model import quaternion
 from harness.model.floating import BaseMotion
 from harness.model.kinematics import cross
-from harness.model.spec import FloatingBase
+from harness.model.spec import FLOATING_BASE_FIXED, FloatingBase
 from harness.sources.motion import Locked, Motion, read_motion
 
 POSITION_AXES = ("x", "y", "z")
@@ -83,11 +83,44 @@ def read_base_motion(table: Table, floating: FloatingBase) -> BaseTrajectory:
     return BaseTrajectory(motions, floating.R_WF0, floating.p_WF0)
 
 
-def read_scenario_base_motion(root: Table, robot) -> BaseTrajectory | None:
-    """A scenario's `[base_motion]`, None without; refused for a robot without a floating base."""
+# the tables of a scenario that read a robot whose base is fixed (a fixed-base regressor, a replay of its
+# joints' drive alone): refused beside [base_motion]
+FIXED_BASE_TABLES = ("excitation", "identification", "torque_identification", "studies", "estimators", "payload")
+
+
+def refuse_fixed_base_tables(root: Table) -> None:
+    """A table of FIXED_BASE_TABLES beside `[base_motion]`: refused, before any is read."""
+    for table in FIXED_BASE_TABLES if root.has("base_motion") else ():
+        if root.has(table):
+            raise root.error(table, "reads a robot whose base is fixed: not beside [base_motion] (the bench "
+                                    "moves the base)")
+
+
+def read_scenario_base_motion(root: Table, robot, models=()) -> BaseTrajectory | None:
+    """A scenario's `[base_motion]`, None without: the bench moves the base along it
+    (harness/engines/free_base.py). Refused for a robot without a floating base, with loops or drives
+    (not simulated with the base free), and with a model under test that does not answer with the base
+    free (no `floating_inverse_dynamics`)."""
     if not root.has("base_motion"):
         return None
     if robot.floating is None:
         raise root.error("base_motion", f"model {robot.name!r} has no floating base (an MJCF free joint, a URDF "
                                         "floating joint or [urdf] floating = true)")
+    if robot.loops or robot.transmission is not None:
+        raise root.error("base_motion", f"model {robot.name!r} has {'loops' if robot.loops else 'drives'}: a "
+                                        "floating base is moved only on an open tree of joints driven directly")
+    for m in models:
+        if not callable(getattr(m.instance, "floating_inverse_dynamics", None)):
+            raise root.error("model_under_test", f"{m.name!r} has no floating_inverse_dynamics(base, q, qd, qdd): "
+                                                 "with [base_motion] the recording's torques are the floating "
+                                                 "robot's, judged only through it")
     return read_base_motion(root.table("base_motion"), robot.floating)
+
+
+def model_notes(robot, base_motion: BaseTrajectory | None) -> list[str]:
+    """What reading the robot assumed, as a scenario's run says it: a floating base the reading holds
+    fixed is moved by the bench where the scenario has a [base_motion]."""
+    if base_motion is None:
+        return list(robot.notes)
+    return [n.removesuffix(FLOATING_BASE_FIXED) + "the bench moves the floating base along [base_motion]"
+            if n.endswith(FLOATING_BASE_FIXED) else n for n in robot.notes]

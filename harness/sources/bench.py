@@ -26,14 +26,18 @@ class Setup(Protocol):
     output_dt: float  # s
     simulation: Simulation
     prescribed: Callable  # t -> (q, q', q''), each (len(t), n) in the robot's joint order
+    base_motion: object  # a floating base's [base_motion] (harness/sources/base_motion.py), or None: held fixed
 
 
 def record(scenario: Setup) -> TimeSeries:
-    """The scenario simulated in MuJoCo: `output_steps + 1` rows from t = 0. A motion that drives
-    the simulation to non-finite values is bad input, named by its joint and time."""
+    """The scenario simulated in MuJoCo: `output_steps + 1` rows from t = 0; a floating base with a
+    `[base_motion]` moves along it (the world's wrench on it recorded), else it is held where the file
+    draws it. A motion that drives the simulation to non-finite values is bad input, named by its joint
+    and time."""
+    base = scenario.base_motion
     try:
         return simulate(scenario.robot, scenario.gravity_W, scenario.prescribed, scenario.output_steps,
-                        scenario.output_dt, scenario.simulation)
+                        scenario.output_dt, scenario.simulation, None if base is None else base.evaluate)
     except Diverged as exc:
         raise InputError(scenario.source, f"motion.{exc.joint}",
                          f"drives the simulation to non-finite values at t = {exc.t:.6g} s (MuJoCo: "

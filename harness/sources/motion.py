@@ -8,11 +8,14 @@ the model's initial pose.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar, Protocol
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 import numpy as np
 
 from harness.base.tomlio import Table
+
+if TYPE_CHECKING:
+    from harness.model.spec import RobotSpec
 
 
 class Motion(Protocol):
@@ -153,4 +156,30 @@ def read_motion(t: Table) -> Motion:
     kind = t.string("type", choices=tuple(MOTION_TYPES))
     motion = MOTION_TYPES[kind].from_table(t)
     t.finish()
+    return motion
+
+
+def read_scenario_motions(motion_table: Table, robot: RobotSpec, duration: float,
+                          output_steps: int) -> dict[str, Motion]:
+    """`[motion]`: every joint of the robot (a closed chain's actuated ones), no other, finite over the run."""
+    motion = {}
+    for name in motion_table.data:
+        if name not in robot.joint_names:
+            raise motion_table.error(name, f"joint {name!r} is not in model {robot.name!r} "
+                                           f"(joints: {', '.join(robot.joint_names)})")
+        if robot.loops and name not in robot.actuated:
+            raise motion_table.error(name, f"joint {name!r} is passive: its motion follows from the loops of "
+                                           f"{robot.name!r} (actuated: {', '.join(robot.actuated)})")
+    for j in (robot.actuated if robot.loops else robot.joint_names):
+        if j not in motion_table.data:
+            raise motion_table.error(j, f"missing: every joint of model {robot.name!r} needs a "
+                                        "motion (use type = \"locked\" to hold it)")
+        motion[j] = read_motion(motion_table.table(j))
+        with np.errstate(over="ignore", invalid="ignore"):
+            values = np.stack(motion[j].evaluate(np.linspace(0.0, duration, output_steps + 1)))
+        if not np.all(np.isfinite(values)):
+            bad = np.flatnonzero(~np.all(np.isfinite(values), axis=0))[0]
+            raise motion_table.error(j, f"the motion is not finite within the run (from t = "
+                                        f"{bad * duration / output_steps:g} s on, q, q' or q'' overflows)")
+    motion_table.finish()
     return motion

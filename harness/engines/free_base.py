@@ -1,0 +1,106 @@
+"""The bench's drive of a robot whose floating base moves (a scenario's `[base_motion]`): computed
+torque on every coordinate, the base's six included, each evaluation of the dynamics.
+
+The base is held by nothing but the wrench the drive has the world apply to it: MuJoCo's free joint
+(harness/model/floating.py: qpos [p_W, w x y z], qvel [v_W, omega_B]) is driven as a joint is, its
+generalised force [F_W, M_B] applied as qfrc_applied, the joints' torques as their motors' controls.
+The tracking error is taken on the manifold: e = q_d (-) q (MuJoCo's mj_differentiatePos: the
+position's difference, and the base's rotation from q to q_d as the body-axes rotation vector
+log(R^T R_d), exact at any angle), and
+
+    q''_cmd = q''_d + 2 w (q'_d - q') + w^2 e,    tau = M q''_cmd + bias - passive - applied
+
+(M with the rotor inertias; passive the viscous friction; applied the joints' Coulomb friction and offset
+set here). The base's six rows of tau are the world's wrench on the base: what the bench records as its
+answer (`base_rows`), with the base's pose, twist and acceleration.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from harness.engines.simulation import Simulation
+from harness.model import floating, friction
+from harness.model.floating import BaseMotion
+from harness.model.spec import RobotSpec
+
+
+class FreeBaseDrive:
+    """MuJoCo's control callback for a robot on its free joint (module docstring): `callback` to set,
+    `base_rows` to read the base's state and wrench after an evaluation, `stages_by_step` for the joints'
+    torques at every evaluation of every step (while captured[1] holds), as harness/engines/mujoco.py's
+    computed torque gives them."""
+
+    def __init__(self, spec: RobotSpec, model: mujoco.MjModel, in_spec_order: tuple, base: BaseMotion,
+                 simulation: Simulation, n_steps: int):
+        """in_spec_order (q, q', q'') and `base` the prescribed motion on the half-step grid."""
+        if spec.transmission is not None or spec.loops:
+            raise ValueError(f"{spec.name}: a floating base moved with drives or loops is not simulated")
+        free = model.joint(spec.floating.joint)
+        self.base_q, self.base_v = int(free.qposadr[0]), int(free.dofadr[0])
+        self.qadr = np.array([model.joint(j).qposadr[0] for j in spec.joint_names], dtype=int)
+        self.vadr = np.array([model.joint(j).dofadr[0] for j in spec.joint_names], dtype=int)
+        self.act = np.array([model.actuator(f"drive_{j}").id for j in spec.joint_names], dtype=int)
+        self.n = n = len(spec.joint_names)
+        if model.nv != n + 6 or model.nu != n:
+            raise RuntimeError("the MuJoCo model has other coordinates or actuators than the base and the joints")
+        qpos, qvel, qacc = floating.to_mujoco(base)
+        K = len(base)
+        self.q_d, self.qd_d, self.qdd_d = np.empty((K, model.nq)), np.empty((K, model.nv)), np.empty((K, model.nv))
+        bq, bv = slice(self.base_q, self.base_q + 7), slice(self.base_v, self.base_v + 6)
+        self.q_d[:, bq], self.qd_d[:, bv], self.qdd_d[:, bv] = qpos, qvel, qacc
+        self.q_d[:, self.qadr], self.qd_d[:, self.vadr], self.qdd_d[:, self.vadr] = in_spec_order
+        self.dry = friction.Dry.of(tuple(spec.frictions))
+        self.armature = friction.values(spec.frictions)[:, 0]
+        self.per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]
+        self.n_steps = n_steps
+        self.stages = np.empty((n_steps * self.per_step, n))
+        self.captured = [0, False]
+        self.half = simulation.timestep / 2.0
+        w = simulation.tracking_bandwidth
+        self.kp, self.kd = w * w, 2.0 * w
+
+    def callback(self) -> Callable[[mujoco.MjModel, mujoco.MjData], None]:
+        q_d, qd_d, qdd_d, half, kp, kd = self.q_d, self.qd_d, self.qdd_d, self.half, self.kp, self.kd
+        vadr, act, base = self.vadr, self.act, slice(self.base_v, self.base_v + 6)
+        dry, armature, stages, captured = self.dry, self.armature, self.stages, self.captured
+        e, tau = np.empty(len(qd_d[0])), np.empty(len(qd_d[0]))
+
+        def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+            k = round(d.time / half)
+            mujoco.mj_differentiatePos(m, e, 1.0, d.qpos, q_d[k])  # q_d (-) q
+            qacc_cmd = qdd_d[k] + kd * (qd_d[k] - d.qvel) + kp * e
+            mujoco.mj_mulM(m, d, tau, qacc_cmd)
+            applied = d.qfrc_applied
+            applied[:] = 0.0
+            if dry.any:  # the rigid-body torque: the computed torque less the rotor inertia's part
+                rigid = (tau + d.qfrc_bias)[vadr] - armature * qacc_cmd[vadr] if dry.needs_load else None
+                applied[vadr] = -dry(d.qvel[vadr], rigid)
+            full = tau + d.qfrc_bias - d.qfrc_passive - applied
+            applied[base] = full[base]  # the world's wrench on the base
+            d.ctrl[act] = full[vadr]
+            if captured[1]:
+                stages[captured[0]] = full[vadr]
+                captured[0] += 1
+
+        return drive
+
+    def base_rows(self, d: mujoco.MjData) -> np.ndarray:
+        """(25,) the base's qpos (7), qvel (6), qacc (6) and the world's wrench on it (6), MuJoCo's convention."""
+        bq, bv = self.base_q, self.base_v
+        return np.concatenate([d.qpos[bq:bq + 7], d.qvel[bv:bv + 6], d.qacc[bv:bv + 6], d.qfrc_applied[bv:bv + 6]])
+
+    def stages_by_step(self) -> np.ndarray:
+        """(steps, evaluations per step, joints) in the spec's joint order."""
+        return self.stages[:self.captured[0]].reshape(self.n_steps, self.per_step, self.n)
+
+
+def recorded_base(rows: np.ndarray) -> dict[str, np.ndarray]:
+    """A recording's base fields (harness/base/series.py, the harness's convention) from `base_rows`' (N, 25)."""
+    motion = floating.from_mujoco(rows[:, :7], rows[:, 7:13], rows[:, 13:19])
+    pose, twist, rate = motion.rows()
+    return {"base_pose": pose, "base_twist_W": twist, "base_rate_W": rate,
+            "base_wrench_W": floating.base_rows_from_mujoco(motion, rows[:, 19:25])}
