@@ -69,12 +69,24 @@ def inverse_dynamics(spec: RobotSpec, gravity_W: np.ndarray, base: BaseMotion, q
 
 
 def _mujoco_inverse(spec, gravity_W, base, q, qd, qdd, wrenches) -> FloatingDynamics:
-    model, data, qadr, vadr = _mujoco(spec, gravity_W)
+    model = _mujoco(spec, gravity_W)[0]
+    return mujoco_inverse(model, spec.floating.joint, spec.joint_names, base, q, qd, qdd, wrenches)
+
+
+def mujoco_inverse(model: mujoco.MjModel, free: str, joints: list[str], base: BaseMotion, q: np.ndarray,
+                   qd: np.ndarray, qdd: np.ndarray, wrenches: tuple[Wrench, ...] = ()) -> FloatingDynamics:
+    """MuJoCo's inverse dynamics (mj_inverse) of `model`, its free joint named `free` and the joints
+    `joints` (q's columns), at the states (base, q, q', q''), less the generalised force of `wrenches`."""
+    data = mujoco.MjData(model)
+    f = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, free)
+    qf, vf = model.jnt_qposadr[f], model.jnt_dofadr[f]
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
+    qadr, vadr = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
     qpos, qvel, qacc = floating.to_mujoco(base)
     body_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, w.body) for w in wrenches]
     out, applied = np.empty((len(q), model.nv)), np.zeros(model.nv)
     for k in range(len(q)):
-        data.qpos[:7], data.qvel[:6], data.qacc[:6] = qpos[k], qvel[k], qacc[k]
+        data.qpos[qf:qf + 7], data.qvel[vf:vf + 6], data.qacc[vf:vf + 6] = qpos[k], qvel[k], qacc[k]
         data.qpos[qadr], data.qvel[vadr], data.qacc[vadr] = q[k], qd[k], qdd[k]
         mujoco.mj_inverse(model, data)  # the generalised force of everything but gravity and inertia
         out[k] = data.qfrc_inverse
@@ -82,7 +94,7 @@ def _mujoco_inverse(spec, gravity_W, base, q, qd, qdd, wrenches) -> FloatingDyna
             applied[:] = 0.0
             mujoco.mj_applyFT(model, data, w.F_W[k], w.M_W[k], data.xipos[b], b, applied)
             out[k] -= applied
-    return FloatingDynamics(floating.base_rows_from_mujoco(base, out[:, :6]), out[:, vadr])
+    return FloatingDynamics(floating.base_rows_from_mujoco(base, out[:, vf:vf + 6]), out[:, vadr])
 
 
 def _pinocchio_inverse(spec, gravity_W, base, q, qd, qdd, wrenches) -> FloatingDynamics:
@@ -132,7 +144,7 @@ def mass_matrix(spec: RobotSpec, base: BaseMotion, q: np.ndarray, engine: str) -
             mujoco.mj_fullM(model, data, full)
             M[k] = full[np.ix_(order, order)]
     elif engine == "pinocchio":
-        from harness.engines.pinocchio import build_model
+        from harness.engines.pinocchio import build_model, full_crba
 
         pm = build_model(spec.rigid(), g, floating=True)
         model, data = pm.model, pm.model.createData()
@@ -142,8 +154,7 @@ def mass_matrix(spec: RobotSpec, base: BaseMotion, q: np.ndarray, engine: str) -
         for k in range(len(q)):
             qq = np.empty(model.nq)
             qq[:7], qq[qi] = q_ff[k], q[k]
-            full = pin.crba(model, data, qq)
-            M[k] = (np.triu(full) + np.triu(full, 1).T)[np.ix_(order, order)]
+            M[k] = full_crba(model, data, qq)[np.ix_(order, order)]
     else:
         raise ValueError(f"no engine {engine!r}")
     T = floating.velocity_map(base, engine, n)

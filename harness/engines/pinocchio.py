@@ -183,6 +183,13 @@ def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: TimeSeries) -
     return rnea(pm, rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols])
 
 
+def full_crba(model: pin.Model, data: pin.Data, q: np.ndarray) -> np.ndarray:
+    """Pinocchio's CRBA at the configuration q as the whole symmetric mass matrix (CRBA fills its upper
+    triangle alone)."""
+    M = pin.crba(model, data, q)
+    return np.triu(M) + np.triu(M, 1).T
+
+
 def crba(pm: PinocchioModel, q: np.ndarray) -> np.ndarray:
     """Joint-space inertia matrix (CRBA) of the spec's joints at each configuration, (N, n, n)."""
     model = pm.model
@@ -191,9 +198,7 @@ def crba(pm: PinocchioModel, q: np.ndarray) -> np.ndarray:
     full = np.zeros(model.nq)
     for k, qk in enumerate(q):
         full[pm.q_index] = qk
-        M = pin.crba(model, data, full)
-        M = np.triu(M) + np.triu(M, 1).T  # CRBA fills the upper triangle
-        out[k] = M[np.ix_(pm.q_index, pm.q_index)]
+        out[k] = full_crba(model, data, full)[np.ix_(pm.q_index, pm.q_index)]
     return out + drives.mass(pm.frictions, pm.transmission) if pm.frictions else out
 
 
@@ -263,8 +268,7 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
         qq[idx], vv[idx], tt[idx] = q, v, (tau - viscous * v - dry(v)) if law else tau
         if not couplings:
             return pin.constraintDynamics(model, data, qq, vv, tt, cmodels, cdatas, prox)[idx]
-        M = pin.crba(model, data, qq)  # with the armature; CRBA fills the upper triangle
-        M = (np.triu(M) + np.triu(M, 1).T)[np.ix_(idx, idx)]
+        M = full_crba(model, data, qq)[np.ix_(idx, idx)]  # with the armature
         h = pin.nonLinearEffects(model, data, qq, vv)[idx]
         return G @ np.linalg.solve(G.T @ M @ G, G.T @ (tt[idx] - h))
 

@@ -294,6 +294,8 @@ class _Pinocchio:
         return full
 
     def torques_and_mass(self, q, qd, qdd) -> tuple[np.ndarray, np.ndarray]:
+        from harness.engines.pinocchio import full_crba
+
         v_idx = [jm.idx_v for jm in self.joints]
         tau, M = np.empty_like(q), np.empty((len(q), q.shape[1], q.shape[1]))
         v, a = np.zeros(self.model.nv), np.zeros(self.model.nv)
@@ -301,9 +303,7 @@ class _Pinocchio:
             cfg = self.configuration(q[k])
             v[v_idx], a[v_idx] = qd[k], qdd[k]
             tau[k] = self.pin.rnea(self.model, self.data, cfg, v, a)[v_idx]
-            full = self.pin.crba(self.model, self.data, cfg)
-            full = np.triu(full) + np.triu(full, 1).T
-            M[k] = full[np.ix_(v_idx, v_idx)]
+            M[k] = full_crba(self.model, self.data, cfg)[np.ix_(v_idx, v_idx)]
         return tau, M
 
     def regressor_rank(self, q, qd, qdd) -> int:

@@ -83,23 +83,8 @@ def _pinocchio_parse(spec: RobotSpec, path: Path, g: np.ndarray, base, states) -
 def _mujoco_file(spec: RobotSpec, path: Path, g: np.ndarray, base, states) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's own model of the MJCF file (rigid bodies, as harness/engines/mujoco.py's
     file_inverse_dynamics prepares it) with its free joint: the base rows and joint torques."""
-    import mujoco
-
+    from harness.engines.floating import mujoco_inverse
     from harness.engines.mujoco import rigid_file_model
-    from harness.model.floating import base_rows_from_mujoco, to_mujoco
 
-    model = rigid_file_model(path, g)
-    data = mujoco.MjData(model)
-    free = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, spec.floating.joint)
-    qf, vf = model.jnt_qposadr[free], model.jnt_dofadr[free]
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
-    qa, va = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
-    qpos, qvel, qacc = to_mujoco(base)
-    q, qd, qdd = states
-    out = np.empty((len(q), model.nv))
-    for k in range(len(q)):
-        data.qpos[qf:qf + 7], data.qvel[vf:vf + 6], data.qacc[vf:vf + 6] = qpos[k], qvel[k], qacc[k]
-        data.qpos[qa], data.qvel[va], data.qacc[va] = q[k], qd[k], qdd[k]
-        mujoco.mj_inverse(model, data)
-        out[k] = data.qfrc_inverse
-    return base_rows_from_mujoco(base, out[:, vf:vf + 6]), out[:, va]
+    out = mujoco_inverse(rigid_file_model(path, g), spec.floating.joint, spec.joint_names, base, *states)
+    return out.base, out.tau
