@@ -196,15 +196,18 @@ def test_a_scenario_moves_its_floating_base_and_judges_the_world_s_wrench_on_it(
     """`harness run` on the trunk-and-legs MJCF with a [base_motion]: the bench moves the base on its free
     joint (said once on the terminal) and records the world's wrench on it; Pinocchio's free-flyer and the
     graph-theory model, given the recorded states, find that wrench and the joints' torques to 1e-9
-    (round-off ~1e-14), the base follows [base_motion] to 1e-9 m and rad (the integrator's error ~1e-12),
-    and recording.csv reads back bit for bit with the base's columns."""
+    (round-off ~1e-14; the joints' friction and rotor inertia on the bench and in both), the base follows
+    [base_motion] to 1e-9 m and rad (the integrator's error ~1e-12), and recording.csv reads back with the
+    base's columns."""
     import json
 
     from harness.base.series import read_csv
     from harness.cli import main
 
     (tmp_path / "robot.xml").write_text(DOG.replace('<joint name="a2" type="hinge" axis="0 0 1"/>', ""))
-    (tmp_path / "m.toml").write_text('[mjcf]\nfile = "robot.xml"\n')
+    (tmp_path / "m.toml").write_text('[mjcf]\nfile = "robot.xml"\n'  # friction and rotor inertia on the joints
+                                     '[joints.hip]\narmature = 0.01\nviscous = 0.05\ncoulomb = 0.2\n'
+                                     '[joints.knee]\narmature = 0.02\ncoulomb = 0.1\noffset = 0.05\n')
     motion = "".join(f'[motion.{j}]\ntype = "sinusoids"\noffset = 0.1\nsin = [[0.5, {w}]]\n'
                      for j, w in (("hip", 3.0), ("knee", 4.0), ("a1", 2.0)))
     motion += '[model_under_test]\nname = "graph"\nplugin = "graph_theory_2021"\n'
