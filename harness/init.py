@@ -79,11 +79,23 @@ def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str |
                                                               "description": f"My robot, from its {kind} file"},
                                                     key: {"file": name, **({"mimic": "independent"} if mimic else {})}})
         files["scenario.toml"], files["validation.toml"] = scenarios(joints, floating)
+        if floating:  # the base moved too, and judged in the project's own pytest and CI job
+            files["floating.toml"] = floating_scenario(joints)
+            files["test_my_robot.py"] += FLOATING_TEST
+            files["ci-job.yml"] = files["ci-job.yml"].replace("harness run scenario.toml ",
+                                                              "harness run scenario.toml floating.toml ")
         files["my_robot.py"] = ((TEMPLATE / "urdf" / "model.py").read_text() + method).replace(
             'ROBOT_FILE = "robot.urdf"', f'ROBOT_FILE = "{name}"')
     files["ci-job.yml"] = files["ci-job.yml"].replace("HARNESS_DISTRIBUTION", DISTRIBUTION)
     return dict(sorted(files.items()))
 
+
+FLOATING_TEST = '''
+
+def test_my_model_with_the_floating_base_moving_passes_its_gates(harness_run):
+    result = harness_run("floating.toml")
+    assert result.passed, [f"{g.name}: {g.value} (worst: {g.where})" for g in result.failed]
+'''
 
 ASSETS = {"mesh": "meshdir", "skin": "meshdir", "hfield": "meshdir", "texture": "texturedir"}  # MuJoCo's
 
@@ -168,36 +180,65 @@ def _joints(robot: Path, key: str, flag: str) -> tuple[list[tuple[str, float, fl
 FLOATING_GATES = [  # a floating base judged free (docs/floating_base.md): round-off, about 1e-15
     ("torques.floating.engines_max_rel_error", 1e-9), ("torques.floating.mass_matrix_max_rel_error", 1e-9),
 ]
+MOVED_GATES = [  # the bench moving the base: the world's wrench on it found from the recorded states (round-off),
+    # and the base's tracking (the integrator's error, about 1e-12)
+    ("torques.floating.base_wrench_pinocchio_vs_mujoco_max_rel_error", 1e-9),
+    ("torques.floating.base_wrench_mine_vs_mujoco_max_rel_error", 1e-9),
+    ("torques.floating.mine_vs_pinocchio_max_rel_error", 1e-9),
+    ("torques.floating.base_tracking_position_m", 1e-6), ("torques.floating.base_tracking_angle_rad", 1e-6),
+]
+BASE_SWAY = {"z": (0.02, 1.9), "roll": (0.1, 1.3), "pitch": (0.1, 1.7), "yaw": (0.2, 0.9)}  # m or rad, rad/s
+
+
+def _motion(joints: list[tuple[str, float, float, float | None]], base: float, step: float, shift: float) -> dict:
+    """Every joint on two incommensurate harmonics about the middle of its range (`shift` of the half range
+    off it), at most RANGE_FRACTION of the way to its limits and VELOCITY_FRACTION of its velocity limit."""
+    table = {}
+    for k, (name, middle, half, velocity) in enumerate(joints):
+        w1, w2 = base + step * k, 2.7 * base + 1.3 * step * k + 0.4  # rad/s: two harmonics, incommensurate
+        amplitude = RANGE_FRACTION * half / 1.5  # the two together reach RANGE_FRACTION at most
+        if velocity:  # |q'| <= a w1 + a/2 w2
+            amplitude = min(amplitude, VELOCITY_FRACTION * velocity / (w1 + w2 / 2))
+        table[name] = {"type": "sinusoids", "offset": middle + shift * half,
+                       "sin": [[amplitude, w1], [amplitude / 2, w2]]}
+    return table
+
+
+HEAD = {"model": "robot.toml", "duration": 2.0, "output_steps": 200}
+NOTE = ("# Written by `harness init` from your robot file: every joint moves about the middle of its range, at\n"
+        "# most a third of the way to its limits and at half its velocity limit. Change the motions to the ones\n"
+        "# your robot runs.\n")
 
 
 def scenarios(joints: list[tuple[str, float, float, float | None]], floating: bool = False) -> tuple[str, str]:
     """scenario.toml (the model, the method, the gates) and validation.toml, both moving every joint;
     with a `floating` base (which the bench fixes at the file's pose), the gates on it judged free."""
-    def motion(base: float, step: float, shift: float) -> dict:
-        table = {}
-        for k, (name, middle, half, velocity) in enumerate(joints):
-            w1, w2 = base + step * k, 2.7 * base + 1.3 * step * k + 0.4  # rad/s: two harmonics, incommensurate
-            amplitude = RANGE_FRACTION * half / 1.5  # the two together reach RANGE_FRACTION at most
-            if velocity:  # |q'| <= a w1 + a/2 w2
-                amplitude = min(amplitude, VELOCITY_FRACTION * velocity / (w1 + w2 / 2))
-            table[name] = {"type": "sinusoids", "offset": middle + shift * half,
-                           "sin": [[amplitude, w1], [amplitude / 2, w2]]}
-        return table
-
-    head = {"model": "robot.toml", "duration": 2.0, "output_steps": 200}
     main = {"scenario": {"description": "My robot: my model and my identification method against MuJoCo and "
-                                        "Pinocchio", **head},
-            "motion": motion(1.1, 0.3, 0.0),
+                                        "Pinocchio", **HEAD},
+            "motion": _motion(joints, 1.1, 0.3, 0.0),
             "model_under_test": {"name": "mine", "python": "my_robot:make_model"},
             "identification": {"name": "ls", "python": "my_robot:make_method", "validation": "validation.toml"},
             "gates": [{"metric": m, "limit": limit} for m, limit in GATES + (FLOATING_GATES if floating else [])]}
-    validation = {"scenario": {"description": "Validation trajectory for my robot", **head},
-                  "motion": motion(0.8, 0.25, 0.1),
+    validation = {"scenario": {"description": "Validation trajectory for my robot", **HEAD},
+                  "motion": _motion(joints, 0.8, 0.25, 0.1),
                   "gates": [{"metric": "torques.pinocchio_vs_mujoco.max_rel_error", "limit": 1e-9}]}
-    note = ("# Written by `harness init` from your robot file: every joint moves about the middle of its range, at\n"
-            "# most a third of the way to its limits and at half its velocity limit. Change the motions to the ones\n"
-            "# your robot runs.\n")
+    note = NOTE
     if floating:
         note += ("# Its floating base is fixed at the file's pose while the joints move; torques.floating judges the\n"
-                 "# robot with the base free (docs/floating_base.md).\n")
+                 "# robot with the base free (docs/floating_base.md), and floating.toml moves the base.\n")
     return note + tomli_w.dumps(main), note + tomli_w.dumps(validation)
+
+
+def floating_scenario(joints: list[tuple[str, float, float, float | None]]) -> str:
+    """floating.toml: the joints as in scenario.toml while the bench moves the floating base (a gentle sway,
+    BASE_SWAY), the model judged with its base free (its floating_inverse_dynamics) and the world's wrench
+    on the base gated (docs/floating_base.md); no identification (it reads a fixed base)."""
+    sway = {axis: {"type": "sinusoids", "offset": 0.0, "sin": [[a, w]]} for axis, (a, w) in BASE_SWAY.items()}
+    moved = {"scenario": {"description": "My robot with its floating base moved: my model against MuJoCo and "
+                                         "Pinocchio", **HEAD},
+             "motion": _motion(joints, 1.1, 0.3, 0.0), "base_motion": sway,
+             "model_under_test": {"name": "mine", "python": "my_robot:make_model"},
+             "gates": [{"metric": m, "limit": limit} for m, limit in GATES[:4] + FLOATING_GATES + MOVED_GATES]}
+    return (NOTE + "# The bench moves the floating base on a gentle sway (no contact: the base is carried), the\n"
+                   "# world's wrench on it recorded; your model answers through floating_inverse_dynamics.\n"
+            + tomli_w.dumps(moved))

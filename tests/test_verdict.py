@@ -482,7 +482,8 @@ def test_init_from_an_mjcf_file_passes_with_its_armature_damping_and_frictionlos
 def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_does(tmp_path):
     """The same arm on a free joint: the harness fixes the base where the file puts it, and so does the
     placeholder (Pinocchio's MJCF parser builds the free joint; it is locked at MuJoCo's qpos0, the
-    file's pose), so the project passes all six gates, and the two that judge the base free."""
+    file's pose), so the project passes all six gates, and the two that judge the base free; its
+    floating.toml, where the bench moves the base, passes too, and its CI job runs both."""
     from tests.test_mjcf import ARM
 
     base = '<body name="base" pos="0 0 0.1">'
@@ -492,6 +493,12 @@ def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_
     results = json.loads((tmp_path / "o" / "results.json").read_text())
     assert len(results["gates"]) == 8 and all(g["passed"] for g in results["gates"])
     assert sum(g["metric"].startswith("torques.floating.") for g in results["gates"]) == 2
+    # floating.toml: the bench moves the base, and the placeholder (Pinocchio's parser with its free-flyer)
+    # finds the world's wrench on it (round-off, gated at 1e-9)
+    assert main(["run", str(tmp_path / "p" / "floating.toml"), "--out", str(tmp_path / "f"), "--quiet"]) == 0
+    moved = json.loads((tmp_path / "f" / "results.json").read_text())
+    assert "torques.floating.base_wrench_mine_vs_mujoco_max_rel_error" in [g["metric"] for g in moved["gates"]]
+    assert "floating.toml" in (tmp_path / "p" / "ci-job.yml").read_text()
 
 
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess

@@ -25,6 +25,7 @@ import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy as np
 import pinocchio as pin
 
 from harness.base.tomlio import MAX_XML_BYTES, read_bounded
@@ -135,3 +136,41 @@ def _first_include(root: ET.Element) -> tuple[ET.Element, int, ET.Element] | Non
             if child.tag == "include":
                 return parent, k, child
     return None
+
+
+def free_inverse_dynamics(path: Path, free_joint: str, joints: list[str], gravity_W: np.ndarray, base, q: np.ndarray,
+                          qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pinocchio's own parse of the robot file with its free-flyer `free_joint` kept (a URDF whose root
+    link is the floating base: the free-flyer Pinocchio puts on it), rigid bodies (no armature), at the
+    states (base, q, q', q''), base a harness.model.floating.BaseMotion and q (N, n) in the order of
+    `joints`: the world's wrench on the base [F_W, M_W] (N, 6, harness/model/floating.py) and the joints'
+    torques (N, n). The free-flyer's configuration is its placement's inverse times the base's pose;
+    its velocities are the base's, in base axes."""
+    from harness.model.floating import base_rows_from_pinocchio, to_pinocchio
+    from harness.model.urdf import ROOT_FLOATING_JOINT
+
+    model, _ = parse(path, free=True)
+    if not model.existJointName(free_joint) and free_joint == ROOT_FLOATING_JOINT:
+        model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())  # a model file's floating root link
+    model.gravity.linear = np.asarray(gravity_W, dtype=float)
+    model.armature[:] = 0.0
+    data = model.createData()
+    flyer = model.getJointId(free_joint)
+    if flyer >= model.njoints or model.joints[flyer].shortname() != "JointModelFreeFlyer":
+        raise ValueError(f"Pinocchio's parser has no free-flyer {free_joint!r}")
+    placement, fj = model.jointPlacements[flyer], model.joints[flyer]
+    moved = [model.joints[model.getJointId(j)] for j in joints]
+    R = base.R_WB
+    tau_base, tau = np.empty((len(q), 6)), np.empty_like(q)
+    _, v_ff, a_ff = to_pinocchio(base)  # velocities in base axes: the same in its free-flyer
+    for k in range(len(q)):
+        qq, vv, aa = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
+        qq[fj.idx_q:fj.idx_q + 7] = pin.SE3ToXYZQUAT(placement.inverse() * pin.SE3(R[k], base.p_W[k]))
+        vv[fj.idx_v:fj.idx_v + 6], aa[fj.idx_v:fj.idx_v + 6] = v_ff[k], a_ff[k]
+        for j, jm in enumerate(moved):
+            qq[jm.idx_q:jm.idx_q + jm.nq] = [np.cos(q[k, j]), np.sin(q[k, j])] if jm.nq == 2 else q[k, j]
+            vv[jm.idx_v], aa[jm.idx_v] = qd[k, j], qdd[k, j]
+        full = pin.rnea(model, data, qq, vv, aa)
+        tau_base[k] = full[fj.idx_v:fj.idx_v + 6]
+        tau[k] = [full[jm.idx_v] for jm in moved]
+    return base_rows_from_pinocchio(base, tau_base), tau

@@ -42,42 +42,9 @@ def floating_figures(spec: RobotSpec, described: Path | None, states, seed: int)
 
 def _pinocchio_parse(spec: RobotSpec, path: Path, g: np.ndarray, base, states) -> tuple[np.ndarray, np.ndarray]:
     """Pinocchio's own parse of the file with its free-flyer: the base rows [F_W, M_W] and joint torques."""
-    import pinocchio as pin
+    from harness.engines.pinocchio_file import free_inverse_dynamics
 
-    from harness.engines.pinocchio_file import parse
-    from harness.model.floating import base_rows_from_pinocchio
-    from harness.model.urdf import ROOT_FLOATING_JOINT
-
-    model, _ = parse(path, free=True)
-    if not model.existJointName(spec.floating.joint) and spec.floating.joint == ROOT_FLOATING_JOINT:
-        model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())  # a model file's floating root link
-    model.gravity.linear = g
-    model.armature[:] = 0.0
-    data = model.createData()
-    flyer = model.getJointId(spec.floating.joint)
-    if flyer >= model.njoints or model.joints[flyer].shortname() != "JointModelFreeFlyer":
-        raise ValueError(f"Pinocchio's parser has no free-flyer {spec.floating.joint!r}")
-    placement = model.jointPlacements[flyer]
-    joints = [model.joints[model.getJointId(j)] for j in spec.joint_names]
-    q, qd, qdd = states
-    R = base.R_WB
-    tau_base, tau = np.empty((len(q), 6)), np.empty_like(q)
-    from harness.model.floating import to_pinocchio
-
-    _, v_ff, a_ff = to_pinocchio(base)  # velocities in base axes: the same in its free-flyer
-    for k in range(len(q)):
-        qq, vv, aa = pin.neutral(model), np.zeros(model.nv), np.zeros(model.nv)
-        pose = placement.inverse() * pin.SE3(R[k], base.p_W[k])
-        fj = model.joints[flyer]
-        qq[fj.idx_q:fj.idx_q + 7] = pin.SE3ToXYZQUAT(pose)
-        vv[fj.idx_v:fj.idx_v + 6], aa[fj.idx_v:fj.idx_v + 6] = v_ff[k], a_ff[k]
-        for j, jm in enumerate(joints):
-            qq[jm.idx_q:jm.idx_q + jm.nq] = [np.cos(q[k, j]), np.sin(q[k, j])] if jm.nq == 2 else q[k, j]
-            vv[jm.idx_v], aa[jm.idx_v] = qd[k, j], qdd[k, j]
-        full = pin.rnea(model, data, qq, vv, aa)
-        tau_base[k] = full[fj.idx_v:fj.idx_v + 6]
-        tau[k] = [full[jm.idx_v] for jm in joints]
-    return base_rows_from_pinocchio(base, tau_base), tau
+    return free_inverse_dynamics(path, spec.floating.joint, spec.joint_names, g, base, *states)
 
 
 def _mujoco_file(spec: RobotSpec, path: Path, g: np.ndarray, base, states) -> tuple[np.ndarray, np.ndarray]:

@@ -25,10 +25,11 @@ ROBOT_FILE = "robot.urdf"  # your robot: a URDF or an MJCF file (Pinocchio reads
 
 
 class RobotModel:
-    def __init__(self, path, gravity_W, drives=None):
+    def __init__(self, path, gravity_W, drives=None, free_joint=None):
         self.pin = _pinocchio()
         self.model, self.data, self.joint_names = robot_model(path, gravity_W)
         self.drives = drives  # your model file's drives (Drives, below), or None
+        self.path, self.gravity_W, self.free_joint = path, gravity_W, free_joint  # a floating base's joint
 
     def inverse_dynamics(self, q, qd, qdd):
         tau = np.array([self.pin.rnea(self.model, self.data, a, b, c)
@@ -46,7 +47,21 @@ class RobotModel:
         return np.array(out) + (0.0 if self.drives is None else self.drives.mass)
 
 
+    def floating_inverse_dynamics(self, base, q, qd, qdd):
+        """A robot with a floating base, its base free (floating.toml, where the bench moves it): the world's
+        wrench on the base [F_W, M_W] about its frame's origin (N, 6), then the joints' torques (N, n), rigid
+        bodies (the harness adds the drives' friction and rotor inertia); `base` a
+        harness.model.floating.BaseMotion (the base's pose, twist and their rates, world axes). Here,
+        Pinocchio's own parse of the robot file with its free-flyer."""
+        from harness.engines.pinocchio_file import free_inverse_dynamics
+
+        rows, tau = free_inverse_dynamics(self.path, self.free_joint, self.joint_names, self.gravity_W, base,
+                                          q, qd, qdd)
+        return np.concatenate([rows, tau], axis=1)
+
+
 def make_model(robot, gravity_W, parameters):
-    return RobotModel(Path(__file__).parent / parameters.get("robot_file", ROBOT_FILE), gravity_W, Drives.of(robot))
+    return RobotModel(Path(__file__).parent / parameters.get("robot_file", ROBOT_FILE), gravity_W, Drives.of(robot),
+                      None if robot.floating is None else robot.floating.joint)
 
 
