@@ -390,7 +390,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
         if root.has(table):
             raise root.error(table, "a table of a run on a measured log: the scenario needs [data]")
     studies = _read_studies(root, scenario, path)
-    base_motion = read_scenario_base_motion(root, robot, models)
+    base_motion = read_scenario_base_motion(root, robot, models, scenario.configs)
     root.finish()
     return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies),
                                base_motion=base_motion)

@@ -85,7 +85,7 @@ def read_base_motion(table: Table, floating: FloatingBase) -> BaseTrajectory:
 
 # the tables of a scenario that read a robot whose base is fixed (a fixed-base regressor, a replay of its
 # joints' drive alone): refused beside [base_motion]
-FIXED_BASE_TABLES = ("excitation", "identification", "torque_identification", "studies", "estimators", "payload")
+FIXED_BASE_TABLES = ("excitation", "identification", "studies", "estimators", "payload")
 
 
 def refuse_fixed_base_tables(root: Table) -> None:
@@ -96,11 +96,17 @@ def refuse_fixed_base_tables(root: Table) -> None:
                                     "moves the base)")
 
 
-def read_scenario_base_motion(root: Table, robot, models=()) -> BaseTrajectory | None:
+def read_scenario_base_motion(root: Table, robot, models=(), configs=None) -> BaseTrajectory | None:
     """A scenario's `[base_motion]`, None without: the bench moves the base along it
     (harness/engines/free_base.py). Refused for a robot without a floating base, with loops or drives
-    (not simulated with the base free), and with a model under test that does not answer with the base
-    free (no `floating_inverse_dynamics`)."""
+    (not simulated with the base free), with a model under test that does not answer with the base
+    free (no `floating_inverse_dynamics`), and where the joint-torque identification's validation (in
+    `configs`) moves the base and this scenario does not, or the other way round."""
+    fit = (configs or {}).get("torque_identification")  # its validation must move the base as this one does
+    moved = fit is not None and getattr(fit.validation, "base_motion", None) is not None
+    if fit is not None and moved != root.has("base_motion"):
+        raise root.error("torque_identification", "the scenario and its validation must both move the floating base "
+                                                  "([base_motion]) or neither")
     if not root.has("base_motion"):
         return None
     if robot.floating is None:

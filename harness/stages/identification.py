@@ -17,6 +17,7 @@ import numpy as np
 from harness.base.numerics import NORMAL_975, PARAMETER_FLOOR, finite_or_null, parameter_scale, relative_error
 from harness.base.plugins import PluginError, Stage, inverse_dynamics
 from harness.engines.pinocchio import build_model
+from harness.identify.floating_id import ROWS
 from harness.identify.lstsq import WEAK_RATIO
 from harness.identify.torque_id import (
     COEFFICIENT_FLOOR,
@@ -36,16 +37,35 @@ from harness.stages.shared import TorqueConfig, chain_of, structural_base_of, to
 def configure_torque(t, scenario) -> TorqueConfig:
     """`[torque_identification] validation = "other.toml", friction = true`, validated (one-line
     errors naming the key). `friction` defaults to whether the model declares any friction or rotor
-    inertia."""
+    inertia. Where the validation moves a floating base (`[base_motion]`, as the scenario must:
+    harness/sources/base_motion.py), `rows = "base"` or `"all"` (the default): the floating-base fit
+    (harness/stages/floating_fit.py), of the rigid bodies alone."""
     validation = scenario.related(t, "validation")
     if validation.robot.joint_names != scenario.robot.joint_names:
         raise t.error("validation", f"{t.data['validation']!r} simulates another robot than {scenario.robot.name!r}")
-    return TorqueConfig(validation, t.boolean("friction", default=not all(f.none for f in scenario.robot.frictions)))
+    declared = not all(f.none for f in scenario.robot.frictions)
+    if getattr(validation, "base_motion", None) is None:
+        if t.has("rows"):
+            raise t.error("rows", "the rows of a floating base's fit: the scenario and its validation need "
+                                  "[base_motion]")
+        return TorqueConfig(validation, t.boolean("friction", default=declared))
+    rows = t.string("rows", default="all", choices=ROWS)
+    if t.boolean("friction", default=False):
+        raise t.error("friction", "not identified with a floating base yet (its regressor holds the rigid bodies)")
+    if rows == "all" and declared:
+        raise t.error("rows", "the joints' torques carry the drives' friction and rotor inertia, which the floating "
+                              "base's regressor does not hold yet: rows = \"base\" (they never reach the base rows)")
+    return TorqueConfig(validation, False, rows)
 
 
 def run_builtin(ctx, config: TorqueConfig | None) -> BuiltinIdentification | None:
     if config is None:
         return None
+    if config.rows is not None:  # a floating base the bench moves
+        from harness.stages.floating_fit import identify
+
+        ti, floating = identify(ctx, config)
+        return BuiltinIdentification(ti, config.validation.name, floating)
     sc = ctx.scenario
     joints = sc.robot.joint_names
     val = ctx.recorded(config.validation)
@@ -67,6 +87,7 @@ class BuiltinIdentification:
 
     fit: TorqueIdentification
     validation: str
+    floating: dict | None = None  # a moving floating base's fit: its rows, method and counts (stages/floating_fit.py)
 
     def serialise(self, ctx, config) -> dict:
         """results.json's `torque_identification`: the base parameters against the robot's, their
@@ -105,6 +126,7 @@ class BuiltinIdentification:
                      for k in range(len(ti.beta))],
             "validation": None,
             "friction": self.friction_terms() if ti.base.with_friction else None,
+            **(self.floating or {}),
         }
         if ti.validation_error is not None:
             err = relative_error(ti.validation_error, 0.0, ti.validation_scale)
@@ -113,7 +135,9 @@ class BuiltinIdentification:
                                  "max_rel_joint": (ti.torque_joints[worst_joint] if ti.torque_joints else
                                                    ti.names[10 * worst_joint].rsplit(".", 1)[0]),
                                  "rms_rel_error": float(np.sqrt(np.mean(err**2))),
-                                 "definition": "|predicted - recorded torque| / L_J of the validation run"}
+                                 "definition": "|predicted - recorded torque| / L_J of the validation run" + (
+                                     "; a base row's, |predicted - recorded| / the largest |F_W| or |M_W| of the "
+                                     "world's wrench on the base over the run" if self.floating else "")}
         return out
 
     def friction_terms(self) -> dict:

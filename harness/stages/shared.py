@@ -18,6 +18,7 @@ class TorqueConfig:
 
     validation: Setup
     friction: bool
+    rows: str | None = None  # a moving floating base's fit: "base" or "all" (harness/identify/floating_id.py)
 
 
 def torque_config(scenario) -> TorqueConfig | None:

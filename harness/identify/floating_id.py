@@ -1,0 +1,110 @@
+"""Identification of a floating-base robot from the world's wrench on its base and, where asked, its
+joint torques.
+
+With the base free the inverse dynamics is linear in the inertial parameters of every body, the base's
+own included (harness/model/floating.py, the harness's convention):
+
+    [w_W; tau] = Y(base, q, q', q'') theta,    w_W = [F_W, M_W] the world's wrench on the base
+
+theta the ten parameters of the base's body, then of each joint's body (Pinocchio's
+computeJointTorqueRegressor on the free-flyer model: m, m c and the inertia about the joint frame's
+origin, in that frame), Y's six base rows turned from Pinocchio's base axes to the world's. The base
+rows carry no actuator and no joint friction: what the world exerts on the base (a legged robot's
+contact wrenches, summed; the moving bench's applied wrench) identifies every body's parameters that
+move the base, without a joint torque sensor (`rows = "base"`); with the joint torques too (`"all"`),
+what only the joints see as well. The base parameters are found as for a fixed base
+(harness/identify/torque_id.py, base_parameters: QR with column pivoting of the regressor at random
+states, here with the base's pose uniform on SO(3)); a floating base has more of them than the same
+robot bolted down (the base's own parameters, and those the base's motion excites), counted side by side
+(`fixed_base_parameters`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from harness.engines.pinocchio import PinocchioModel
+from harness.identify.torque_id import STRUCTURAL_STATES, BaseParameters, base_parameters, fit_base, with_structure
+from harness.model.floating import BaseMotion, random_base_motion, to_pinocchio
+from harness.model.inertia import PARAMETER_NAMES
+from harness.model.spec import RobotSpec
+from harness.model.states import position_bounds, random_states
+
+ROWS = ("base", "all")  # which rows a fit reads: the base's six alone, or the joints' torques too
+BASE_ROWS = ("base.Fx", "base.Fy", "base.Fz", "base.Mx", "base.My", "base.Mz")
+
+
+def _free_flyer(pm: PinocchioModel) -> None:
+    if pm.model.joints[1].shortname() != "JointModelFreeFlyer":
+        raise ValueError("a floating-base regressor needs the model built with its floating base "
+                         "(harness/engines/pinocchio.py, build_model(..., floating=True))")
+
+
+def regressor(pm: PinocchioModel, base: BaseMotion, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """(N, 6 + n, 10 (njoints - 1)): Y at each state, rows [F_W, M_W] then the joints in the spec's order,
+    columns ten per Pinocchio joint (the free-flyer's body, the base, first; `parameter_names`)."""
+    _free_flyer(pm)
+    model, data = pm.model, pm.model.createData()
+    v_index = np.array([model.joints[j].idx_v for j in pm.joint_ids], dtype=int)
+    q_ff, v_ff, a_ff = to_pinocchio(base)
+    qq, vv, aa = np.zeros((len(q), model.nq)), np.zeros((len(q), model.nv)), np.zeros((len(q), model.nv))
+    qq[:, :7], vv[:, :6], aa[:, :6] = q_ff, v_ff, a_ff
+    qq[:, pm.q_index], vv[:, v_index], aa[:, v_index] = q, qd, qdd
+    rows = np.r_[0:6, v_index]
+    Y = np.stack([pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[rows] for k in range(len(q))])
+    R = base.R_WB  # Pinocchio's base rows [F_B, M_B]: to world axes
+    Y[:, 0:3], Y[:, 3:6] = R @ Y[:, 0:3], R @ Y[:, 3:6]
+    return Y
+
+
+def parameter_names(spec: RobotSpec, pm: PinocchioModel) -> list[str]:
+    """Ten names per column block of `regressor`: the base's body, then each Pinocchio joint's body (by
+    the spec body it carries)."""
+    body = {pid: spec.joints[k].child for k, pid in enumerate(pm.joint_ids)}
+    owners = [spec.floating.body.name] + [body[j] for j in range(2, pm.model.njoints)]
+    return [f"{b}.{p}" for b in owners for p in PARAMETER_NAMES]
+
+
+def true_parameters(pm: PinocchioModel) -> np.ndarray:
+    return np.concatenate([pm.model.inertias[j].toDynamicParameters() for j in range(1, pm.model.njoints)])
+
+
+def selected(Y: np.ndarray, rows: str) -> np.ndarray:
+    """(N k, p) the rows a fit reads (`rows`, ROWS), sample by sample."""
+    if rows not in ROWS:
+        raise ValueError(f"rows {rows!r}: one of {', '.join(ROWS)}")
+    return (Y[:, :6] if rows == "base" else Y).reshape(-1, Y.shape[-1])
+
+
+def structural_base(pm: PinocchioModel, limits: dict | None, rows: str, seed: int = 0) -> BaseParameters:
+    """The base parameters of the floating robot's structure (`rows` of its regressor, at STRUCTURAL_STATES
+    random states: the base uniform on SO(3), its twist and acceleration within +-1 and +-5; the joints
+    within their limits, q' and q'' standard-normal-sized within +-1)."""
+    names = [pm.model.names[j] for j in pm.joint_ids]
+    revolute = [pm.model.joints[j].shortname().startswith("JointModelR") for j in pm.joint_ids]
+    lo, hi = position_bounds(names, revolute, limits)
+    ones = np.ones(len(names))
+    q, qd, qdd = random_states(lo, hi, ones, ones, STRUCTURAL_STATES, seed)
+    return base_parameters(selected(regressor(pm, random_base_motion(STRUCTURAL_STATES, seed), q, qd, qdd), rows))
+
+
+def measured(base_wrench_W: np.ndarray, tau: np.ndarray, rows: str) -> np.ndarray:
+    """(N, k): what a fit of `rows` reads, the world's wrench on the base (N, 6) and the joints' torques (N, n)."""
+    return base_wrench_W if rows == "base" else np.concatenate([base_wrench_W, tau], axis=1)
+
+
+def identify(pm: PinocchioModel, structure: BaseParameters, rows: str, training: tuple, validation: tuple | None):
+    """Least squares of the base parameters `structure` from `training` = (base, q, q', q'', y), y (N, k)
+    the measured rows (`measured`), judged on `validation` (the same, another motion): the fit
+    (harness/identify/lstsq.py Estimate, with the structure's weak parameters) and the validation's
+    predicted less measured rows (N_v, k), None without one."""
+    base, q, qd, qdd, y = training
+    W1 = selected(regressor(pm, base, q, qd, qdd), rows)[:, structure.independent]
+    beta_model = structure.of(true_parameters(pm))
+    fit = with_structure(fit_base(W1, y, beta_model), structure)
+    if validation is None:
+        return fit, beta_model, None
+    base_v, q_v, qd_v, qdd_v, y_v = validation
+    pred = selected(regressor(pm, base_v, q_v, qd_v, qdd_v), rows)[:, structure.independent] @ fit.beta
+    return fit, beta_model, pred.reshape(y_v.shape) - y_v

@@ -1,0 +1,62 @@
+"""`[torque_identification]` where the bench moves a floating base (a scenario's `[base_motion]`): the
+floating-base identification (harness/identify/floating_id.py) from the world's wrench on the base alone
+(`rows = "base"`: no joint torque read) or with the joints' torques (`"all"`), judged on the validation
+scenario's motion (its own `[base_motion]`). Not a stage: the joint-torque identification stage
+(harness/stages/identification.py) calls it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.engines.pinocchio import build_model
+from harness.identify import floating_id
+from harness.identify.torque_id import COEFFICIENT_FLOOR, TorqueIdentification
+from harness.identify.torque_id import structural_base as fixed_structural_base
+from harness.model.floating import BaseMotion
+from harness.stages.metrics import joint_load_scale
+
+
+def _data(rec, joints: list[str], rows: str) -> tuple:
+    """(base, q, q', q'', measured rows) of a recording of a moving base."""
+    q, qd, qdd, tau = rec.joint_data(joints)
+    base = BaseMotion.from_rows(rec.base_pose, rec.base_twist_W, rec.base_rate_W)
+    return base, q, qd, qdd, floating_id.measured(rec.base_wrench_W, tau, rows)
+
+
+def _scale(robot, rec, rows: str) -> np.ndarray:
+    """Each measured row's scale: the largest |F_W| (force rows) and |M_W| (moment rows) of the world's
+    wrench on the base over the recording, then each joint's load L_J."""
+    F, M = (float(np.max(np.linalg.norm(rec.base_wrench_W[:, s], axis=1))) for s in (slice(0, 3), slice(3, 6)))
+    wrench = np.array([F, F, F, M, M, M])
+    return wrench if rows == "base" else np.concatenate([wrench, joint_load_scale(robot, rec)])
+
+
+def identify(ctx, config) -> tuple[TorqueIdentification, dict]:
+    """The fit (as the fixed base's TorqueIdentification, its rows named) and what the results add of a
+    floating base: which rows it read, its base parameters against the same robot's bolted down."""
+    sc, rows = ctx.scenario, config.rows
+    joints = sc.robot.joint_names
+    pm = build_model(sc.robot, sc.gravity_W, floating=True)
+    structure = ctx.once(("floating-base structural base parameters", rows),
+                         lambda: floating_id.structural_base(pm, sc.robot.limits, rows))
+    val = ctx.recorded(config.validation)
+    fit, beta_true, err = floating_id.identify(pm, structure, rows, _data(ctx.training, joints, rows),
+                                               _data(val, joints, rows))
+    names = floating_id.parameter_names(sc.robot, pm)
+    ti = TorqueIdentification(names, structure, beta_true, fit.beta, fit.condition_number, fit.std,
+                              fit.ci_half_width, fit.sensitivity, fit.weak, err, _scale(sc.robot, val, rows),
+                              list(floating_id.BASE_ROWS) + ([] if rows == "base" else joints))
+    fixed = fixed_structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits)
+    own = [name.startswith(f"{sc.robot.floating.body.name}.") for name in names]  # the base body's parameters
+    holding = sum(own[structure.independent[k]] or any(own[j] for j, c in zip(structure.dependent, row, strict=True)
+                                                       if abs(c) > COEFFICIENT_FLOOR)
+                  for k, row in enumerate(structure.combination))
+    read = ("the world's wrench on the base alone (no joint torque)" if rows == "base" else
+            "the world's wrench on the base and the joints' torques")
+    extra = {"rows": rows, "fixed_base_parameters": len(fixed.independent), "base_body_in": int(holding),
+             "method": ("floating base: Pinocchio's joint torque regressor of the robot on its free-flyer, the base's "
+                        f"six rows turned to world axes (harness/identify/floating_id.py), read on {read}; base "
+                        "parameters by QR with column pivoting at random states, the base's pose uniform on SO(3); "
+                        f"least squares. The same robot bolted down has {len(fixed.independent)}; {int(holding)} of "
+                        "these hold the base body's own parameters")}
+    return ti, extra
