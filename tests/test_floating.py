@@ -396,7 +396,8 @@ def test_a_gate_on_a_model_s_floating_figures_judges_it(metric):
 def test_the_floating_regressor_is_the_free_flyer_s_inverse_dynamics_and_identifies_from_the_base_rows(tmp_path):
     """harness/identify/floating_id.py: Y theta is the floating robot's inverse dynamics (base rows in world
     axes, then the joints) of both engines at 40 random states, to 1e-12 (round-off ~1e-16; the base rows
-    left in Pinocchio's base axes are off by the order of the values). From the base rows alone the trunk
+    left in Pinocchio's base axes are off by the order of the values), and with the joints' drive columns
+    Pinocchio's torques plus the drives' law, those columns zero on the base rows. From the base rows alone the trunk
     with a leg and a two-hinge arm has more base parameters than bolted down (the base's own, and what its
     motion excites), and exact data at 60 random states give them to 1e-9 and another 60 states' rows, base
     and joints, to 1e-9 of their largest (round-off through the fit's conditioning)."""
@@ -420,6 +421,19 @@ def test_the_floating_regressor_is_the_free_flyer_s_inverse_dynamics_and_identif
         ref = engines.inverse_dynamics(spec, GRAVITY_W, *s, engine)
         expected = np.concatenate([ref.base, ref.tau], axis=1)
         assert np.abs(floating_id.regressor(pm, *s) @ theta - expected).max() <= 1e-12 * np.abs(expected).max()
+    # the joints' drives: on their own rows alone, as Pinocchio's torques plus the drives' law
+    from harness.model import drives
+    from harness.model.friction import JointFriction
+
+    law = JointFriction(armature=0.01, viscous=0.05, coulomb=0.2, offset=0.03)
+    pm_f = build_model(spec.with_frictions((law,) * n), GRAVITY_W, floating=True)
+    s = states(40, 4)
+    ref = engines.inverse_dynamics(spec, GRAVITY_W, *s, "pinocchio")
+    tau = ref.tau + drives.torque(pm_f.frictions, None, s[2], s[3], ref.tau)
+    Y = floating_id.regressor(pm_f, *s, with_friction=True)
+    expected = np.concatenate([ref.base, tau], axis=1)
+    assert np.abs(Y @ floating_id.true_parameters(pm_f, True) - expected).max() <= 1e-12 * np.abs(expected).max()
+    assert not Y[:, :6, len(theta):].any()  # never on the base rows
     fixed = structural_base(build_model(spec, GRAVITY_W), spec.limits)
     for rows in floating_id.ROWS:
         structure = floating_id.structural_base(pm, spec.limits, rows)
@@ -444,8 +458,8 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     alone (no joint torque) identifies the trunk's base parameters, and the validation motion's wrench is
     predicted to 1e-8 of its largest force and moment (exact recordings through a fit of condition ~1e6);
     results.json says which rows were read and how many base parameters the robot bolted down would have.
-    A validation that does not move the base, rows on a fixed base, rows = "all" beside joint friction, and
-    friction = true are each refused in one line."""
+    With the joints' torques too, a hip's Coulomb friction is found on its own row. A validation that does
+    not move the base, rows on a fixed base, and friction from the base rows are each refused in one line."""
     import json
 
     from harness.base.tomlio import InputError
@@ -475,11 +489,17 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     ti = json.loads((tmp_path / "out" / "results.json").read_text())["torque_identification"]
     assert ti["rows"] == "base" and ti["base_parameters"] > ti["fixed_base_parameters"]
     assert ti["validation"]["max_rel_joint"].startswith("base.")
+    # a hip with Coulomb friction: all rows identify it on the hip's own (the base rows never see it)
+    (tmp_path / "fv.toml").write_text(head.format("f.toml") + motion(0.8) + gate)
+    (tmp_path / "s.toml").write_text(head.format("f.toml") + motion(1.0) + fit.format("fv.toml", "all") + gate)
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet", "--replace"]) == 0
+    ti = json.loads((tmp_path / "out" / "results.json").read_text())["torque_identification"]
+    assert ti["rows"] == "all" and ti["friction"]["joints"]["hip"]["coulomb"]["rel_error"] <= 1e-6
+    assert ti["validation"]["max_rel_error"] <= 1e-8
     for model, table, key, said in (("m.toml", '[torque_identification]\nvalidation = "still.toml"\n',
                                      "torque_identification", "neither"),
-                                    ("f.toml", fit.format("v.toml", "all"), "torque_identification.rows", "friction"),
-                                    ("m.toml", fit.format("v.toml", "base") + "friction = true\n",
-                                     "torque_identification.friction", "not identified")):
+                                    ("f.toml", fit.format("fv.toml", "base") + "friction = true\n",
+                                     "torque_identification.friction", "never reach the base rows")):
         (tmp_path / "s.toml").write_text(head.format(model) + motion(1.0) + table + gate)
         with pytest.raises(InputError) as err:
             load_scenario(tmp_path / "s.toml")

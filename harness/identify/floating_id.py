@@ -12,7 +12,8 @@ origin, in that frame), Y's six base rows turned from Pinocchio's base axes to t
 rows carry no actuator and no joint friction: what the world exerts on the base (a legged robot's
 contact wrenches, summed; the moving bench's applied wrench) identifies every body's parameters that
 move the base, without a joint torque sensor (`rows = "base"`); with the joint torques too (`"all"`),
-what only the joints see as well. The base parameters are found as for a fixed base
+what only the joints see as well, and the joints' friction and rotor inertia, which only their own rows
+carry. The base parameters are found as for a fixed base
 (harness/identify/torque_id.py, base_parameters: QR with column pivoting of the regressor at random
 states, here with the base's pose uniform on SO(3)); a floating base has more of them than the same
 robot bolted down (the base's own parameters, and those the base's motion excites), counted side by side
@@ -26,6 +27,7 @@ import pinocchio as pin
 
 from harness.engines.pinocchio import PinocchioModel
 from harness.identify.torque_id import STRUCTURAL_STATES, BaseParameters, base_parameters, fit_base, with_structure
+from harness.model import drives, friction
 from harness.model.floating import BaseMotion, random_base_motion, to_pinocchio
 from harness.model.inertia import PARAMETER_NAMES
 from harness.model.spec import RobotSpec
@@ -41,9 +43,13 @@ def _free_flyer(pm: PinocchioModel) -> None:
                          "(harness/engines/pinocchio.py, build_model(..., floating=True))")
 
 
-def regressor(pm: PinocchioModel, base: BaseMotion, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-    """(N, 6 + n, 10 (njoints - 1)): Y at each state, rows [F_W, M_W] then the joints in the spec's order,
-    columns ten per Pinocchio joint (the free-flyer's body, the base, first; `parameter_names`)."""
+def regressor(pm: PinocchioModel, base: BaseMotion, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+              with_friction: bool = False) -> np.ndarray:
+    """(N, 6 + n, 10 (njoints - 1) [+ 4 n]): Y at each state, rows [F_W, M_W] then the joints in the spec's
+    order, columns ten per Pinocchio joint (the free-flyer's body, the base, first; `parameter_names`);
+    with friction, then each joint's drive columns [armature, viscous, coulomb, offset] at its rates
+    (harness/model/drives.py, as a fixed base's: harness/identify/torque_id.py), on its own row alone:
+    a drive's friction and rotor inertia act between its joint's bodies, never on the base rows."""
     _free_flyer(pm)
     model, data = pm.model, pm.model.createData()
     v_index = np.array([model.joints[j].idx_v for j in pm.joint_ids], dtype=int)
@@ -55,19 +61,28 @@ def regressor(pm: PinocchioModel, base: BaseMotion, q: np.ndarray, qd: np.ndarra
     Y = np.stack([pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[rows] for k in range(len(q))])
     R = base.R_WB  # Pinocchio's base rows [F_B, M_B]: to world axes
     Y[:, 0:3], Y[:, 3:6] = R @ Y[:, 0:3], R @ Y[:, 3:6]
-    return Y
+    if not with_friction:
+        return Y
+    n = len(pm.joint_ids)
+    D = np.zeros((len(q), 6 + n, 4 * n))
+    shapes = drives.columns(pm.frictions, pm.transmission, qd, qdd)  # (N, drives, 4)
+    for j, k, factor in drives.reach(pm.transmission, n):
+        D[:, 6 + j, 4 * k: 4 * k + 4] = factor * shapes[:, k]
+    return np.concatenate([Y, D], axis=2)
 
 
-def parameter_names(spec: RobotSpec, pm: PinocchioModel) -> list[str]:
+def parameter_names(spec: RobotSpec, pm: PinocchioModel, with_friction: bool = False) -> list[str]:
     """Ten names per column block of `regressor`: the base's body, then each Pinocchio joint's body (by
-    the spec body it carries)."""
+    the spec body it carries); with friction, each joint's drive terms."""
     body = {pid: spec.joints[k].child for k, pid in enumerate(pm.joint_ids)}
     owners = [spec.floating.body.name] + [body[j] for j in range(2, pm.model.njoints)]
-    return [f"{b}.{p}" for b in owners for p in PARAMETER_NAMES]
+    names = [f"{b}.{p}" for b in owners for p in PARAMETER_NAMES]
+    return names + ([f"{j}.{k}" for j in spec.joint_names for k in friction.IDENTIFIED_KEYS] if with_friction else [])
 
 
-def true_parameters(pm: PinocchioModel) -> np.ndarray:
-    return np.concatenate([pm.model.inertias[j].toDynamicParameters() for j in range(1, pm.model.njoints)])
+def true_parameters(pm: PinocchioModel, with_friction: bool = False) -> np.ndarray:
+    inertial = np.concatenate([pm.model.inertias[j].toDynamicParameters() for j in range(1, pm.model.njoints)])
+    return np.concatenate([inertial, friction.values(pm.frictions).ravel()]) if with_friction else inertial
 
 
 def selected(Y: np.ndarray, rows: str) -> np.ndarray:
@@ -77,7 +92,8 @@ def selected(Y: np.ndarray, rows: str) -> np.ndarray:
     return (Y[:, :6] if rows == "base" else Y).reshape(-1, Y.shape[-1])
 
 
-def structural_base(pm: PinocchioModel, limits: dict | None, rows: str, seed: int = 0) -> BaseParameters:
+def structural_base(pm: PinocchioModel, limits: dict | None, rows: str, seed: int = 0,
+                    with_friction: bool = False) -> BaseParameters:
     """The base parameters of the floating robot's structure (`rows` of its regressor, at STRUCTURAL_STATES
     random states: the base uniform on SO(3), its twist and acceleration within +-1 and +-5; the joints
     within their limits, q' and q'' standard-normal-sized within +-1)."""
@@ -86,7 +102,8 @@ def structural_base(pm: PinocchioModel, limits: dict | None, rows: str, seed: in
     lo, hi = position_bounds(names, revolute, limits)
     ones = np.ones(len(names))
     q, qd, qdd = random_states(lo, hi, ones, ones, STRUCTURAL_STATES, seed)
-    return base_parameters(selected(regressor(pm, random_base_motion(STRUCTURAL_STATES, seed), q, qd, qdd), rows))
+    Y = regressor(pm, random_base_motion(STRUCTURAL_STATES, seed), q, qd, qdd, with_friction)
+    return base_parameters(selected(Y, rows), with_friction)
 
 
 def measured(base_wrench_W: np.ndarray, tau: np.ndarray, rows: str) -> np.ndarray:
@@ -100,11 +117,12 @@ def identify(pm: PinocchioModel, structure: BaseParameters, rows: str, training:
     (harness/identify/lstsq.py Estimate, with the structure's weak parameters) and the validation's
     predicted less measured rows (N_v, k), None without one."""
     base, q, qd, qdd, y = training
-    W1 = selected(regressor(pm, base, q, qd, qdd), rows)[:, structure.independent]
-    beta_model = structure.of(true_parameters(pm))
+    friction_too = structure.with_friction
+    W1 = selected(regressor(pm, base, q, qd, qdd, friction_too), rows)[:, structure.independent]
+    beta_model = structure.of(true_parameters(pm, friction_too))
     fit = with_structure(fit_base(W1, y, beta_model), structure)
     if validation is None:
         return fit, beta_model, None
     base_v, q_v, qd_v, qdd_v, y_v = validation
-    pred = selected(regressor(pm, base_v, q_v, qd_v, qdd_v), rows)[:, structure.independent] @ fit.beta
+    pred = selected(regressor(pm, base_v, q_v, qd_v, qdd_v, friction_too), rows)[:, structure.independent] @ fit.beta
     return fit, beta_model, pred.reshape(y_v.shape) - y_v

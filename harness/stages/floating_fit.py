@@ -37,16 +37,16 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict]:
     sc, rows = ctx.scenario, config.rows
     joints = sc.robot.joint_names
     pm = build_model(sc.robot, sc.gravity_W, floating=True)
-    structure = ctx.once(("floating-base structural base parameters", rows),
-                         lambda: floating_id.structural_base(pm, sc.robot.limits, rows))
+    structure = ctx.once(("floating-base structural base parameters", rows, config.friction),
+                         lambda: floating_id.structural_base(pm, sc.robot.limits, rows, with_friction=config.friction))
     val = ctx.recorded(config.validation)
     fit, beta_true, err = floating_id.identify(pm, structure, rows, _data(ctx.training, joints, rows),
                                                _data(val, joints, rows))
-    names = floating_id.parameter_names(sc.robot, pm)
+    names = floating_id.parameter_names(sc.robot, pm, config.friction)
     ti = TorqueIdentification(names, structure, beta_true, fit.beta, fit.condition_number, fit.std,
                               fit.ci_half_width, fit.sensitivity, fit.weak, err, _scale(sc.robot, val, rows),
                               list(floating_id.BASE_ROWS) + ([] if rows == "base" else joints))
-    fixed = fixed_structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits)
+    fixed = fixed_structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits, with_friction=config.friction)
     own = [name.startswith(f"{sc.robot.floating.body.name}.") for name in names]  # the base body's parameters
     holding = sum(own[structure.independent[k]] or any(own[j] for j, c in zip(structure.dependent, row, strict=True)
                                                        if abs(c) > COEFFICIENT_FLOOR)

@@ -39,7 +39,7 @@ def configure_torque(t, scenario) -> TorqueConfig:
     errors naming the key). `friction` defaults to whether the model declares any friction or rotor
     inertia. Where the validation moves a floating base (`[base_motion]`, as the scenario must:
     harness/sources/base_motion.py), `rows = "base"` or `"all"` (the default): the floating-base fit
-    (harness/stages/floating_fit.py), of the rigid bodies alone."""
+    (harness/stages/floating_fit.py), friction only with the joints' rows."""
     validation = scenario.related(t, "validation")
     if validation.robot.joint_names != scenario.robot.joint_names:
         raise t.error("validation", f"{t.data['validation']!r} simulates another robot than {scenario.robot.name!r}")
@@ -50,12 +50,11 @@ def configure_torque(t, scenario) -> TorqueConfig:
                                   "[base_motion]")
         return TorqueConfig(validation, t.boolean("friction", default=declared))
     rows = t.string("rows", default="all", choices=ROWS)
-    if t.boolean("friction", default=False):
-        raise t.error("friction", "not identified with a floating base yet (its regressor holds the rigid bodies)")
-    if rows == "all" and declared:
-        raise t.error("rows", "the joints' torques carry the drives' friction and rotor inertia, which the floating "
-                              "base's regressor does not hold yet: rows = \"base\" (they never reach the base rows)")
-    return TorqueConfig(validation, False, rows)
+    fit_friction = t.boolean("friction", default=declared and rows == "all")
+    if fit_friction and rows == "base":
+        raise t.error("friction", "the joints' friction and rotor inertia never reach the base rows: rows = \"all\" "
+                                  "identifies them on the joints' own")
+    return TorqueConfig(validation, fit_friction, rows)
 
 
 def run_builtin(ctx, config: TorqueConfig | None) -> BuiltinIdentification | None:
