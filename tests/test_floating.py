@@ -458,8 +458,10 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     alone (no joint torque) identifies the trunk's base parameters, and the validation motion's wrench is
     predicted to 1e-8 of its largest force and moment (exact recordings through a fit of condition ~1e6);
     results.json says which rows were read and how many base parameters the robot bolted down would have.
-    With the joints' torques too, a hip's Coulomb friction is found on its own row. A validation that does
-    not move the base, rows on a fixed base, and friction from the base rows are each refused in one line."""
+    With 1 % noise on that wrench ([measurement.noise.base_wrench]) the fit reads the noisy rows. With the
+    joints' torques too, a hip's Coulomb friction is found on its own row. A validation that does not move
+    the base, rows on a fixed base, friction from the base rows, and noise on a base wrench no bench moved
+    are each refused in one line."""
     import json
 
     from harness.base.tomlio import InputError
@@ -489,6 +491,13 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     ti = json.loads((tmp_path / "out" / "results.json").read_text())["torque_identification"]
     assert ti["rows"] == "base" and ti["base_parameters"] > ti["fixed_base_parameters"]
     assert ti["validation"]["max_rel_joint"].startswith("base.")
+    # 1 % noise on the world's wrench on the base (the scenario's and the validation's): the fit reads it
+    noisy = "[measurement]\nseed = 3\n[measurement.noise.base_wrench]\nrelative = 0.01\n"
+    (tmp_path / "vn.toml").write_text(head.format("m.toml") + motion(0.8) + noisy + gate)
+    (tmp_path / "s.toml").write_text(head.format("m.toml") + motion(1.0) + fit.format("vn.toml", "base") + noisy + gate)
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "n"), "--quiet"]) == 0
+    ti = json.loads((tmp_path / "n" / "results.json").read_text())["torque_identification"]
+    assert 1e-3 < ti["validation"]["max_rel_error"] < 0.1  # the validation rows' own 1 % (1.8e-2 measured)
     # a hip with Coulomb friction: all rows identify it on the hip's own (the base rows never see it)
     (tmp_path / "fv.toml").write_text(head.format("f.toml") + motion(0.8) + gate)
     (tmp_path / "s.toml").write_text(head.format("f.toml") + motion(1.0) + fit.format("fv.toml", "all") + gate)
@@ -509,3 +518,7 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     with pytest.raises(InputError) as err:
         load_scenario(tmp_path / "s.toml")
     assert err.value.key == "torque_identification.rows"
+    (tmp_path / "s.toml").write_text(head.format("m.toml") + motion(1.0).split("[base_motion.x]")[0] + noisy + gate)
+    with pytest.raises(InputError) as err:
+        load_scenario(tmp_path / "s.toml")
+    assert err.value.key == "measurement.noise.base_wrench"

@@ -108,6 +108,9 @@ def read_scenario_base_motion(root: Table, robot, models=(), configs=None) -> Ba
         raise root.error("torque_identification", "the scenario and its validation must both move the floating base "
                                                   "([base_motion]) or neither")
     if not root.has("base_motion"):
+        if "base_wrench" in root.data.get("measurement", {}).get("noise", {}):
+            raise root.error("measurement.noise.base_wrench", "the world's wrench on a floating base is recorded only "
+                                                              "where the bench moves it ([base_motion])")
         return None
     if robot.floating is None:
         raise root.error("base_motion", f"model {robot.name!r} has no floating base (an MJCF free joint, a URDF "

@@ -12,7 +12,8 @@ A scenario's `[measurement]` table, every key optional:
     [measurement.noise.forces]      # Gaussian, per group: forces, moments, accelerations,
     relative = 0.01                 #   angular_velocities, angular_accelerations, angles,
     absolute = 0.0                  #   positions, joints (q, q', q'', tau), joint_torques (tau
-                                    #   alone; it replaces what joints gives tau)
+                                    #   alone; it replaces what joints gives tau), base_wrench (the
+                                    #   world's wrench on a floating base the bench moves)
 
 Noise on a value x has standard deviation sqrt(absolute^2 + (relative |x|)^2), independently per
 component and sample; angles and positions take absolute noise only (their zero is arbitrary).
@@ -38,11 +39,11 @@ import numpy as np
 from harness.base.series import TimeSeries
 from harness.base.tomlio import Table
 
-CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "a_W", "omega_W", "omegadot_W")
+CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "a_W", "omega_W", "omegadot_W", "base_wrench_W")
 GROUPS = {
     "forces": ("F_W",), "moments": ("M_W",), "accelerations": ("a_W",), "angular_velocities": ("omega_W",),
     "angular_accelerations": ("omegadot_W",), "angles": (), "positions": ("p_W", "v_W"),
-    "joints": ("q", "qd", "qdd", "tau"), "joint_torques": ("tau",),
+    "joints": ("q", "qd", "qdd", "tau"), "joint_torques": ("tau",), "base_wrench": ("base_wrench_W",),
 }
 
 ABSOLUTE_ONLY = ("angles", "positions")  # their size says nothing of how well they are read
@@ -137,9 +138,14 @@ def read_encoders(q: np.ndarray, resolution: float, rng: np.random.Generator) ->
     return np.round((q - zero) / resolution) * resolution + zero
 
 
+def channels(rec: TimeSeries) -> dict[str, np.ndarray]:
+    """The measured channels `rec` has (CHANNELS; a floating base's wrench only where the bench moved it)."""
+    return {c: getattr(rec, c) for c in CHANNELS if getattr(rec, c) is not None}
+
+
 def add_noise(rec: TimeSeries, noise: dict[str, Noise], rng: np.random.Generator) -> dict[str, np.ndarray]:
     """Each channel of `rec` that a noise group names, with its noise drawn from `rng`."""
-    return add_noise_to({c: getattr(rec, c) for c in CHANNELS}, GROUPS, noise, rng)
+    return add_noise_to(channels(rec), GROUPS, noise, rng)
 
 
 def add_noise_to(values: dict[str, np.ndarray], groups: dict[str, tuple[str, ...]], noise: dict[str, Noise],
@@ -149,7 +155,7 @@ def add_noise_to(values: dict[str, np.ndarray], groups: dict[str, tuple[str, ...
     sqrt(absolute^2 + (relative |x|)^2), independently per component and sample."""
     out = {}
     for group, n in noise.items():
-        for c in groups.get(group, ()):
+        for c in (c for c in groups.get(group, ()) if c in values):
             x = values[c]
             std = np.sqrt(n.absolute**2 + (n.relative * x) ** 2)
             out[c] = x + std * rng.standard_normal(x.shape)
@@ -185,7 +191,7 @@ def measure(rec: TimeSeries, m: Measurement) -> TimeSeries:
     # from what was read
     rows = np.arange(0, len(rec.t), m.every)
     sampled = rec.span(rows)
-    values = {c: getattr(sampled, c) for c in CHANNELS}
+    values = channels(sampled)
     values.update(add_noise(sampled, m.noise, rng))
     if m.significant_digits is not None:
         values = {c: round_significant(v, m.significant_digits) for c, v in values.items()}
@@ -201,7 +207,7 @@ def dither(rec: TimeSeries, m: Measurement, rng: np.random.Generator) -> TimeSer
     every value moved by up to the rounding resolution times the largest value of its channel at
     that instant (an engine computes every body's quantities together, and a component that is zero
     in exact arithmetic comes out as round-off of that size, not as zero)."""
-    values = {c: getattr(rec, c) for c in CHANNELS}
+    values = channels(rec)
     values.update(add_noise(rec, m.noise, rng))
     return dataclasses.replace(rec, **moved_by_resolution(values, m.resolution, rng))
 
