@@ -491,6 +491,7 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     ti = json.loads((tmp_path / "out" / "results.json").read_text())["torque_identification"]
     assert ti["rows"] == "base" and ti["base_parameters"] > ti["fixed_base_parameters"]
     assert ti["validation"]["max_rel_joint"].startswith("base.")
+    assert "Identification of the floating robot from the world" in (tmp_path / "out" / "report.html").read_text()
     # 1 % noise on the world's wrench on the base (the scenario's and the validation's): the fit reads it
     noisy = "[measurement]\nseed = 3\n[measurement.noise.base_wrench]\nrelative = 0.01\n"
     (tmp_path / "vn.toml").write_text(head.format("m.toml") + motion(0.8) + noisy + gate)

@@ -500,9 +500,12 @@ def torque_identification(r: dict) -> str:
         if v
         else ""
     )
+    heading = {None: "Identification from joint torques alone",
+               "base": "Identification of the floating robot from the world's wrench on its base alone",
+               "all": "Identification of the floating robot from the wrench on its base and its joint torques"}
     return section(
         "torque_identification",
-        "Identification from joint torques alone",
+        heading[t.get("rows")],
         (
             f"<p>{esc(t['method'])}. {t['base_parameters']} base parameters out of {t['parameters']}; condition number "
             f"of the scaled base regressor {num(t['condition_number'])}; largest error {num(t['max_rel_error'])} "
