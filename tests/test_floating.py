@@ -232,6 +232,10 @@ def test_a_scenario_moves_its_floating_base_and_judges_the_world_s_wrench_on_it(
     assert rec.base_pose.shape == (21, 7) and rec.base_wrench_W.shape == (21, 6)
     assert np.abs(rec.base_wrench_W[:, 2]).min() > 1.0  # the weight is carried by the world's wrench
     assert "The bench moved the base along [base_motion]" in (tmp_path / "out" / "report.html").read_text()
+    # a base motion the bench cannot follow (a heave of 1e12 m) is bad input naming [base_motion]
+    (tmp_path / "s.toml").write_text(head + motion + base.replace("sin = [[0.05, 6.0]]", "sin = [[1e12, 6.0]]") + gates)
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "big"), "--quiet"]) == 2
+    assert "s.toml: base_motion: drives the simulation to non-finite values" in capsys.readouterr().err
 
 
 def test_the_bench_s_wrench_on_a_rigidly_held_robot_is_its_composite_body_s_newton_euler(tmp_path):

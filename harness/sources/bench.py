@@ -39,7 +39,8 @@ def record(scenario: Setup) -> TimeSeries:
         return simulate(scenario.robot, scenario.gravity_W, scenario.prescribed, scenario.output_steps,
                         scenario.output_dt, scenario.simulation, None if base is None else base.evaluate)
     except Diverged as exc:
-        raise InputError(scenario.source, f"motion.{exc.joint}",
+        moved = base is not None and exc.joint == scenario.robot.floating.joint  # the base's free joint
+        raise InputError(scenario.source, "base_motion" if moved else f"motion.{exc.joint}",
                          f"drives the simulation to non-finite values at t = {exc.t:.6g} s (MuJoCo: "
                          f"{exc.engine_message.split('. ')[0]}); a motion this fast or this far cannot be "
                          "simulated") from None
