@@ -404,9 +404,11 @@ def test_the_floating_regressor_is_the_free_flyer_s_inverse_dynamics_and_identif
     Pinocchio's torques plus the drives' law, those columns zero on the base rows. From the base rows alone the trunk
     with a leg and a two-hinge arm has more base parameters than bolted down (the base's own, and what its
     motion excites), and exact data at 60 random states give them to 1e-9 and another 60 states' rows, base
-    and joints, to 1e-9 of their largest (round-off through the fit's conditioning)."""
+    and joints, to 1e-9 of their largest (round-off through the fit's conditioning); the consistent fit keeps
+    every body physical and predicts them to 1e-5."""
     from harness.engines.pinocchio import build_model
     from harness.identify import floating_id
+    from harness.identify.consistent import consistency
     from harness.identify.torque_id import structural_base
     from harness.model.states import random_states
 
@@ -444,9 +446,18 @@ def test_the_floating_regressor_is_the_free_flyer_s_inverse_dynamics_and_identif
         assert len(structure.independent) > len(fixed.independent)
 
         validation = _exact(spec, states(60, 3), rows)
-        fit, beta_true, err = floating_id.identify(pm, structure, rows, _exact(spec, states(60, 2), rows), validation)
+        training = _exact(spec, states(60, 2), rows)
+        fit, beta_true, err = floating_id.identify(pm, structure, rows, training, validation)
         assert np.abs(fit.beta - beta_true).max() <= 1e-9 * np.abs(beta_true).max()
         assert np.abs(err).max() <= 1e-9 * np.abs(validation[-1]).max()
+        if rows != "base":
+            continue
+        # the consistent fit: every body physical, the base's included, and the rows predicted to its pull's
+        # cost on exact data (PULL = 1e-4 of the residual, floored at 1e-8 of the rows: 1e-7 measured)
+        physical, links = floating_id.consistent(pm, spec, rows, training, False)
+        assert links[0] == "trunk" and all(consistency(t)["consistent"] for t in physical.theta)
+        predicted = floating_id.consistent_rows(pm, physical, rows, validation, False)
+        assert np.abs(predicted - validation[-1]).max() <= 1e-5 * np.abs(validation[-1]).max()
 
 
 def _exact(spec, s: tuple, rows: str) -> tuple:
@@ -488,7 +499,8 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     (tmp_path / "v.toml").write_text(head.format("m.toml") + motion(0.8) + gate)
     (tmp_path / "still.toml").write_text(head.format("m.toml") + motion(0.8).split("[base_motion.x]")[0] + gate)
     fit = '[torque_identification]\nvalidation = "{}"\nrows = "{}"\n'
-    (tmp_path / "s.toml").write_text(head.format("m.toml") + motion(1.0) + fit.format("v.toml", "base") + gate
+    (tmp_path / "s.toml").write_text(head.format("m.toml") + motion(1.0) + fit.format("v.toml", "base")
+                                     + "consistent = true\n" + gate
                                      + '[[gates]]\nmetric = "torque_identification.validation.max_rel_error"\n'
                                        'limit = 1e-8\n')
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
@@ -496,6 +508,7 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     assert ti["rows"] == "base" and ti["base_parameters"] > ti["fixed_base_parameters"]
     assert ti["validation"]["max_rel_joint"].startswith("base.")
     assert "Identification of the floating robot from the world" in (tmp_path / "out" / "report.html").read_text()
+    assert not ti["consistent"]["inconsistent_links"] and ti["consistent"]["validation"]["max_rel_error"] <= 1e-3
     # 1 % noise on the world's wrench on the base (the scenario's and the validation's): the fit reads it
     noisy = "[measurement]\nseed = 3\n[measurement.noise.base_wrench]\nrelative = 0.01\n"
     (tmp_path / "vn.toml").write_text(head.format("m.toml") + motion(0.8) + noisy + gate)

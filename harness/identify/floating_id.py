@@ -126,3 +126,41 @@ def identify(pm: PinocchioModel, structure: BaseParameters, rows: str, training:
     base_v, q_v, qd_v, qdd_v, y_v = validation
     pred = selected(regressor(pm, base_v, q_v, qd_v, qdd_v, friction_too), rows)[:, structure.independent] @ fit.beta
     return fit, beta_model, pred.reshape(y_v.shape) - y_v
+
+
+def consistent(pm: PinocchioModel, spec: RobotSpec, rows: str, training: tuple, with_friction: bool):
+    """The physically consistent fit of the floating robot (harness/identify/consistent.py: every body's
+    pseudo-inertia positive definite, the base's included; the drives' rotor inertia, viscous and Coulomb
+    friction non-negative; what the data cannot see pulled to the model's values) on the same rows as the
+    least squares: (the fit, its links' order). Its links are the base's body, then each joint's body in
+    the spec's order; its drives a placeholder for the base (no columns: it stays at zero) and the joints'
+    (their columns where `with_friction`, else at the model's values)."""
+    from harness.identify import consistent as sdp
+    from harness.model.inertia import model_kind_scales
+
+    base, q, qd, qdd, y = training
+    n, J = len(spec.joints), pm.model.njoints - 1
+    Y = regressor(pm, base, q, qd, qdd, with_friction=True)
+    order = [0] + [pid - 1 for pid in pm.joint_ids]  # the links: the base's body, then the spec joints' bodies
+    inertial = np.concatenate([Y[:, :, 10 * b: 10 * b + 10] for b in order], axis=2)
+    drive = Y[:, :, 10 * J:] if with_friction else np.zeros((len(q), 6 + n, 4 * n))
+    W = selected(np.concatenate([inertial, np.zeros((len(q), 6 + n, 4)), drive], axis=2), rows)
+    theta_model = np.stack([pm.model.inertias[b + 1].toDynamicParameters() for b in order])
+    friction_model = np.vstack([np.zeros(4), friction.values(spec.frictions)])
+    scale = np.concatenate([model_kind_scales(theta_model).ravel(),
+                            np.maximum(np.abs(friction_model), 1e-3 * np.abs(friction_model).max(initial=1.0)).ravel()])
+    fit = sdp.fit(W, y.reshape(-1), theta_model, friction_model, scale)
+    return fit, [spec.floating.body.name, *(j.child for j in spec.joints)]
+
+
+def consistent_rows(pm: PinocchioModel, fit, rows: str, data: tuple, with_friction: bool) -> np.ndarray:
+    """(N, k): the rows (`rows`) the consistent fit predicts at the states of `data` (base, q, q', q'', ...)."""
+    base, q, qd, qdd = data[:4]
+    J = pm.model.njoints - 1
+    Y = regressor(pm, base, q, qd, qdd, with_friction=True)
+    theta = np.zeros(10 * J)
+    for k, b in enumerate([0] + [pid - 1 for pid in pm.joint_ids]):
+        theta[10 * b: 10 * b + 10] = fit.theta[k]
+    x = np.concatenate([theta, fit.friction[1:].ravel() if with_friction else friction.values(pm.frictions).ravel()])
+    out = Y @ x
+    return out[:, :6] if rows == "base" else out

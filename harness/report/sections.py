@@ -500,6 +500,12 @@ def torque_identification(r: dict) -> str:
         if v
         else ""
     )
+    c = t.get("consistent")  # a floating robot's consistent fit (harness/stages/floating_fit.py)
+    if c:
+        val += (f" The consistent fit ({esc(c['method'])}; {esc(c['status'])}): training residual "
+                f"{num(c['training_relative_residual'])}, the validation trajectory's largest error "
+                f"{num(c['validation']['max_rel_error'])}, links not physical: "
+                f"{esc(', '.join(c['inconsistent_links']) or 'none')}.")
     heading = {None: "Identification from joint torques alone",
                "base": "Identification of the floating robot from the world's wrench on its base alone",
                "all": "Identification of the floating robot from the wrench on its base and its joint torques"}

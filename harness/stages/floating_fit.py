@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from harness.engines.pinocchio import build_model
+from harness.identify import consistent as sdp
 from harness.identify import floating_id
 from harness.identify.torque_id import COEFFICIENT_FLOOR, TorqueIdentification
 from harness.identify.torque_id import structural_base as fixed_structural_base
@@ -41,7 +42,7 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict]:
                          lambda: floating_id.structural_base(pm, sc.robot.limits, rows, with_friction=config.friction))
     val = ctx.recorded(config.validation)
     fit, beta_true, err = floating_id.identify(pm, structure, rows, _data(ctx.training, joints, rows),
-                                               _data(val, joints, rows))
+                                               _data(val, joints, rows))  # least squares of the base parameters
     names = floating_id.parameter_names(sc.robot, pm, config.friction)
     ti = TorqueIdentification(names, structure, beta_true, fit.beta, fit.condition_number, fit.std,
                               fit.ci_half_width, fit.sensitivity, fit.weak, err, _scale(sc.robot, val, rows),
@@ -51,12 +52,43 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict]:
     holding = sum(own[structure.independent[k]] or any(own[j] for j, c in zip(structure.dependent, row, strict=True)
                                                        if abs(c) > COEFFICIENT_FLOOR)
                   for k, row in enumerate(structure.combination))
+    extra = {"rows": rows, "fixed_base_parameters": len(fixed.independent), "base_body_in": int(holding),
+             "method": _method(rows, len(fixed.independent), int(holding))}
+    if config.consistent:
+        extra["consistent"] = _consistent(ctx, config, pm, _data(ctx.training, joints, rows), _data(val, joints, rows),
+                                          ti.validation_scale)
+    return ti, extra
+
+
+def _method(rows: str, fixed: int, holding: int) -> str:
     read = ("the world's wrench on the base alone (no joint torque)" if rows == "base" else
             "the world's wrench on the base and the joints' torques")
-    extra = {"rows": rows, "fixed_base_parameters": len(fixed.independent), "base_body_in": int(holding),
-             "method": ("floating base: Pinocchio's joint torque regressor of the robot on its free-flyer, the base's "
-                        f"six rows turned to world axes (harness/identify/floating_id.py), read on {read}; base "
-                        "parameters by QR with column pivoting at random states, the base's pose uniform on SO(3); "
-                        f"least squares. The same robot bolted down has {len(fixed.independent)}; {int(holding)} of "
-                        "these hold the base body's own parameters")}
-    return ti, extra
+    return ("floating base: Pinocchio's joint torque regressor of the robot on its free-flyer, the base's six rows "
+            f"turned to world axes (harness/identify/floating_id.py), read on {read}; base parameters by QR with "
+            "column pivoting at random states, the base's pose uniform on SO(3); least squares. The same robot "
+            f"bolted down has {fixed}; {holding} of these hold the base body's own parameters")
+
+
+def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.ndarray) -> dict:
+    """The physically consistent fit on the same rows (harness/identify/floating_id.py, consistent), judged on
+    the validation motion as the least squares is."""
+    rows, sc = config.rows, ctx.scenario
+    physical, links = floating_id.consistent(pm, sc.robot, rows, training, config.friction)
+    predicted = floating_id.consistent_rows(pm, physical, rows, validation, config.friction)
+    err_c = np.abs(predicted - validation[-1]) / scale
+    consistent = {"method": "every body's pseudo-inertia positive definite, the base's included, what the data cannot "
+                            "see pulled to the model's values (harness/identify/consistent.py) on the same rows",
+                  "status": physical.status, "solver": physical.solver, "fallback": physical.fallback,
+                  "training_relative_residual": physical.relative_residual,
+                  "validation": {"max_rel_error": float(err_c.max()),
+                                 "rms_rel_error": float(np.sqrt(np.mean(err_c ** 2)))},
+                  "inconsistent_links": [b for k, b in enumerate(links)
+                                         if not sdp.consistency(physical.theta[k])["consistent"]],
+                  "masses": {b: {"identified": float(physical.theta[k, 0]), "model": float(m)}
+                             for k, (b, m) in enumerate(zip(links, _masses(pm), strict=True))}}
+    return consistent
+
+
+def _masses(pm) -> list[float]:
+    """The model's masses in the consistent fit's order of links: the base's body, then each spec joint's."""
+    return [pm.model.inertias[1].mass, *(pm.model.inertias[pid].mass for pid in pm.joint_ids)]

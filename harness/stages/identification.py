@@ -39,22 +39,23 @@ def configure_torque(t, scenario) -> TorqueConfig:
     errors naming the key). `friction` defaults to whether the model declares any friction or rotor
     inertia. Where the validation moves a floating base (`[base_motion]`, as the scenario must:
     harness/sources/base_motion.py), `rows = "base"` or `"all"` (the default): the floating-base fit
-    (harness/stages/floating_fit.py), friction only with the joints' rows."""
+    (harness/stages/floating_fit.py), friction only with the joints' rows, and `consistent = true` adds
+    the physically consistent fit."""
     validation = scenario.related(t, "validation")
     if validation.robot.joint_names != scenario.robot.joint_names:
         raise t.error("validation", f"{t.data['validation']!r} simulates another robot than {scenario.robot.name!r}")
     declared = not all(f.none for f in scenario.robot.frictions)
     if getattr(validation, "base_motion", None) is None:
-        if t.has("rows"):
-            raise t.error("rows", "the rows of a floating base's fit: the scenario and its validation need "
-                                  "[base_motion]")
+        for key in ("rows", "consistent"):
+            if t.has(key):
+                raise t.error(key, "a floating base's fit: the scenario and its validation need [base_motion]")
         return TorqueConfig(validation, t.boolean("friction", default=declared))
     rows = t.string("rows", default="all", choices=ROWS)
     fit_friction = t.boolean("friction", default=declared and rows == "all")
     if fit_friction and rows == "base":
         raise t.error("friction", "the joints' friction and rotor inertia never reach the base rows: rows = \"all\" "
                                   "identifies them on the joints' own")
-    return TorqueConfig(validation, fit_friction, rows)
+    return TorqueConfig(validation, fit_friction, rows, t.boolean("consistent", default=False))
 
 
 def run_builtin(ctx, config: TorqueConfig | None) -> BuiltinIdentification | None:

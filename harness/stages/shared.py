@@ -19,6 +19,7 @@ class TorqueConfig:
     validation: Setup
     friction: bool
     rows: str | None = None  # a moving floating base's fit: "base" or "all" (harness/identify/floating_id.py)
+    consistent: bool = False  # and its physically consistent fit too
 
 
 def torque_config(scenario) -> TorqueConfig | None:
