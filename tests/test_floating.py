@@ -405,7 +405,8 @@ def test_the_floating_regressor_is_the_free_flyer_s_inverse_dynamics_and_identif
     with a leg and a two-hinge arm has more base parameters than bolted down (the base's own, and what its
     motion excites), and exact data at 60 random states give them to 1e-9 and another 60 states' rows, base
     and joints, to 1e-9 of their largest (round-off through the fit's conditioning); the consistent fit keeps
-    every body physical and predicts them to 1e-5."""
+    every body physical and predicts them to 1e-5, and its MJCF export (a free joint) reads back as the same
+    robot in both engines to 1e-12."""
     from harness.engines.pinocchio import build_model
     from harness.identify import floating_id
     from harness.identify.consistent import consistency
@@ -458,6 +459,20 @@ def test_the_floating_regressor_is_the_free_flyer_s_inverse_dynamics_and_identif
         assert links[0] == "trunk" and all(consistency(t)["consistent"] for t in physical.theta)
         predicted = floating_id.consistent_rows(pm, physical, rows, validation, False)
         assert np.abs(predicted - validation[-1]).max() <= 1e-5 * np.abs(validation[-1]).max()
+        # exported as an MJCF file on a free joint, read back: the same robot, base and joints, to round-off
+        from harness.model.export import identified_floating_spec
+        from harness.model.mjcf import write_mjcf
+
+        (tmp_path / "identified.xml").write_text(write_mjcf(identified_floating_spec(spec, physical.theta,
+                                                                                     spec.frictions),
+                                                            GRAVITY_W, floating=True))
+        back = spec_from_data({"mjcf": {"file": "identified.xml"}}, tmp_path / "identified.toml")
+        s = states(30, 5)
+        expected = floating_id.consistent_rows(pm, physical, "all", s, False)
+        for engine in engines.ENGINES:
+            ref = engines.inverse_dynamics(back, GRAVITY_W, *s, engine)
+            got = np.concatenate([ref.base, ref.tau], axis=1)
+            assert np.abs(got - expected).max() <= 1e-12 * np.abs(expected).max()
 
 
 def _exact(spec, s: tuple, rows: str) -> tuple:
@@ -509,6 +524,10 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     assert ti["validation"]["max_rel_joint"].startswith("base.")
     assert "Identification of the floating robot from the world" in (tmp_path / "out" / "report.html").read_text()
     assert not ti["consistent"]["inconsistent_links"] and ti["consistent"]["validation"]["max_rel_error"] <= 1e-3
+    exported = spec_from_data({"mjcf": {"file": str(tmp_path / "out" / ti["consistent"]["exported"])}},
+                              tmp_path / "back.toml")
+    assert exported.floating.joint == "root"
+    assert exported.floating.body.mass == pytest.approx(ti["consistent"]["masses"]["trunk"]["identified"], rel=1e-12)
     # 1 % noise on the world's wrench on the base (the scenario's and the validation's): the fit reads it
     noisy = "[measurement]\nseed = 3\n[measurement.noise.base_wrench]\nrelative = 0.01\n"
     (tmp_path / "vn.toml").write_text(head.format("m.toml") + motion(0.8) + noisy + gate)

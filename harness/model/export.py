@@ -168,6 +168,20 @@ def identified_spec(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFr
                                bodies=tuple(bodies[b.name] for b in spec.bodies))
 
 
+def identified_floating_spec(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, ...]) -> RobotSpec:
+    """A floating robot with the identified parameters: theta (1 + n, 10) the base's body (in its frame F,
+    about F's origin, as harness/identify/floating_id.py fits it) and then each joint's (`identified_spec`)."""
+    fb = spec.floating
+    m, c_F, I_c_F = about_centre_of_mass(theta[0])
+    I_W = fb.R_WF0 @ I_c_F @ fb.R_WF0.T
+    moments, axes = np.linalg.eigh((I_W + I_W.T) / 2)
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1
+    body = dataclasses.replace(fb.body, mass=m, I_B=np.diag(moments), R_WB0=axes, p_W_com0=fb.p_WF0 + fb.R_WF0 @ c_F,
+                               cylinder=None)
+    return dataclasses.replace(identified_spec(spec, theta[1:], frictions), floating=dataclasses.replace(fb, body=body))
+
+
 def coulomb_mapping(spec: RobotSpec, qd: np.ndarray, tau: np.ndarray,
                     tau_rigid: np.ndarray | None = None) -> dict[str, dict[str, float]]:
     """Per joint, what MuJoCo's dry friction (`frictionloss` = f_c, a sharp sign) changes of the

@@ -359,7 +359,7 @@ def drive_tendons(model, mujoco) -> dict:
 # --- the robot as an MJCF file for others to simulate: the reader's counterpart ---------------------
 
 
-def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "") -> str:
+def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "", floating: bool = False) -> str:
     """The robot as an MJCF file: its bodies with their inertials, hinge and slide joints with their
     ranges, `armature` (rotor inertia), `damping` (viscous friction) and `frictionloss` (Coulomb
     friction, which MuJoCo applies as dry friction: the mapping of the smooth law is the caller's to
@@ -367,7 +367,8 @@ def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "") -> str
     limit as its force range, and a closed chain's loops as site-based equalities. Built
     with MjSpec and written by MuJoCo's own writer, then every number it wrote rewritten from the
     MjSpec's doubles at full precision (the writer keeps six digits), so the file reloads to the bit.
-    `comment` (plain text) heads the file."""
+    `comment` (plain text) heads the file. With `floating`, the floating base on a free joint (as the
+    file's own, or a URDF's floating joint, named), the joints on it."""
     import xml.etree.ElementTree as ET
 
     import mujoco
@@ -375,7 +376,7 @@ def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "") -> str
     from harness.model.mjspec import add_robot, new_spec
 
     ms = new_spec(spec.name, gravity_W)
-    add_robot(ms, spec, frictionloss=True)
+    add_robot(ms, spec, frictionloss=True, floating=floating)
     for joint in spec.joints:
         j = ms.joint(joint.name)
         if spec.transmission is None:

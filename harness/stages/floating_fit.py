@@ -32,9 +32,10 @@ def _scale(robot, rec, rows: str) -> np.ndarray:
     return wrench if rows == "base" else np.concatenate([wrench, joint_load_scale(robot, rec)])
 
 
-def identify(ctx, config) -> tuple[TorqueIdentification, dict]:
-    """The fit (as the fixed base's TorqueIdentification, its rows named) and what the results add of a
-    floating base: which rows it read, its base parameters against the same robot's bolted down."""
+def identify(ctx, config) -> tuple[TorqueIdentification, dict, dict[str, str]]:
+    """The fit (as the fixed base's TorqueIdentification, its rows named), what the results add of a
+    floating base (which rows it read, its base parameters against the same robot's bolted down, the
+    consistent fit where asked) and the files of the consistent fit's export ({path: text}, else none)."""
     sc, rows = ctx.scenario, config.rows
     joints = sc.robot.joint_names
     pm = build_model(sc.robot, sc.gravity_W, floating=True)
@@ -54,10 +55,11 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict]:
                   for k, row in enumerate(structure.combination))
     extra = {"rows": rows, "fixed_base_parameters": len(fixed.independent), "base_body_in": int(holding),
              "method": _method(rows, len(fixed.independent), int(holding))}
+    files = {}
     if config.consistent:
-        extra["consistent"] = _consistent(ctx, config, pm, _data(ctx.training, joints, rows), _data(val, joints, rows),
-                                          ti.validation_scale)
-    return ti, extra
+        extra["consistent"], files = _consistent(ctx, config, pm, _data(ctx.training, joints, rows),
+                                                 _data(val, joints, rows), ti.validation_scale)
+    return ti, extra, files
 
 
 def _method(rows: str, fixed: int, holding: int) -> str:
@@ -69,9 +71,15 @@ def _method(rows: str, fixed: int, holding: int) -> str:
             f"bolted down has {fixed}; {holding} of these hold the base body's own parameters")
 
 
-def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.ndarray) -> dict:
+def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.ndarray) -> tuple[dict, dict]:
     """The physically consistent fit on the same rows (harness/identify/floating_id.py, consistent), judged on
-    the validation motion as the least squares is."""
+    the validation motion as the least squares is, and exported: an MJCF file of the robot on its free joint
+    with the identified bodies, the base's included, and drives (identified/robot.xml)."""
+    import dataclasses
+
+    from harness.model.export import MJCF_FILE, identified_floating_spec
+    from harness.model.mjcf import write_mjcf
+
     rows, sc = config.rows, ctx.scenario
     physical, links = floating_id.consistent(pm, sc.robot, rows, training, config.friction)
     predicted = floating_id.consistent_rows(pm, physical, rows, validation, config.friction)
@@ -85,8 +93,15 @@ def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.n
                   "inconsistent_links": [b for k, b in enumerate(links)
                                          if not sdp.consistency(physical.theta[k])["consistent"]],
                   "masses": {b: {"identified": float(physical.theta[k, 0]), "model": float(m)}
-                             for k, (b, m) in enumerate(zip(links, _masses(pm), strict=True))}}
-    return consistent
+                             for k, (b, m) in enumerate(zip(links, _masses(pm), strict=True))},
+                  "exported": f"identified/{MJCF_FILE}"}
+    frictions = tuple(dataclasses.replace(f, armature=a, viscous=v, coulomb=c, offset=o) if config.friction else f
+                      for f, (a, v, c, o) in zip(sc.robot.frictions, physical.friction[1:], strict=True))
+    spec = identified_floating_spec(sc.robot, physical.theta, frictions)
+    text = write_mjcf(spec, sc.gravity_W, f"{sc.robot.name}: identified by the harness from a moving floating base's "
+                                          f"{'base rows' if rows == 'base' else 'base rows and joint torques'} "
+                                          "(its physically consistent fit)", floating=True)
+    return consistent, {f"identified/{MJCF_FILE}": text}
 
 
 def _masses(pm) -> list[float]:

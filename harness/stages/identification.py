@@ -64,8 +64,8 @@ def run_builtin(ctx, config: TorqueConfig | None) -> BuiltinIdentification | Non
     if config.rows is not None:  # a floating base the bench moves
         from harness.stages.floating_fit import identify
 
-        ti, floating = identify(ctx, config)
-        return BuiltinIdentification(ti, config.validation.name, floating)
+        ti, floating, files = identify(ctx, config)
+        return BuiltinIdentification(ti, config.validation.name, floating, files)
     sc = ctx.scenario
     joints = sc.robot.joint_names
     val = ctx.recorded(config.validation)
@@ -88,6 +88,7 @@ class BuiltinIdentification:
     fit: TorqueIdentification
     validation: str
     floating: dict | None = None  # a moving floating base's fit: its rows, method and counts (stages/floating_fit.py)
+    files: dict | None = None  # its consistent fit's export: {path in the output folder: text}
 
     def serialise(self, ctx, config) -> dict:
         """results.json's `torque_identification`: the base parameters against the robot's, their
@@ -269,6 +270,7 @@ def _method_recordings(config, scenario) -> tuple:
 
 TORQUE_STAGE = Stage("torque_identification", "joint-torque identification (base parameters)", run_builtin,
                      BuiltinIdentification.serialise, "Torque identification", table="torque_identification",
+                     files=lambda result: (result.files or {}) if result is not None else {},
                      configure=configure_torque, recordings=lambda c, sc: (c.validation,) if c is not None else ())
 METHODS_STAGE = Stage("identification_methods", "identification methods under test", run_methods,
                       MethodResults.serialise, "Identification methods", recordings=_method_recordings)
