@@ -524,7 +524,8 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     assert ti["validation"]["max_rel_joint"].startswith("base.")
     assert "Identification of the floating robot from the world" in (tmp_path / "out" / "report.html").read_text()
     assert not ti["consistent"]["inconsistent_links"] and ti["consistent"]["validation"]["max_rel_error"] <= 1e-3
-    exported = spec_from_data({"mjcf": {"file": str(tmp_path / "out" / ti["consistent"]["exported"])}},
+    assert ti["consistent"]["exported"] == ["identified/robot.xml"]  # an MJCF robot: no URDF to write into
+    exported = spec_from_data({"mjcf": {"file": str(tmp_path / "out" / "identified" / "robot.xml")}},
                               tmp_path / "back.toml")
     assert exported.floating.joint == "root"
     assert exported.floating.body.mass == pytest.approx(ti["consistent"]["masses"]["trunk"]["identified"], rel=1e-12)
@@ -559,3 +560,39 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     with pytest.raises(InputError) as err:
         load_scenario(tmp_path / "s.toml")
     assert err.value.key == "measurement.noise.base_wrench"
+
+
+@pytest.mark.parametrize("how", ["floating joint", "floating = true"])
+def test_a_floating_robot_s_consistent_fit_is_exported_as_a_urdf_with_a_floating_joint(tmp_path, how):
+    """The two-link arm on a floating base (a URDF floating joint, or its root link made floating): the
+    consistent fit of exact base rows at 80 random states, written into the URDF (harness/model/export.py,
+    write_urdf with the base's parameters: its link's inertial, the links fixed to it without theirs, a
+    floating joint where the file has none) reads back, by the harness's reader and by Pinocchio's own URDF
+    parser through it, as the robot the fit predicts: both engines' base rows and joint torques at 30
+    random states to 1e-12 of the largest (round-off)."""
+    from harness.engines.pinocchio import build_model
+    from harness.identify import floating_id
+    from harness.model.export import write_urdf
+    from harness.model.states import random_states
+
+    base_link = FLOATING_JOINT[0 if how == "floating joint" else FLOATING_JOINT.index('<link name="base">'):]
+    (tmp_path / "arm.urdf").write_text(ARM_URDF.read_text().replace('<link name="base"/>', base_link))
+    spec = spec_from_data({"urdf": {"file": "arm.urdf", **({"floating": True} if how != "floating joint" else {})}},
+                          tmp_path / "arm.toml")
+    pm = build_model(spec, GRAVITY_W, floating=True)
+    n = len(spec.joints)
+
+    def states(count, seed):
+        return (floating.random_base_motion(count, seed),
+                *random_states(-np.ones(n), np.ones(n), np.ones(n), 3 * np.ones(n), count, seed))
+
+    physical, _ = floating_id.consistent(pm, spec, "base", _exact(spec, states(80, 1), "base"), False)
+    (tmp_path / "identified.urdf").write_text(write_urdf(spec, physical.theta[1:], spec.frictions, physical.theta[0]))
+    back = spec_from_data({"urdf": {"file": "identified.urdf"}}, tmp_path / "identified.toml")
+    assert back.floating is not None and back.floating.body.mass == pytest.approx(physical.theta[0, 0], rel=1e-12)
+    s = states(30, 2)
+    expected = floating_id.consistent_rows(pm, physical, "all", s, False)
+    for engine in engines.ENGINES:
+        ref = engines.inverse_dynamics(back, GRAVITY_W, *s, engine)
+        got = np.concatenate([ref.base, ref.tau], axis=1)
+        assert np.abs(got - expected).max() <= 1e-12 * np.abs(expected).max(), engine

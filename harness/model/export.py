@@ -53,9 +53,13 @@ def _fmt(v) -> str:
     return " ".join(repr(float(x)) for x in np.ravel(v))
 
 
-def write_urdf(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, ...]) -> str:
+def write_urdf(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, ...],
+               base_theta: np.ndarray | None = None) -> str:
     """The model's URDF with every moving body's identified <inertial> and each joint's
-    <dynamics damping friction>. theta: (n, 10) in the spec's joint order."""
+    <dynamics damping friction>. theta: (n, 10) in the spec's joint order. With `base_theta` (10,), a
+    floating base's (in its link's frame, about its origin: harness/identify/floating_id.py): its link's
+    <inertial> too, the links fixed to it without theirs, and a `floating` joint from a `world` link
+    where the file has none (named as the harness names a model file's floating root link)."""
     tree = ET.parse(spec.urdf)
     root = tree.getroot()
     links = {el.get("name"): el for el in root.findall("link")}
@@ -74,21 +78,17 @@ def write_urdf(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFrictio
         return link
 
     for name, el in links.items():
-        if name in moving or owner(name) is None:
+        if name in moving or (owner(name) is None and base_theta is None):
             continue
-        for old in el.findall("inertial"):  # merged into its body, whose values hold it
+        for old in el.findall("inertial"):  # merged into its body (or the floating base), whose values hold it
             el.remove(old)
+    if base_theta is not None:
+        _floating_base(root, links[spec.floating.body.name], base_theta)
     for k, jname in enumerate(spec.joint_names):
         link = links[child_of[jname]]
-        m, c, I_c = link_inertial(theta[k], rotations[jname])
         for old in link.findall("inertial"):
             link.remove(old)
-        inertial = ET.Element("inertial")
-        ET.SubElement(inertial, "origin", xyz=_fmt(c), rpy="0 0 0")
-        ET.SubElement(inertial, "mass", value=repr(float(m)))
-        ET.SubElement(inertial, "inertia", **{f"i{'xyz'[i]}{'xyz'[k]}": repr(float(I_c[i, k]))
-                                               for i, k in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))})
-        link.insert(0, inertial)
+        link.insert(0, _inertial(*link_inertial(theta[k], rotations[jname])))
         jel = joints[jname]
         for old in jel.findall("dynamics"):
             jel.remove(old)
@@ -103,6 +103,30 @@ def write_urdf(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFrictio
                 jel.remove(old)
     ET.indent(root)
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _inertial(m: float, c: np.ndarray, I_c: np.ndarray) -> ET.Element:
+    inertial = ET.Element("inertial")
+    ET.SubElement(inertial, "origin", xyz=_fmt(c), rpy="0 0 0")
+    ET.SubElement(inertial, "mass", value=repr(float(m)))
+    ET.SubElement(inertial, "inertia", **{f"i{'xyz'[i]}{'xyz'[k]}": repr(float(I_c[i, k]))
+                                           for i, k in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))})
+    return inertial
+
+
+def _floating_base(root: ET.Element, link: ET.Element, theta: np.ndarray) -> None:
+    """The floating base's link given its identified inertial (theta in its own frame), and the URDF a
+    `floating` joint from a `world` link to it where it has none."""
+    from harness.model.urdf import ROOT_FLOATING_JOINT
+
+    link.insert(0, _inertial(*about_centre_of_mass(theta)))
+    if any(j.get("type") == "floating" for j in root.findall("joint")):
+        return
+    root.insert(0, ET.Element("link", name="world"))
+    joint = ET.Element("joint", name=ROOT_FLOATING_JOINT, type="floating")
+    ET.SubElement(joint, "parent", link="world")
+    ET.SubElement(joint, "child", link=link.get("name"))
+    root.insert(1, joint)
 
 
 def _joints_table(frictions: tuple[JointFriction, ...], names: list[str]) -> dict:

@@ -74,10 +74,11 @@ def _method(rows: str, fixed: int, holding: int) -> str:
 def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.ndarray) -> tuple[dict, dict]:
     """The physically consistent fit on the same rows (harness/identify/floating_id.py, consistent), judged on
     the validation motion as the least squares is, and exported: an MJCF file of the robot on its free joint
-    with the identified bodies, the base's included, and drives (identified/robot.xml)."""
+    with the identified bodies, the base's included, and drives (identified/robot.xml), and where the robot
+    comes from a URDF, that URDF with the identified inertials and a floating joint (identified/robot.urdf)."""
     import dataclasses
 
-    from harness.model.export import MJCF_FILE, identified_floating_spec
+    from harness.model.export import MJCF_FILE, URDF_FILE, identified_floating_spec, write_urdf
     from harness.model.mjcf import write_mjcf
 
     rows, sc = config.rows, ctx.scenario
@@ -94,14 +95,17 @@ def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.n
                                          if not sdp.consistency(physical.theta[k])["consistent"]],
                   "masses": {b: {"identified": float(physical.theta[k, 0]), "model": float(m)}
                              for k, (b, m) in enumerate(zip(links, _masses(pm), strict=True))},
-                  "exported": f"identified/{MJCF_FILE}"}
+                  "exported": [f"identified/{MJCF_FILE}"] + ([f"identified/{URDF_FILE}"] if sc.robot.urdf else [])}
     frictions = tuple(dataclasses.replace(f, armature=a, viscous=v, coulomb=c, offset=o) if config.friction else f
                       for f, (a, v, c, o) in zip(sc.robot.frictions, physical.friction[1:], strict=True))
     spec = identified_floating_spec(sc.robot, physical.theta, frictions)
     text = write_mjcf(spec, sc.gravity_W, f"{sc.robot.name}: identified by the harness from a moving floating base's "
                                           f"{'base rows' if rows == 'base' else 'base rows and joint torques'} "
                                           "(its physically consistent fit)", floating=True)
-    return consistent, {f"identified/{MJCF_FILE}": text}
+    files = {f"identified/{MJCF_FILE}": text}
+    if sc.robot.urdf is not None:  # the robot's own URDF with the identified inertials and a floating joint
+        files[f"identified/{URDF_FILE}"] = write_urdf(sc.robot, physical.theta[1:], frictions, physical.theta[0])
+    return consistent, files
 
 
 def _masses(pm) -> list[float]:
