@@ -53,7 +53,10 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict, dict[str, str]]:
     holding = sum(own[structure.independent[k]] or any(own[j] for j, c in zip(structure.dependent, row, strict=True)
                                                        if abs(c) > COEFFICIENT_FLOOR)
                   for k, row in enumerate(structure.combination))
+    held = np.any(np.abs(structure.combination) > COEFFICIENT_FLOOR, axis=0)  # each dependent in some base parameter
+    unseen = [names[j] for j, h in zip(structure.dependent, held, strict=True) if not h]
     extra = {"rows": rows, "fixed_base_parameters": len(fixed.independent), "base_body_in": int(holding),
+             "unseen": unseen, "unseen_definition": "the parameters these rows cannot see: in no base parameter",
              "method": _method(rows, len(fixed.independent), int(holding))}
     files = {}
     if config.consistent:
