@@ -42,8 +42,8 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict, dict[str, str]]:
     structure = ctx.once(("floating-base structural base parameters", rows, config.friction),
                          lambda: floating_id.structural_base(pm, sc.robot.limits, rows, with_friction=config.friction))
     val = ctx.recorded(config.validation)
-    fit, beta_true, err = floating_id.identify(pm, structure, rows, _data(ctx.training, joints, rows),
-                                               _data(val, joints, rows))  # least squares of the base parameters
+    training, validation = _data(ctx.training, joints, rows), _data(val, joints, rows)
+    fit, beta_true, err = floating_id.identify(pm, structure, rows, training, validation)  # the base parameters
     names = floating_id.parameter_names(sc.robot, pm, config.friction)
     ti = TorqueIdentification(names, structure, beta_true, fit.beta, fit.condition_number, fit.std,
                               fit.ci_half_width, fit.sensitivity, fit.weak, err, _scale(sc.robot, val, rows),
@@ -60,8 +60,7 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict, dict[str, str]]:
              "method": _method(rows, len(fixed.independent), int(holding))}
     files = {}
     if config.consistent:
-        extra["consistent"], files = _consistent(ctx, config, pm, _data(ctx.training, joints, rows),
-                                                 _data(val, joints, rows), ti.validation_scale)
+        extra["consistent"], files = _consistent(ctx, config, pm, training, validation, ti.validation_scale)
     return ti, extra, files
 
 
