@@ -147,6 +147,8 @@ def consistent(pm: PinocchioModel, spec: RobotSpec, rows: str, training: tuple, 
     W = selected(np.concatenate([inertial, np.zeros((len(q), 6 + n, 4)), drive], axis=2), rows)
     theta_model = np.stack([pm.model.inertias[b + 1].toDynamicParameters() for b in order])
     friction_model = np.vstack([np.zeros(4), friction.values(spec.frictions)])
+    # the pull's magnitudes: the inertial parameters' kinds in the model; a drive term's own value in the
+    # model, at least 1e-3 of the largest (or of 1 where the model declares none: the terms then stay at zero)
     scale = np.concatenate([model_kind_scales(theta_model).ravel(),
                             np.maximum(np.abs(friction_model), 1e-3 * np.abs(friction_model).max(initial=1.0)).ravel()])
     fit = sdp.fit(W, y.reshape(-1), theta_model, friction_model, scale)
