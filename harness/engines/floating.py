@@ -98,20 +98,16 @@ def mujoco_inverse(model: mujoco.MjModel, free: str, joints: list[str], base: Ba
 
 
 def _pinocchio_inverse(spec, gravity_W, base, q, qd, qdd, wrenches) -> FloatingDynamics:
-    from harness.engines.pinocchio import build_model
+    from harness.engines.pinocchio import build_model, states
 
     pm = build_model(spec.rigid(), gravity_W, floating=True)
     model, data = pm.model, pm.model.createData()
-    qi = [model.joints[i].idx_q for i in pm.joint_ids]
-    vi = [model.joints[i].idx_v for i in pm.joint_ids]
-    q_ff, v_ff, a_ff = floating.to_pinocchio(base)
+    Q, V, A, vi = states(pm, q, qd, qdd, base)
     at = [1 if w.body == spec.floating.body.name else pm.joint_ids[spec.joint_names.index(
         spec.inner_joint(w.body).name)] for w in wrenches]
     out = np.empty((len(q), model.nv))
     for k in range(len(q)):
-        qq, vv, aa = np.empty(model.nq), np.empty(model.nv), np.empty(model.nv)
-        qq[:7], vv[:6], aa[:6] = q_ff[k], v_ff[k], a_ff[k]
-        qq[qi], vv[vi], aa[vi] = q[k], qd[k], qdd[k]
+        qq, vv, aa = Q[k], V[k], A[k]
         if not wrenches:
             out[k] = pin.rnea(model, data, qq, vv, aa)
             continue

@@ -22,7 +22,7 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
-from harness.engines.simulation import Simulation
+from harness.engines.simulation import EVALUATIONS_PER_STEP, Simulation
 from harness.model import floating, friction
 from harness.model.floating import BaseMotion
 from harness.model.spec import RobotSpec
@@ -55,7 +55,7 @@ class FreeBaseDrive:
         self.q_d[:, self.qadr], self.qd_d[:, self.vadr], self.qdd_d[:, self.vadr] = in_spec_order
         self.dry = friction.Dry.of(tuple(spec.frictions))
         self.armature = friction.values(spec.frictions)[:, 0]
-        self.per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]
+        self.per_step = EVALUATIONS_PER_STEP[simulation.integrator]
         self.n_steps = n_steps
         self.stages = np.empty((n_steps * self.per_step, n))
         self.captured = [0, False]
@@ -88,8 +88,10 @@ class FreeBaseDrive:
 
         return drive
 
+    ROW = 25  # `base_rows`' length
+
     def base_rows(self, d: mujoco.MjData) -> np.ndarray:
-        """(25,) the base's qpos (7), qvel (6), qacc (6) and the world's wrench on it (6), MuJoCo's convention."""
+        """(ROW,) the base's qpos (7), qvel (6), qacc (6) and the world's wrench on it (6), MuJoCo's convention."""
         bq, bv = self.base_q, self.base_v
         return np.concatenate([d.qpos[bq:bq + 7], d.qvel[bv:bv + 6], d.qacc[bv:bv + 6], d.qfrc_applied[bv:bv + 6]])
 

@@ -37,7 +37,7 @@ import mujoco
 import numpy as np
 
 from harness.base.series import Drive, TimeSeries
-from harness.engines.simulation import Simulation
+from harness.engines.simulation import EVALUATIONS_PER_STEP, Simulation
 from harness.model import drives, friction
 from harness.model.mjspec import add_robot, massive_parent, new_spec
 from harness.model.quaternion import to_matrix
@@ -317,7 +317,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
         from harness.engines.free_base import FreeBaseDrive
 
         drive = FreeBaseDrive(spec, model, in_spec_order, base(half_steps), simulation, n_steps)
-    base_rows = np.empty((n_rows, 25)) if base is not None else None
+    base_rows = np.empty((n_rows, drive.ROW)) if base is not None else None
     data.qpos[:], data.qvel[:] = drive.q_d[0], drive.qd_d[0]
     sensor_rows = np.empty((n_rows, model.nsensordata))
     qacc_rows = np.empty((n_rows, drive.n))
@@ -440,7 +440,7 @@ class _ComputedTorque:
         to_ctrl = np.empty(n, dtype=int)
         to_ctrl[act] = vadr  # ctrl[a] is the drive of the joint at dof to_ctrl[a]
         self.to_ctrl = None if np.array_equal(to_ctrl, np.arange(n)) else to_ctrl
-        self.per_step = {"RK4": 4, "Euler": 1, "implicitfast": 1}[simulation.integrator]  # evaluations in a step
+        self.per_step = EVALUATIONS_PER_STEP[simulation.integrator]  # evaluations in a step
         self.n_steps = n_steps
         self.stages = np.empty((n_steps * self.per_step, n))  # every evaluation's drive torques, by dof
         self.captured = [0, False]  # how many rows of `stages` are written, whether to write the next

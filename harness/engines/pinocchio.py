@@ -71,7 +71,7 @@ def build_model(spec: RobotSpec, gravity_W: np.ndarray, floating: bool = False) 
                                     pin.SE3.Identity())
     model.gravity.linear = np.asarray(gravity_W, dtype=float)
     joint_ids = tuple(ids[j.child] for j in spec.joints)
-    q_index = np.array([model.joints[i].idx_q for i in joint_ids])
+    q_index = np.array([model.joints[i].idx_q for i in joint_ids], dtype=int)  # an index even with no joint
     return PinocchioModel(model, joint_ids, q_index, spec.frictions, spec.transmission)
 
 
@@ -106,6 +106,23 @@ class PointForce:
     m_W: np.ndarray | None = None
 
 
+def states(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+           base=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pinocchio's configurations, velocities and accelerations, (N, nq), (N, nv), (N, nv), of the spec
+    joints' states q, q', q'' (N, n; every other coordinate zero) and the spec joints' velocity indices (n,);
+    with `base` (harness.model.floating.BaseMotion) and a model built with its floating base, the
+    free-flyer's from the base's motion (harness/model/floating.py, to_pinocchio)."""
+    model = pm.model
+    v_index = np.array([model.joints[i].idx_v for i in pm.joint_ids], dtype=int)
+    qq, vv, aa = np.zeros((len(q), model.nq)), np.zeros((len(q), model.nv)), np.zeros((len(q), model.nv))
+    qq[:, pm.q_index], vv[:, v_index], aa[:, v_index] = q, qd, qdd
+    if base is not None:
+        from harness.model.floating import to_pinocchio
+
+        qq[:, :7], vv[:, :6], aa[:, :6] = to_pinocchio(base)
+    return qq, vv, aa, v_index
+
+
 def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
          external: tuple[PointForce, ...] = (), base=None) -> InverseDynamics:
     """RNEA at every sample (one call per state), with the joint wrenches data.f moved to world
@@ -121,14 +138,8 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
     tau = np.empty((N, nj))
     F = np.empty((N, nj, 3))
     M = np.empty((N, nj, 3))
-    v_index = np.array([model.joints[i].idx_v for i in pm.joint_ids], dtype=int)
-    qq, vv, aa = np.zeros((N, model.nq)), np.zeros((N, model.nv)), np.zeros((N, model.nv))
-    qq[:, pm.q_index], vv[:, v_index], aa[:, v_index] = q, qd, qdd
+    qq, vv, aa, v_index = states(pm, q, qd, qdd, base)
     rows = np.empty((N, 6)) if base is not None else None
-    if base is not None:
-        from harness.model.floating import to_pinocchio
-
-        qq[:, :7], vv[:, :6], aa[:, :6] = to_pinocchio(base)
     fext = pin.StdVec_Force()
     for _ in range(model.njoints):
         fext.append(pin.Force.Zero())

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 INTEGRATORS = ("RK4", "Euler", "implicitfast")
+EVALUATIONS_PER_STEP = {"RK4": 4, "Euler": 1, "implicitfast": 1}  # of the dynamics, each calling the drive
 
 
 @dataclass(frozen=True)

@@ -25,10 +25,10 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from harness.engines.pinocchio import PinocchioModel
+from harness.engines.pinocchio import PinocchioModel, states
 from harness.identify.torque_id import STRUCTURAL_STATES, BaseParameters, base_parameters, fit_base, with_structure
 from harness.model import drives, friction
-from harness.model.floating import BaseMotion, random_base_motion, to_pinocchio
+from harness.model.floating import BaseMotion, random_base_motion
 from harness.model.inertia import PARAMETER_NAMES
 from harness.model.spec import RobotSpec
 from harness.model.states import position_bounds, random_states
@@ -52,11 +52,7 @@ def regressor(pm: PinocchioModel, base: BaseMotion, q: np.ndarray, qd: np.ndarra
     a drive's friction and rotor inertia act between its joint's bodies, never on the base rows."""
     _free_flyer(pm)
     model, data = pm.model, pm.model.createData()
-    v_index = np.array([model.joints[j].idx_v for j in pm.joint_ids], dtype=int)
-    q_ff, v_ff, a_ff = to_pinocchio(base)
-    qq, vv, aa = np.zeros((len(q), model.nq)), np.zeros((len(q), model.nv)), np.zeros((len(q), model.nv))
-    qq[:, :7], vv[:, :6], aa[:, :6] = q_ff, v_ff, a_ff
-    qq[:, pm.q_index], vv[:, v_index], aa[:, v_index] = q, qd, qdd
+    qq, vv, aa, v_index = states(pm, q, qd, qdd, base)
     rows = np.r_[0:6, v_index]
     Y = np.stack([pin.computeJointTorqueRegressor(model, data, qq[k], vv[k], aa[k])[rows] for k in range(len(q))])
     R = base.R_WB  # Pinocchio's base rows [F_B, M_B]: to world axes

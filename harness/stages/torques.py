@@ -37,6 +37,7 @@ class ModelTorques:
     mass_matrix_rel_error: float | None  # largest |M - M_pin| / max |M_pin|, when given
     mass_matrix_worst: tuple[int, int, int] | None = None  # (comparison row, i, j) of that largest entry
     random_tau: np.ndarray | None = None  # (count, n) at the random states, robot joint order
+    base_W: np.ndarray | None = None  # (N, 6) with the base moving: its world's wrench on the base [F_W, M_W]
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,10 +126,12 @@ def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows, base=No
     inst, plugin = entry.instance, entry.reference
     to_model, order = column_maps(inst.joint_names, joints)
     N, n = q.shape
+    base_W = None
     if base is None:
         tau = inverse_dynamics(plugin, "inverse_dynamics", inst, joints, q, qd, qdd)
     else:
-        tau = _free_rows(entry, base, q, qd, qdd, joints)[:, 6:]
+        free = _free_rows(entry, base, q, qd, qdd, joints)
+        base_W, tau = free[:, :6], free[:, 6:]
     F = M = None
     if base is None and callable(getattr(inst, "joint_wrenches", None)):
         out = invoke(plugin, "joint_wrenches", inst.joint_wrenches, q[:, to_model], qd[:, to_model],
@@ -146,8 +149,8 @@ def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows, base=No
         worst = np.unravel_index(np.argmax(diff), diff.shape)
         mm = float(diff[worst] / np.max(np.abs(ref)))
         return ModelTorques(entry.name, plugin, str(entry.robot.source), tau, F, M, mm,
-                            (int(rows[worst[0]]), int(worst[1]), int(worst[2])))
-    return ModelTorques(entry.name, plugin, str(entry.robot.source), tau, F, M, mm)
+                            (int(rows[worst[0]]), int(worst[1]), int(worst[2])), base_W=base_W)
+    return ModelTorques(entry.name, plugin, str(entry.robot.source), tau, F, M, mm, base_W=base_W)
 
 
 MAX_RANDOM_STATES = 100_000
@@ -210,7 +213,7 @@ def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
     floating = _floating(sc, rec.t[rows], q[rows], qd[rows], qdd[rows], (config or RandomStatesConfig()).seed,
                          None if base is None else base.take(rows))
     if base is not None:
-        floating = {**floating, **_moved(sc, rec, base, pin.base, q, qd, qdd)}
+        floating = {**floating, **_moved(sc, rec, base, pin.base, models)}
     return TorqueComparison(joints, rec.t, joint_load_scale(sc.robot, rec), rec.tau[:, cols], pin.tau,
                             pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models, random, floating=floating)
 
@@ -267,8 +270,8 @@ def _free_rows(entry, base: BaseMotion, q: np.ndarray, qd: np.ndarray, qdd: np.n
     return np.concatenate([out[:, :6], tau + drives.torque(spec.frictions, spec.transmission, qd, qdd, tau)], axis=1)
 
 
-def _moved(sc, rec, base: BaseMotion, pinocchio_base: np.ndarray, q, qd, qdd) -> dict:
-    """A moving base's figures (MOVED_DEFINITION)."""
+def _moved(sc, rec, base: BaseMotion, pinocchio_base: np.ndarray, models: tuple[ModelTorques, ...]) -> dict:
+    """A moving base's figures (MOVED_DEFINITION), each model's base rows as `_model_torques` found them."""
     from harness.base.numerics import largest_relative_difference
     from harness.model.floating import tracking_error
 
@@ -276,9 +279,8 @@ def _moved(sc, rec, base: BaseMotion, pinocchio_base: np.ndarray, q, qd, qdd) ->
     out = {"base_tracking_position_m": float(np.max(position)), "base_tracking_angle_rad": float(np.max(angle)),
            "base_wrench_pinocchio_vs_mujoco_max_rel_error": largest_relative_difference(pinocchio_base,
                                                                                         rec.base_wrench_W)}
-    for e in sc.models:
-        rows = _free_rows(e, base, q, qd, qdd, sc.robot.joint_names)
-        out[f"base_wrench_{e.name}_vs_mujoco_max_rel_error"] = largest_relative_difference(rows[:, :6],
+    for m in models:
+        out[f"base_wrench_{m.name}_vs_mujoco_max_rel_error"] = largest_relative_difference(m.base_W,
                                                                                           rec.base_wrench_W)
     return {**out, "moved_definition": MOVED_DEFINITION}
 
