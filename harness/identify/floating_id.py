@@ -124,6 +124,17 @@ def identify(pm: PinocchioModel, structure: BaseParameters, rows: str, training:
     return fit, beta_model, pred.reshape(y_v.shape) - y_v
 
 
+def link_blocks(pm: PinocchioModel) -> list[int]:
+    """The consistent fit's links, each as its block of `regressor`'s columns: the base's body, then each spec
+    joint's body in the spec's order."""
+    return [0] + [pid - 1 for pid in pm.joint_ids]
+
+
+def link_parameters(pm: PinocchioModel) -> np.ndarray:
+    """(1 + n, 10) the model's parameters of the consistent fit's links (`link_blocks`)."""
+    return np.stack([pm.model.inertias[b + 1].toDynamicParameters() for b in link_blocks(pm)])
+
+
 def consistent(pm: PinocchioModel, spec: RobotSpec, rows: str, training: tuple, with_friction: bool):
     """The physically consistent fit of the floating robot (harness/identify/consistent.py: every body's
     pseudo-inertia positive definite, the base's included; the drives' rotor inertia, viscous and Coulomb
@@ -137,11 +148,10 @@ def consistent(pm: PinocchioModel, spec: RobotSpec, rows: str, training: tuple, 
     base, q, qd, qdd, y = training
     n, J = len(spec.joints), pm.model.njoints - 1
     Y = regressor(pm, base, q, qd, qdd, with_friction=True)
-    order = [0] + [pid - 1 for pid in pm.joint_ids]  # the links: the base's body, then the spec joints' bodies
-    inertial = np.concatenate([Y[:, :, 10 * b: 10 * b + 10] for b in order], axis=2)
+    inertial = np.concatenate([Y[:, :, 10 * b: 10 * b + 10] for b in link_blocks(pm)], axis=2)
     drive = Y[:, :, 10 * J:] if with_friction else np.zeros((len(q), 6 + n, 4 * n))
     W = selected(np.concatenate([inertial, np.zeros((len(q), 6 + n, 4)), drive], axis=2), rows)
-    theta_model = np.stack([pm.model.inertias[b + 1].toDynamicParameters() for b in order])
+    theta_model = link_parameters(pm)
     friction_model = np.vstack([np.zeros(4), friction.values(spec.frictions)])
     # the pull's magnitudes: the inertial parameters' kinds in the model; a drive term's own value in the
     # model, at least 1e-3 of the largest (or of 1 where the model declares none: the terms then stay at zero)
@@ -157,7 +167,7 @@ def consistent_rows(pm: PinocchioModel, fit, rows: str, data: tuple, with_fricti
     J = pm.model.njoints - 1
     Y = regressor(pm, base, q, qd, qdd, with_friction=True)
     theta = np.zeros(10 * J)
-    for k, b in enumerate([0] + [pid - 1 for pid in pm.joint_ids]):
+    for k, b in enumerate(link_blocks(pm)):
         theta[10 * b: 10 * b + 10] = fit.theta[k]
     x = np.concatenate([theta, fit.friction[1:].ravel() if with_friction else friction.values(pm.frictions).ravel()])
     out = Y @ x

@@ -87,6 +87,7 @@ def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.n
     physical, links = floating_id.consistent(pm, sc.robot, rows, training, config.friction)
     predicted = floating_id.consistent_rows(pm, physical, rows, validation, config.friction)
     err_c = np.abs(predicted - validation[-1]) / scale
+    model = floating_id.link_parameters(pm)  # the links' parameters in the model, in the fit's order
     consistent = {"method": "every body's pseudo-inertia positive definite, the base's included, what the data cannot "
                             "see pulled to the model's values (harness/identify/consistent.py) on the same rows",
                   "status": physical.status, "solver": physical.solver, "fallback": physical.fallback,
@@ -95,8 +96,8 @@ def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.n
                                  "rms_rel_error": float(np.sqrt(np.mean(err_c ** 2)))},
                   "inconsistent_links": [b for k, b in enumerate(links)
                                          if not sdp.consistency(physical.theta[k])["consistent"]],
-                  "masses": {b: {"identified": float(physical.theta[k, 0]), "model": float(m)}
-                             for k, (b, m) in enumerate(zip(links, _masses(pm), strict=True))},
+                  "masses": {b: {"identified": float(physical.theta[k, 0]), "model": float(model[k, 0])}
+                             for k, b in enumerate(links)},
                   "exported": [f"identified/{MJCF_FILE}"] + ([f"identified/{URDF_FILE}"] if sc.robot.urdf else [])}
     frictions = tuple(dataclasses.replace(f, armature=a, viscous=v, coulomb=c, offset=o) if config.friction else f
                       for f, (a, v, c, o) in zip(sc.robot.frictions, physical.friction[1:], strict=True))
@@ -109,7 +110,3 @@ def _consistent(ctx, config, pm, training: tuple, validation: tuple, scale: np.n
         files[f"identified/{URDF_FILE}"] = write_urdf(sc.robot, physical.theta[1:], frictions, physical.theta[0])
     return consistent, files
 
-
-def _masses(pm) -> list[float]:
-    """The model's masses in the consistent fit's order of links: the base's body, then each spec joint's."""
-    return [pm.model.inertias[1].mass, *(pm.model.inertias[pid].mass for pid in pm.joint_ids)]
