@@ -39,6 +39,8 @@ BASE_COLUMNS = {"base_pose": ("x", "y", "z", "qw", "qx", "qy", "qz"),
                 "base_twist_W": ("vx", "vy", "vz", "wx", "wy", "wz"),
                 "base_rate_W": ("ax", "ay", "az", "wdx", "wdy", "wdz"),
                 "base_wrench_W": ("Fx", "Fy", "Fz", "Mx", "My", "Mz")}  # a moving base's CSV columns, base[<name>]
+CONTACT_COLUMNS = {"contact_F_W": ("Fx", "Fy", "Fz"), "contact_M_W": ("Mx", "My", "Mz"), "contact_x_W": ("x", "y", "z"),
+                   "contact_held": ("held",)}  # a contact's, contact[<name>][<column>]
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +122,12 @@ class TimeSeries:
     base_twist_W: np.ndarray | None = None  # (N, 6) its origin's velocity v_W and angular velocity omega_W
     base_rate_W: np.ndarray | None = None  # (N, 6) their rates a_W, alpha_W
     base_wrench_W: np.ndarray | None = None  # (N, 6) the world's wrench on the base, F_W and M_W about its origin
+    # (besides its contacts'); a floating base standing on contacts (harness/model/contacts.py; world axes):
+    contacts: tuple[str, ...] = ()
+    contact_F_W: np.ndarray | None = None  # (N, k, 3) each contact's force on its body (0 while released)
+    contact_M_W: np.ndarray | None = None  # (N, k, 3) and moment about its point (0 for a point contact)
+    contact_x_W: np.ndarray | None = None  # (N, k, 3) the point
+    contact_held: np.ndarray | None = None  # (N, k) whether it holds
     drive: Drive | None = None  # a recording's: how the engine drove it (None for a log, or read from CSV)
     meta: dict = field(default_factory=dict)
 
@@ -183,6 +191,11 @@ class TimeSeries:
             for field_name, names in BASE_COLUMNS.items():
                 for k, c in enumerate(names):
                     cols[f"base[{c}]"] = getattr(self, field_name)[:, k]
+        for c, name in enumerate(self.contacts):
+            for field_name, names in CONTACT_COLUMNS.items():
+                values = getattr(self, field_name)[:, c]
+                for k, s in enumerate(names):
+                    cols[f"contact[{name}][{s}]"] = values[:, k] if values.ndim == 2 else values.astype(int)
         return cols
 
     def write_csv(self, path: Path) -> None:
@@ -224,6 +237,8 @@ def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:
                      *(f"{b}_{r}" for b in names for r in ROTATION)]
         if any(c.startswith("base[") for c in df.columns):  # a moving floating base's, all of them
             expected += [f"base[{c}]" for columns in BASE_COLUMNS.values() for c in columns]
+        named = dict.fromkeys(c[len("contact["):].split("]")[0] for c in df.columns if c.startswith("contact["))
+        expected += [f"contact[{n}][{s}]" for n in named for columns in CONTACT_COLUMNS.values() for s in columns]
     missing = [c for c in expected if c not in df.columns]
     if missing:
         raise InputError(path, missing[0], f"column missing: not a complete {kind}")
@@ -259,6 +274,13 @@ def _with_bodies(df, series: dict, joints: tuple[str, ...]) -> TimeSeries:
     if any(c.startswith("base[") for c in df.columns):
         for field_name, columns in BASE_COLUMNS.items():  # every one there (read_csv)
             series[field_name] = df[[f"base[{c}]" for c in columns]].to_numpy()
+    contacts = tuple(dict.fromkeys(c[len("contact["):].split("]")[0] for c in df.columns if c.startswith("contact[")))
+    if contacts:
+        series["contacts"] = contacts
+        for field_name, columns in CONTACT_COLUMNS.items():
+            series[field_name] = np.stack([df[[f"contact[{n}][{s}]" for s in columns]].to_numpy() for n in contacts],
+                                          axis=1)
+        series["contact_held"] = series["contact_held"][..., 0] > 0.5
     return TimeSeries(**series, bodies=names, F_W=vec(joints, "{n}_F{s}"), M_W=vec(joints, "{n}_M{s}"),
                       p_W=vec(names, "{n}_{s}"), v_W=vec(names, "{n}_v{s}"), R_WB=R.reshape(len(df), len(names), 3, 3),
                       a_W=vec(names, "{n}_a{s}"), omega_W=vec(names, "{n}_w{s}"), omegadot_W=vec(names, "{n}_wd{s}"))

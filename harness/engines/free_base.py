@@ -13,6 +13,19 @@ log(R^T R_d), exact at any angle), and
 (M with the rotor inertias; passive the viscous friction; applied the joints' Coulomb friction and offset
 set here). The base's six rows of tau are the world's wrench on the base: what the bench records as its
 answer (`base_rows`), with the base's pose, twist and acceleration.
+
+Standing on contacts (harness/model/contacts.py: MuJoCo's connect equalities, held or released between
+rows, `hold`), the world acts through them: with J the held contacts' rows of MuJoCo's constraint
+Jacobian (efc_J, world components, d(x_foot - x_ground)/dq), the contact forces mu the least-squares
+solution of J_base^T mu = tau_base, and
+
+    ctrl = tau_joints - J_joints^T mu,    applied on the base = tau_base - J_base^T mu
+
+MuJoCo's constraint forces are then mu (its constrained dynamics, M q'' + bias = passive + applied +
+ctrl + J^T lambda, are met by q''_cmd and lambda = mu, to its loops' softness): the base is held by its
+feet, and by the world's own wrench only where they cannot balance it (fewer than three points, or
+three in a line), recorded as before. Each contact's force on its body, where its point is and whether
+it held are recorded beside the base's rows.
 """
 
 from __future__ import annotations
@@ -35,8 +48,9 @@ class FreeBaseDrive:
     computed torque gives them."""
 
     def __init__(self, spec: RobotSpec, model: mujoco.MjModel, in_spec_order: tuple, base: BaseMotion,
-                 simulation: Simulation, n_steps: int):
-        """in_spec_order (q, q', q'') and `base` the prescribed motion on the half-step grid."""
+                 simulation: Simulation, n_steps: int, contacts: tuple = ()):
+        """in_spec_order (q, q', q'') and `base` the prescribed motion on the half-step grid; `contacts` the
+        feet the model holds (harness/engines/mujoco.py, build_model's `ground`)."""
         if spec.transmission is not None or spec.loops:
             raise ValueError(f"{spec.name}: a floating base moved with drives or loops is not simulated")
         free = model.joint(spec.floating.joint)
@@ -45,6 +59,10 @@ class FreeBaseDrive:
         self.vadr = np.array([model.joint(j).dofadr[0] for j in spec.joint_names], dtype=int)
         self.act = np.array([model.actuator(f"drive_{j}").id for j in spec.joint_names], dtype=int)
         self.n = n = len(spec.joint_names)
+        self.contacts = contacts
+        self.eq_ids = np.array([model.equality(f"contact_{c.name}").id for c in contacts], dtype=int)
+        self.site_ids = np.array([model.site(f"contact_{c.name}").id for c in contacts], dtype=int)
+        self.ROW = 25 + 7 * len(contacts)
         if model.nv != n + 6 or model.nu != n:
             raise RuntimeError("the MuJoCo model has other coordinates or actuators than the base and the joints")
         qpos, qvel, qacc = floating.to_mujoco(base)
@@ -68,6 +86,7 @@ class FreeBaseDrive:
         vadr, act, base = self.vadr, self.act, slice(self.base_v, self.base_v + 6)
         dry, armature, stages, captured = self.dry, self.armature, self.stages, self.captured
         e, tau = np.empty(len(qd_d[0])), np.empty(len(qd_d[0]))
+        standing, equality = len(self.contacts) > 0, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
 
         def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
             k = round(d.time / half)
@@ -80,7 +99,11 @@ class FreeBaseDrive:
                 rigid = (tau + d.qfrc_bias)[vadr] - armature * qacc_cmd[vadr] if dry.needs_load else None
                 applied[vadr] = -dry(d.qvel[vadr], rigid)
             full = tau + d.qfrc_bias - d.qfrc_passive - applied
-            applied[base] = full[base]  # the world's wrench on the base
+            if standing:  # the held contacts balance the base's rows as far as they can (module docstring)
+                J = d.efc_J[: d.nefc * m.nv].reshape(d.nefc, m.nv)[d.efc_type[: d.nefc] == equality]
+                if len(J):
+                    full -= J.T @ np.linalg.lstsq(J[:, base].T, full[base], rcond=None)[0]
+            applied[base] = full[base]  # the world's wrench on the base (besides the contacts)
             d.ctrl[act] = full[vadr]
             if captured[1]:
                 stages[captured[0]] = full[vadr]
@@ -88,21 +111,38 @@ class FreeBaseDrive:
 
         return drive
 
-    ROW = 25  # `base_rows`' length
+    def hold(self, d: mujoco.MjData, t0: float, t1: float) -> None:
+        """Each contact held from t0 to t1 where it is planted then (at the middle: a lift's ends are rows)."""
+        middle = np.array([(t0 + t1) / 2.0])
+        d.eq_active[self.eq_ids] = [bool(c.planted(middle)[0]) for c in self.contacts]
 
     def base_rows(self, d: mujoco.MjData) -> np.ndarray:
-        """(ROW,) the base's qpos (7), qvel (6), qacc (6) and the world's wrench on it (6), MuJoCo's convention."""
+        """(ROW,) the base's qpos (7), qvel (6), qacc (6) and the world's wrench on it (6), MuJoCo's convention,
+        then each contact's force on its body (world components), its point and whether it holds (7 each)."""
         bq, bv = self.base_q, self.base_v
-        return np.concatenate([d.qpos[bq:bq + 7], d.qvel[bv:bv + 6], d.qacc[bv:bv + 6], d.qfrc_applied[bv:bv + 6]])
+        out = [d.qpos[bq:bq + 7], d.qvel[bv:bv + 6], d.qacc[bv:bv + 6], d.qfrc_applied[bv:bv + 6]]
+        if len(self.contacts):
+            rows = np.flatnonzero(d.efc_type[: d.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY))
+            for eq, site in zip(self.eq_ids, self.site_ids, strict=True):
+                mine = rows[d.efc_id[rows] == eq]
+                out += [d.efc_force[mine] if len(mine) else np.zeros(3), d.site_xpos[site], [float(d.eq_active[eq])]]
+        return np.concatenate(out)
 
     def stages_by_step(self) -> np.ndarray:
         """(steps, evaluations per step, joints) in the spec's joint order."""
         return self.stages[:self.captured[0]].reshape(self.n_steps, self.per_step, self.n)
 
 
-def recorded_base(rows: np.ndarray) -> dict[str, np.ndarray]:
-    """A recording's base fields (harness/base/series.py, the harness's convention) from `base_rows`' (N, 25)."""
+def recorded_base(rows: np.ndarray, contacts: tuple = ()) -> dict:
+    """A recording's base fields (harness/base/series.py, the harness's convention) from `base_rows`' (N, ROW),
+    and its contacts' (a point contact's moment zero)."""
     motion = floating.from_mujoco(rows[:, :7], rows[:, 7:13], rows[:, 13:19])
     pose, twist, rate = motion.rows()
-    return {"base_pose": pose, "base_twist_W": twist, "base_rate_W": rate,
-            "base_wrench_W": floating.base_rows_from_mujoco(motion, rows[:, 19:25])}
+    out = {"base_pose": pose, "base_twist_W": twist, "base_rate_W": rate,
+           "base_wrench_W": floating.base_rows_from_mujoco(motion, rows[:, 19:25])}
+    if contacts:
+        each = rows[:, 25:].reshape(len(rows), len(contacts), 7)
+        out.update(contacts=tuple(c.name for c in contacts), contact_F_W=each[..., :3],
+                   contact_M_W=np.zeros_like(each[..., :3]), contact_x_W=each[..., 3:6],
+                   contact_held=each[..., 6] > 0.5)
+    return out

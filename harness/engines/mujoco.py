@@ -39,7 +39,7 @@ import numpy as np
 from harness.base.series import Drive, TimeSeries
 from harness.engines.simulation import EVALUATIONS_PER_STEP, Simulation
 from harness.model import drives, friction
-from harness.model.mjspec import add_robot, massive_parent, new_spec
+from harness.model.mjspec import add_contacts, add_robot, massive_parent, new_spec
 from harness.model.quaternion import to_matrix
 from harness.model.spec import Joint, RobotSpec
 
@@ -48,19 +48,22 @@ _MJ_INTEGRATOR = {"RK4": mujoco.mjtIntegrator.mjINT_RK4, "Euler": mujoco.mjtInte
 
 
 def _driven(spec: RobotSpec, gravity_W: np.ndarray, integrator: str, timestep: float,
-            floating: bool = False) -> tuple[mujoco.MjSpec, dict[str, mujoco.MjsBody]]:
+            floating: bool = False, ground: tuple = ()) -> tuple[mujoco.MjSpec, dict[str, mujoco.MjsBody]]:
     """The robot with its integrator and timestep, contacts off, and one motor per joint
     (`drive_<joint>`, control = torque): what `build_spec` and `dynamics_spec` share. With `floating`,
-    its floating base on a free joint (harness/model/mjspec.py, add_robot)."""
+    its floating base on a free joint (harness/model/mjspec.py, add_robot); with `ground` (contacts, their
+    ground points), its feet held there as stiffly as a closed chain's loops (add_contacts)."""
     ms = new_spec(spec.name, gravity_W)
     ms.option.integrator = _MJ_INTEGRATOR[integrator]
     ms.option.timestep = float(timestep)
     ms.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
     elements = add_robot(ms, spec, floating=floating)
+    if ground:
+        add_contacts(ms, spec, elements, *ground)
     for joint in spec.joints:
         ms.add_actuator(name=f"drive_{joint.name}", target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT,
                         gear=[1.0, 0, 0, 0, 0, 0])
-    if spec.loops:  # stiff loops (LOOP_SOLIMP), their Jacobian dense for the drive's projection
+    if spec.loops or ground:  # stiff loops (LOOP_SOLIMP), their Jacobian dense for the drive's projection
         ms.option.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
         ms.option.tolerance = LOOP_SOLVER_TOLERANCE
         for eq in ms.equalities:
@@ -88,11 +91,11 @@ LOOP_SOLVER_TOLERANCE = 1e-13
 
 
 def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
-               timestep: float = 5e-4, floating: bool = False) -> mujoco.MjSpec:
+               timestep: float = 5e-4, floating: bool = False, ground: tuple = ()) -> mujoco.MjSpec:
     """The robot as MuJoCo's own model description (mujoco.MjSpec), which `build_model` compiles.
     Every number is set as the double it is, never through text (MuJoCo's own XML writer,
     `MjSpec.to_xml`, keeps six significant digits: harness/model/mjcf.py writes a file that reloads)."""
-    ms, elements = _driven(spec, gravity_W, integrator, timestep, floating)
+    ms, elements = _driven(spec, gravity_W, integrator, timestep, floating, ground)
     for body in spec.massive_bodies:
         el = elements[body.name]
         el.add_site(name=f"com_{body.name}", pos=np.zeros(3))
@@ -225,8 +228,8 @@ def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
 
 
 def build_model(spec: RobotSpec, gravity_W: np.ndarray, simulation: Simulation,
-                floating: bool = False) -> mujoco.MjModel:
-    return build_spec(spec, gravity_W, simulation.integrator, simulation.timestep, floating).compile()
+                floating: bool = False, ground: tuple = ()) -> mujoco.MjModel:
+    return build_spec(spec, gravity_W, simulation.integrator, simulation.timestep, floating, ground).compile()
 
 
 def _log_warning(message: str) -> None:
@@ -295,13 +298,19 @@ def _diverged(model: mujoco.MjModel, data: mujoco.MjData, t: float, message: str
 
 
 def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, output_steps: int, output_dt: float,
-             simulation: Simulation, base: Callable | None = None) -> TimeSeries:
+             simulation: Simulation, base: Callable | None = None, contacts: tuple = ()) -> TimeSeries:
     """Forward-simulate the robot with mj_step along the prescribed motion (`prescribed(t)` ->
     (q, q', q''), each (len(t), n) in the spec's joint order) and record `output_steps + 1` rows
     from t = 0, `output_dt` apart. `simulation.timestep` must divide `output_dt`. With `base` (t ->
     harness.model.floating.BaseMotion), the floating base moves along it, driven by the world's wrench
-    (harness/engines/free_base.py), and the recording keeps the base's motion and that wrench."""
-    model = build_model(spec, gravity_W, simulation, floating=base is not None)
+    (harness/engines/free_base.py), and the recording keeps the base's motion and that wrench; with
+    `contacts` (harness/model/contacts.py) the base stands on them, and the recording keeps their wrenches."""
+    ground = ()
+    if contacts:
+        from harness.model.contacts import ground_points
+
+        ground = (contacts, ground_points(spec, contacts, base(np.zeros(1)), prescribed(np.zeros(1))[0][0]))
+    model = build_model(spec, gravity_W, simulation, floating=base is not None, ground=ground)
     data = mujoco.MjData(model)
     dt = simulation.timestep
     substeps = round(output_dt / dt)
@@ -316,7 +325,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     else:
         from harness.engines.free_base import FreeBaseDrive
 
-        drive = FreeBaseDrive(spec, model, in_spec_order, base(half_steps), simulation, n_steps)
+        drive = FreeBaseDrive(spec, model, in_spec_order, base(half_steps), simulation, n_steps, contacts)
     base_rows = np.empty((n_rows, drive.ROW)) if base is not None else None
     data.qpos[:], data.qvel[:] = drive.q_d[0], drive.qd_d[0]
     sensor_rows = np.empty((n_rows, model.nsensordata))
@@ -328,6 +337,8 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     with controlled(drive.callback()) as warned:
         for row in range(n_rows):
             data.time = row * substeps * dt
+            if row == 0 and contacts:
+                drive.hold(data, 0.0, substeps * dt)
             mujoco.mj_forward(model, data)
             sensor_rows[row] = data.sensordata
             qacc_rows[row] = data.qacc[drive.vadr]
@@ -338,6 +349,8 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
                 wrench_rows[row] = _loop_wrenches(model, data, body_ids)
                 constraint_rows[row] = data.qfrc_constraint[drive.vadr]  # contacts and limits off: the loops' alone
             if row < n_rows - 1:
+                if contacts:  # whether each holds until the next row
+                    drive.hold(data, data.time, data.time + substeps * dt)
                 drive.captured[1] = True
                 mujoco.mj_step(model, data, substeps)  # one call for the steps to the next row
                 if len(_WARNINGS) > warned and any(data.warning[k].number for k in _UNSTABLE):
@@ -353,7 +366,7 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     if base_rows is not None:
         from harness.engines.free_base import recorded_base
 
-        rec = dataclasses.replace(rec, **recorded_base(base_rows))
+        rec = dataclasses.replace(rec, **recorded_base(base_rows, contacts))
     if not spec.loops:
         return rec
     meta["loop_settings"] = {"solref": model.eq_solref[0].tolist(), "solimp": model.eq_solimp[0].tolist()}

@@ -40,7 +40,7 @@ from harness.model.kinematics import TreeKinematics, cross, forward_kinematics, 
 from harness.model.spec import WORLD, Loop, RobotSpec
 
 
-def _carried(spec: RobotSpec, body: str) -> np.ndarray:
+def carried(spec: RobotSpec, body: str) -> np.ndarray:
     """(n_joints,) 1.0 for each joint whose motion carries `body` (the joints from the world to it)."""
     out = np.zeros(len(spec.joints))
     while body != WORLD:
@@ -126,7 +126,7 @@ def _point_columns(spec: RobotSpec, kin: TreeKinematics, body: str, x_W: np.ndar
     revolute = np.array([j.revolute for j in spec.joints])
     arm = x_W[:, None, :] - kin.p_W_joint  # (N, n, 3)
     cols = np.where(revolute[None, :, None], cross(kin.axis_W, arm), kin.axis_W)
-    return np.swapaxes(cols * _carried(spec, body)[None, :, None], 1, 2)
+    return np.swapaxes(cols * carried(spec, body)[None, :, None], 1, 2)
 
 
 def _angular_columns(spec: RobotSpec, kin: TreeKinematics, body: str) -> np.ndarray:
@@ -135,7 +135,14 @@ def _angular_columns(spec: RobotSpec, kin: TreeKinematics, body: str) -> np.ndar
     if body == WORLD:
         return np.zeros((N, 3, n))
     revolute = np.array([j.revolute for j in spec.joints], dtype=float)
-    return np.swapaxes(kin.axis_W * (revolute * _carried(spec, body))[None, :, None], 1, 2)
+    return np.swapaxes(kin.axis_W * (revolute * carried(spec, body))[None, :, None], 1, 2)
+
+
+def body_jacobian(spec: RobotSpec, body: str, q: np.ndarray, x_W: np.ndarray) -> np.ndarray:
+    """(N, 6, n_joints): the velocity of the point of `body` at x_W (N, 3) and the body's angular velocity, per
+    unit q'_j, at q (N, n) (the tree's world, where the spec draws it)."""
+    kin = _at(spec, np.atleast_2d(q))
+    return np.concatenate([_point_columns(spec, kin, body, x_W), _angular_columns(spec, kin, body)], axis=1)
 
 
 def jacobian(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> np.ndarray:

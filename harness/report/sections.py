@@ -238,7 +238,17 @@ def _moved(fl: dict) -> str:
                       f"{num(v)}" for k, v in fl.items() if k.startswith("base_wrench_"))
     return (f"<p>The bench moved the base along [base_motion] to within {num(fl['base_tracking_position_m'])} m and "
             f"{num(fl['base_tracking_angle_rad'])} rad, and recorded the world's wrench on it; found again from the "
-            f"recorded states by {found} ({esc(fl['moved_definition'])}).</p>")
+            f"recorded states by {found} ({esc(fl['moved_definition'])}).</p>" + _standing(fl))
+
+
+def _standing(fl: dict) -> str:
+    """A floating base that stood on contacts: what held it, and how firmly."""
+    if "contacts" not in fl:
+        return ""
+    held = ", ".join(f"{esc(c)} ({n} rows)" for c, n in zip(fl["contacts"], fl["contacts_held_rows"], strict=True))
+    return (f"<p>It stood on its contacts, held: {held}. Besides them the world applied at most "
+            f"{num(fl['base_wrench_besides_contacts_max_rel'])} of its whole wrench on the base, and a held point "
+            f"slipped at most {num(fl['contact_slip_m'])} m ({esc(fl['standing_definition'])}).</p>")
 
 
 def _closed_chain(cc: dict | None) -> str:

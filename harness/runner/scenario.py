@@ -40,6 +40,7 @@ from harness.base.plugins import (
 )
 from harness.base.tomlio import InputError, Table, parse_toml, read_toml, read_toml_text
 from harness.engines.simulation import INTEGRATORS, Simulation
+from harness.model.contacts import read_contacts
 from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate, read_gates
@@ -112,6 +113,7 @@ class Scenario:
     studies: tuple[tuple[Study, Any], ...] = ()  # (study, its configuration), in the file's order
     configs: dict[str, Any] = field(default_factory=dict)  # a core stage's key -> its configuration, from its table
     base_motion: Any = None  # a floating base's [base_motion] (harness/sources/base_motion.py), else None
+    contacts: tuple = ()  # the points it stands on, [[contacts]] (harness/model/contacts.py)
 
     def related(self, t: Table, key: str) -> Scenario:
         """Another scenario this one names under `key` of table `t` (relative to this file)."""
@@ -133,6 +135,10 @@ class Scenario:
     def prescribed(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Prescribed (q, q', q''), each of shape (len(t), n_joints), robot joint order."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.contacts:  # the joints holding a contact follow it as the base moves
+            from harness.model.contacts import stance
+
+            return stance(self.robot, self.contacts, self.base_motion.evaluate, self._given, self.source)(t)
         if not self.robot.loops:
             return self._given(t)
         from harness.model.closure import ClosedChain, ClosureError, along  # of a closed chain, the actuated
@@ -391,9 +397,13 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
             raise root.error(table, "a table of a run on a measured log: the scenario needs [data]")
     studies = _read_studies(root, scenario, path)
     base_motion = read_scenario_base_motion(root, robot, models, scenario.configs)
+    contacts = read_contacts(root, robot, motion, scenario.t_out)
     root.finish()
-    return dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies),
-                               base_motion=base_motion)
+    scenario = dataclasses.replace(scenario, models=models, methods=methods, studies=tuple(studies),
+                                   base_motion=base_motion, contacts=contacts)
+    if contacts:  # the stance followed along the motion now: a point out of reach is bad input
+        scenario.prescribed(scenario.t_out)
+    return scenario
 
 
 # a closed chain's scenario judges its actuated torques, its loops and its joint-torque identification

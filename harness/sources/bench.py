@@ -27,6 +27,7 @@ class Setup(Protocol):
     simulation: Simulation
     prescribed: Callable  # t -> (q, q', q''), each (len(t), n) in the robot's joint order
     base_motion: object  # a floating base's [base_motion] (harness/sources/base_motion.py), or None: held fixed
+    contacts: tuple  # the points it stands on (harness/model/contacts.py), or ()
 
 
 def record(scenario: Setup) -> TimeSeries:
@@ -37,7 +38,8 @@ def record(scenario: Setup) -> TimeSeries:
     base = scenario.base_motion
     try:
         return simulate(scenario.robot, scenario.gravity_W, scenario.prescribed, scenario.output_steps,
-                        scenario.output_dt, scenario.simulation, None if base is None else base.evaluate)
+                        scenario.output_dt, scenario.simulation, None if base is None else base.evaluate,
+                        getattr(scenario, "contacts", ()))
     except Diverged as exc:
         moved = base is not None and exc.joint == scenario.robot.floating.joint  # the base's free joint
         raise InputError(scenario.source, "base_motion" if moved else f"motion.{exc.joint}",

@@ -13,7 +13,8 @@ A scenario's `[measurement]` table, every key optional:
     relative = 0.01                 #   angular_velocities, angular_accelerations, angles,
     absolute = 0.0                  #   positions, joints (q, q', q'', tau), joint_torques (tau
                                     #   alone; it replaces what joints gives tau), base_wrench (the
-                                    #   world's wrench on a floating base the bench moves)
+                                    #   world's wrench on a floating base the bench moves),
+                                    #   contact_wrenches (each [[contacts]]'s force and moment)
 
 Noise on a value x has standard deviation sqrt(absolute^2 + (relative |x|)^2), independently per
 component and sample; angles and positions take absolute noise only (their zero is arbitrary).
@@ -39,11 +40,13 @@ import numpy as np
 from harness.base.series import TimeSeries
 from harness.base.tomlio import Table
 
-CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "a_W", "omega_W", "omegadot_W", "base_wrench_W")
+CHANNELS = ("q", "qd", "qdd", "tau", "F_W", "M_W", "p_W", "v_W", "a_W", "omega_W", "omegadot_W", "base_wrench_W",
+            "contact_F_W", "contact_M_W")
 GROUPS = {
     "forces": ("F_W",), "moments": ("M_W",), "accelerations": ("a_W",), "angular_velocities": ("omega_W",),
     "angular_accelerations": ("omegadot_W",), "angles": (), "positions": ("p_W", "v_W"),
     "joints": ("q", "qd", "qdd", "tau"), "joint_torques": ("tau",), "base_wrench": ("base_wrench_W",),
+    "contact_wrenches": ("contact_F_W", "contact_M_W"),
 }
 
 ABSOLUTE_ONLY = ("angles", "positions")  # their size says nothing of how well they are read
@@ -139,7 +142,8 @@ def read_encoders(q: np.ndarray, resolution: float, rng: np.random.Generator) ->
 
 
 def channels(rec: TimeSeries) -> dict[str, np.ndarray]:
-    """The measured channels `rec` has (CHANNELS; a floating base's wrench only where the bench moved it)."""
+    """The measured channels `rec` has (CHANNELS; a floating base's wrench only where the bench moved it, its
+    contacts' where it stands on them)."""
     return {c: getattr(rec, c) for c in CHANNELS if getattr(rec, c) is not None}
 
 

@@ -17,19 +17,34 @@ from harness.model.floating import BaseMotion
 from harness.stages.metrics import joint_load_scale
 
 
-def _data(rec, joints: list[str], rows: str) -> tuple:
-    """(base, q, q', q'', measured rows) of a recording of a moving base."""
-    q, qd, qdd, tau = rec.joint_data(joints)
+def _whole(sc, rec) -> tuple:
+    """(base, q, q', q'', the world's whole wrench on the base, the joints' rows) of a recording of a moving
+    base: standing on contacts, the contacts' generalised force (harness/model/contacts.py) added to what the
+    bench applied besides them and to the motors' torques, so that the rows are the robot's M q'' + h."""
+    q, qd, qdd, tau = rec.joint_data(sc.robot.joint_names)
     base = BaseMotion.from_rows(rec.base_pose, rec.base_twist_W, rec.base_rate_W)
-    return base, q, qd, qdd, floating_id.measured(rec.base_wrench_W, tau, rows)
+    wrench = rec.base_wrench_W
+    if rec.contacts:
+        from harness.model.contacts import generalised_force
+
+        feet = generalised_force(sc.robot, sc.contacts, base, q, rec.contact_F_W, rec.contact_M_W, rec.contact_x_W)
+        wrench, tau = wrench + feet[:, :6], tau + feet[:, 6:]
+    return base, q, qd, qdd, wrench, tau
 
 
-def _scale(robot, rec, rows: str) -> np.ndarray:
+def _data(sc, rec, rows: str) -> tuple:
+    """(base, q, q', q'', measured rows) of a recording of a moving base (`_whole`)."""
+    base, q, qd, qdd, wrench, tau = _whole(sc, rec)
+    return base, q, qd, qdd, floating_id.measured(wrench, tau, rows)
+
+
+def _scale(sc, rec, rows: str) -> np.ndarray:
     """Each measured row's scale: the largest |F_W| (force rows) and |M_W| (moment rows) of the world's
-    wrench on the base over the recording, then each joint's load L_J."""
-    F, M = (float(np.max(np.linalg.norm(rec.base_wrench_W[:, s], axis=1))) for s in (slice(0, 3), slice(3, 6)))
+    whole wrench on the base over the recording, then each joint's load L_J."""
+    wrench = _whole(sc, rec)[4]
+    F, M = (float(np.max(np.linalg.norm(wrench[:, s], axis=1))) for s in (slice(0, 3), slice(3, 6)))
     wrench = np.array([F, F, F, M, M, M])
-    return wrench if rows == "base" else np.concatenate([wrench, joint_load_scale(robot, rec)])
+    return wrench if rows == "base" else np.concatenate([wrench, joint_load_scale(sc.robot, rec)])
 
 
 def identify(ctx, config) -> tuple[TorqueIdentification, dict, dict[str, str]]:
@@ -42,11 +57,11 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict, dict[str, str]]:
     structure = ctx.once(("floating-base structural base parameters", rows, config.friction),
                          lambda: floating_id.structural_base(pm, sc.robot.limits, rows, with_friction=config.friction))
     val = ctx.recorded(config.validation)
-    training, validation = _data(ctx.training, joints, rows), _data(val, joints, rows)
+    training, validation = _data(sc, ctx.training, rows), _data(config.validation, val, rows)
     fit, beta_true, err = floating_id.identify(pm, structure, rows, training, validation)  # the base parameters
     names = floating_id.parameter_names(sc.robot, pm, config.friction)
     ti = TorqueIdentification(names, structure, beta_true, fit.beta, fit.condition_number, fit.std,
-                              fit.ci_half_width, fit.sensitivity, fit.weak, err, _scale(sc.robot, val, rows),
+                              fit.ci_half_width, fit.sensitivity, fit.weak, err, _scale(config.validation, val, rows),
                               list(floating_id.BASE_ROWS) + ([] if rows == "base" else joints))
     fixed = fixed_structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits, with_friction=config.friction)
     own = [name.startswith(f"{sc.robot.floating.body.name}.") for name in names]  # the base body's parameters
@@ -57,16 +72,17 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict, dict[str, str]]:
     unseen = [names[j] for j, h in zip(structure.dependent, held, strict=True) if not h]
     extra = {"rows": rows, "fixed_base_parameters": len(fixed.independent), "base_body_in": int(holding),
              "unseen": unseen, "unseen_definition": "the parameters these rows cannot see: in no base parameter",
-             "method": _method(rows, len(fixed.independent), int(holding))}
+             "method": _method(rows, len(fixed.independent), int(holding), bool(ctx.training.contacts))}
     files = {}
     if config.consistent:
         extra["consistent"], files = _consistent(ctx, config, pm, training, validation, ti.validation_scale)
     return ti, extra, files
 
 
-def _method(rows: str, fixed: int, holding: int) -> str:
-    read = ("the world's wrench on the base alone (no joint torque)" if rows == "base" else
-            "the world's wrench on the base and the joints' torques")
+def _method(rows: str, fixed: int, holding: int, standing: bool = False) -> str:
+    wrench = "the contacts' wrenches (the world's whole wrench on the base)" if standing else \
+        "the world's wrench on the base"
+    read = f"{wrench} alone (no joint torque)" if rows == "base" else f"{wrench} and the joints' torques"
     return ("floating base: Pinocchio's joint torque regressor of the robot on its free-flyer, the base's six rows "
             f"turned to world axes (harness/identify/floating_id.py), read on {read}; base parameters by QR with "
             "column pivoting at random states, the base's pose uniform on SO(3); least squares. The same robot "

@@ -21,6 +21,7 @@ from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.floating import BaseMotion
 from harness.model.states import motion_scale, position_bounds, random_states
 from harness.stages.metrics import DEFINITION, joint_load_scale, pair_metrics, wrench_metrics
+from harness.stages.moving_base import floating_figures, free_rows, moved, standing_contacts
 
 CLOSED_CHAIN_WRENCH_FLOOR = 1e-4  # round-off of a sum of wrenches ~1e-15 of the largest: 1e-11 of this floor
 MASS_MATRIX_SAMPLES = 20  # configurations of the recording at which a model's M(q) is compared
@@ -120,9 +121,10 @@ class TorqueComparison:
         }
 
 
-def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows, base=None) -> ModelTorques:
+def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows, base=None, on_feet=None) -> ModelTorques:
     """One model under test on the recorded motion, in its own column order, brought to the robot's; with
-    the base moving (`base`), its joint rows with the base free (`_free_rows`), its joint wrenches not asked."""
+    the base moving (`base`), its joint rows with the base free (`free_rows`) less what the contacts exert
+    on them (`on_feet`'s joint rows, where it stands), its joint wrenches not asked."""
     inst, plugin = entry.instance, entry.reference
     to_model, order = column_maps(inst.joint_names, joints)
     N, n = q.shape
@@ -130,8 +132,8 @@ def _model_torques(entry, q, qd, qdd, joints: list[str], M_pin_at, rows, base=No
     if base is None:
         tau = inverse_dynamics(plugin, "inverse_dynamics", inst, joints, q, qd, qdd)
     else:
-        free = _free_rows(entry, base, q, qd, qdd, joints)
-        base_W, tau = free[:, :6], free[:, 6:]
+        free = free_rows(entry, base, q, qd, qdd, joints)
+        base_W, tau = free[:, :6], free[:, 6:] - (0.0 if on_feet is None else on_feet[:, 6:])
     F = M = None
     if base is None and callable(getattr(inst, "joint_wrenches", None)):
         out = invoke(plugin, "joint_wrenches", inst.joint_wrenches, q[:, to_model], qd[:, to_model],
@@ -195,14 +197,15 @@ def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
     q, qd, qdd = rec.q[:, cols], rec.qd[:, cols], rec.qdd[:, cols]
     pm = build_model(sc.robot, sc.gravity_W)
     base = None if rec.base_pose is None else BaseMotion.from_rows(rec.base_pose, rec.base_twist_W, rec.base_rate_W)
+    feet, on_feet = standing_contacts(sc, rec, base, q)
     pin = (rnea(pm, q, qd, qdd) if base is None
-           else rnea(build_model(sc.robot, sc.gravity_W, floating=True), q, qd, qdd, base=base))
+           else rnea(build_model(sc.robot, sc.gravity_W, floating=True), q, qd, qdd, feet, base=base))
     rows = evenly_spaced(len(rec.t), MASS_MATRIX_SAMPLES)
 
     def M_pin_at():  # Pinocchio's CRBA, computed once, only if a model offers a mass matrix
         return ctx.once("mass matrix (CRBA) at the comparison rows", lambda: crba(pm, q[rows]))
 
-    models = tuple(_model_torques(e, q, qd, qdd, joints, M_pin_at, rows, base) for e in sc.models)
+    models = tuple(_model_torques(e, q, qd, qdd, joints, M_pin_at, rows, base, on_feet) for e in sc.models)
     random = None
     if models:
         random = _random_states(sc, pm, config or RandomStatesConfig())
@@ -210,102 +213,12 @@ def run(ctx, config: RandomStatesConfig | None) -> TorqueComparison:
             m, random_tau=inverse_dynamics(e.reference, "inverse_dynamics (random states)", e.instance, joints,
                                            random.q, random.qd, random.qdd))
             for m, e in zip(models, sc.models, strict=True))
-    floating = _floating(sc, rec.t[rows], q[rows], qd[rows], qdd[rows], (config or RandomStatesConfig()).seed,
+    floating = floating_figures(sc, rec.t[rows], q[rows], qd[rows], qdd[rows], (config or RandomStatesConfig()).seed,
                          None if base is None else base.take(rows))
     if base is not None:
-        floating = {**floating, **_moved(sc, rec, base, pin.base, models)}
+        floating = {**floating, **moved(sc, rec, base, pin.base, models, on_feet)}
     return TorqueComparison(joints, rec.t, joint_load_scale(sc.robot, rec), rec.tau[:, cols], pin.tau,
                             pin.F_W, pin.M_W, rec.F_W[:, cols], rec.M_W[:, cols], models, random, floating=floating)
-
-
-FLOATING_DEFINITION = (
-    "the robot with its floating base free (harness/engines/floating.py): MuJoCo's free joint against Pinocchio's "
-    "free-flyer, both built from the model, at the recording's joint states at the mass-matrix rows, the base "
-    "where [base_motion] puts it at those times (else a random state, its orientation uniform on SO(3)), with a "
-    "wrench on the base and on the outermost body: the largest difference of the base's six rows and of the "
-    "joints' torques over each one's largest |value|, and of the mass matrices over their largest entry. "
-    "Without [base_motion] the simulation and every other figure take the base fixed at the file's pose; with it the "
-    "bench moves the base and every figure is of the moving robot (moved_definition)")
-
-
-def _floating(sc, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, seed: int,
-              recorded: BaseMotion | None = None) -> dict | None:
-    """A floating base's figures with the base free (FLOATING_DEFINITION), None without one; the base
-    where the recording has it (`recorded`), else where [base_motion] puts it, else at random."""
-    if sc.robot.floating is None:
-        return None
-    from harness.engines.floating import engines_agreement
-    from harness.model.floating import random_base_motion
-
-    base = recorded if recorded is not None else (
-        sc.base_motion.evaluate(t) if sc.base_motion is not None else random_base_motion(len(q), seed))
-    figures = engines_agreement(sc.robot, sc.gravity_W, base, q, qd, qdd, seed)
-    return {"base": sc.robot.floating.body.name, "joint": sc.robot.floating.joint, "states": len(q),
-            "base_motion": ("recorded (moved by the bench along [base_motion])" if recorded is not None else
-                            "[base_motion]" if sc.base_motion is not None else "random"),
-            "engines_max_rel_error": figures["engines"], "mass_matrix_max_rel_error": figures["mass_matrix"],
-            **_floating_models(sc, base, q, qd, qdd), "definition": FLOATING_DEFINITION}
-
-
-MOVED_DEFINITION = (
-    "the bench moved the floating base along [base_motion] (harness/engines/free_base.py): base_tracking_* the "
-    "largest distance of the base frame's origin from where [base_motion] puts it (m) and the largest angle between "
-    "the two orientations (rad); base_wrench_*_vs_mujoco the largest difference of the world's wrench on the base "
-    "(each of its six components over its largest |value| over the run) between the model's inverse dynamics with "
-    "the base free at the recorded states and what the bench applied; the joints' torques are compared likewise "
-    "(the pairs above), a model's joint rows with the robot's drives' rotor inertia and friction added")
-
-
-def _free_rows(entry, base: BaseMotion, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-               joints: list[str]) -> np.ndarray:
-    """(N, 6 + n) a model's `floating_inverse_dynamics` (rigid bodies) in the robot's joint order, its joint
-    rows with the drives' rotor inertia and friction of the robot (harness/model/drives.py) added."""
-    from harness.model import drives
-
-    to_model, back = column_maps(entry.instance.joint_names, joints)
-    out = call(entry.reference, "floating_inverse_dynamics", entry.instance.floating_inverse_dynamics, base,
-               q[:, to_model], qd[:, to_model], qdd[:, to_model], shape=(len(q), 6 + q.shape[1]))
-    tau = out[:, 6:][:, back]
-    spec = entry.robot
-    return np.concatenate([out[:, :6], tau + drives.torque(spec.frictions, spec.transmission, qd, qdd, tau)], axis=1)
-
-
-def _moved(sc, rec, base: BaseMotion, pinocchio_base: np.ndarray, models: tuple[ModelTorques, ...]) -> dict:
-    """A moving base's figures (MOVED_DEFINITION), each model's base rows as `_model_torques` found them."""
-    from harness.base.numerics import largest_relative_difference
-    from harness.model.floating import tracking_error
-
-    position, angle = tracking_error(base, sc.base_motion.evaluate(rec.t))
-    out = {"base_tracking_position_m": float(np.max(position)), "base_tracking_angle_rad": float(np.max(angle)),
-           "base_wrench_pinocchio_vs_mujoco_max_rel_error": largest_relative_difference(pinocchio_base,
-                                                                                        rec.base_wrench_W)}
-    for m in models:
-        out[f"base_wrench_{m.name}_vs_mujoco_max_rel_error"] = largest_relative_difference(m.base_W,
-                                                                                          rec.base_wrench_W)
-    return {**out, "moved_definition": MOVED_DEFINITION}
-
-
-def _floating_models(sc, base, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> dict[str, float]:
-    """Each model under test that answers with the base free (an optional `floating_inverse_dynamics(base, q,
-    q', q'')`: the base's six rows, then its joints' torques, rigid bodies) against Pinocchio's free-flyer:
-    `<name>_vs_pinocchio_max_rel_error`, each row and joint over its largest |value|."""
-    from harness.base.numerics import largest_relative_difference
-    from harness.base.plugins import call, column_maps
-    from harness.engines.floating import inverse_dynamics
-
-    ref = inverse_dynamics(sc.robot, sc.gravity_W, base, q, qd, qdd, "pinocchio")
-    reference = np.concatenate([ref.base, ref.tau], axis=1)
-    out = {}
-    for e in sc.models:
-        if not callable(getattr(e.instance, "floating_inverse_dynamics", None)):
-            continue
-        to_model, back = column_maps(e.instance.joint_names, sc.robot.joint_names)
-        theirs = call(e.reference, "floating_inverse_dynamics", e.instance.floating_inverse_dynamics, base,
-                      q[:, to_model], qd[:, to_model], qdd[:, to_model], shape=(len(q), 6 + q.shape[1]))
-        theirs = np.concatenate([theirs[:, :6], theirs[:, 6:][:, back]], axis=1)
-        out[f"{e.name}_vs_pinocchio_max_rel_error"] = largest_relative_difference(theirs, reference)
-    return out
-
 
 
 PROJECTION = ("tau_a = G^T tau: the tree's joint torques tau (the open tree's inverse dynamics at every joint's "

@@ -1,0 +1,244 @@
+"""A floating base standing on contacts (harness/model/contacts.py, harness/engines/free_base.py): the
+built-in Solo12 standing on its four feet while its base sways, a foot lifted and put down.
+
+Independent references: Newton's and Euler's laws for the whole robot (its bodies' masses and inertias
+from the model, their accelerations as MuJoCo's sensors read them, the feet's forces as its constraint
+solver gave them), MuJoCo's own kinematics of the model file's sites for where the feet stand, finite
+differences of the stance's positions, and Pinocchio's RNEA with external forces for the feet's
+generalised force."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from harness.base.series import read_csv
+from harness.base.tomlio import InputError
+from harness.engines.mujoco import build_model
+from harness.engines.pinocchio import build_model as pin_model
+from harness.engines.pinocchio import rnea
+from harness.model import floating
+from harness.model.contacts import generalised_force, ground_points
+from harness.model.floating import BaseMotion, random_base_motion
+from harness.model.kinematics import cross
+from harness.runner.scenario import load_scenario
+from harness.sources.bench import record
+from harness.stages.floating_fit import _whole
+
+from .conftest import SCENARIOS
+
+STANDING = SCENARIOS / "solo12_standing.toml"
+
+
+@pytest.fixture(scope="module")
+def standing():
+    """The built-in scenario's first second, its foot lifted from 0.3 s to 0.7 s (the file's lift, earlier),
+    and its recording."""
+    scenario = load_scenario(STANDING)
+    contacts = tuple(c if c.lift is None else dataclasses.replace(c, lift=dataclasses.replace(c.lift, start=0.3,
+                                                                                                 end=0.7))
+                     for c in scenario.contacts)
+    scenario = dataclasses.replace(scenario, duration=1.0, output_steps=100, contacts=contacts)
+    return scenario, record(scenario)
+
+
+def _base(rec) -> BaseMotion:
+    return BaseMotion.from_rows(rec.base_pose, rec.base_twist_W, rec.base_rate_W)
+
+
+def test_the_feet_carry_the_robot_as_newton_and_euler_say(standing):
+    """Sum of m a - m g over every body (the legs' centre-of-mass accelerations as MuJoCo's sensors read
+    them, the base's from its recorded motion) equals the feet's recorded forces plus what the world applied
+    to the base besides them; the rate of change of the angular momentum about the world's origin, their
+    moments. To 1e-9 of the robot's weight (and of its weight times its size): the recorded quantities come
+    from one evaluation of MuJoCo's dynamics per row, consistent to round-off."""
+    sc, rec = standing
+    spec, fb = sc.robot, sc.robot.floating
+    base = _base(rec)
+    g = sc.gravity_W
+    R = base.R_WB
+    r_B = fb.R_WF0.T @ (fb.body.p_W_com0 - fb.p_WF0)  # the base's centre of mass in its frame
+    r = R @ r_B
+    a_base = base.a_W + cross(base.alpha_W, r) + cross(base.omega_W, cross(base.omega_W, r))
+    R_base = R @ (fb.R_WF0.T @ fb.body.R_WB0)  # the base body's principal axes
+    masses = np.array([b.mass for b in spec.massive_bodies])
+    force = fb.body.mass * (a_base - g) + np.einsum("b,nbi->ni", masses, rec.a_W - g)
+
+    def spin(Rb, I_B, w, wd):  # d/dt (I w) = I w' + w x I w, I = R I_B R^T
+        I_W = Rb @ I_B @ np.swapaxes(Rb, -1, -2)
+        return (I_W @ wd[..., None])[..., 0] + cross(w, (I_W @ w[..., None])[..., 0])
+
+    p_base = base.p_W + r
+    moment = (cross(p_base, fb.body.mass * (a_base - g)) + spin(R_base, fb.body.I_B, base.omega_W, base.alpha_W)
+              + np.sum(cross(rec.p_W, masses[None, :, None] * (rec.a_W - g)), axis=1)
+              + np.sum(spin(rec.R_WB, np.stack([b.I_B for b in spec.massive_bodies]), rec.omega_W, rec.omegadot_W),
+                       axis=1))
+    F_c, x_c = rec.contact_F_W, rec.contact_x_W
+    applied = rec.base_wrench_W  # about the base origin
+    held_force = F_c.sum(axis=1) + applied[:, :3]
+    held_moment = cross(x_c, F_c).sum(axis=1) + rec.contact_M_W.sum(axis=1) + applied[:, 3:] + cross(base.p_W,
+                                                                                                     applied[:, :3])
+    weight = (fb.body.mass + masses.sum()) * np.linalg.norm(g)
+    assert np.max(np.abs(force - held_force)) <= 1e-9 * weight
+    assert np.max(np.abs(moment - held_moment)) <= 1e-9 * weight * np.max(np.abs(x_c))
+    # and the feet carry it: the weight is theirs, the base is held by nothing else
+    assert np.max(np.abs(applied)) <= 1e-9 * weight
+    assert np.all(F_c[:, :, 2].sum(axis=1) > 0.9 * weight)
+
+
+def test_every_held_foot_stands_where_it_stood_and_the_lifted_one_swings_clear(standing):
+    """The stance placed in MuJoCo's model of the robot (its free joint's pose from the prescribed base,
+    the joints from the stance, mj_kinematics): each held foot's site on its ground site to 1e-12 m; the
+    lifted foot more than 2 cm off at its lift's middle and back on its site at the lift's end; the stance's
+    rates its positions' central differences (h = 1e-5 s: to 1e-6 of their largest)."""
+    sc, _ = standing
+    t = np.linspace(0.0, sc.duration, 401)
+    q, qd, qdd = sc.prescribed(t)
+    base = sc.base_motion.evaluate(t)
+    ground = ground_points(sc.robot, sc.contacts, sc.base_motion.evaluate(np.zeros(1)), q[0])
+    model = build_model(sc.robot, sc.gravity_W, sc.simulation, floating=True, ground=(sc.contacts, ground))
+    data = mujoco.MjData(model)
+    qadr = [model.joint(j).qposadr[0] for j in sc.robot.joint_names]
+    qpos = floating.to_mujoco(base)[0]
+    feet = np.empty((len(t), len(sc.contacts), 3))
+    for k in range(len(t)):
+        data.qpos[:7], data.qpos[qadr] = qpos[k], q[k]
+        mujoco.mj_kinematics(model, data)
+        feet[k] = [data.site(f"contact_{c.name}").xpos for c in sc.contacts]
+    on_ground = [data.site(f"ground_{c.name}").xpos for c in sc.contacts]
+    off = np.linalg.norm(feet - np.array(on_ground), axis=-1)
+    held = np.stack([c.planted(t) for c in sc.contacts], axis=1)
+    assert np.max(off[held]) <= 1e-12
+    lifted = next(k for k, c in enumerate(sc.contacts) if c.lift is not None)
+    lift = sc.contacts[lifted].lift
+    middle, end = (np.argmin(np.abs(t - x)) for x in ((lift.start + lift.end) / 2, lift.end))
+    assert off[middle, lifted] > 0.02 and off[end, lifted] <= 1e-12
+    h = 1e-5
+    (qp, qdp, _), (qm, qdm, _) = sc.prescribed(t + h), sc.prescribed(t - h)
+    assert np.max(np.abs((qp - qm) / (2 * h) - qd)) <= 1e-6 * np.max(np.abs(qd))
+    assert np.max(np.abs((qdp - qdm) / (2 * h) - qdd)) <= 1e-6 * np.max(np.abs(qdd))
+
+
+def test_the_feet_s_generalised_force_is_pinocchios_jacobian_transpose(standing):
+    """generalised_force (kinematics alone) at random states of the base and joints, with random forces and
+    moments at the feet, equals what Pinocchio's RNEA loses to the same wrenches as external forces (rnea
+    without them minus rnea with them), base rows in the harness's convention, to 1e-12 of the largest."""
+    sc, _ = standing
+    spec = sc.robot
+    N = 40
+    rng = np.random.default_rng(3)
+    base = random_base_motion(N, 5)
+    q = rng.uniform(-1.0, 1.0, (N, len(spec.joints)))
+    zero = np.zeros_like(q)
+    F = rng.uniform(-20.0, 20.0, (N, len(sc.contacts), 3))
+    M = rng.uniform(-1.0, 1.0, (N, len(sc.contacts), 3))
+    x = rng.uniform(-0.5, 0.5, (N, len(sc.contacts), 3))
+    ours = generalised_force(spec, sc.contacts, base, q, F, M, x)
+    from harness.engines.pinocchio import PointForce
+
+    pm = pin_model(spec.rigid(), sc.gravity_W, floating=True)
+    feet = tuple(PointForce(spec.joint_names.index(spec.inner_joint(c.body).name), x[:, k], F[:, k], M[:, k])
+                 for k, c in enumerate(sc.contacts))
+    without, with_ = rnea(pm, q, zero, zero, base=base), rnea(pm, q, zero, zero, feet, base=base)
+    theirs = np.concatenate([without.base - with_.base, without.tau - with_.tau], axis=1)
+    assert np.max(np.abs(ours - theirs)) <= 1e-12 * np.max(np.abs(theirs))
+
+
+def test_the_identification_s_rows_are_the_robot_s_inverse_dynamics(standing):
+    """What the floating-base fit reads of a standing recording (the contacts' generalised force added to
+    what the bench applied and to the motors' torques) is Pinocchio's M q'' + h of the rigid robot at the
+    recorded states, no external force: to 1e-12 of each row's largest."""
+    sc, rec = standing
+    base, q, qd, qdd, wrench, tau = _whole(sc, rec)
+    ref = rnea(pin_model(sc.robot.rigid(), sc.gravity_W, floating=True), q, qd, qdd, base=base)
+    assert np.max(np.abs(wrench - ref.base) / np.max(np.abs(ref.base), axis=0)) <= 1e-12
+    assert np.max(np.abs(tau - ref.tau) / np.max(np.abs(ref.tau), axis=0)) <= 1e-12
+
+
+def test_a_standing_recording_reads_back_as_written(standing, tmp_path):
+    """recording.csv's contact columns (contact[<name>][Fx] .. [held]) read back bit for bit."""
+    _, rec = standing
+    rec.write_csv(tmp_path / "r.csv")
+    back = read_csv(tmp_path / "r.csv")
+    assert back.contacts == rec.contacts
+    for name in ("contact_F_W", "contact_M_W", "contact_x_W", "contact_held"):
+        assert np.array_equal(getattr(back, name), getattr(rec, name)), name
+
+
+def test_the_lift_s_weight_leaves_and_lands_with_no_velocity_or_acceleration(standing):
+    """w = sin^4(pi s): w, w', w'' zero at both ends; w' and w'' the central differences of w and w'."""
+    sc, _ = standing
+    lift = next(c.lift for c in sc.contacts if c.lift is not None)
+    ends = np.array([lift.start, lift.end])
+    for x in lift.weight(ends):
+        assert np.max(np.abs(x)) <= 1e-12
+    t, h = np.linspace(lift.start + 0.01, lift.end - 0.01, 57), 1e-6
+    _, wd, wdd = lift.weight(t)
+    (wp, wdp, _), (wm, wdm, _) = lift.weight(t + h), lift.weight(t - h)
+    assert np.max(np.abs((wp - wm) / (2 * h) - wd)) <= 1e-7 * np.max(np.abs(wd))
+    assert np.max(np.abs((wdp - wdm) / (2 * h) - wdd)) <= 1e-7 * np.max(np.abs(wdd))
+
+
+BAD = [
+    ('base_motion', lambda s: s.replace("[base_motion.x]", "[ignored.x]").replace("[base_motion.", "[ignored_"),
+     None),
+    ('contacts[1].body', lambda s: s.replace('body = "FR_LOWER_LEG"', 'body = "FR_FOOT"'), "no moving body"),
+    ('contacts[1].body', lambda s: s.replace('body = "FR_LOWER_LEG"', 'body = "FL_LOWER_LEG"'), "carries contact"),
+    ('contacts[1].body', lambda s: s.replace('body = "FR_LOWER_LEG"', 'body = "FR_UPPER_LEG"'), "needs three"),
+    ('contacts[1].name', lambda s: s.replace('name = "FR_foot"', 'name = "FL_foot"'), "named twice"),
+    ('motion.FR_KFE', lambda s: s.replace('[motion.FR_KFE]\ntype = "locked"\nposition = -1.2',
+                                          '[motion.FR_KFE]\ntype = "sinusoids"\noffset = -1.2\nsin = [[0.1, 2.0]]'),
+     "holds contact"),
+    ('contacts[0].lift.from', lambda s: s.replace("from = 0.8", "from = 0.805"), "not on the recording's grid"),
+    ('contacts[0].lift.to', lambda s: s.replace("to = 1.4", "to = 2.4"), "by the recording's end"),
+    ('contacts[0].lift.swing.FR_HFE', lambda s: s.replace("swing = { FL_HFE", "swing = { FR_HFE"),
+     "not a joint of the contact's chain"),
+    ('contacts', lambda s: s.replace("point = [0.1946, -0.14695, -0.32]", "point = [0.1946, -0.14695, -0.52]")
+     .replace("[base_motion.z]\ntype = \"sinusoids\"\noffset = 0.0\nsin = [[0.01, 3.0]]",
+              "[base_motion.z]\ntype = \"sinusoids\"\noffset = 0.0\nsin = [[0.3, 3.0]]"), "out of its chain's reach"),
+]
+
+
+def _absolute(text: str) -> str:
+    """A built-in scenario's text with the files it names given by their whole path (to be written elsewhere)."""
+    return (text.replace('"../models/', f'"{SCENARIOS.parent / "models"}/')
+            .replace('"gates/', f'"{SCENARIOS / "gates"}/').replace('validation = "', f'validation = "{SCENARIOS}/'))
+
+
+@pytest.mark.parametrize(("key", "edit", "said"), BAD, ids=[b[0] + (f": {b[2]}" if b[2] else "") for b in BAD])
+def test_a_contact_the_bench_cannot_hold_is_refused_in_one_line(tmp_path, key, edit, said):
+    text = _absolute(STANDING.read_text())
+    path = tmp_path / "s.toml"
+    path.write_text(edit(text))
+    with pytest.raises(InputError) as err:
+        load_scenario(path)
+    if key == "base_motion":  # without a base motion the torque identification refuses first, or the contacts
+        assert err.value.key in ("contacts", "torque_identification")
+        return
+    assert err.value.key == key, str(err.value)
+    assert said in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_noise_on_contact_wrenches_needs_contacts(tmp_path):
+    sc = load_scenario(SCENARIOS / "solo12_floating.toml")
+    assert sc.contacts == ()
+    text = _absolute((SCENARIOS / "solo12_floating.toml").read_text())
+    (tmp_path / "s.toml").write_text(text + "\n[measurement.noise.contact_wrenches]\nrelative = 0.01\n")
+    with pytest.raises(InputError) as err:
+        load_scenario(tmp_path / "s.toml")
+    assert err.value.key == "measurement.noise.contact_wrenches"
+
+
+def test_the_stance_is_the_scenario_s_motion_everywhere_it_is_read(standing):
+    """The bench followed the stance: the recording's joints are the prescribed motion's to the feet's
+    compliance (1e-6 rad), and a scenario without contacts keeps its [motion] as written."""
+    sc, rec = standing
+    q = sc.prescribed(rec.t)[0]
+    assert np.max(np.abs(rec.q - q)) <= 1e-6
+    free = dataclasses.replace(sc, contacts=())
+    assert not np.allclose(free.prescribed(rec.t)[0], q)
+    assert pin.__version__  # Pinocchio is the reference of the two tests above
