@@ -242,3 +242,24 @@ def test_the_stance_is_the_scenario_s_motion_everywhere_it_is_read(standing):
     free = dataclasses.replace(sc, contacts=())
     assert not np.allclose(free.prescribed(rec.t)[0], q)
     assert pin.__version__  # Pinocchio is the reference of the two tests above
+
+
+def test_a_foot_that_pulls_or_needs_friction_is_said_along_the_ground_s_normal(standing):
+    """The standing figures read the feet's forces along gravity's vertical, whatever the world's axes: with
+    gravity turned, a foot held pulling 2 N is the least normal force (-2), a released foot's forces are not
+    read, and a push of 10 N with 3 N across needs a friction coefficient of 0.3."""
+    from harness.stages.moving_base import standing as figures
+
+    _, rec = standing
+    R = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # world axes turned: "up" along x
+    F = np.zeros_like(rec.contact_F_W)
+    F[:, :, :] = R @ np.array([0.0, 0.0, 10.0])  # every foot pushing 10 N
+    F[5, 1] = R @ np.array([3.0, 0.0, 10.0])  # 3 N across
+    F[7, 2] = R @ np.array([0.0, 0.0, -2.0])  # pulling
+    held = np.ones_like(rec.contact_held)
+    held[9, 3] = False
+    F[9, 3] = R @ np.array([50.0, 0.0, -60.0])  # released: not read
+    rec = dataclasses.replace(rec, contact_F_W=F, contact_held=held)
+    out = figures(rec, np.ones((len(rec.t), 6)), R @ np.array([0.0, 0.0, -9.81]))
+    assert out["contact_least_normal_force_N"] == pytest.approx(-2.0, abs=1e-12)
+    assert out["contact_friction_needed"] == pytest.approx(0.3, abs=1e-12)

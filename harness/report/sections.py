@@ -248,7 +248,9 @@ def _standing(fl: dict) -> str:
     held = ", ".join(f"{esc(c)} ({n} rows)" for c, n in zip(fl["contacts"], fl["contacts_held_rows"], strict=True))
     return (f"<p>It stood on its contacts, held: {held}. Besides them the world applied at most "
             f"{num(fl['base_wrench_besides_contacts_max_rel'])} of its whole wrench on the base, and a held point "
-            f"slipped at most {num(fl['contact_slip_m'])} m ({esc(fl['standing_definition'])}).</p>")
+            f"slipped at most {num(fl['contact_slip_m'])} m; the least a held point pressed on the ground was "
+            f"{num(fl['contact_least_normal_force_N'])} N and the motion needs a friction coefficient of "
+            f"{num(fl['contact_friction_needed'])} ({esc(fl['standing_definition'])}).</p>")
 
 
 def _closed_chain(cc: dict | None) -> str:

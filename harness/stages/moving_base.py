@@ -77,7 +77,7 @@ def moved(sc, rec, base: BaseMotion, pinocchio_base: np.ndarray, models: tuple,
     for m in models:
         out[f"base_wrench_{m.name}_vs_mujoco_max_rel_error"] = largest_relative_difference(m.base_W, whole)
     if on_feet is not None:
-        out.update(standing(rec, whole))
+        out.update(standing(rec, whole, sc.gravity_W))
     return {**out, "moved_definition": MOVED_DEFINITION}
 
 
@@ -95,15 +95,22 @@ def standing_contacts(sc, rec, base: BaseMotion | None, q: np.ndarray) -> tuple[
     return feet, generalised_force(sc.robot, sc.contacts, base, q, rec.contact_F_W, rec.contact_M_W, rec.contact_x_W)
 
 
-def standing(rec, whole: np.ndarray) -> dict:
+def standing(rec, whole: np.ndarray, gravity_W: np.ndarray) -> dict:
     """A standing robot's figures (STANDING_DEFINITION)."""
     held = rec.contact_held
     ground = rec.contact_x_W[0]
     slip = np.where(held, np.linalg.norm(rec.contact_x_W - ground, axis=-1), 0.0)
     scale = np.max(np.abs(whole), axis=0)
+    up = -np.asarray(gravity_W, dtype=float) / max(float(np.linalg.norm(gravity_W)), 1e-300)
+    normal = rec.contact_F_W @ up  # (N, k) the force along the ground's normal (against gravity)
+    across = np.linalg.norm(rec.contact_F_W - normal[..., None] * up, axis=-1)
+    pushing = held & (normal > 0.0)
     return {"contacts": list(rec.contacts), "contacts_held_rows": held.sum(axis=0).tolist(),
             "base_wrench_besides_contacts_max_rel": float(np.max(np.max(np.abs(rec.base_wrench_W), axis=0) / scale)),
-            "contact_slip_m": float(np.max(slip)), "standing_definition": STANDING_DEFINITION}
+            "contact_slip_m": float(np.max(slip)),
+            "contact_least_normal_force_N": float(np.min(normal[held])) if held.any() else None,
+            "contact_friction_needed": float(np.max(across[pushing] / normal[pushing])) if pushing.any() else None,
+            "standing_definition": STANDING_DEFINITION}
 
 
 STANDING_DEFINITION = (
@@ -112,7 +119,11 @@ STANDING_DEFINITION = (
     "contacts' included (the recorded contact forces' and what the bench applied besides them); the joints' "
     "torques are the motors' (a model's joint rows less the contacts' J^T F); base_wrench_besides_contacts_max_rel "
     "the largest wrench the world applied to the base besides the contacts, each component over its largest "
-    "whole value; contact_slip_m the largest distance of a held contact's point from where it stood at t = 0")
+    "whole value; contact_slip_m the largest distance of a held contact's point from where it stood at t = 0; "
+    "contact_least_normal_force_N the least force a held contact pressed on the ground with, along the ground's "
+    "normal (against gravity: negative where the motion had a foot pull, which a real foot cannot), and "
+    "contact_friction_needed the largest ratio of its force across the normal to its force along it (the "
+    "friction coefficient the motion needs not to slip)")
 
 
 def floating_models(sc, base, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> dict[str, float]:
