@@ -32,8 +32,9 @@ os.environ["OPENBLAS_NUM_THREADS"] = "1"  # and the processes a test starts (`ha
 # at the end (6 s of 63 by the count of tests, xdist's own order). A scheduling hint: the rest keep
 # their order, and a module named here and gone changes nothing.
 LONGEST_FIRST = ("test_verdict.py", "test_closed_chains.py", "test_log_inputs.py", "test_workers.py",
-                 "test_closed_chain_log_channels.py", "test_log_unmeasured.py", "test_contacts.py", "test_cli.py",
-                 "test_suite_and_gates.py", "test_closed_chain_log.py", "test_log_guards.py",
+                 "test_closed_chain_log_channels.py", "test_log_unmeasured.py", "test_contacts.py",
+                 "test_floating_log.py", "test_cli.py", "test_suite_and_gates.py", "test_closed_chain_log.py",
+                 "test_log_guards.py",
                  "test_closed_chain_log_laws.py", "test_plugins.py", "test_drives.py", "test_run_folder.py",
                  "test_report_html.py", "test_robustness.py", "test_log_read.py", "test_torques.py",
                  "test_bad_input_catalogue.py", "test_friction_law.py", "test_span_rows.py", "test_estimators.py")

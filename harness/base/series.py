@@ -193,6 +193,8 @@ class TimeSeries:
                     cols[f"base[{c}]"] = getattr(self, field_name)[:, k]
         for c, name in enumerate(self.contacts):
             for field_name, names in CONTACT_COLUMNS.items():
+                if getattr(self, field_name) is None:  # a log's contacts: whether each held is not read
+                    continue
                 values = getattr(self, field_name)[:, c]
                 for k, s in enumerate(names):
                     cols[f"contact[{name}][{s}]"] = values[:, k] if values.ndim == 2 else values.astype(int)

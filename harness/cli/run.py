@@ -72,7 +72,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         seen.add(s.name)
     _claim_folders(args, scenarios)
     for s in scenarios:
-        for note in model_notes(s.robot, getattr(s, "base_motion", None)):  # what reading the model assumed
+        for note in model_notes(s):  # what reading the model assumed
             print(f"harness: warning: {s.name}: {note}", file=sys.stderr)
         for entry in s.methods:
             if entry.skipped is not None:
@@ -129,7 +129,7 @@ def _run_each(args: argparse.Namespace, scenarios: list, reading: list[float], w
         failed = [f"identification method {name} failed: {m['failed']}"
                   for name, m in results.get("identification_methods", {}).items()
                   if isinstance(m, dict) and isinstance(m.get("failed"), str)]
-        li = results.get("log_identification", {})
+        li = results.get("log_identification", results.get("floating_log", {}))
         for warning in (li.get("start", {}).get("said", []) + results.get("data", {}).get("conditioning", {}).get(
                 "warnings", []) + li.get("warnings", []) + failed):  # the start check's findings first
             print(f"harness: warning: {scenario.name}: {warning}", file=sys.stderr)  # once per run, not per row

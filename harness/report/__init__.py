@@ -22,6 +22,7 @@ RENDERERS = {
     "estimators": lambda r, rec: sections.estimator_comparison(r),
     "payload": lambda r, rec: sections.payload(r),
     "log_identification": log_sections.log_identification,
+    "floating_log": log_sections.floating_log,
     "refinement": lambda r, rec: log_sections.refinement(r),
 }
 

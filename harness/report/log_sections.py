@@ -272,3 +272,29 @@ def log_methods(r: dict) -> str:
         "pseudo-inertia is not positive semidefinite, and negative rotor inertia, viscous or Coulomb coefficients. "
         "Seconds: each method's fit; the harness's steps are timed in 'How the run was made'.</p>"
         + table(header, rows, "wrap"))
+
+
+def floating_log(r: dict, log) -> str:
+    """A floating base's log (harness/stages/floating_log.py): what each model predicts on the judged span."""
+    f = r["floating_log"]
+    read = ("the contacts' wrenches alone (no joint torque)" if f["rows"] == "base"
+            else "the contacts' wrenches and the joints' torques")
+    rows = []
+    for name, judged in f["judged"].items():
+        measured, truth = judged["measured"], judged.get("truth")
+        rows.append([esc(name), num(measured["max_rel_error"]), num(measured["rms_rel_error"]),
+                     esc(measured["max_rel_row"]), num(truth["max_rel_error"]) if truth else DASH,
+                     num(truth["rms_rel_error"]) if truth else DASH])
+    start = f["start"]
+    c = f.get("consistent")
+    consistent = (f"<p>The consistent fit ({esc(c['status'])}, {esc(c['solver'])}): training residual "
+                  f"{num(c['training_relative_residual'])}; links not physical: "
+                  f"{esc(', '.join(c['inconsistent_links']) or 'none')}.</p>") if c else ""
+    body = (f"<p>The floating robot identified from {read} on the training span ({f['base_parameters']} base "
+            f"parameters of {f['parameters']}, condition number {num(f['condition_number'])}), judged on the "
+            f"{esc(f['span'])} span; contacts {esc(', '.join(f['contacts']) or 'none')}. The start check: "
+            f"{start['findings']} finding(s) ({esc(start['definition'])}; limit {num(start['limit'])}). "
+            f"{esc(f['delays'])}.</p>"
+            + table(["model", "against the log: largest", "RMS", "where", "against the truth: largest", "RMS"], rows)
+            + f"<p>{esc(f['definition'])}.</p>" + consistent)
+    return section("floating_log", "A floating base's log", body)

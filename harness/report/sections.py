@@ -31,7 +31,7 @@ def verdict(r: dict) -> str:
     versions = r["run"]["versions"]
     made = esc(f"harness {versions.get('harness', '?')}, MuJoCo {versions.get('mujoco', '?')}, Pinocchio "
                f"{versions.get('pinocchio', '?')}; run {r['run'].get('id', '(no id)')} at {r['run']['time']} (UTC)")
-    li = r.get("log_identification", {})
+    li = r.get("log_identification", r.get("floating_log", {}))
     said = [*r["scenario"].get("model_notes", []), *li.get("start", {}).get("said", []),
             *r.get("data", {}).get("conditioning", {}).get("warnings", []), *li.get("warnings", [])]
     warnings = ("<p>What reading the model and the data assumed or found (each also said on the terminal):</p><ul>"

@@ -43,7 +43,7 @@ def scenario_section(s: Scenario) -> dict:
         "file": str(s.source),
         "description": s.description,
         "model_file": str(s.robot.source),
-        "model_notes": model_notes(s.robot, getattr(s, "base_motion", None)),
+        "model_notes": model_notes(s),
         "gravity": floats(s.gravity_W),
         "duration": s.duration,
         "output_steps": s.output_steps,
@@ -61,7 +61,7 @@ def scenario_section(s: Scenario) -> dict:
 
 def data_scenario_section(s) -> dict:
     return {"name": s.name, "file": str(s.source), "description": s.description, "model_file": str(s.robot.source),
-            "model_notes": list(s.robot.notes), "gravity": floats(s.gravity_W), "data": s.data.describe()}
+            "model_notes": model_notes(s), "gravity": floats(s.gravity_W), "data": s.data.describe()}
 
 
 def data_section(log) -> dict:

@@ -47,6 +47,7 @@ from harness.runner.gates import Gate, read_gates
 from harness.sources.base_motion import read_scenario_base_motion, refuse_fixed_base_tables
 from harness.sources.log import DataSource, check_columns, read_source
 from harness.sources.log.channels import logged, supported
+from harness.sources.log.floating import read_floating_log, refuse_on_floating
 from harness.sources.measurement import Measurement, read_measurement
 from harness.sources.motion import Motion, read_scenario_motions
 
@@ -164,6 +165,7 @@ def _relative_file(t: Table, key: str, rel: str, base: Path) -> Path:
 
 
 START_GATE = Gate("start", "log_identification.start.findings", 0)  # every log scenario's (stages/log_judge.py)
+FLOATING_START_GATE = Gate("start", "floating_log.start.findings", 0)  # a floating base's (stages/floating_log.py)
 BUILTIN_GATES = "harness:"  # a gate set named "harness:NAME" is the package's scenarios/gates/NAME.toml
 
 
@@ -283,7 +285,10 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
     gravity = _gravity(gravity, robot)
     dt = root.table("data")
     read_as = logged(robot)  # a closed chain's log holds its actuated joints' channels (sources/log/closed.py)
+    floating = read_floating_log(dt, robot)  # a floating base's channels (sources/log/floating.py)
     source = read_source(dt, path, len(read_as.joints), read_as.joint_names, list(robot.drive_names))
+    if floating is not None:
+        source = dataclasses.replace(source, floating=refuse_on_floating(dt, source, root, floating))
     source = supported(root, dt, robot, source)  # what a closed chain's log, or unmeasured channels, do not allow
     if source.side == "motor" and robot.transmission is None:
         raise dt.error("side", f'"motor": the log is mapped to the joints through the model\'s drives, and '
@@ -304,8 +309,9 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
         if (truth.actuated, [lp.name for lp in truth.loops]) != (robot.actuated, [lp.name for lp in robot.loops]):
             raise dt.error("truth", f"model {truth.name!r} has other loops or actuated joints than {robot.name!r}")
     gates = _read_all_gates(root, gate_files)
-    if START_GATE.metric not in {g.metric for g in gates}:  # every log is read against its model: a scenario's own
-        gates += (START_GATE,)  # gate on the metric replaces it
+    start = START_GATE if floating is None else FLOATING_START_GATE
+    if start.metric not in {g.metric for g in gates}:  # every log is read against its model: a scenario's own
+        gates += (start,)  # gate on the metric replaces it
     for table in ("motion", "simulation", "measurement", "model_under_test", "studies", "torque_identification",
                   "excitation"):
         if root.has(table):

@@ -23,7 +23,7 @@ import numpy as np
 
 from harness.base.tomlio import Table
 from harness.model import quaternion
-from harness.model.floating import BaseMotion
+from harness.model.floating import BaseMotion, not_free
 from harness.model.kinematics import cross
 from harness.model.spec import FLOATING_BASE_FIXED, FloatingBase
 from harness.sources.motion import Locked, Motion, read_motion
@@ -112,12 +112,9 @@ def read_scenario_base_motion(root: Table, robot, models=(), configs=None) -> Ba
             raise root.error("measurement.noise.base_wrench", "the world's wrench on a floating base is recorded only "
                                                               "where the bench moves it ([base_motion])")
         return None
-    if robot.floating is None:
-        raise root.error("base_motion", f"model {robot.name!r} has no floating base (an MJCF free joint, a URDF "
-                                        "floating joint or [urdf] floating = true)")
-    if robot.loops or robot.transmission is not None:
-        raise root.error("base_motion", f"model {robot.name!r} has {'loops' if robot.loops else 'drives'}: a "
-                                        "floating base is moved only on an open tree of joints driven directly")
+    why = not_free(robot, "moved")
+    if why is not None:
+        raise root.error("base_motion", why)
     for m in models:
         if not callable(getattr(m.instance, "floating_inverse_dynamics", None)):
             raise root.error("model_under_test", f"{m.name!r} has no floating_inverse_dynamics(base, q, qd, qdd): "
@@ -126,10 +123,16 @@ def read_scenario_base_motion(root: Table, robot, models=(), configs=None) -> Ba
     return read_base_motion(root.table("base_motion"), robot.floating)
 
 
-def model_notes(robot, base_motion: BaseTrajectory | None) -> list[str]:
+def model_notes(scenario) -> list[str]:
     """What reading the robot assumed, as a scenario's run says it: a floating base the reading holds
-    fixed is moved by the bench where the scenario has a [base_motion]."""
-    if base_motion is None:
+    fixed is moved by the bench where the scenario has a [base_motion], and by the log where its [data]
+    has a [data.base]."""
+    robot, data = scenario.robot, getattr(scenario, "data", None)
+    if getattr(data, "floating", None) is not None:
+        moved = "the log moves the floating base ([data.base])"
+    elif getattr(scenario, "base_motion", None) is not None:
+        moved = "the bench moves the floating base along [base_motion]"
+    else:
         return list(robot.notes)
-    return [n.removesuffix(FLOATING_BASE_FIXED) + "the bench moves the floating base along [base_motion]"
-            if n.endswith(FLOATING_BASE_FIXED) else n for n in robot.notes]
+    return [n.removesuffix(FLOATING_BASE_FIXED) + moved if n.endswith(FLOATING_BASE_FIXED) else n
+            for n in robot.notes]

@@ -51,11 +51,25 @@ def record(scenario: Setup) -> TimeSeries:
 def write_log(rec: TimeSeries, joints: list[str], path: Path) -> None:
     """A recording written as a lab's joint log would be: a CSV of t, then q{k}, qd{k}, tau{k} for
     k = 1..n in the order of `joints` (what `[data] columns = { q = "q{j}", ... }` reads), every number
-    to the last bit."""
+    to the last bit. A floating base's recording adds what its state estimator and foot sensors would log,
+    as published (harness/sources/log/floating.py reads it): the base's position `px py pz`, its quaternion
+    in ROS's order `qx qy qz qw`, its twist in base axes `vx vy vz wx wy wz`, and each contact's force on its
+    body, world axes, `<contact>_fx <contact>_fy <contact>_fz`."""
     import pandas as pd
 
     cols = {"t": rec.t}
     for k, j in enumerate(joints):
         c = rec.joint_index(j)
         cols[f"q{k + 1}"], cols[f"qd{k + 1}"], cols[f"tau{k + 1}"] = rec.q[:, c], rec.qd[:, c], rec.tau[:, c]
+    if rec.base_pose is not None:
+        from harness.model.quaternion import to_matrix
+
+        R_T = np.swapaxes(to_matrix(rec.base_pose[:, 3:]), 1, 2)
+        twist_B = np.concatenate([(R_T @ rec.base_twist_W[:, s, None])[..., 0] for s in (slice(0, 3), slice(3, 6))],
+                                 axis=1)
+        cols.update(zip(("px", "py", "pz"), rec.base_pose[:, :3].T, strict=True))
+        cols.update(zip(("qx", "qy", "qz", "qw"), rec.base_pose[:, [4, 5, 6, 3]].T, strict=True))
+        cols.update(zip(("vx", "vy", "vz", "wx", "wy", "wz"), twist_B.T, strict=True))
+        for k, name in enumerate(rec.contacts):
+            cols.update(zip((f"{name}_fx", f"{name}_fy", f"{name}_fz"), rec.contact_F_W[:, k].T, strict=True))
     pd.DataFrame(cols).to_csv(path, index=False, float_format="%.17g")

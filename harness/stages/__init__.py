@@ -8,15 +8,16 @@ from harness.stages.context import VALIDATION_SPAN, Context, Progress, recording
 
 __all__ = ["LOG_TABLES", "VALIDATION_SPAN", "Context", "Progress", "core_stages", "log_stages", "recording_key"]
 
-LOG_TABLES = ("friction_law", "refinement")  # the scenario tables of log_stages(), known without importing them
-# (their modules import the convex solver and the optimiser: a simulated scenario does not pay for that)
+# the scenario tables of log_stages(), known without importing them (their modules import the convex solver
+# and the optimiser: a simulated scenario does not pay for that)
+LOG_TABLES = ("friction_law", "refinement", "floating_log")
 
 
 def log_stages() -> tuple[Stage, ...]:
     """The stages of a measured log's run (harness/sources/log/)."""
-    from harness.stages import log_identification, log_methods, refinement
+    from harness.stages import floating_log, log_identification, log_methods, refinement
 
-    return (log_identification.STAGE, log_methods.STAGE, refinement.STAGE)
+    return (floating_log.STAGE, log_identification.STAGE, log_methods.STAGE, refinement.STAGE)
 
 
 def core_stages() -> tuple[Stage, ...]:

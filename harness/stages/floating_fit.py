@@ -17,19 +17,25 @@ from harness.model.floating import BaseMotion
 from harness.stages.metrics import joint_load_scale
 
 
-def _whole(sc, rec) -> tuple:
-    """(base, q, q', q'', the world's whole wrench on the base, the joints' rows) of a recording of a moving
-    base: standing on contacts, the contacts' generalised force (harness/model/contacts.py) added to what the
-    bench applied besides them and to the motors' torques, so that the rows are the robot's M q'' + h."""
-    q, qd, qdd, tau = rec.joint_data(sc.robot.joint_names)
+def whole_rows(robot, contacts: tuple, rec) -> tuple:
+    """(base, q, q', q'', the world's whole wrench on the base, the joints' rows) of a recording or a log of a
+    moving base: with contacts (each with its `body`), their generalised force (harness/model/contacts.py)
+    added to what the world applied to the base besides them (none in a log) and to the motors' torques, so
+    that the rows are the robot's M q'' + h."""
+    q, qd, qdd, tau = rec.joint_data(robot.joint_names)
     base = BaseMotion.from_rows(rec.base_pose, rec.base_twist_W, rec.base_rate_W)
-    wrench = rec.base_wrench_W
+    wrench = rec.base_wrench_W if rec.base_wrench_W is not None else np.zeros((len(q), 6))
     if rec.contacts:
         from harness.model.contacts import generalised_force
 
-        feet = generalised_force(sc.robot, sc.contacts, base, q, rec.contact_F_W, rec.contact_M_W, rec.contact_x_W)
+        feet = generalised_force(robot, contacts, base, q, rec.contact_F_W, rec.contact_M_W, rec.contact_x_W)
         wrench, tau = wrench + feet[:, :6], tau + feet[:, 6:]
     return base, q, qd, qdd, wrench, tau
+
+
+def _whole(sc, rec) -> tuple:
+    """`whole_rows` of a scenario's recording."""
+    return whole_rows(sc.robot, sc.contacts, rec)
 
 
 def _data(sc, rec, rows: str) -> tuple:

@@ -403,6 +403,8 @@ class LogIdentification:
 
 def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     sc = ctx.scenario
+    if sc.data.floating is not None:  # a floating base's log: harness/stages/floating_log.py
+        return None
     robot, joints = sc.robot, sc.robot.joint_names
     ctx.progress("structural base parameters (with friction and rotor inertia)", None)
     model = log_model(robot, sc.gravity_W, sc.data.unmeasured, sc.data.counterbalanced)

@@ -139,6 +139,7 @@ def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, chec
 
     q, tau = resample(raw.q), resample(raw.tau)
     qd = resample(raw.qd) if raw.qd is not None else None
+    extra = {k: resample(x.reshape(len(tk), -1)) for k, x in raw.extra.items()}  # a floating base's, flattened
     steps.append({"step": "resample", "rate_hz": rate, "method": "linear interpolation of the kept rows",
                   "samples": len(grid)})
     # 3. zero-phase low-pass
@@ -161,6 +162,7 @@ def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, chec
 
         q, tau = lowpass(q), lowpass(tau)
         qd = lowpass(qd) if qd is not None else None
+        extra = {k: lowpass(x) for k, x in extra.items()}
         steps.append({"step": "low-pass", "filter": f"Butterworth order {source.filter_order}, applied forward "
                       "and backward (zero phase, scipy.signal.sosfiltfilt)", "cutoff_hz": source.cutoff,
                       "signals": ["q", "qd" if raw.qd is not None else None, "tau"]})
@@ -171,6 +173,8 @@ def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, chec
     if qd is None:
         qd = np.gradient(q, h, axis=0)
     qdd = np.gradient(qd, h, axis=0)
+    if "base_twist_W" in extra:
+        extra["base_rate_W"] = np.gradient(extra["base_twist_W"], h, axis=0)
     steps.append({"step": "differentiate", "method": "central differences (numpy.gradient, second order) of the "
                   "filtered " + ("velocities" if raw.qd is not None else "positions (velocities) and velocities"),
                   "velocities": "measured" if raw.qd is not None else "differentiated"})
@@ -190,8 +194,29 @@ def smooth(kept: RawLog, source: DataSource, robot: RobotSpec, rate: float, chec
                     "t_start": float(grid[rows[0]]), "t_end": float(grid[rows[-1]])}
     full_rate = FilteredColumns(sos, ((qd, rows),), grid[rows], float(source.cutoff)) \
         if source.cutoff is not None else None
+    base = floating_rows(source, robot, q[rows], {k: x[rows] for k, x in extra.items()}) if extra else {}
     return ConditionedLog(grid[rows], tuple(robot.joint_names), q[rows], qd[rows], qdd[rows], tau[rows],
-                          meta=conditioning, full_rate=full_rate, reach_s=trim)
+                          meta=conditioning, full_rate=full_rate, reach_s=trim, **base)
+
+
+def floating_rows(source: DataSource, robot: RobotSpec, q: np.ndarray, extra: dict) -> dict:
+    """A floating base's fields of a conditioned span (harness/base/series.py) from its resampled, filtered,
+    differentiated (the twist's rate, as the joints' q'' are) and trimmed channels `extra` (each flattened to
+    (N, k)): the quaternion made unit again, each contact's point from the kinematics at the span's states."""
+    from harness.model.floating import BaseMotion
+    from harness.sources.log.floating import contact_points
+
+    pose = extra["base_pose"].copy()
+    pose[:, 3:] /= np.linalg.norm(pose[:, 3:], axis=1, keepdims=True)
+    out = {"base_pose": pose, "base_twist_W": extra["base_twist_W"], "base_rate_W": extra["base_rate_W"]}
+    contacts = source.floating.contacts
+    if contacts:
+        k = len(contacts)
+        base = BaseMotion.from_rows(pose, out["base_twist_W"], out["base_rate_W"])
+        out.update(contacts=tuple(c.name for c in contacts), contact_F_W=extra["contact_F_W"].reshape(-1, k, 3),
+                   contact_M_W=extra["contact_M_W"].reshape(-1, k, 3),
+                   contact_x_W=contact_points(robot, contacts, base, q))
+    return out
 
 
 
@@ -222,10 +247,16 @@ def conditioned(kept: RawLog, pieces: list[np.ndarray], source: DataSource, robo
         return logs[0]
     joined = (np.concatenate([getattr(g, k) for g in logs]) for k in ("t", "q", "qd", "qdd", "tau"))
     t, q, qd, qdd, tau = joined
+    base = {} if logs[0].base_pose is None else {
+        k: np.concatenate([getattr(g, k) for g in logs]) for k in ("base_pose", "base_twist_W", "base_rate_W",
+                                                                    *(("contact_F_W", "contact_M_W", "contact_x_W")
+                                                                      if logs[0].contacts else ()))}
+    if logs[0].contacts:
+        base["contacts"] = logs[0].contacts
     conditioning = dict(logs[0].meta)
     conditioning["t_end"] = logs[-1].meta["t_end"]
     full_rate = FilteredColumns.joined([g.full_rate for g in logs]) if all(g.full_rate is not None for g in logs) \
         else None
     return ConditionedLog(t, logs[0].joints, q, qd, qdd, tau, meta=conditioning, full_rate=full_rate,
-                          reach_s=logs[0].reach_s)
+                          reach_s=logs[0].reach_s, **base)
 

@@ -27,11 +27,14 @@ class RawLog:
     file: Path  # the log (a validation or payload log: that file)
     sha256: str = ""  # of the file's bytes (a torque file's after them)
     read: dict = field(default_factory=dict)  # the read step's record: the files, units, warnings
+    extra: dict = field(default_factory=dict)  # a floating base's channels, row by row, the harness's convention
+    # (harness/sources/log/floating.py: base_pose, base_twist_W, contact_F_W, contact_M_W)
 
     qdd = None  # a raw log measures no accelerations
 
     def __post_init__(self) -> None:
-        rows_checked(self.t, {"q": self.q, "qd": self.qd, "tau": self.tau}, len(self.joints), increasing=False)
+        rows_checked(self.t, {"q": self.q, "qd": self.qd, "tau": self.tau, **self.extra}, len(self.joints),
+                     increasing=False)
 
     def joint_index(self, name: str) -> int:
         return self.joints.index(name)
@@ -39,4 +42,5 @@ class RawLog:
     def span(self, rows: np.ndarray | slice) -> RawLog:
         """The rows `rows` (indices, a boolean mask or a slice); the file and the record kept."""
         return dataclasses.replace(self, t=self.t[rows], q=self.q[rows], tau=self.tau[rows],
-                                   qd=None if self.qd is None else self.qd[rows])
+                                   qd=None if self.qd is None else self.qd[rows],
+                                   extra={k: x[rows] for k, x in self.extra.items()})

@@ -27,11 +27,11 @@ from harness.sources.log.units import plausible, refuse_absurd, to_si
 
 
 def raw_log(path: Path, sha256: str, t: np.ndarray, q: np.ndarray, qd: np.ndarray | None, tau: np.ndarray,
-            joints: tuple[str, ...], read: dict, columns: dict[str, list[str]]) -> RawLog:
+            joints: tuple[str, ...], read: dict, columns: dict[str, list[str]], extra: dict | None = None) -> RawLog:
     """A log as read: no accelerations (they come from its conditioning). What the reading let through
     and a RawLog's invariants refuse (a time that is not finite) is refused naming the file and the column."""
     try:
-        return RawLog(t, joints, q, qd, tau, Path(path), sha256, read)
+        return RawLog(t, joints, q, qd, tau, Path(path), sha256, read, extra or {})
     except SeriesError as exc:
         names = columns.get(exc.field, [exc.field])
         raise InputError(path, names[0] if names else exc.field, f"{exc.what}: not a log") from None
@@ -43,7 +43,7 @@ TORQUE_FILE_COLUMNS = ("tau",)  # what a separate torque file (`torque_file`) ho
 def _kinds(source: DataSource, path: Path) -> tuple[str, ...]:
     """The quantities the CSV at `path` holds: all, or with a torque file its part."""
     if source.torque_file is None:
-        return ("t", "q", "qd", "tau")
+        return ("t", "q", "qd", "tau", *(source.floating.columns() if source.floating is not None else ()))
     return TORQUE_FILE_COLUMNS if path == source.torque_file else ("t", "q", "qd")
 
 
@@ -192,8 +192,14 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
     record = _read_record(source, robot, files, time, notes)
     if joined is not None:
         record["joined_on_time"] = joined
+    extra = {}
+    if source.floating is not None:  # the base's and the contacts' channels, in the harness's convention
+        from harness.sources.log.floating import in_convention
+
+        extra = in_convention(source.floating, {k: columns.pop(k) for k in source.floating.columns()}, path,
+                              lambda i: f"row {i + 2}")
     series = raw_log(path, digest.hexdigest(), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names),
-                     record, names)
+                     record, names, extra)
     return _windowed(source, series)
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -91,6 +92,8 @@ class DataSource:
     prediction: Prediction = field(default_factory=Prediction)  # the judging's forward simulation
     unmeasured_motors: tuple[str, ...] = ()  # a motor-side log's motors without a channel (`unmeasured`: the
     # joints they reach, `with_unmeasured_motors`)
+    floating: Any = None  # a floating base's channels, [data.base] and [[data.contacts]]
+    # (harness/sources/log/floating.py, FloatingLog); None for a fixed base
 
     @property
     def files(self) -> tuple[Path, ...]:
@@ -123,6 +126,7 @@ class DataSource:
                 "joint_map": dict(self.joint_map), "velocities": self.velocities,
                 "counterbalanced": list(self.counterbalanced), "unmeasured": list(self.unmeasured),
                 **({"unmeasured_motors": list(self.unmeasured_motors)} if self.unmeasured_motors else {}),
+                **({"floating_base": self.floating.describe()} if self.floating is not None else {}),
                 "prediction": {"starts": self.prediction.starts, "horizons_s": list(self.prediction.horizons)}}
 
     def measured(self, joints: list[str]) -> list[str]:
@@ -417,6 +421,8 @@ def column_names(source: DataSource, robot: RobotSpec) -> dict[str, list[str]]:
            for k, v in source.columns.items()}
     if source.unmeasured and len(out["tau"]) == len(robot.joint_names):  # the measured joints' channels alone
         out["tau"] = [c for c, j in zip(out["tau"], robot.joint_names, strict=True) if j not in source.unmeasured]
+    if source.floating is not None:  # the base's and the contacts' columns (harness/sources/log/floating.py)
+        out.update(source.floating.columns())
     return out
 
 

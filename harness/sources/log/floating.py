@@ -1,0 +1,183 @@
+"""A floating base's log: the base's pose and twist and the contacts' wrenches beside the joints' channels,
+`[data.base]` and `[[data.contacts]]` (docs/floating_base.md).
+
+    [data.base]
+    position = ["px", "py", "pz"]                  # m, world axes: the base frame's origin
+    quaternion = ["qw", "qx", "qy", "qz"]          # the base frame's orientation, in the order `order` says
+    order = "wxyz"                                 # or "xyzw" (Pinocchio's, ROS's): declared, never guessed
+    twist = ["vx", "vy", "vz", "wx", "wy", "wz"]   # m/s, rad/s: the origin's velocity and the angular velocity
+    twist_axes = "world"                           # or "base" (a state estimator's body-frame twist)
+
+    [[data.contacts]]
+    name = "FL_foot"
+    body = "FL_LOWER_LEG"                          # the body it acts on
+    point = [0.1946, 0.14695, -0.32]               # where on it, at q = 0 (world components, the file's pose)
+    force = ["FL_fx", "FL_fy", "FL_fz"]            # N: the world's force on the body at the point
+    torque = ["FL_mx", "FL_my", "FL_mz"]           # N m about the point (optional: a point contact has none)
+    axes = "world"                                 # or "base": the axes the force and torque are given in
+
+Read into the harness's convention (harness/model/floating.py, every vector in world axes): the quaternion
+put in w x y z order and refused where its norm is off 1 by more than QUATERNION_NORM (a column in the wrong
+order or unit reads as that), then normalised, its sign made continuous (q and -q are one orientation: a
+log's quaternion flips where its estimator chose the other; the flip would read as a full turn); a twist
+and a wrench in base axes turned into world axes by the base's orientation at the same row. The base's
+acceleration comes from the conditioning (the twist differentiated as the joints' velocities are: the
+same resampling, filter and trim), and each contact's point from the kinematics of the conditioned
+states.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.base.tomlio import InputError, Table
+from harness.model.spec import RobotSpec
+
+QUATERNION_NORM = 1e-3  # a logged quaternion's norm may be off 1 by this (its logger's rounding), no more
+ORDERS = ("wxyz", "xyzw")
+AXES = ("world", "base")
+
+
+@dataclass(frozen=True)
+class LogContact:
+    name: str
+    body: str
+    point_W0: np.ndarray
+    force: tuple[str, ...]
+    torque: tuple[str, ...] | None
+    axes: str
+
+
+@dataclass(frozen=True, eq=False)
+class FloatingLog:
+    """What `[data.base]` and `[[data.contacts]]` name (module docstring)."""
+
+    position: tuple[str, ...]
+    quaternion: tuple[str, ...]
+    order: str
+    twist: tuple[str, ...]
+    twist_axes: str
+    contacts: tuple[LogContact, ...] = ()
+
+    def describe(self) -> dict:
+        return {"position": list(self.position), "quaternion": list(self.quaternion), "order": self.order,
+                "twist": list(self.twist), "twist_axes": self.twist_axes,
+                "contacts": [{"name": c.name, "body": c.body, "point": [float(x) for x in c.point_W0],
+                              "force": list(c.force), "torque": list(c.torque) if c.torque else None, "axes": c.axes}
+                             for c in self.contacts]}
+
+    def columns(self) -> dict[str, list[str]]:
+        """{kind: the log's columns}, the kinds `extra` gives back."""
+        out = {"base_position": list(self.position), "base_quaternion": list(self.quaternion),
+               "base_twist": list(self.twist)}
+        for c in self.contacts:
+            out[f"contact_force:{c.name}"] = list(c.force)
+            if c.torque is not None:
+                out[f"contact_torque:{c.name}"] = list(c.torque)
+        return out
+
+
+def read_floating_log(t: Table, robot: RobotSpec) -> FloatingLog | None:
+    """`[data.base]` and `[[data.contacts]]` of the `[data]` table `t`, validated; None without `base`."""
+    if not t.has("base"):
+        if t.has("contacts"):
+            raise t.error("contacts", "a log's contacts act on a floating base: give its [data.base] too")
+        return None
+    from harness.model.floating import not_free
+
+    why = not_free(robot, "read from a log")
+    if why is not None:
+        raise t.error("base", why)
+    b = t.table("base")
+    base = FloatingLog(_names(b, "position", 3), _names(b, "quaternion", 4), b.string("order", choices=ORDERS),
+                       _names(b, "twist", 6), b.string("twist_axes", choices=AXES))
+    b.finish()
+    contacts, bodies = [], {x.name for x in robot.massive_bodies}
+    for ct in t.tables("contacts") if t.has("contacts") else ():
+        name, body = ct.string("name"), ct.string("body")
+        if body not in bodies:
+            raise ct.error("body", f"no moving body {body!r} in model {robot.name!r}")
+        if name in {c.name for c in contacts}:
+            raise ct.error("name", f"contact {name!r} is named twice")
+        contacts.append(LogContact(name, body, ct.vector("point"), _names(ct, "force", 3),
+                                   _names(ct, "torque", 3) if ct.has("torque") else None,
+                                   ct.string("axes", choices=AXES)))
+        ct.finish()
+    return FloatingLog(base.position, base.quaternion, base.order, base.twist, base.twist_axes, tuple(contacts))
+
+
+def _names(t: Table, key: str, n: int) -> tuple[str, ...]:
+    names = t.strings(key, None)
+    if len(names) != n:
+        raise t.error(key, f"{len(names)} columns: {n} expected")
+    return names
+
+
+def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of) -> dict[str, np.ndarray]:
+    """The columns `read` ({kind: (N, k)}, FloatingLog.columns' kinds) in the harness's convention: `base_pose`
+    (N, 7: p_W, w x y z), `base_twist_W` (N, 6), `contact_F_W` and `contact_M_W` (N, k, 3) (module docstring).
+    A quaternion whose norm is off 1 is refused naming its column and row (`row_of(i)`)."""
+    quat = read["base_quaternion"]
+    if fl.order == "xyzw":
+        quat = quat[:, [3, 0, 1, 2]]
+    norm = np.linalg.norm(quat, axis=1)
+    off = np.flatnonzero(np.abs(norm - 1.0) > QUATERNION_NORM)
+    if len(off):
+        raise InputError(path, fl.quaternion[0], f"{row_of(int(off[0]))}: the quaternion's norm is "
+                                                 f"{norm[off[0]]:.6g}, not 1 (within {QUATERNION_NORM:g}; {len(off)} "
+                                                 "such rows): a column in the wrong order or unit?")
+    quat = quat / norm[:, None]
+    flips = np.cumsum(np.r_[0, np.sum(quat[1:] * quat[:-1], axis=1) < 0.0]) % 2  # q ~ -q: the sign kept continuous
+    quat = quat * np.where(flips == 1, -1.0, 1.0)[:, None]
+    from harness.model.quaternion import to_matrix
+
+    R = to_matrix(quat)
+    twist = read["base_twist"]
+    if fl.twist_axes == "base":
+        twist = np.concatenate([(R @ twist[:, :3, None])[..., 0], (R @ twist[:, 3:, None])[..., 0]], axis=1)
+    out = {"base_pose": np.concatenate([read["base_position"], quat], axis=1), "base_twist_W": twist}
+    if fl.contacts:
+        F = np.stack([read[f"contact_force:{c.name}"] for c in fl.contacts], axis=1)
+        M = np.stack([read[f"contact_torque:{c.name}"] if c.torque is not None else np.zeros_like(F[:, 0])
+                      for c in fl.contacts], axis=1)
+        base_axes = np.array([c.axes == "base" for c in fl.contacts])
+        F[:, base_axes] = (R[:, None] @ F[:, base_axes, :, None])[..., 0]
+        M[:, base_axes] = (R[:, None] @ M[:, base_axes, :, None])[..., 0]
+        out.update(contact_F_W=F, contact_M_W=M)
+    return out
+
+
+def contact_points(spec: RobotSpec, contacts: tuple[LogContact, ...], base, q: np.ndarray) -> np.ndarray:
+    """(N, k, 3) each contact's point in the world at the states (base, q): where the robot read with its base
+    where the file draws it has it, moved with the base (p + R R_WF0^T (x - p_WF0))."""
+    from harness.model import loops
+    from harness.model.spec import WORLD, Loop
+
+    fb = spec.floating
+    x = np.stack([loops.joined_points(spec, (Loop(c.name, "connect", c.body, WORLD, c.point_W0, np.zeros(3)),), q)[0][0]
+                  for c in contacts], axis=1)  # (N, k, 3) on the fixed robot
+    turn = base.R_WB @ fb.R_WF0.T  # (N, 3, 3)
+    return base.p_W[:, None] + (turn[:, None] @ (x - fb.p_WF0)[..., None])[..., 0]
+
+
+def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> FloatingLog:
+    """What a floating base's log is not read with yet, refused in one line naming the key: one CSV file (no
+    bag, torque file or files joined on time), joint-side torques in N m (no currents, drives, payload or
+    unmeasured channels), no delay estimated, its validation a part of it; no identification method, friction
+    law search or refinement beside it (their fits read a fixed base)."""
+    why = "not read with a floating base's log yet (docs/floating_base.md)"
+    for key, given in (("bag", source.topic is not None), ("files", bool(source.joined)),
+                       ("torque_file", source.torque_file is not None), ("side", source.side != "joint"),
+                       ("units.tau", source.units["tau"] != "N m"), ("payload", source.payload is not None),
+                       ("repeat", source.repeat is not None), ("unmeasured", bool(source.unmeasured)),
+                       ("counterbalanced", bool(source.counterbalanced)),
+                       ("validation.file", source.validation_file is not None),
+                       ("delay", t.has("delay") and source.delay != "none")):
+        if given:
+            raise t.error(key, why)
+    for table in ("identification", "friction_law", "refinement"):
+        if root.has(table):
+            raise root.error(table, "reads a fixed base's log: not beside [data.base]")
+    return fl

@@ -1,0 +1,174 @@
+"""A floating base's log (`[data.base]`, `[[data.contacts]]`: harness/sources/log/floating.py) identified and
+judged: the floating-base identification (harness/identify/floating_id.py) on the training span, from the
+contacts' wrenches alone (`rows = "base"`, no joint torque read) or with the joints' torques (`"all"`), its
+physically consistent fit, and both judged on the validation span the fits never read: the world's whole
+wrench on the base (the contacts' sum) and the joints' torques predicted against the log's, and, on a bench
+log whose robot is known (`[data] truth`), against the truth's (docs/floating_base.md).
+
+The rows are the robot's M q'' + h: the base's six (world axes, about its frame's origin) are the contacts'
+wrench on it, and each joint's its motor's torque plus the contacts' J^T [F; M] (harness/model/contacts.py).
+The start check runs first: the model as given against the log's base rows on the training span; a row
+whose difference is over START_LIMIT of its size is a finding (a contact wrench in other axes than declared,
+a force in other units, a quaternion in another order), and the start gate fails."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness.base.plugins import Stage
+from harness.engines.pinocchio import build_model
+from harness.identify import consistent as sdp
+from harness.identify import floating_id
+from harness.stages.context import VALIDATION_SPAN
+from harness.stages.floating_fit import whole_rows
+
+ROWS = ("base", "all")
+START_LIMIT = 0.25  # the model as given may differ from the log's base rows by a quarter of their size
+# (a model's error is a few per cent; a wrench in the wrong axes or unit is of the order of the wrench)
+
+
+@dataclass(frozen=True)
+class FloatingLogConfig:
+    """`[floating_log] rows = "base", consistent = true`."""
+
+    rows: str = "base"
+    consistent: bool = True
+
+
+def configure(t, scenario) -> FloatingLogConfig:
+    return FloatingLogConfig(t.string("rows", default="base", choices=ROWS), t.boolean("consistent", default=True))
+
+
+@dataclass(frozen=True, eq=False)
+class FloatingLogFit:
+    results: dict
+    files: dict
+
+    def serialise(self, ctx, config) -> dict:
+        return self.results
+
+
+def _data(robot, contacts, span, rows: str) -> tuple:
+    """(base, q, q', q'', the rows read) of a span, and its whole rows (N, 6 + n)."""
+    base, q, qd, qdd, wrench, tau = whole_rows(robot, contacts, span)
+    return (base, q, qd, qdd, floating_id.measured(wrench, tau, rows)), np.concatenate([wrench, tau], axis=1)
+
+
+def _errors(predicted: np.ndarray, reference: np.ndarray, scale: np.ndarray, names: list[str]) -> dict:
+    """Each row's |predicted - reference| over its scale: the largest, where, and the RMS."""
+    rel = np.abs(predicted - reference) / scale
+    worst = int(np.argmax(np.max(rel, axis=0)))
+    return {"max_rel_error": float(rel.max()), "max_rel_row": names[worst],
+            "rms_rel_error": float(np.sqrt(np.mean(rel**2)))}
+
+
+def scales(whole: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """(6 + n,) each row's scale on a span: the base's force rows the largest |F| of the contacts' wrench on the
+    base (`whole`'s first three columns), its moment rows the largest |M|, and each joint's the largest |value|
+    of its motor's torque `tau` (N, n), not of its whole row: what a stance leg's motor gives is nearly all the
+    foot's force, and the leg's own dynamics, the whole row, a small remainder."""
+    F, M = (float(np.max(np.linalg.norm(whole[:, s], axis=1))) for s in (slice(0, 3), slice(3, 6)))
+    return np.maximum(np.concatenate([[F, F, F, M, M, M], np.max(np.abs(tau), axis=0)]), 1e-300)
+
+
+def _start(model_rows: np.ndarray, measured: np.ndarray) -> dict:
+    """The start check (module docstring) on the base's force and moment rows."""
+    findings = []
+    for part, cols in (("force", slice(0, 3)), ("moment", slice(3, 6))):
+        size = float(np.sqrt(np.mean(np.sum(measured[:, cols] ** 2, axis=1))))
+        off = float(np.sqrt(np.mean(np.sum((model_rows[:, cols] - measured[:, cols]) ** 2, axis=1)))) / max(size,
+                                                                                                            1e-300)
+        if off > START_LIMIT:
+            findings.append(f"the model as given and the log's contact wrenches differ in the base's {part} by "
+                            f"{off:.3g} of its RMS: a contact wrench in other axes than declared, a force or moment "
+                            "in other units, or a quaternion in another order?")
+    return {"findings": len(findings), "said": findings, "limit": START_LIMIT,
+            "definition": "the RMS of the model's base rows less the log's (the contacts' wrench on the base), "
+                          "force and moment each over the RMS of the log's, on the training span"}
+
+
+def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
+    sc = ctx.scenario
+    fl = sc.data.floating
+    if fl is None:
+        return None
+    config = config or FloatingLogConfig()
+    rows, robot = config.rows, sc.robot
+    names = list(floating_id.BASE_ROWS) + robot.joint_names
+    pm = build_model(robot, sc.gravity_W, floating=True)
+    training, whole_t = _data(robot, fl.contacts, ctx.training, rows)
+    model_t = floating_id.regressor(pm, *training[:4]) @ floating_id.true_parameters(pm)
+    start = _start(model_t[:, :6], whole_t[:, :6])
+    ctx.progress("floating-base structural base parameters", None)
+    structure = ctx.once(("floating-base structural base parameters", rows, False),
+                         lambda: floating_id.structural_base(pm, robot.limits, rows))
+    span = ctx.validation.get(VALIDATION_SPAN)
+    judged_span, judged = ("validation", span) if span is not None else ("training", ctx.training)
+    validation, whole_v = _data(robot, fl.contacts, judged, rows)
+    fit, _, _ = floating_id.identify(pm, structure, rows, training, validation)
+    Y_v = floating_id.regressor(pm, *validation[:4])  # (N, 6 + n, p)
+    scale = scales(whole_v, judged.joint_data(robot.joint_names)[3])
+    read = slice(0, 6) if rows == "base" else slice(None)
+    lsq = floating_id.selected(Y_v, rows)[:, structure.independent] @ fit.beta
+    predictions = {"least_squares": (lsq.reshape(len(whole_v), -1), read),
+                   "model_as_given": (Y_v @ floating_id.true_parameters(pm), slice(None))}
+    truth_rows = None
+    if sc.truth is not None:
+        truth_pm = build_model(sc.truth, sc.gravity_W, floating=True)
+        truth_rows = floating_id.regressor(truth_pm, *validation[:4]) @ floating_id.true_parameters(truth_pm)
+        predictions["truth"] = (truth_rows, slice(None))
+    out, files = {}, {}
+    if config.consistent:
+        ctx.progress("physically consistent parameters (semidefinite program)", None)
+        physical, links = floating_id.consistent(pm, robot, rows, training, False)
+        predictions["consistent"] = (floating_id.consistent_rows(pm, physical, "all", validation, False), slice(None))
+        model = floating_id.link_parameters(pm)
+        files = _exported(sc, physical.theta)
+        out["consistent"] = {
+            "exported": sorted(files),
+            "status": physical.status, "solver": physical.solver,
+            "training_relative_residual": physical.relative_residual,
+            "inconsistent_links": [b for k, b in enumerate(links)
+                                   if not sdp.consistency(physical.theta[k])["consistent"]],
+            "masses": {b: {"identified": float(physical.theta[k, 0]), "model": float(model[k, 0])}
+                       for k, b in enumerate(links)}}
+    judged_out = {}
+    for name, (pred, cols) in predictions.items():
+        entry = {"measured": _errors(pred[:, cols], whole_v[:, cols], scale[cols], names[cols])}
+        if truth_rows is not None and name != "truth":
+            entry["truth"] = _errors(pred[:, cols], truth_rows[:, cols], scale[cols], names[cols])
+        judged_out[name] = entry
+    results = {
+        "rows": rows, "span": judged_span, "contacts": [c.name for c in fl.contacts],
+        "start": start, "parameters": int(Y_v.shape[-1]), "base_parameters": len(structure.independent),
+        "condition_number": float(fit.condition_number), "judged": judged_out, **out,
+        "definition": "each row's |predicted - reference| over its scale on the judged span: the base's force rows "
+                      "over the largest |F| of the contacts' wrench on the base, its moment rows over the largest "
+                      "|M|; each joint's motor torque (its row less the contacts' J^T F as the log reads them) over "
+                      "its largest |value| in the log; `measured` against the log's, `truth` against what the robot "
+                      "that made it gives at the same states and contact forces",
+        "delays": "Delays: not estimated on a floating base's log (the channels are taken as logged, on one clock)"}
+    return FloatingLogFit(results, files)
+
+
+def _exported(sc, theta: np.ndarray) -> dict[str, str]:
+    """The consistent fit as files: an MJCF file of the robot on its free joint with the identified bodies, and
+    where the robot comes from a URDF, that URDF with them and a floating joint (harness/model/export.py)."""
+    from harness.model.export import MJCF_FILE, URDF_FILE, identified_floating_spec, write_urdf
+    from harness.model.mjcf import write_mjcf
+
+    robot = sc.robot
+    spec = identified_floating_spec(robot, theta, robot.frictions)
+    files = {f"identified/{MJCF_FILE}": write_mjcf(spec, sc.gravity_W, f"{robot.name}: identified by the harness from "
+                                                                       "a floating base's log (its physically "
+                                                                       "consistent fit)", floating=True)}
+    if robot.urdf is not None:
+        files[f"identified/{URDF_FILE}"] = write_urdf(robot, theta[1:], robot.frictions, theta[0])
+    return files
+
+
+STAGE = Stage("floating_log", "a floating base's log: identification and judging", run,
+              FloatingLogFit.serialise, "A floating base's log", files=lambda f: f.files, table="floating_log",
+              configure=configure)
