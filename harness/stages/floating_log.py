@@ -13,6 +13,7 @@ a force in other units, a quaternion in another order), and the start gate fails
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,14 +32,22 @@ START_LIMIT = 0.25  # the model as given may differ from the log's base rows by 
 
 @dataclass(frozen=True)
 class FloatingLogConfig:
-    """`[floating_log] rows = "base", consistent = true`."""
+    """`[floating_log] rows = "base", consistent = true, friction = ...`: `friction` (the joints' drive columns,
+    rotor inertia, viscous and Coulomb friction and offset, on their own rows) by default where the model
+    declares any and the joints' rows are read; never from the base rows alone (no drive reaches them)."""
 
     rows: str = "base"
     consistent: bool = True
+    friction: bool = False
 
 
 def configure(t, scenario) -> FloatingLogConfig:
-    return FloatingLogConfig(t.string("rows", default="base", choices=ROWS), t.boolean("consistent", default=True))
+    rows = t.string("rows", default="base", choices=ROWS)
+    declared = not all(f.none for f in scenario.robot.frictions)
+    friction = t.boolean("friction", default=declared and rows == "all")
+    if friction and rows == "base":
+        raise t.error("friction", "a drive's friction never reaches the base's rows: rows = \"all\" reads it")
+    return FloatingLogConfig(rows, t.boolean("consistent", default=True), friction)
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,37 +104,45 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     if fl is None:
         return None
     config = config or FloatingLogConfig()
-    rows, robot = config.rows, sc.robot
+    rows, robot, friction = config.rows, sc.robot, config.friction
     names = list(floating_id.BASE_ROWS) + robot.joint_names
     pm = build_model(robot, sc.gravity_W, floating=True)
     training, whole_t = _data(robot, fl.contacts, ctx.training, rows)
     model_t = floating_id.regressor(pm, *training[:4]) @ floating_id.true_parameters(pm)
     start = _start(model_t[:, :6], whole_t[:, :6])
     ctx.progress("floating-base structural base parameters", None)
-    structure = ctx.once(("floating-base structural base parameters", rows, False),
-                         lambda: floating_id.structural_base(pm, robot.limits, rows))
+    structure = ctx.once(("floating-base structural base parameters", rows, friction),
+                         lambda: floating_id.structural_base(pm, robot.limits, rows, with_friction=friction))
     span = ctx.validation.get(VALIDATION_SPAN)
     judged_span, judged = ("validation", span) if span is not None else ("training", ctx.training)
     validation, whole_v = _data(robot, fl.contacts, judged, rows)
     fit, _, _ = floating_id.identify(pm, structure, rows, training, validation)
-    Y_v = floating_id.regressor(pm, *validation[:4])  # (N, 6 + n, p)
+    declared = not all(f.none for f in robot.frictions)  # the model's drives judged with their laws
+    Y_v = floating_id.regressor(pm, *validation[:4], declared)  # (N, 6 + n, p [+ 4 n])
+    rigid = Y_v.shape[-1] - (4 * len(robot.joints) if declared else 0)
     scale = scales(whole_v, judged.joint_data(robot.joint_names)[3])
     read = slice(0, 6) if rows == "base" else slice(None)
-    lsq = floating_id.selected(Y_v, rows)[:, structure.independent] @ fit.beta
+    lsq = floating_id.selected(Y_v if friction else Y_v[..., :rigid], rows)[:, structure.independent] @ fit.beta
     predictions = {"least_squares": (lsq.reshape(len(whole_v), -1), read),
-                   "model_as_given": (Y_v @ floating_id.true_parameters(pm), slice(None))}
+                   "model_as_given": (Y_v @ floating_id.true_parameters(pm, declared), slice(None))}
     truth_rows = None
     if sc.truth is not None:
         truth_pm = build_model(sc.truth, sc.gravity_W, floating=True)
-        truth_rows = floating_id.regressor(truth_pm, *validation[:4]) @ floating_id.true_parameters(truth_pm)
+        own = not all(f.none for f in sc.truth.frictions)
+        truth_rows = (floating_id.regressor(truth_pm, *validation[:4], own)
+                      @ floating_id.true_parameters(truth_pm, own))
         predictions["truth"] = (truth_rows, slice(None))
     out, files = {}, {}
     if config.consistent:
         ctx.progress("physically consistent parameters (semidefinite program)", None)
-        physical, links = floating_id.consistent(pm, robot, rows, training, False)
-        predictions["consistent"] = (floating_id.consistent_rows(pm, physical, "all", validation, False), slice(None))
+        physical, links = floating_id.consistent(pm, robot, rows, training, friction)
+        # its joints' rows with the drives' laws identified, or the model's where they were not
+        predictions["consistent"] = (floating_id.consistent_rows(pm, physical, "all", validation, friction),
+                                     slice(None))
         model = floating_id.link_parameters(pm)
-        files = _exported(sc, physical.theta)
+        frictions = tuple(dataclasses.replace(f, armature=a, viscous=v, coulomb=c, offset=o) if friction else f
+                          for f, (a, v, c, o) in zip(robot.frictions, physical.friction[1:], strict=True))
+        files = _exported(sc, physical.theta, frictions)
         out["consistent"] = {
             "exported": sorted(files),
             "status": physical.status, "solver": physical.solver,
@@ -141,7 +158,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
             entry["truth"] = _errors(pred[:, cols], truth_rows[:, cols], scale[cols], names[cols])
         judged_out[name] = entry
     results = {
-        "rows": rows, "span": judged_span, "contacts": [c.name for c in fl.contacts],
+        "rows": rows, "friction": friction, "span": judged_span, "contacts": [c.name for c in fl.contacts],
         "start": start, "parameters": int(Y_v.shape[-1]), "base_parameters": len(structure.independent),
         "condition_number": float(fit.condition_number), "judged": judged_out, **out,
         "definition": "each row's |predicted - reference| over its scale on the judged span: the base's force rows "
@@ -153,19 +170,19 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     return FloatingLogFit(results, files)
 
 
-def _exported(sc, theta: np.ndarray) -> dict[str, str]:
+def _exported(sc, theta: np.ndarray, frictions: tuple) -> dict[str, str]:
     """The consistent fit as files: an MJCF file of the robot on its free joint with the identified bodies, and
     where the robot comes from a URDF, that URDF with them and a floating joint (harness/model/export.py)."""
     from harness.model.export import MJCF_FILE, URDF_FILE, identified_floating_spec, write_urdf
     from harness.model.mjcf import write_mjcf
 
     robot = sc.robot
-    spec = identified_floating_spec(robot, theta, robot.frictions)
+    spec = identified_floating_spec(robot, theta, frictions)
     files = {f"identified/{MJCF_FILE}": write_mjcf(spec, sc.gravity_W, f"{robot.name}: identified by the harness from "
                                                                        "a floating base's log (its physically "
                                                                        "consistent fit)", floating=True)}
     if robot.urdf is not None:
-        files[f"identified/{URDF_FILE}"] = write_urdf(robot, theta[1:], robot.frictions, theta[0])
+        files[f"identified/{URDF_FILE}"] = write_urdf(robot, theta[1:], frictions, theta[0])
     return files
 
 
