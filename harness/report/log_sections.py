@@ -294,7 +294,8 @@ def floating_log(r: dict, log) -> str:
             f"parameters of {f['parameters']}, condition number {num(f['condition_number'])}), judged on the "
             f"{esc(f['span'])} span; contacts {esc(', '.join(f['contacts']) or 'none')}. The start check: "
             f"{start['findings']} finding(s) ({esc(start['definition'])}; limit {num(start['limit'])}). "
-            f"{esc(f['delays'])}.</p>"
+            f"{esc(f['delays'])}. {esc(f['prediction'])}. Unseen by these rows: "
+            f"{esc(', '.join(f['unseen']) or 'nothing')}.</p>"
             + table(["model", "against the log: largest", "RMS", "where", "against the truth: largest", "RMS"], rows)
             + f"<p>{esc(f['definition'])}.</p>" + consistent)
     return section("floating_log", "A floating base's log", body)

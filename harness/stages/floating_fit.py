@@ -70,19 +70,28 @@ def identify(ctx, config) -> tuple[TorqueIdentification, dict, dict[str, str]]:
                               fit.ci_half_width, fit.sensitivity, fit.weak, err, _scale(config.validation, val, rows),
                               list(floating_id.BASE_ROWS) + ([] if rows == "base" else joints))
     fixed = fixed_structural_base(build_model(sc.robot, sc.gravity_W), sc.robot.limits, with_friction=config.friction)
-    own = [name.startswith(f"{sc.robot.floating.body.name}.") for name in names]  # the base body's parameters
-    holding = sum(own[structure.independent[k]] or any(own[j] for j, c in zip(structure.dependent, row, strict=True)
-                                                       if abs(c) > COEFFICIENT_FLOOR)
-                  for k, row in enumerate(structure.combination))
-    held = np.any(np.abs(structure.combination) > COEFFICIENT_FLOOR, axis=0)  # each dependent in some base parameter
-    unseen = [names[j] for j, h in zip(structure.dependent, held, strict=True) if not h]
-    extra = {"rows": rows, "fixed_base_parameters": len(fixed.independent), "base_body_in": int(holding),
-             "unseen": unseen, "unseen_definition": "the parameters these rows cannot see: in no base parameter",
-             "method": _method(rows, len(fixed.independent), int(holding), bool(ctx.training.contacts))}
+    holding, unseen = seen(structure, names, sc.robot)
+    extra = {"rows": rows, "fixed_base_parameters": len(fixed.independent), "base_body_in": holding,
+             "unseen": unseen, "unseen_definition": UNSEEN,
+             "method": _method(rows, len(fixed.independent), holding, bool(ctx.training.contacts))}
     files = {}
     if config.consistent:
         extra["consistent"], files = _consistent(ctx, config, pm, training, validation, ti.validation_scale)
     return ti, extra, files
+
+
+UNSEEN = "the parameters these rows cannot see: in no base parameter"
+
+
+def seen(structure, names: list[str], robot) -> tuple[int, list[str]]:
+    """How many of the base parameters `structure` hold the floating base body's own parameters, and the
+    parameters (`names`) in none of them: what the rows cannot see."""
+    own = [name.startswith(f"{robot.floating.body.name}.") for name in names]  # the base body's parameters
+    holding = sum(own[structure.independent[k]] or any(own[j] for j, c in zip(structure.dependent, row, strict=True)
+                                                       if abs(c) > COEFFICIENT_FLOOR)
+                  for k, row in enumerate(structure.combination))
+    held = np.any(np.abs(structure.combination) > COEFFICIENT_FLOOR, axis=0)  # each dependent in some base parameter
+    return int(holding), [names[j] for j, h in zip(structure.dependent, held, strict=True) if not h]
 
 
 def _method(rows: str, fixed: int, holding: int, standing: bool = False) -> str:

@@ -23,7 +23,7 @@ from harness.engines.pinocchio import build_model
 from harness.identify import consistent as sdp
 from harness.identify import floating_id
 from harness.stages.context import VALIDATION_SPAN
-from harness.stages.floating_fit import whole_rows
+from harness.stages.floating_fit import UNSEEN, seen, whole_rows
 
 ROWS = ("base", "all")
 START_LIMIT = 0.25  # the model as given may differ from the log's base rows by a quarter of their size
@@ -117,6 +117,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     judged_span, judged = ("validation", span) if span is not None else ("training", ctx.training)
     validation, whole_v = _data(robot, fl.contacts, judged, rows)
     fit, _, _ = floating_id.identify(pm, structure, rows, training, validation)
+    holding, unseen = seen(structure, floating_id.parameter_names(robot, pm, friction), robot)
     declared = not all(f.none for f in robot.frictions)  # the model's drives judged with their laws
     Y_v = floating_id.regressor(pm, *validation[:4], declared)  # (N, 6 + n, p [+ 4 n])
     rigid = Y_v.shape[-1] - (4 * len(robot.joints) if declared else 0)
@@ -158,7 +159,8 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
             entry["truth"] = _errors(pred[:, cols], truth_rows[:, cols], scale[cols], names[cols])
         judged_out[name] = entry
     results = {
-        "rows": rows, "friction": friction, "span": judged_span, "contacts": [c.name for c in fl.contacts],
+        "rows": rows, "friction": friction, "span": judged_span, "base_body_in": holding, "unseen": unseen,
+        "unseen_definition": UNSEEN, "contacts": [c.name for c in fl.contacts],
         "start": start, "parameters": int(Y_v.shape[-1]), "base_parameters": len(structure.independent),
         "condition_number": float(fit.condition_number), "judged": judged_out, **out,
         "definition": "each row's |predicted - reference| over its scale on the judged span: the base's force rows "
@@ -166,7 +168,9 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
                       "|M|; each joint's motor torque (its row less the contacts' J^T F as the log reads them) over "
                       "its largest |value| in the log; `measured` against the log's, `truth` against what the robot "
                       "that made it gives at the same states and contact forces",
-        "delays": "Delays: not estimated on a floating base's log (the channels are taken as logged, on one clock)"}
+        "delays": "Delays: not estimated on a floating base's log (the channels are taken as logged, on one clock)",
+        "prediction": "No forward prediction from a floating base's log: the contacts' forces, read here, would have "
+                      "to be simulated (a contact law the harness does not identify)"}
     return FloatingLogFit(results, files)
 
 
