@@ -15,6 +15,9 @@ differences of the filtered angles, 20 ms trimmed, every 10th sample); Pinocchio
 published URDF with each motor's rotor inertia, viscous, smooth Coulomb (tanh(q'_m / (0.02 |N_kk|)))
 and offset columns reaching the joints through N^T.
 
+`solo12`: Solo12's standing bench log (harness/data/logs/solo12_standing_bench: a floating base, its feet's
+forces): Pinocchio's free-flyer regressor, the feet's forces through their frames' Jacobians (`solo12`).
+
 Each fits by least squares and prints its held-out relative torque error ||tau_pred - tau|| / ||tau||
 on the last 30 %:
 
@@ -133,8 +136,58 @@ def tx40() -> float:
     return error
 
 
+SOLO12_FEET = ("FL", "FR", "HL", "HR")
+
+
+def solo12() -> float:
+    """Solo12's standing bench log (harness/data/logs/solo12_standing_bench): Pinocchio's free-flyer model of
+    its URDF; the log's base pose (x y z w: Pinocchio's own order) and base-axes twist are Pinocchio's q and v
+    as they are, its acceleration the twist's central differences; each foot's world force reaches the rows
+    through its frame's Jacobian (J^T f); the whole rows [0; tau] + sum J^T f fitted by least squares on the
+    first 70 %, the held-out error ||pred - measured|| / ||measured|| of the motors' torques and the feet's
+    wrench on the base on the last 30 %."""
+    from importlib.metadata import distribution
+
+    import pandas as pd
+
+    robots = Path(distribution("example-robot-data").locate_file("cmeel.prefix/share/example-robot-data/robots"))
+    urdf = robots / "solo_description" / "robots" / "solo12.urdf"
+    model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
+    data = model.createData()
+    log = pd.read_csv(LOGS / "solo12_standing_bench" / "log.csv")
+    n, h = 12, float(log["t"].iloc[1] - log["t"].iloc[0])
+    q = np.concatenate([log[["px", "py", "pz", "qx", "qy", "qz", "qw"]].to_numpy(),
+                        log[[f"q{k}" for k in range(1, n + 1)]].to_numpy()], axis=1)
+    v = np.concatenate([log[["vx", "vy", "vz", "wx", "wy", "wz"]].to_numpy(),
+                        log[[f"qd{k}" for k in range(1, n + 1)]].to_numpy()], axis=1)
+    a = np.gradient(v, h, axis=0)
+    tau = log[[f"tau{k}" for k in range(1, n + 1)]].to_numpy()
+    forces = [log[[f"{f}_foot_fx", f"{f}_foot_fy", f"{f}_foot_fz"]].to_numpy() for f in SOLO12_FEET]
+    frames = [model.getFrameId(f"{f}_FOOT") for f in SOLO12_FEET]
+    Y, y = [], []
+    for k in range(1, len(q) - 1):  # the ends' one-sided differences left out
+        Y.append(pin.computeJointTorqueRegressor(model, data, q[k], v[k], a[k]).copy())
+        pin.computeJointJacobians(model, data, q[k])
+        pin.updateFramePlacements(model, data)
+        rows = np.concatenate([np.zeros(6), tau[k]])
+        for fid, f in zip(frames, forces, strict=True):
+            J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
+            rows += J.T @ f[k]
+        y.append(rows)
+    Y, y = np.array(Y), np.array(y)
+    split = int(0.7 * len(Y))
+    theta = np.linalg.lstsq(Y[:split].reshape(-1, Y.shape[2]), y[:split].ravel(), rcond=None)[0]
+    pred, meas = Y[split:] @ theta, y[split:]
+    error = float(np.linalg.norm(pred - meas) / np.linalg.norm(meas))
+    print(f"plain least squares, Solo12, held-out relative error (feet's wrench on the base and motor torques): "
+          f"{100 * error:.2f} %")
+    return error
+
+
+ROBOTS = {"panda": panda, "tx40": tx40, "solo12": solo12}
+
 if __name__ == "__main__":
     robot = sys.argv[1] if len(sys.argv) > 1 else "panda"
-    if robot not in ("panda", "tx40"):
-        sys.exit(f"plain_lstsq.py: no robot {robot!r} (panda or tx40)")
-    sys.exit(0 if (panda if robot == "panda" else tx40)() < 1 else 1)
+    if robot not in ROBOTS:
+        sys.exit(f"plain_lstsq.py: no robot {robot!r} ({', '.join(ROBOTS)})")
+    sys.exit(0 if ROBOTS[robot]() < 1 else 1)
