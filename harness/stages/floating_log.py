@@ -117,7 +117,8 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     judged_span, judged = ("validation", span) if span is not None else ("training", ctx.training)
     validation, whole_v = _data(robot, fl.contacts, judged, rows)
     fit, _, _ = floating_id.identify(pm, structure, rows, training, validation)
-    holding, unseen = seen(structure, floating_id.parameter_names(robot, pm, friction), robot)
+    parameters = floating_id.parameter_names(robot, pm, friction)
+    holding, unseen = seen(structure, parameters, robot)
     declared = not all(f.none for f in robot.frictions)  # the model's drives judged with their laws
     Y_v = floating_id.regressor(pm, *validation[:4], declared)  # (N, 6 + n, p [+ 4 n])
     rigid = Y_v.shape[-1] - (4 * len(robot.joints) if declared else 0)
@@ -161,7 +162,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     results = {
         "rows": rows, "friction": friction, "span": judged_span, "base_body_in": holding, "unseen": unseen,
         "unseen_definition": UNSEEN, "contacts": [c.name for c in fl.contacts],
-        "start": start, "parameters": int(Y_v.shape[-1]), "base_parameters": len(structure.independent),
+        "start": start, "parameters": len(parameters), "base_parameters": len(structure.independent),
         "condition_number": float(fit.condition_number), "judged": judged_out, **out,
         "definition": "each row's |predicted - reference| over its scale on the judged span: the base's force rows "
                       "over the largest |F| of the contacts' wrench on the base, its moment rows over the largest "
