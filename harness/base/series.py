@@ -239,8 +239,8 @@ def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:
                      *(f"{b}_{r}" for b in names for r in ROTATION)]
         if any(c.startswith("base[") for c in df.columns):  # a moving floating base's, all of them
             expected += [f"base[{c}]" for columns in BASE_COLUMNS.values() for c in columns]
-        named = dict.fromkeys(c[len("contact["):].split("]")[0] for c in df.columns if c.startswith("contact["))
-        expected += [f"contact[{n}][{s}]" for n in named for columns in CONTACT_COLUMNS.values() for s in columns]
+        expected += [f"contact[{n}][{s}]" for n in _contact_names(df.columns) for columns in CONTACT_COLUMNS.values()
+                     for s in columns]
     missing = [c for c in expected if c not in df.columns]
     if missing:
         raise InputError(path, missing[0], f"column missing: not a complete {kind}")
@@ -255,6 +255,11 @@ def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:
         column = "t" if exc.field == "t" else next((c for c in df.columns if not np.all(np.isfinite(df[c]))), exc.field)
         raise InputError(path, column, f"{exc.what} (a {kind} is strictly increasing in t, every value "
                                        "finite)") from None
+
+
+def _contact_names(columns) -> tuple[str, ...]:
+    """The contacts a recording's columns name (`contact[<name>][...]`), in their order."""
+    return tuple(dict.fromkeys(c[len("contact["):].split("]")[0] for c in columns if c.startswith("contact[")))
 
 
 def _with_bodies(df, series: dict, joints: tuple[str, ...]) -> TimeSeries:
@@ -276,7 +281,7 @@ def _with_bodies(df, series: dict, joints: tuple[str, ...]) -> TimeSeries:
     if any(c.startswith("base[") for c in df.columns):
         for field_name, columns in BASE_COLUMNS.items():  # every one there (read_csv)
             series[field_name] = df[[f"base[{c}]" for c in columns]].to_numpy()
-    contacts = tuple(dict.fromkeys(c[len("contact["):].split("]")[0] for c in df.columns if c.startswith("contact[")))
+    contacts = _contact_names(df.columns)
     if contacts:
         series["contacts"] = contacts
         for field_name, columns in CONTACT_COLUMNS.items():

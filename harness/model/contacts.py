@@ -78,7 +78,12 @@ class Contact:
 
     def loop(self) -> Loop:
         """The point as a loop to the world's origin: its residual is where the point is (loops.py)."""
-        return Loop(self.name, "connect", self.body, WORLD, self.point_W0, np.zeros(3))
+        return _to_origin(self)
+
+
+def _to_origin(c) -> Loop:
+    """The point of `c` (a `body`, its `point_W0`) as a loop to the world's origin (loops.py's residual: the point)."""
+    return Loop(c.name, "connect", c.body, WORLD, c.point_W0, np.zeros(3))
 
 
 def read_contacts(root: Table, robot: RobotSpec, motions: dict, t_out: np.ndarray) -> tuple[Contact, ...]:
@@ -143,13 +148,20 @@ def _read_lift(t: Table, chain: tuple[str, ...], t_out: np.ndarray) -> Lift:
     return Lift(start, end, values)
 
 
+def contact_points(spec: RobotSpec, contacts: tuple, base, q: np.ndarray) -> np.ndarray:
+    """(N, k, 3) each contact's point (anything with a `body` and its `point_W0`: a Contact, a log's contact) in
+    the world at the states (base, q) (N states, a harness.model.floating.BaseMotion and (N, n)): where the robot
+    read with its base where the file draws it has it, moved with the base, p + R R_WF0^T (x - p_WF0) (as rows:
+    p + (x - p_WF0) R_WF0 R^T)."""
+    fb = spec.floating
+    x = np.stack([loop_eqs.joined_points(spec, (_to_origin(c),), q)[0][0] for c in contacts], axis=1)  # fixed robot
+    return base.p_W[:, None] + (x - fb.p_WF0) @ fb.R_WF0 @ np.swapaxes(base.R_WB, 1, 2)
+
+
 def ground_points(spec: RobotSpec, contacts: tuple[Contact, ...], base0, q0: np.ndarray) -> np.ndarray:
     """(k, 3) each contact's point on the ground: where it is at t = 0, the base at `base0` (a one-state
     harness.model.floating.BaseMotion) and the joints at q0 (n,)."""
-    x0 = np.stack([loop_eqs.joined_points(spec, (c.loop(),), q0[None])[0][0][0] for c in contacts])
-    fb = spec.floating
-    R, p = base0.R_WB[0], base0.p_W[0]
-    return p + (x0 - fb.p_WF0) @ fb.R_WF0 @ R.T
+    return contact_points(spec, contacts, base0, q0[None])[0]
 
 
 def _targets(spec: RobotSpec, c_W: np.ndarray, base) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -39,7 +39,7 @@ def record(scenario: Setup) -> TimeSeries:
     try:
         return simulate(scenario.robot, scenario.gravity_W, scenario.prescribed, scenario.output_steps,
                         scenario.output_dt, scenario.simulation, None if base is None else base.evaluate,
-                        getattr(scenario, "contacts", ()))
+                        scenario.contacts)
     except Diverged as exc:
         moved = base is not None and exc.joint == scenario.robot.floating.joint  # the base's free joint
         raise InputError(scenario.source, "base_motion" if moved else f"motion.{exc.joint}",

@@ -203,8 +203,8 @@ def floating_rows(source: DataSource, robot: RobotSpec, q: np.ndarray, extra: di
     """A floating base's fields of a conditioned span (harness/base/series.py) from its resampled, filtered,
     differentiated (the twist's rate, as the joints' q'' are) and trimmed channels `extra` (each flattened to
     (N, k)): the quaternion made unit again, each contact's point from the kinematics at the span's states."""
+    from harness.model.contacts import contact_points
     from harness.model.floating import BaseMotion
-    from harness.sources.log.floating import contact_points
 
     pose = extra["base_pose"].copy()
     pose[:, 3:] /= np.linalg.norm(pose[:, 3:], axis=1, keepdims=True)
@@ -245,18 +245,13 @@ def conditioned(kept: RawLog, pieces: list[np.ndarray], source: DataSource, robo
                                            f"trim ({2 * reach:.3g} s of trim and 10 samples at least)")
     if len(logs) == 1:
         return logs[0]
-    joined = (np.concatenate([getattr(g, k) for g in logs]) for k in ("t", "q", "qd", "qdd", "tau"))
-    t, q, qd, qdd, tau = joined
-    base = {} if logs[0].base_pose is None else {
-        k: np.concatenate([getattr(g, k) for g in logs]) for k in ("base_pose", "base_twist_W", "base_rate_W",
-                                                                    *(("contact_F_W", "contact_M_W", "contact_x_W")
-                                                                      if logs[0].contacts else ()))}
-    if logs[0].contacts:
-        base["contacts"] = logs[0].contacts
+    # every per-row array the stretches hold (the joints', and a floating base's), joined in time order
+    rows = {f.name: np.concatenate([getattr(g, f.name) for g in logs]) for f in fields(TimeSeries)
+            if isinstance(getattr(logs[0], f.name), np.ndarray)}
     conditioning = dict(logs[0].meta)
     conditioning["t_end"] = logs[-1].meta["t_end"]
     full_rate = FilteredColumns.joined([g.full_rate for g in logs]) if all(g.full_rate is not None for g in logs) \
         else None
-    return ConditionedLog(t, logs[0].joints, q, qd, qdd, tau, meta=conditioning, full_rate=full_rate,
-                          reach_s=logs[0].reach_s, **base)
+    return ConditionedLog(joints=logs[0].joints, contacts=logs[0].contacts, meta=conditioning, full_rate=full_rate,
+                          reach_s=logs[0].reach_s, **rows)
 

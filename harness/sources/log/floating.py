@@ -149,19 +149,6 @@ def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of) ->
     return out
 
 
-def contact_points(spec: RobotSpec, contacts: tuple[LogContact, ...], base, q: np.ndarray) -> np.ndarray:
-    """(N, k, 3) each contact's point in the world at the states (base, q): where the robot read with its base
-    where the file draws it has it, moved with the base (p + R R_WF0^T (x - p_WF0))."""
-    from harness.model import loops
-    from harness.model.spec import WORLD, Loop
-
-    fb = spec.floating
-    x = np.stack([loops.joined_points(spec, (Loop(c.name, "connect", c.body, WORLD, c.point_W0, np.zeros(3)),), q)[0][0]
-                  for c in contacts], axis=1)  # (N, k, 3) on the fixed robot
-    turn = base.R_WB @ fb.R_WF0.T  # (N, 3, 3)
-    return base.p_W[:, None] + (turn[:, None] @ (x - fb.p_WF0)[..., None])[..., 0]
-
-
 def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> FloatingLog:
     """What a floating base's log is not read with yet, refused in one line naming the key: one CSV file (no
     bag, torque file or files joined on time), joint-side torques in N m (no currents, drives, payload or
