@@ -226,3 +226,32 @@ def test_a_mass_the_data_demand_goes_beyond_the_band_and_is_said(demand, monkeyp
         assert fit.held_at_band == (0,) and fit.beyond_band == ()
         assert ratio == pytest.approx(consistent.MASS_BAND[0], rel=consistent.AT_BAND)
         assert fit.free_residual < 1e-6 < fit.relative_residual
+
+
+@pytest.mark.parametrize("asymmetry", [0.3, -0.3])
+def test_drive_terms_the_data_push_past_physical_are_held_where_bounded_least_squares_puts_them(asymmetry):
+    """One link and its drive seen by a random regressor (600 rows, orthogonal columns, so that the link,
+    well inside physical, takes none of the drive's misfit), its armature and Coulomb friction demanded
+    negative by the torques and its viscous asymmetry demanded larger than its viscous term (either sign): the fit holds
+    armature, viscous and Coulomb non-negative and the asymmetry within +-viscous (each direction's
+    coefficient, viscous +- asymmetry, non-negative), where scipy's bounded least squares on those
+    directions' coefficients (an independent solver of the same bounds) puts them, to 1e-6 of the largest
+    drive term: the solver stops within 1e-7 of the optimum, and the pull towards the model (PULL of the
+    least-squares residual) moves a term by about 1e-9 here."""
+    from scipy.optimize import lsq_linear
+
+    rng = np.random.default_rng(5)
+    W = np.sqrt(600) * np.linalg.qr(rng.standard_normal((600, 15)))[0]  # the link's ten, the drive's four, asymmetry
+    drive = np.array([-0.05, 0.1, -0.2, 0.4, asymmetry])  # armature < 0, Coulomb < 0, |viscous asymmetry| > viscous
+    tau = W @ np.concatenate([_link(1.0), drive]) + 0.01 * rng.standard_normal(600)
+    fit = consistent.fit(W, tau, _link(1.0)[None], np.zeros((1, 4)), np.ones(15), ((0, "viscous_asymmetry"),),
+                         np.zeros(1))
+    T = np.eye(15)  # the reference's unknowns y: x = T y, y's viscous and asymmetry each direction's coefficient
+    T[11, [11, 14]], T[14, [11, 14]] = (0.5, 0.5), (0.5, -0.5)
+    lower = np.full(15, -np.inf)
+    lower[[10, 11, 12, 14]] = 0.0
+    reference = (T @ lsq_linear(W @ T, tau, bounds=(lower, np.inf)).x)[10:]
+    got = np.concatenate([fit.friction[0], fit.extra])
+    assert got[:3].min() >= -1e-9 and abs(got[4]) <= got[1] * (1 + 1e-7)
+    assert max(abs(reference[0]), abs(reference[2])) < 1e-9 and abs(reference[4]) == pytest.approx(reference[1])  # held
+    assert np.abs(got - reference).max() <= 1e-6 * np.abs(reference).max()
