@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 
 import numpy as np
 import pandas as pd
@@ -195,12 +196,20 @@ def test_a_joint_is_judged_on_its_motor_s_torque_and_the_base_on_its_force_and_m
     assert np.array_equal(scales(whole, tau), [5.0, 5.0, 5.0, 2.0, 2.0, 2.0, 0.7])
 
 
+CONSTANT = np.array([0.025, -0.025, 0.025] * 4)  # N m/A at the motor, signed (a motor wired the other way)
+GEAR = np.array([9.0, 9.0, -9.0] * 4)  # signed (a reversing gear)
+
+
 BAD = [
     ("data.base.order", lambda s: s.replace('order = "xyzw"', 'order = "zyxw"'), "is not one of"),
     ("data.base.position", lambda s: s.replace('position = ["px", "py", "pz"]', 'position = ["px", "py"]'),
      "3 expected"),
     ("data.contacts[1].body", lambda s: s.replace('body = "FR_LOWER_LEG"', 'body = "FR_FOOT"'), "no moving body"),
     ("data.delay", lambda s: s.replace('delay = "none"', 'delay = "estimate"'), "not read with a floating base"),
+    ("data.identify_torque_constants", lambda s: s.replace('tau = "N m" }', f'tau = "current" }}\ntorque_constant = '
+                                                           f'{CONSTANT.tolist()}\ngear_ratio = {GEAR.tolist()}\n'
+                                                           'identify_torque_constants = true'),
+     "not read with a floating base"),
     ("data.base.qw", None, "column missing"),
 ]
 
@@ -280,3 +289,60 @@ def test_a_floating_log_of_a_robot_with_drives_is_judged_with_their_laws(tmp_pat
     assert code == 0 and f["friction"] is True
     assert f["judged"]["model_as_given"]["measured"]["max_rel_error"] <= 1e-3
     assert f["judged"]["least_squares"]["truth"]["max_rel_error"] <= 3e-2
+
+
+def _as_published(log: pd.DataFrame, folder, shape: str) -> tuple[str, str]:
+    """The log written as a lab's tools publish it, and the [data] lines that read it: motor currents with
+    signed constants and gears; three files, each with its own time column (the efforts' stamped 0.1 ms
+    late, nearest within half a step); or the torques in a file of their own."""
+    joints = [f"tau{k + 1}" for k in range(12)]
+    base = [c for c in log.columns if not re.fullmatch(r"t|(q|qd|tau)\d+", c)]  # the base's and the feet's
+    if shape == "currents":
+        currents = log.copy()
+        currents[joints] = log[joints].to_numpy() / (CONSTANT * GEAR)
+        currents.to_csv(folder / "log.csv", index=False, float_format="%.17g")
+        return ('units = { q = "rad", qd = "rad/s", tau = "N m" }',
+                f'units = {{ q = "rad", qd = "rad/s", tau = "current" }}\ntorque_constant = {CONSTANT.tolist()}\n'
+                f'gear_ratio = {GEAR.tolist()}')
+    positions = ["t", *(f"q{k + 1}" for k in range(12)), *(c for c in base if c[0] in "pq")]
+    velocities = ["t", *(f"qd{k + 1}" for k in range(12)), *(c for c in base if c[0] in "vw")]
+    efforts = ["t", *joints, *(c for c in base if c.endswith(("_fx", "_fy", "_fz")))]
+    assert sorted({*positions, *velocities, *efforts}) == sorted(log.columns)
+    if shape == "three files":
+        late = log.assign(t=log["t"] + 1e-4)
+        for name, frame, cols in (("pose", log, positions), ("twist", log, velocities), ("effort", late, efforts)):
+            frame[cols].to_csv(folder / f"{name}.csv", index=False, float_format="%.17g")
+        return 'file = "log.csv"', 'file = ["pose.csv", "twist.csv", "effort.csv"]'
+    log[[c for c in log.columns if c not in joints]].to_csv(folder / "states.csv", index=False, float_format="%.17g")
+    log[["t", *joints]].to_csv(folder / "torques.csv", index=False, float_format="%.17g")
+    return 'file = "log.csv"', 'file = "states.csv"\ntorque_file = "torques.csv"'
+
+
+@pytest.mark.parametrize("shape", ["currents", "three files", "torque file"])
+def test_a_floating_log_s_joint_channels_read_as_an_arm_s(standing, tmp_path, shape):
+    """The log's joint channels in the shapes an arm's log may take (`_as_published`): the conditioned training
+    span is the plain log's, every channel (joints, base, contacts) to the bit where only the files differ and to
+    1e-15 of the torques' size through the currents' constants (tau = i k_t r, the division and product's
+    round-off); a run of the currents' log identifies what the plain log's does, to 1e-9."""
+    _write(standing, tmp_path / "log.csv")
+    plain_path = _scenario(tmp_path, tmp_path / "log.csv")
+    plain = load_scenario(plain_path)
+    (tmp_path / "p").mkdir()
+    old, new = _as_published(pd.read_csv(tmp_path / "log.csv"), tmp_path / "p", shape)
+    path = _scenario(tmp_path / "p", "log.csv")  # the file beside the scenario
+    assert old in path.read_text()
+    path.write_text(path.read_text().replace(old, new))
+    published = load_scenario(path)
+    a, b = (load(sc.data, sc.robot).training for sc in (plain, published))
+    for field in ("t", "q", "qd", "qdd", "base_pose", "base_twist_W", "base_rate_W", "contact_F_W", "contact_x_W"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+    if shape == "three files":  # said
+        assert "effort.csv joined to pose.csv on 't': 301 of 301 rows to the nearest" in b.meta["warnings"][0]
+    tolerance = 1e-15 * np.max(np.abs(a.tau)) if shape == "currents" else 0.0
+    assert np.max(np.abs(a.tau - b.tau)) <= tolerance
+    if shape == "currents":
+        (_, plain_results), (code, results) = (_run(p, p.parent / "out") for p in (plain_path, path))
+        assert code == 0
+        fits = [r["floating_log"]["judged"]["least_squares"]["truth"]["max_rel_error"]
+                for r in (plain_results, results)]
+        assert fits[1] == pytest.approx(fits[0], rel=1e-9)

@@ -41,10 +41,12 @@ TORQUE_FILE_COLUMNS = ("tau",)  # what a separate torque file (`torque_file`) ho
 
 
 def _kinds(source: DataSource, path: Path) -> tuple[str, ...]:
-    """The quantities the CSV at `path` holds: all, or with a torque file its part."""
-    if source.torque_file is None:
-        return ("t", "q", "qd", "tau", *(source.floating.columns() if source.floating is not None else ()))
-    return TORQUE_FILE_COLUMNS if path == source.torque_file else ("t", "q", "qd")
+    """The quantities the CSV at `path` holds: all, or with a torque file its part (a floating base's and
+    its contacts' channels in `file`, with the positions)."""
+    if source.torque_file is not None and path == source.torque_file:
+        return TORQUE_FILE_COLUMNS
+    base = tuple(source.floating.columns()) if source.floating is not None else ()
+    return ("t", "q", "qd", *(("tau",) if source.torque_file is None else ()), *base)
 
 
 def _check_header(path: Path, header: list[str], source: DataSource, robot: RobotSpec,
