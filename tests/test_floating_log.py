@@ -238,7 +238,7 @@ def test_a_fixed_base_robot_s_log_has_no_base_to_read(tmp_path):
     assert err.value.key == "data.base" and "no floating base" in str(err.value)
 
 
-@pytest.mark.slow  # the bench's 6 s: about 12 s
+@pytest.mark.slow  # the bench's 10 s: about 25 s
 def test_the_shipped_log_is_its_bench_measured(tmp_path):
     """harness/data/logs/solo12_standing_bench/log.csv is its bench.toml's recording, measured and written as
     the README says: remade here, every value to the last bit."""
