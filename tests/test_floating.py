@@ -445,6 +445,11 @@ def test_the_floating_regressor_is_the_free_flyer_s_inverse_dynamics_and_identif
     for rows in floating_id.ROWS:
         structure = floating_id.structural_base(pm, spec.limits, rows)
         assert len(structure.independent) > len(fixed.independent)
+        # found from the base rows alone or from all, the structure holds on every row, the joints' too (a
+        # floating base's rows see every base parameter the whole regressor does: Ayusawa, Venture and Nakamura)
+        Y = floating_id.selected(floating_id.regressor(pm, *states(30, 6)), "all")
+        whole = Y @ theta
+        assert np.abs(Y[:, structure.independent] @ structure.of(theta) - whole).max() <= 1e-9 * np.abs(whole).max()
 
         validation = _exact(spec, states(60, 3), rows)
         training = _exact(spec, states(60, 2), rows)

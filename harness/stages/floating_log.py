@@ -123,24 +123,25 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     Y_v = floating_id.regressor(pm, *validation[:4], declared)  # (N, 6 + n, p [+ 4 n])
     rigid = Y_v.shape[-1] - (4 * len(robot.joints) if declared else 0)
     scale = scales(whole_v, judged.joint_data(robot.joint_names)[3])
-    read = slice(0, 6) if rows == "base" else slice(None)
-    lsq = floating_id.selected(Y_v if friction else Y_v[..., :rigid], rows)[:, structure.independent] @ fit.beta
-    predictions = {"least_squares": (lsq.reshape(len(whole_v), -1), read),
-                   "model_as_given": (Y_v @ floating_id.true_parameters(pm, declared), slice(None))}
+    # every row predicted, the joints' too where the fit read the base rows alone: a floating base's rows see
+    # every base parameter its whole regressor does (Ayusawa, Venture and Nakamura 2014; structural_base gives
+    # the same count either way), and friction, which only the joints' rows see, is refused with rows = "base"
+    lsq = floating_id.selected(Y_v if friction else Y_v[..., :rigid], "all")[:, structure.independent] @ fit.beta
+    predictions = {"least_squares": lsq.reshape(len(whole_v), -1),
+                   "model_as_given": Y_v @ floating_id.true_parameters(pm, declared)}
     truth_rows = None
     if sc.truth is not None:
         truth_pm = build_model(sc.truth, sc.gravity_W, floating=True)
         own = not all(f.none for f in sc.truth.frictions)
         truth_rows = (floating_id.regressor(truth_pm, *validation[:4], own)
                       @ floating_id.true_parameters(truth_pm, own))
-        predictions["truth"] = (truth_rows, slice(None))
+        predictions["truth"] = truth_rows
     out, files = {}, {}
     if config.consistent:
         ctx.progress("physically consistent parameters (semidefinite program)", None)
         physical, links = floating_id.consistent(pm, robot, rows, training, friction)
         # its joints' rows with the drives' laws identified, or the model's where they were not
-        predictions["consistent"] = (floating_id.consistent_rows(pm, physical, "all", validation, friction),
-                                     slice(None))
+        predictions["consistent"] = floating_id.consistent_rows(pm, physical, "all", validation, friction)
         model = floating_id.link_parameters(pm)
         frictions = tuple(dataclasses.replace(f, armature=a, viscous=v, coulomb=c, offset=o) if friction else f
                           for f, (a, v, c, o) in zip(robot.frictions, physical.friction[1:], strict=True))
@@ -154,10 +155,10 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
             "masses": {b: {"identified": float(physical.theta[k, 0]), "model": float(model[k, 0])}
                        for k, b in enumerate(links)}}
     judged_out = {}
-    for name, (pred, cols) in predictions.items():
-        entry = {"measured": _errors(pred[:, cols], whole_v[:, cols], scale[cols], names[cols])}
+    for name, pred in predictions.items():
+        entry = {"measured": _errors(pred, whole_v, scale, names)}
         if truth_rows is not None and name != "truth":
-            entry["truth"] = _errors(pred[:, cols], truth_rows[:, cols], scale[cols], names[cols])
+            entry["truth"] = _errors(pred, truth_rows, scale, names)
         judged_out[name] = entry
     results = {
         "rows": rows, "friction": friction, "span": judged_span, "base_body_in": holding, "unseen": unseen,

@@ -159,7 +159,8 @@ def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> Floati
     files (in `file` beside a torque file)."""
     why = "not read with a floating base's log yet (docs/floating_base.md)"
     for key, given in (("bag", source.topic is not None), ("side", source.side != "joint"),
-                       ("identify_torque_constants", source.identify_constants), ("payload", source.payload is not None),
+                       ("identify_torque_constants", source.identify_constants),
+                       ("payload", source.payload is not None),
                        ("repeat", source.repeat is not None), ("unmeasured", bool(source.unmeasured)),
                        ("counterbalanced", bool(source.counterbalanced)),
                        ("validation.file", source.validation_file is not None),
