@@ -210,6 +210,9 @@ BAD = [
                                                            f'{CONSTANT.tolist()}\ngear_ratio = {GEAR.tolist()}\n'
                                                            'identify_torque_constants = true'),
      "not read with a floating base"),
+    ("data.contacts[0].rpy", lambda s: s.replace('axes = "world"', 'axes = "world"\nrpy = [0.1, 0.0, 0.0]', 1),
+     'for axes = "body"'),
+    ("data.contacts[0].axes", lambda s: s.replace('axes = "world"', 'axes = "sensor"', 1), "is not one of"),
     ("data.base.qw", None, "column missing"),
 ]
 
@@ -363,3 +366,59 @@ def test_the_feet_s_forces_alone_are_judged_on_the_motors_torques_too(standing, 
     least_squares = f["judged"]["least_squares"]["truth"]
     assert code == 1 and f["rows"] == "base" and f["base_parameters"] == 94
     assert least_squares["max_rel_row"] in results["data"]["joints"] and least_squares["max_rel_error"] > 1.0
+
+
+SENSOR_RPY = (0.3, -0.2, 0.5)
+
+
+def _sensor_axes(rec, body: str, rpy) -> np.ndarray:
+    """(N, 3, 3) a force sensor's axes in the world at the recording's rows, fixed in `body` with the axes
+    `rpy` (a URDF origin's) at q = 0 where the file draws the robot: Pinocchio's placement of the body's joint
+    frame at each state, less its placement at that reference (the robot's file pose), times the sensor's."""
+    import pinocchio as pin
+
+    from harness.engines.pinocchio import build_model
+    from harness.model.urdf import rpy_matrix
+
+    sc = load_scenario(BENCH / "bench.toml")
+    pm = build_model(sc.robot, np.zeros(3), floating=True)
+    joint = pm.model.getJointId(sc.robot.inner_joint(body).name)
+    data = pm.model.createData()
+    fb = sc.robot.floating
+
+    def placed(p, quat_wxyz, q):
+        qq = np.zeros(pm.model.nq)
+        qq[:3], qq[3:7] = p, np.r_[quat_wxyz[1:], quat_wxyz[0]]
+        qq[pm.q_index] = q
+        pin.forwardKinematics(pm.model, data, qq)
+        return data.oMi[joint].rotation.copy()
+
+    reference = placed(fb.p_WF0, pin.Quaternion(fb.R_WF0).coeffs()[[3, 0, 1, 2]], np.zeros(len(rec.joints)))
+    return np.stack([placed(rec.base_pose[i, :3], rec.base_pose[i, 3:], rec.q[i]) @ reference.T @ rpy_matrix(rpy)
+                     for i in range(len(rec.t))])
+
+
+def test_a_foot_s_force_in_its_sensor_s_axes_reads_as_the_bench_recorded_it(standing, tmp_path):
+    """Two feet's forces written in a force sensor's axes on their lower legs (`axes = "body"`; one sensor
+    turned by `rpy`, the other with the default, the world's axes at q = 0), turned by Pinocchio's placement
+    of the leg at each row (`_sensor_axes`): read back, every foot's force is the bench's in world axes to 1e-12
+    of its size."""
+    rec = standing
+    _write(rec, tmp_path / "log.csv")
+    log = pd.read_csv(tmp_path / "log.csv")
+    for name, rpy in (("FL_foot", SENSOR_RPY), ("FR_foot", (0.0, 0.0, 0.0))):
+        k = rec.contacts.index(name)
+        R = _sensor_axes(rec, f"{name[:2]}_LOWER_LEG", rpy)
+        F_S = (np.swapaxes(R, 1, 2) @ rec.contact_F_W[:, k, :, None])[..., 0]
+        log[[f"{name}_fx", f"{name}_fy", f"{name}_fz"]] = F_S
+    log.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    path = _scenario(tmp_path, tmp_path / "log.csv")
+    text = path.read_text()
+    for name, extra in (("FL_foot", f'axes = "body"\nrpy = {list(SENSOR_RPY)}'), ("FR_foot", 'axes = "body"')):
+        block = text.index(f'name = "{name}"')
+        text = text[:block] + text[block:].replace('axes = "world"', extra, 1)
+    path.write_text(text)
+    sc = load_scenario(path)
+    span = load(sc.data, sc.robot).training
+    rows = np.searchsorted(rec.t, span.t - 1e-9)
+    assert np.max(np.abs(span.contact_F_W - rec.contact_F_W[rows])) <= 1e-12 * np.max(np.abs(rec.contact_F_W))

@@ -158,6 +158,15 @@ def contact_points(spec: RobotSpec, contacts: tuple, base, q: np.ndarray) -> np.
     return base.p_W[:, None] + (x - fb.p_WF0) @ fb.R_WF0 @ np.swapaxes(base.R_WB, 1, 2)
 
 
+def contact_axes(spec: RobotSpec, contacts: tuple, base_R_WB: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(N, k, 3, 3) the axes of each contact's frame in the world (anything with a `body` and its frame's
+    orientation at q = 0 in world, `R_W0`: a sensor on the body), at the base's orientations base_R_WB (N, 3, 3)
+    and the joints at q (N, n): the frame on the robot read where the file draws it, turned with the base as
+    `contact_points` moves a point, R R_WF0^T R_frame."""
+    R_frame = loop_eqs.frames_now(spec, tuple((c.body, c.R_W0) for c in contacts), q)
+    return base_R_WB[:, None] @ spec.floating.R_WF0.T @ R_frame
+
+
 def ground_points(spec: RobotSpec, contacts: tuple[Contact, ...], base0, q0: np.ndarray) -> np.ndarray:
     """(k, 3) each contact's point on the ground: where it is at t = 0, the base at `base0` (a one-state
     harness.model.floating.BaseMotion) and the joints at q0 (n,)."""

@@ -194,6 +194,13 @@ def bias(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray, qd: np.ndarray
     return np.concatenate(out, axis=1) if out else np.zeros((len(q), 0))
 
 
+def frames_now(spec: RobotSpec, frames: tuple[tuple[str, np.ndarray], ...], q: np.ndarray) -> np.ndarray:
+    """(N, k, 3, 3) each frame's orientation at q (N, n), frames (body, its orientation at q = 0 in world), on
+    the robot read where the file draws it."""
+    kin = _at(spec, np.atleast_2d(q))
+    return np.stack([_frame_now(spec, kin, body, R_W0) for body, R_W0 in frames], axis=1)
+
+
 def joined_points(spec: RobotSpec, loops: tuple[Loop, ...], q: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     """Each loop's joined points now, (x_a, x_b), each (N, 3) (a coupling joins none: both at the origin)."""
     q = np.atleast_2d(q)

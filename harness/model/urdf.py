@@ -50,7 +50,8 @@ def example_robot_data_path(name: str) -> Path | None:
     return None
 
 
-def _rpy(rpy: np.ndarray) -> np.ndarray:
+def rpy_matrix(rpy: np.ndarray) -> np.ndarray:
+    """The rotation a URDF <origin rpy> states: R = Rz(yaw) Ry(pitch) Rx(roll) (fixed axes x, y, z)."""
     r, p, y = rpy
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
     Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
@@ -81,7 +82,7 @@ def _origin(el, where: str = "") -> tuple[np.ndarray, np.ndarray]:
         return np.eye(3), np.zeros(3)
     xyz = _numbers(o.get("xyz", "0 0 0"), f"{where} origin xyz", 3)
     rpy = _numbers(o.get("rpy", "0 0 0"), f"{where} origin rpy", 3)
-    return _rpy(rpy), xyz
+    return rpy_matrix(rpy), xyz
 
 
 def _vec(text: str | None, default: str) -> np.ndarray:

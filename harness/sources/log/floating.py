@@ -14,13 +14,17 @@
     point = [0.1946, 0.14695, -0.32]               # where on it, at q = 0 (world components, the file's pose)
     force = ["FL_fx", "FL_fy", "FL_fz"]            # N: the world's force on the body at the point
     torque = ["FL_mx", "FL_my", "FL_mz"]           # N m about the point (optional: a point contact has none)
-    axes = "world"                                 # or "base": the axes the force and torque are given in
+    axes = "world"                                 # or "base", or "body": the axes the force and torque are given in
+    rpy = [0.0, 0.0, 0.0]                          # with axes = "body": the sensor's axes at q = 0, as a URDF
+                                                   # <origin rpy> in world (rad; default: the world's axes)
 
 Read into the harness's convention (harness/model/floating.py, every vector in world axes): the quaternion
 put in w x y z order and refused where its norm is off 1 by more than QUATERNION_NORM (a column in the wrong
 order or unit reads as that), then normalised, its sign made continuous (q and -q are one orientation: a
 log's quaternion flips where its estimator chose the other; the flip would read as a full turn); a twist
-and a wrench in base axes turned into world axes by the base's orientation at the same row. The base's
+and a wrench in base axes turned into world axes by the base's orientation at the same row, a wrench in a
+body's axes (a foot's force sensor) by that body's orientation at the row's joint positions and base
+(harness/model/contacts.py, contact_axes). The base's
 acceleration comes from the conditioning (the twist differentiated as the joints' velocities are: the
 same resampling, filter and trim), and each contact's point from the kinematics of the conditioned
 states.
@@ -37,7 +41,8 @@ from harness.model.spec import RobotSpec
 
 QUATERNION_NORM = 1e-3  # a logged quaternion's norm may be off 1 by this (its logger's rounding), no more
 ORDERS = ("wxyz", "xyzw")
-AXES = ("world", "base")
+AXES = ("world", "base")  # a twist's
+CONTACT_AXES = (*AXES, "body")  # a contact wrench's
 
 
 @dataclass(frozen=True)
@@ -48,6 +53,7 @@ class LogContact:
     force: tuple[str, ...]
     torque: tuple[str, ...] | None
     axes: str
+    R_W0: np.ndarray | None = None  # axes = "body": the sensor's axes at q = 0 in world (`rpy`)
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,7 +71,8 @@ class FloatingLog:
         return {"position": list(self.position), "quaternion": list(self.quaternion), "order": self.order,
                 "twist": list(self.twist), "twist_axes": self.twist_axes,
                 "contacts": [{"name": c.name, "body": c.body, "point": [float(x) for x in c.point_W0],
-                              "force": list(c.force), "torque": list(c.torque) if c.torque else None, "axes": c.axes}
+                              "force": list(c.force), "torque": list(c.torque) if c.torque else None, "axes": c.axes,
+                              **({"R_W0": c.R_W0.tolist()} if c.R_W0 is not None else {})}
                              for c in self.contacts]}
 
     def columns(self) -> dict[str, list[str]]:
@@ -101,9 +108,16 @@ def read_floating_log(t: Table, robot: RobotSpec) -> FloatingLog | None:
             raise ct.error("body", f"no moving body {body!r} in model {robot.name!r}")
         if name in {c.name for c in contacts}:
             raise ct.error("name", f"contact {name!r} is named twice")
+        axes = ct.string("axes", choices=CONTACT_AXES)
+        if ct.has("rpy") and axes != "body":
+            raise ct.error("rpy", f"the sensor's axes on its body: for axes = \"body\", not {axes!r}")
+        R_W0 = None
+        if axes == "body":
+            from harness.model.urdf import rpy_matrix
+
+            R_W0 = rpy_matrix(ct.vector("rpy", 3)) if ct.has("rpy") else np.eye(3)
         contacts.append(LogContact(name, body, ct.vector("point"), _names(ct, "force", 3),
-                                   _names(ct, "torque", 3) if ct.has("torque") else None,
-                                   ct.string("axes", choices=AXES)))
+                                   _names(ct, "torque", 3) if ct.has("torque") else None, axes, R_W0))
         ct.finish()
     return FloatingLog(base.position, base.quaternion, base.order, base.twist, base.twist_axes, tuple(contacts))
 
@@ -115,10 +129,12 @@ def _names(t: Table, key: str, n: int) -> tuple[str, ...]:
     return names
 
 
-def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of) -> dict[str, np.ndarray]:
+def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of, robot: RobotSpec,
+                  q: np.ndarray) -> dict[str, np.ndarray]:
     """The columns `read` ({kind: (N, k)}, FloatingLog.columns' kinds) in the harness's convention: `base_pose`
-    (N, 7: p_W, w x y z), `base_twist_W` (N, 6), `contact_F_W` and `contact_M_W` (N, k, 3) (module docstring).
-    A quaternion whose norm is off 1 is refused naming its column and row (`row_of(i)`)."""
+    (N, 7: p_W, w x y z), `base_twist_W` (N, 6), `contact_F_W` and `contact_M_W` (N, k, 3) (module docstring),
+    the joints at q (N, n) placing a body's sensor. A quaternion whose norm is off 1 is refused naming its column
+    and row (`row_of(i)`)."""
     quat = read["base_quaternion"]
     if fl.order == "xyzw":
         quat = quat[:, [3, 0, 1, 2]]
@@ -145,6 +161,13 @@ def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of) ->
         base_axes = np.array([c.axes == "base" for c in fl.contacts])
         F[:, base_axes] = (R[:, None] @ F[:, base_axes, :, None])[..., 0]
         M[:, base_axes] = (R[:, None] @ M[:, base_axes, :, None])[..., 0]
+        body_axes = np.array([c.axes == "body" for c in fl.contacts])
+        if body_axes.any():
+            from harness.model.contacts import contact_axes
+
+            R_S = contact_axes(robot, tuple(c for c in fl.contacts if c.axes == "body"), R, q)
+            F[:, body_axes] = (R_S @ F[:, body_axes, :, None])[..., 0]
+            M[:, body_axes] = (R_S @ M[:, body_axes, :, None])[..., 0]
         out.update(contact_F_W=F, contact_M_W=M)
     return out
 

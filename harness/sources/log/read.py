@@ -199,7 +199,7 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
         from harness.sources.log.floating import in_convention
 
         extra = in_convention(source.floating, {k: columns.pop(k) for k in source.floating.columns()}, path,
-                              lambda i: f"row {i + 2}")
+                              lambda i: f"row {i + 2}", robot, q)
     series = raw_log(path, digest.hexdigest(), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names),
                      record, names, extra)
     return _windowed(source, series)
