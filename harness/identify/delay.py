@@ -79,11 +79,13 @@ def grid_step(t: np.ndarray, filtered: bool, step: float = STEP) -> float:
 
 
 def estimate(t: np.ndarray, tau: np.ndarray, W, largest: float = LARGEST, step: float = STEP,
-             filtered: bool = True) -> Delays:
+             filtered: bool = True, offset: np.ndarray | None = None) -> Delays:
     """t (N,) s, uniform within each stretch of a log cut at its gaps; tau (N, n); W (N, n, p) the
     regressor's rows by joint, or a function of a range of samples (a, b) that gives theirs,
     (b - a, n, p) (harness/identify/span_rows.py: a long log's, made on demand); `filtered`, whether
-    the log went through a low-pass (`grid_step`). The
+    the log went through a low-pass (`grid_step`); `offset` (N, n), a part of each joint's row that other
+    channels measure, on the encoders' clock (a floating base's contacts' J^T F: the row is the motor's
+    torque plus it), added to the torque read d later. The
     rows used are those at least `largest` from a stretch's ends (at least MIN_CANDIDATES grid steps).
     The delay between candidates is the vertex of the parabola through the best candidate's squared
     residual and its neighbours' (a lag's residual is quadratic in the delay's error near its
@@ -96,15 +98,18 @@ def estimate(t: np.ndarray, tau: np.ndarray, W, largest: float = LARGEST, step: 
     rows = (back >= largest) & (ahead >= largest)
     samples = W if callable(W) else (lambda a, b: W[a:b])
     p = samples(0, 1).shape[2]
-    if rows.sum() < 2 * p:
-        raise ValueError(f"{int(rows.sum())} samples away from the ends: too few to estimate a delay of up to "
-                         f"{largest * 1e3:g} ms")
     n = tau.shape[1]
+    at_rows = np.zeros((int(rows.sum()), n)) if offset is None else offset[rows]
     curve = np.empty((n, len(candidates)))
     for j in range(n):  # one joint's basis at a time: together they are the size of the regressor
-        basis = _basis(_joint_rows(samples, len(t), j, rows, p))
+        Wj = _joint_rows(samples, len(t), j, rows, p)
+        held = int(np.count_nonzero(np.any(Wj != 0.0, axis=0)))  # the columns its rows hold (a joint's subtree's)
+        if rows.sum() < 2 * held:
+            raise ValueError(f"{int(rows.sum())} samples away from the ends: too few to estimate a delay of up to "
+                             f"{largest * 1e3:g} ms ({held} columns in a joint's rows)")
+        basis = _basis(Wj)
         for k, d in enumerate(candidates):
-            curve[j, k] = _residual(basis, np.interp(t[rows] + d, t, tau[:, j]))
+            curve[j, k] = _residual(basis, np.interp(t[rows] + d, t, tau[:, j]) + at_rows[:, j])
     best = np.argmin(curve, axis=1)
     delay = candidates[best].astype(float)
     residual = curve[np.arange(n), best].copy()

@@ -21,9 +21,10 @@ import numpy as np
 from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model
 from harness.identify import consistent as sdp
-from harness.identify import floating_id
+from harness.identify import delay, floating_id
 from harness.stages.context import VALIDATION_SPAN
 from harness.stages.floating_fit import UNSEEN, seen, whole_rows
+from harness.stages.log_results import delay_section
 
 ROWS = ("base", "all")
 START_LIMIT = 0.25  # the model as given may differ from the log's base rows by a quarter of their size
@@ -82,6 +83,27 @@ def scales(whole: np.ndarray, tau: np.ndarray) -> np.ndarray:
     return np.maximum(np.concatenate([[F, F, F, M, M, M], np.max(np.abs(tau), axis=0)]), 1e-300)
 
 
+def _delays(mode: str, pm, robot, contacts, training, friction: bool) -> tuple[dict, object, delay.Delays | None]:
+    """Each joint's torque channel's lag behind the encoders (`[data] delay`, as for an arm: estimated on the
+    training span, and with "correct" each one found corrected there and, by the judging, on the validation
+    span): the motor's torque read d later, plus the contacts' J^T F on the encoders' clock, fitted by the
+    joint's rows of the floating robot's regressor (harness/identify/delay.py). The results' section, the
+    training span (corrected or as it was) and the delays the judging corrects (None: none)."""
+    joints = robot.joint_names
+    if mode == "none":
+        return delay_section(None, None, mode, joints), training, None
+    base, q, qd, qdd, _, rows = whole_rows(robot, contacts, training)
+    tau = training.joint_data(joints)[3]
+    W = floating_id.regressor(pm, base, q, qd, qdd, friction)[:, 6:, :]
+    try:
+        lags = delay.estimate(training.t, tau, W, filtered=training.full_rate is not None, offset=rows - tau)
+    except ValueError as exc:
+        return delay_section(None, f"delays not estimated: {exc}", mode, joints), training, None
+    if mode != "correct":
+        return delay_section(lags, None, mode, joints), training, None
+    return delay_section(lags, None, mode, joints), delay.corrected(training, lags, joints), lags
+
+
 def _start(model_rows: np.ndarray, measured: np.ndarray) -> dict:
     """The start check (module docstring) on the base's force and moment rows."""
     findings = []
@@ -107,7 +129,10 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     rows, robot, friction = config.rows, sc.robot, config.friction
     names = list(floating_id.BASE_ROWS) + robot.joint_names
     pm = build_model(robot, sc.gravity_W, floating=True)
-    training, whole_t = _data(robot, fl.contacts, ctx.training, rows)
+    if sc.data.delay != "none":
+        ctx.progress("the torque channels' delays behind the encoders", None)
+    delays, training_span, lags = _delays(sc.data.delay, pm, robot, fl.contacts, ctx.training, friction)
+    training, whole_t = _data(robot, fl.contacts, training_span, rows)
     model_t = floating_id.regressor(pm, *training[:4]) @ floating_id.true_parameters(pm)
     start = _start(model_t[:, :6], whole_t[:, :6])
     ctx.progress("floating-base structural base parameters", None)
@@ -115,6 +140,8 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
                          lambda: floating_id.structural_base(pm, robot.limits, rows, with_friction=friction))
     span = ctx.validation.get(VALIDATION_SPAN)
     judged_span, judged = ("validation", span) if span is not None else ("training", ctx.training)
+    if lags is not None:  # the delays found on the training span, corrected on the span judged as they were there
+        judged = delay.corrected(judged, lags, robot.joint_names)
     validation, whole_v = _data(robot, fl.contacts, judged, rows)
     fit, _, _ = floating_id.identify(pm, structure, rows, training, validation)
     parameters = floating_id.parameter_names(robot, pm, friction)
@@ -170,7 +197,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
                       "|M|; each joint's motor torque (its row less the contacts' J^T F as the log reads them) over "
                       "its largest |value| in the log; `measured` against the log's, `truth` against what the robot "
                       "that made it gives at the same states and contact forces",
-        "delays": "Delays: not estimated on a floating base's log (the channels are taken as logged, on one clock)",
+        "delays": delays,
         "prediction": "No forward prediction from a floating base's log: the contacts' forces, read here, would have "
                       "to be simulated (a contact law the harness does not identify)"}
     return FloatingLogFit(results, files)

@@ -50,7 +50,7 @@ def serialise(li, ctx, config) -> dict:
         "least_squares": _least_squares_section(li),
         **({"truth": _against_truth(li, ctx)} if li.judged.truth else {}),
         "prediction": li.prediction,
-        "delays": _delay_section(li.delayed, ctx.scenario.data.delay, li.model.torque_joints),
+        "delays": delay_section(li.delayed.lags, li.delayed.note, ctx.scenario.data.delay, li.model.torque_joints),
         "torque_constants": _constants_section(li.constants.scales, ctx.scenario.data, li.model.torque_joints),
         "repeatability": _repeat_section(li),
         "plausibility": li.plausible,
@@ -210,10 +210,10 @@ def _law_section(li) -> dict:
     return out
 
 
-def _delay_section(d, mode: str, joints: list[str]) -> dict:
-    lags = d.lags
+def delay_section(lags, note: str | None, mode: str, joints: list[str]) -> dict:
+    """results.json's `delays`: each torque channel's (harness/identify/delay.py Delays, or None with why)."""
     if lags is None:
-        return {"mode": mode, "estimated": False, "note": d.note}
+        return {"mode": mode, "estimated": False, "note": note}
     return {"mode": mode, "estimated": True, "corrected": mode == "correct",
             "definition": "per joint, d such that the torque measured d later fits the joint's regressor rows best "
                           "(least squares, every parameter); positive: the torque channel lags the encoders "
