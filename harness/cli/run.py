@@ -22,6 +22,7 @@ from harness.cli.common import (
     write_ci,
 )
 from harness.runner.gates import summary_line
+from harness.runner.results import said_first
 from harness.sources.base_motion import model_notes
 
 BORN: float | None = None  # time.perf_counter() when the `harness` command started (its package imported), by `entry`
@@ -129,9 +130,7 @@ def _run_each(args: argparse.Namespace, scenarios: list, reading: list[float], w
         failed = [f"identification method {name} failed: {m['failed']}"
                   for name, m in results.get("identification_methods", {}).items()
                   if isinstance(m, dict) and isinstance(m.get("failed"), str)]
-        li = results.get("log_identification", results.get("floating_log", {}))
-        for warning in (li.get("start", {}).get("said", []) + results.get("data", {}).get("conditioning", {}).get(
-                "warnings", []) + li.get("warnings", []) + failed):  # the start check's findings first
+        for warning in said_first(results) + failed:  # the start check's findings first
             print(f"harness: warning: {scenario.name}: {warning}", file=sys.stderr)  # once per run, not per row
         results["run"]["timings"] = {"starting the harness and importing the engines and libraries": imported,
                                      "reading the scenario, its model and plugins": read,

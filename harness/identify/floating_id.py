@@ -107,14 +107,17 @@ def measured(base_wrench_W: np.ndarray, tau: np.ndarray, rows: str) -> np.ndarra
     return base_wrench_W if rows == "base" else np.concatenate([base_wrench_W, tau], axis=1)
 
 
-def identify(pm: PinocchioModel, structure: BaseParameters, rows: str, training: tuple, validation: tuple | None):
+def identify(pm: PinocchioModel, structure: BaseParameters, rows: str, training: tuple, validation: tuple | None,
+             Y: np.ndarray | None = None):
     """Least squares of the base parameters `structure` from `training` = (base, q, q', q'', y), y (N, k)
     the measured rows (`measured`), judged on `validation` (the same, another motion): the fit
     (harness/identify/lstsq.py Estimate, with the structure's weak parameters) and the validation's
-    predicted less measured rows (N_v, k), None without one."""
+    predicted less measured rows (N_v, k), None without one. `Y`: the training states' `regressor` with
+    friction, where the caller has it."""
     base, q, qd, qdd, y = training
     friction_too = structure.with_friction
-    W1 = selected(regressor(pm, base, q, qd, qdd, friction_too), rows)[:, structure.independent]
+    Y = regressor(pm, base, q, qd, qdd, True) if Y is None else Y
+    W1 = selected(Y if friction_too else Y[..., :rigid_columns(pm)], rows)[:, structure.independent]
     beta_model = structure.of(true_parameters(pm, friction_too))
     fit = with_structure(fit_base(W1, y, beta_model), structure)
     if validation is None:
@@ -135,19 +138,26 @@ def link_parameters(pm: PinocchioModel) -> np.ndarray:
     return np.stack([pm.model.inertias[b + 1].toDynamicParameters() for b in link_blocks(pm)])
 
 
-def consistent(pm: PinocchioModel, spec: RobotSpec, rows: str, training: tuple, with_friction: bool):
+def rigid_columns(pm: PinocchioModel) -> int:
+    """How many of `regressor`'s columns are the bodies' (ten per Pinocchio joint's body), before the drives'."""
+    return 10 * (pm.model.njoints - 1)
+
+
+def consistent(pm: PinocchioModel, spec: RobotSpec, rows: str, training: tuple, with_friction: bool,
+               Y: np.ndarray | None = None):
     """The physically consistent fit of the floating robot (harness/identify/consistent.py: every body's
     pseudo-inertia positive definite, the base's included; the drives' rotor inertia, viscous and Coulomb
     friction non-negative; what the data cannot see pulled to the model's values) on the same rows as the
     least squares: (the fit, its links' order). Its links are the base's body, then each joint's body in
     the spec's order; its drives a placeholder for the base (no columns: it stays at zero) and the joints'
-    (their columns where `with_friction`, else at the model's values)."""
+    (their columns where `with_friction`, else at the model's values). `Y`: the training states' `regressor`
+    with friction, where the caller has it."""
     from harness.identify import consistent as sdp
     from harness.model.inertia import model_kind_scales
 
     base, q, qd, qdd, y = training
     n, J = len(spec.joints), pm.model.njoints - 1
-    Y = regressor(pm, base, q, qd, qdd, with_friction=True)
+    Y = regressor(pm, base, q, qd, qdd, with_friction=True) if Y is None else Y
     inertial = np.concatenate([Y[:, :, 10 * b: 10 * b + 10] for b in link_blocks(pm)], axis=2)
     drive = Y[:, :, 10 * J:] if with_friction else np.zeros((len(q), 6 + n, 4 * n))
     W = selected(np.concatenate([inertial, np.zeros((len(q), 6 + n, 4)), drive], axis=2), rows)

@@ -11,6 +11,7 @@ from harness.base.series import TimeSeries
 from harness.report import plots
 from harness.report.html import DASH, code, esc, figure, mark, num, page, section, table
 from harness.runner.gates import summary_line
+from harness.runner.results import said_first
 
 
 def identifiability(p: dict) -> str:
@@ -31,9 +32,7 @@ def verdict(r: dict) -> str:
     versions = r["run"]["versions"]
     made = esc(f"harness {versions.get('harness', '?')}, MuJoCo {versions.get('mujoco', '?')}, Pinocchio "
                f"{versions.get('pinocchio', '?')}; run {r['run'].get('id', '(no id)')} at {r['run']['time']} (UTC)")
-    li = r.get("log_identification", r.get("floating_log", {}))
-    said = [*r["scenario"].get("model_notes", []), *li.get("start", {}).get("said", []),
-            *r.get("data", {}).get("conditioning", {}).get("warnings", []), *li.get("warnings", [])]
+    said = [*r["scenario"].get("model_notes", []), *said_first(r)]
     warnings = ("<p>What reading the model and the data assumed or found (each also said on the terminal):</p><ul>"
                 + "".join(f'<li class="warn">{esc(w)}</li>' for w in said) + "</ul>") if said else ""
     rows = [

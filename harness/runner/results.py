@@ -37,6 +37,17 @@ RECORDING_FILE = "recording.csv"
 RESULTS_FILE = "results.json"
 
 
+STARTS = ("log_identification", "floating_log")  # the sections of a log's identification, each with its start check
+
+
+def said_first(results: dict) -> list[str]:
+    """What a run says at the head of the terminal and of the report, in order: a log's start check's findings
+    (an arm's or a floating base's), then the log's conditioning's warnings and its identification's."""
+    li = next((results[k] for k in STARTS if k in results), {})
+    return [*li.get("start", {}).get("said", []), *results.get("data", {}).get("conditioning", {}).get("warnings", []),
+            *li.get("warnings", [])]
+
+
 def scenario_section(s: Scenario) -> dict:
     return {
         "name": s.name,

@@ -133,7 +133,8 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
         ctx.progress("the torque channels' delays behind the encoders", None)
     delays, training_span, lags = _delays(sc.data.delay, pm, robot, fl.contacts, ctx.training, friction)
     training, whole_t = _data(robot, fl.contacts, training_span, rows)
-    model_t = floating_id.regressor(pm, *training[:4]) @ floating_id.true_parameters(pm)
+    Y_t = floating_id.regressor(pm, *training[:4], with_friction=True)  # once: the start check's, both fits'
+    model_t = Y_t[..., :floating_id.rigid_columns(pm)] @ floating_id.true_parameters(pm)
     start = _start(model_t[:, :6], whole_t[:, :6])
     ctx.progress("floating-base structural base parameters", None)
     structure = ctx.once(("floating-base structural base parameters", rows, friction),
@@ -143,7 +144,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     if lags is not None:  # the delays found on the training span, corrected on the span judged as they were there
         judged = delay.corrected(judged, lags, robot.joint_names)
     validation, whole_v = _data(robot, fl.contacts, judged, rows)
-    fit, _, _ = floating_id.identify(pm, structure, rows, training, validation)
+    fit, _, _ = floating_id.identify(pm, structure, rows, training, validation, Y_t)
     parameters = floating_id.parameter_names(robot, pm, friction)
     holding, unseen = seen(structure, parameters, robot)
     declared = not all(f.none for f in robot.frictions)  # the model's drives judged with their laws
@@ -166,7 +167,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     out, files = {}, {}
     if config.consistent:
         ctx.progress("physically consistent parameters (semidefinite program)", None)
-        physical, links = floating_id.consistent(pm, robot, rows, training, friction)
+        physical, links = floating_id.consistent(pm, robot, rows, training, friction, Y_t)
         # its joints' rows with the drives' laws identified, or the model's where they were not
         predictions["consistent"] = floating_id.consistent_rows(pm, physical, "all", validation, friction)
         model = floating_id.link_parameters(pm)
