@@ -166,13 +166,16 @@ def test_an_exact_floating_log_identifies_the_robot_that_made_it(standing, tmp_p
     each row's size (2e-4 measured: the accelerations' central differences at 200 Hz); the least squares from
     the feet's forces and the joints' torques, 94 base parameters from 210 training rows of a 1.5 s log, predicts
     the validation span's base wrench and motor torques within 3e-2 of the truth's (1.0e-2 measured: the short
-    log's fit amplifies the differences' error fifty-fold; a force in the wrong axes or sign is off by its size)."""
+    log's fit amplifies the differences' error fifty-fold; a force in the wrong axes or sign is off by its size).
+    data.csv holds the base's and the contacts' columns beside the joints'."""
     _write(standing, tmp_path / "log.csv")
     code, results = _run(_scenario(tmp_path, tmp_path / "log.csv"), tmp_path / "out")
     f = results["floating_log"]
     assert code == 0 and f["start"]["findings"] == 0
     assert f["judged"]["model_as_given"]["measured"]["max_rel_error"] <= 1e-3
     assert f["judged"]["least_squares"]["truth"]["max_rel_error"] <= 3e-2
+    header = (tmp_path / "out" / "data.csv").read_text().split("\n", 1)[0].split(",")  # both spans, as conditioned
+    assert {"base[qw]", "contact[FL_foot][Fz]"} <= set(header)
 
 
 def test_feet_s_forces_in_other_axes_than_declared_fail_the_start_check(standing, tmp_path):
@@ -451,3 +454,29 @@ def test_torque_channels_that_lag_the_encoders_are_found_and_corrected_as_an_arm
     assert all(d["found"] and abs(d["delay_s"] - LAG) <= 1.5e-3 for d in per_joint.values()), per_joint
     error = f["judged"]["least_squares"]["truth"]["max_rel_error"]
     assert (code, error <= 1e-1) == (0, True) if mode == "correct" else error > 1.0
+
+
+def test_a_floating_log_is_judged_on_another_log_of_the_same_robot(standing, tmp_path):
+    """`validation = { file = ... }`: the recording's first 1.05 s as the log, its last 0.45 s as another log in
+    the same columns (its own times): the training span is the first file's alone, the span judged the second
+    file's, base, contacts and joints read as the first's, and the least squares predicts it within 3e-2 of the
+    truth (1.2e-2 measured), as it does the last 30 % of the one log
+    (test_an_exact_floating_log_identifies_the_robot_that_made_it); data.csv holds the base's and the contacts'
+    columns as conditioned beside the joints'."""
+    _write(standing, tmp_path / "whole.csv")
+    whole = pd.read_csv(tmp_path / "whole.csv")
+    cut = int(np.searchsorted(whole["t"].to_numpy(), 1.05))
+    whole.iloc[:cut].to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    whole.iloc[cut:].to_csv(tmp_path / "other.csv", index=False, float_format="%.17g")
+    path = _scenario(tmp_path, tmp_path / "log.csv")
+    path.write_text(path.read_text().replace("validation = { from = 0.7 }",
+                                             f'validation = {{ file = "{tmp_path / "other.csv"}" }}'))
+    sc = load_scenario(path)
+    split = load(sc.data, sc.robot)
+    assert split.training.t[-1] < 1.05 <= split.validation.t[0] and split.validation.contact_F_W.shape[1] == 4
+    code, results = _run(path, tmp_path / "out")
+    f = results["floating_log"]
+    assert code == 0 and f["span"] == "validation"
+    assert f["judged"]["least_squares"]["truth"]["max_rel_error"] <= 3e-2
+    header = (tmp_path / "out" / "data.csv").read_text().split("\n", 1)[0].split(",")  # the log as conditioned
+    assert {"base[qw]", "base[wdz]", "contact[FL_foot][Fz]", "contact[HR_foot][x]"} <= set(header)

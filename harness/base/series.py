@@ -189,6 +189,8 @@ class TimeSeries:
                 cols[f"loopTau[{name}]"] = self.loop_tau[:, j]
         if self.base_pose is not None:
             for field_name, names in BASE_COLUMNS.items():
+                if getattr(self, field_name) is None:  # a log's base: the world's wrench on it is not read
+                    continue
                 for k, c in enumerate(names):
                     cols[f"base[{c}]"] = getattr(self, field_name)[:, k]
         for c, name in enumerate(self.contacts):

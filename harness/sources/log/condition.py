@@ -104,6 +104,13 @@ class TrainingSpan(ConditionedLog):
         return TrainingSpan(**{f.name: getattr(log, f.name) for f in fields(log)})
 
 
+def every_row(parts: list[TimeSeries]) -> dict[str, np.ndarray]:
+    """Every per-row array the parts hold (the joints', and a floating base's and its contacts'), joined in
+    the parts' order: stretches between gaps, or a log's training and validation spans."""
+    return {f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(TimeSeries)
+            if isinstance(getattr(parts[0], f.name), np.ndarray)}
+
+
 def fits_on(series: TimeSeries) -> TrainingSpan:
     """`series` where it is the training span; a fit handed another (the validation span, a whole log) is
     a harness bug, refused here."""
@@ -245,9 +252,7 @@ def conditioned(kept: RawLog, pieces: list[np.ndarray], source: DataSource, robo
                                            f"trim ({2 * reach:.3g} s of trim and 10 samples at least)")
     if len(logs) == 1:
         return logs[0]
-    # every per-row array the stretches hold (the joints', and a floating base's), joined in time order
-    rows = {f.name: np.concatenate([getattr(g, f.name) for g in logs]) for f in fields(TimeSeries)
-            if isinstance(getattr(logs[0], f.name), np.ndarray)}
+    rows = every_row(logs)
     conditioning = dict(logs[0].meta)
     conditioning["t_end"] = logs[-1].meta["t_end"]
     full_rate = FilteredColumns.joined([g.full_rate for g in logs]) if all(g.full_rate is not None for g in logs) \

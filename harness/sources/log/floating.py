@@ -175,18 +175,18 @@ def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of, ro
 def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> FloatingLog:
     """What a floating base's log is not read with yet, refused in one line naming the key: a ROS bag (its
     base and contacts are other topics), joint-side torques (no motor-side log, payload or unmeasured
-    channels; currents with their declared constants are read as torques, constants identified are not), its
-    validation a part of it; no identification method, friction law search or refinement beside it (their
-    fits read a fixed base). A log in several files joined on time, or with its torques in a file of their
-    own, is read as for an arm, the base's and contacts' columns in any of the files (in `file` beside a
-    torque file); the torque channels' delays are estimated and corrected as an arm's (`delay`)."""
+    channels; currents with their declared constants are read as torques, constants identified are not); no
+    identification method, friction law search or refinement beside it (their fits read a fixed base). A log
+    in several files joined on time, or with its torques in a file of their own, is read as for an arm, the
+    base's and contacts' columns in any of the files (in `file` beside a torque file); the torque channels'
+    delays are estimated and corrected as an arm's (`delay`); its validation a part of it or another log
+    (`validation = { file = ... }`, in the same columns)."""
     why = "not read with a floating base's log yet (docs/floating_base.md)"
     for key, given in (("bag", source.topic is not None), ("side", source.side != "joint"),
                        ("identify_torque_constants", source.identify_constants),
                        ("payload", source.payload is not None),
                        ("repeat", source.repeat is not None), ("unmeasured", bool(source.unmeasured)),
-                       ("counterbalanced", bool(source.counterbalanced)),
-                       ("validation.file", source.validation_file is not None)):
+                       ("counterbalanced", bool(source.counterbalanced))):
         if given:
             raise t.error(key, why)
     for table in ("identification", "friction_law", "refinement"):

@@ -14,7 +14,7 @@ from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
 from harness.sources.log import defaults
 from harness.sources.log.checks import check
-from harness.sources.log.condition import ConditionedLog, TrainingSpan, condition, conditioned
+from harness.sources.log.condition import ConditionedLog, TrainingSpan, condition, conditioned, every_row
 from harness.sources.log.indexed import resolved
 from harness.sources.log.read import read_raw
 from harness.sources.log.schema import DataSource
@@ -104,9 +104,8 @@ def load(source: DataSource, robot: RobotSpec) -> Split:
         "conditioned": "each span on its own (resampling, filter, derivatives, trim): nothing crosses the split",
         "training": {"t_start": train.meta["t_start"], "t_end": train.meta["t_end"]},
         "validation": {"t_start": val.meta["t_start"], "t_end": val.meta["t_end"]}}
-    joined = (np.concatenate([getattr(train, k), getattr(val, k)]) for k in ("q", "qd", "qdd", "tau"))
-    whole = ConditionedLog(np.concatenate([train.t, val.t]), train.joints, *joined, meta=conditioning,
-                           reach_s=train.reach_s)
+    whole = ConditionedLog(joints=train.joints, contacts=train.contacts, meta=conditioning, reach_s=train.reach_s,
+                           **every_row([train, val]))
     return Split(train, val, guard, whole, source)
 
 
