@@ -454,6 +454,9 @@ def test_torque_channels_that_lag_the_encoders_are_found_and_corrected_as_an_arm
     assert all(d["found"] and abs(d["delay_s"] - LAG) <= 1.5e-3 for d in per_joint.values()), per_joint
     error = f["judged"]["least_squares"]["truth"]["max_rel_error"]
     assert (code, error <= 1e-1) == (0, True) if mode == "correct" else error > 1.0
+    report = (tmp_path / "out" / "report.html").read_text()
+    assert "delays behind the encoders</h3>" in report and ("Corrected." if mode == "correct" else "Not corrected.") \
+        in report
 
 
 def test_a_floating_log_is_judged_on_another_log_of_the_same_robot(standing, tmp_path):

@@ -75,15 +75,7 @@ def log_identification(r: dict, log) -> str:
                      f"{esc(floor['definition'])}.</p>")
     if li.get("validation_cannot_see"):
         headline += f"<p><strong>What this figure cannot see</strong>: {esc(li['validation_cannot_see'])}.</p>"
-    extra = ""
-    lags = li.get("delays") or {}
-    if lags.get("estimated"):
-        extra += ("<h3>Torque channels' delays behind the encoders</h3>"
-                  f"<p>{esc(lags['definition'])}; {esc(lags['found_definition'])}. "
-                  f"{'Corrected' if lags['corrected'] else 'Not corrected'}.</p>"
-                  + table(["joint", "delay [ms]", "found", "residual at it", "at zero delay"],
-                          [[esc(j), num(v["delay_s"] * 1e3), mark(v["found"], "yes" if v["found"] else "no"),
-                            num(v["residual"]), num(v["residual_at_zero"])] for j, v in lags["per_joint"].items()]))
+    extra = delays(li.get("delays") or {})
     pred = li.get("prediction") or {}
     if pred.get("models"):
         hs = list(next(iter(pred["models"].values())))
@@ -274,6 +266,19 @@ def log_methods(r: dict) -> str:
         + table(header, rows, "wrap"))
 
 
+def delays(lags: dict) -> str:
+    """The torque channels' delays behind the encoders (results.json's `delays` of a log's identification, an
+    arm's or a floating base's): a table where they were estimated, else nothing."""
+    if not lags.get("estimated"):
+        return ""
+    return ("<h3>Torque channels' delays behind the encoders</h3>"
+            f"<p>{esc(lags['definition'])}; {esc(lags['found_definition'])}. "
+            f"{'Corrected' if lags['corrected'] else 'Not corrected'}.</p>"
+            + table(["joint", "delay [ms]", "found", "residual at it", "at zero delay"],
+                    [[esc(j), num(v["delay_s"] * 1e3), mark(v["found"], "yes" if v["found"] else "no"),
+                      num(v["residual"]), num(v["residual_at_zero"])] for j, v in lags["per_joint"].items()]))
+
+
 def floating_log(r: dict, log) -> str:
     """A floating base's log (harness/stages/floating_log.py): what each model predicts on the judged span."""
     f = r["floating_log"]
@@ -294,8 +299,8 @@ def floating_log(r: dict, log) -> str:
             f"parameters of {f['parameters']}, condition number {num(f['condition_number'])}), judged on the "
             f"{esc(f['span'])} span; contacts {esc(', '.join(f['contacts']) or 'none')}. The start check: "
             f"{start['findings']} finding(s) ({esc(start['definition'])}; limit {num(start['limit'])}). "
-            f"{esc(f['delays'])}. {esc(f['prediction'])}. Unseen by these rows: "
+            f"{esc(f['prediction'])}. Unseen by these rows: "
             f"{esc(', '.join(f['unseen']) or 'nothing')}.</p>"
             + table(["model", "against the log: largest", "RMS", "where", "against the truth: largest", "RMS"], rows)
-            + f"<p>{esc(f['definition'])}.</p>" + consistent)
+            + f"<p>{esc(f['definition'])}.</p>" + consistent + delays(f["delays"]))
     return section("floating_log", "A floating base's log", body)
