@@ -191,12 +191,12 @@ def test_feet_s_forces_in_other_axes_than_declared_fail_the_start_check(standing
 def test_a_joint_is_judged_on_its_motor_s_torque_and_the_base_on_its_force_and_moment():
     """The judging's scales: the base's force rows by the largest force, its moment rows by the largest moment
     (norms), a joint by its motor's largest |torque|, not by its whole row (which the foot's J^T F nearly
-    cancels in a stance leg)."""
+    cancels in a stance leg); a channel reading 0 throughout by the largest joint's."""
     from harness.stages.floating_log import scales
 
-    whole = np.array([[3.0, 4.0, 0.0, 0.0, 0.0, 1.0, 0.01], [0.0, 0.0, 1.0, 2.0, 0.0, 0.0, -0.02]])
-    tau = np.array([[0.5], [-0.7]])
-    assert np.array_equal(scales(whole, tau), [5.0, 5.0, 5.0, 2.0, 2.0, 2.0, 0.7])
+    whole = np.array([[3.0, 4.0, 0.0, 0.0, 0.0, 1.0, 0.01, 0.0], [0.0, 0.0, 1.0, 2.0, 0.0, 0.0, -0.02, 0.0]])
+    tau = np.array([[0.5, 0.0], [-0.7, 0.0]])  # the second channel dead: judged on the largest joint's scale
+    assert np.array_equal(scales(whole, tau), [5.0, 5.0, 5.0, 2.0, 2.0, 2.0, 0.7, 0.7])
 
 
 CONSTANT = np.array([0.025, -0.025, 0.025] * 4)  # N m/A at the motor, signed (a motor wired the other way)
@@ -483,3 +483,26 @@ def test_a_floating_log_is_judged_on_another_log_of_the_same_robot(standing, tmp
     assert f["judged"]["least_squares"]["truth"]["max_rel_error"] <= 3e-2
     header = (tmp_path / "out" / "data.csv").read_text().split("\n", 1)[0].split(",")  # the log as conditioned
     assert {"base[qw]", "base[wdz]", "contact[FL_foot][Fz]", "contact[HR_foot][x]"} <= set(header)
+
+
+def test_joints_without_a_torque_channel_keep_their_motion_and_leave_their_rows_unread(standing, tmp_path):
+    """`[data] unmeasured`: two joints' torque columns absent from the log (FL_HAA's and HR_KFE's): their motion
+    stays in every row, their own rows are neither read nor judged (results.json lists them), and from the feet's
+    forces and the other ten torques the least squares predicts the span it never saw within 3e-2 of the truth,
+    as with every channel (test_an_exact_floating_log_identifies_the_robot_that_made_it); their rows read as
+    measured zeros instead (the channels taken as logged at 0 N m) leave it far off."""
+    _write(standing, tmp_path / "log.csv")
+    log = pd.read_csv(tmp_path / "log.csv")
+    log.drop(columns=["tau1", "tau12"]).to_csv(tmp_path / "absent.csv", index=False, float_format="%.17g")
+    log.assign(tau1=0.0, tau12=0.0).to_csv(tmp_path / "zero.csv", index=False, float_format="%.17g")
+    figures = {}
+    for name, extra in (("absent", 'unmeasured = ["FL_HAA", "HR_KFE"]'), ("zero", "")):
+        (tmp_path / name).mkdir()
+        path = _scenario(tmp_path / name, tmp_path / f"{name}.csv", extra_data=extra)
+        code, results = _run(path, tmp_path / name / "out")
+        f = results["floating_log"]
+        figures[name] = f["judged"]["least_squares"]["truth"]
+        if name == "absent":
+            assert code == 0 and f["unmeasured"] == ["FL_HAA", "HR_KFE"]
+            assert all(f["judged"][m]["measured"]["max_rel_row"] not in f["unmeasured"] for m in f["judged"])
+    assert figures["absent"]["max_rel_error"] <= 3e-2 < figures["zero"]["max_rel_error"]  # 1.6e-2 and 4.6

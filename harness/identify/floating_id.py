@@ -81,14 +81,22 @@ def true_parameters(pm: PinocchioModel, with_friction: bool = False) -> np.ndarr
     return np.concatenate([inertial, friction.values(pm.frictions).ravel()]) if with_friction else inertial
 
 
-def selected(Y: np.ndarray, rows: str) -> np.ndarray:
-    """(N k, p) the rows a fit reads (`rows`, ROWS), sample by sample."""
-    if rows not in ROWS:
-        raise ValueError(f"rows {rows!r}: one of {', '.join(ROWS)}")
-    return (Y[:, :6] if rows == "base" else Y).reshape(-1, Y.shape[-1])
+def read_rows(rows, n: int) -> np.ndarray:
+    """The indices of the rows (of 6 + n) a fit reads: `rows` one of ROWS (the base's six, or every row), or
+    the indices themselves (the base's and the joints' whose torque a log measures)."""
+    if isinstance(rows, str):
+        if rows not in ROWS:
+            raise ValueError(f"rows {rows!r}: one of {', '.join(ROWS)}")
+        return np.arange(6 if rows == "base" else 6 + n)
+    return np.asarray(rows, dtype=int)
 
 
-def structural_base(pm: PinocchioModel, limits: dict | None, rows: str, seed: int = 0,
+def selected(Y: np.ndarray, rows) -> np.ndarray:
+    """(N k, p) the rows a fit reads (`read_rows`), sample by sample."""
+    return Y[:, read_rows(rows, Y.shape[1] - 6)].reshape(-1, Y.shape[-1])
+
+
+def structural_base(pm: PinocchioModel, limits: dict | None, rows, seed: int = 0,
                     with_friction: bool = False) -> BaseParameters:
     """The base parameters of the floating robot's structure (`rows` of its regressor, at STRUCTURAL_STATES
     random states: the base uniform on SO(3), its twist and acceleration within +-1 and +-5; the joints
@@ -102,12 +110,13 @@ def structural_base(pm: PinocchioModel, limits: dict | None, rows: str, seed: in
     return base_parameters(selected(Y, rows), with_friction)
 
 
-def measured(base_wrench_W: np.ndarray, tau: np.ndarray, rows: str) -> np.ndarray:
-    """(N, k): what a fit of `rows` reads, the world's wrench on the base (N, 6) and the joints' torques (N, n)."""
-    return base_wrench_W if rows == "base" else np.concatenate([base_wrench_W, tau], axis=1)
+def measured(base_wrench_W: np.ndarray, tau: np.ndarray, rows) -> np.ndarray:
+    """(N, k): what a fit of `rows` (`read_rows`) reads, of the world's wrench on the base (N, 6) and the joints'
+    rows (N, n)."""
+    return np.concatenate([base_wrench_W, tau], axis=1)[:, read_rows(rows, tau.shape[1])]
 
 
-def identify(pm: PinocchioModel, structure: BaseParameters, rows: str, training: tuple, validation: tuple | None,
+def identify(pm: PinocchioModel, structure: BaseParameters, rows, training: tuple, validation: tuple | None,
              Y: np.ndarray | None = None):
     """Least squares of the base parameters `structure` from `training` = (base, q, q', q'', y), y (N, k)
     the measured rows (`measured`), judged on `validation` (the same, another motion): the fit
@@ -143,7 +152,7 @@ def rigid_columns(pm: PinocchioModel) -> int:
     return 10 * (pm.model.njoints - 1)
 
 
-def consistent(pm: PinocchioModel, spec: RobotSpec, rows: str, training: tuple, with_friction: bool,
+def consistent(pm: PinocchioModel, spec: RobotSpec, rows, training: tuple, with_friction: bool,
                Y: np.ndarray | None = None):
     """The physically consistent fit of the floating robot (harness/identify/consistent.py: every body's
     pseudo-inertia positive definite, the base's included; the drives' rotor inertia, viscous and Coulomb
@@ -171,7 +180,7 @@ def consistent(pm: PinocchioModel, spec: RobotSpec, rows: str, training: tuple, 
     return fit, [spec.floating.body.name, *(j.child for j in spec.joints)]
 
 
-def consistent_rows(pm: PinocchioModel, fit, rows: str, data: tuple, with_friction: bool) -> np.ndarray:
+def consistent_rows(pm: PinocchioModel, fit, rows, data: tuple, with_friction: bool) -> np.ndarray:
     """(N, k): the rows (`rows`) the consistent fit predicts at the states of `data` (base, q, q', q'', ...)."""
     base, q, qd, qdd = data[:4]
     J = pm.model.njoints - 1
@@ -181,4 +190,4 @@ def consistent_rows(pm: PinocchioModel, fit, rows: str, data: tuple, with_fricti
         theta[10 * b: 10 * b + 10] = fit.theta[k]
     x = np.concatenate([theta, fit.friction[1:].ravel() if with_friction else friction.values(pm.frictions).ravel()])
     out = Y @ x
-    return out[:, :6] if rows == "base" else out
+    return out[:, read_rows(rows, out.shape[1] - 6)]

@@ -60,8 +60,8 @@ class FloatingLogFit:
         return self.results
 
 
-def _data(robot, contacts, span, rows: str) -> tuple:
-    """(base, q, q', q'', the rows read) of a span, and its whole rows (N, 6 + n)."""
+def _data(robot, contacts, span, rows) -> tuple:
+    """(base, q, q', q'', the rows read: floating_id.read_rows) of a span, and its whole rows (N, 6 + n)."""
     base, q, qd, qdd, wrench, tau = whole_rows(robot, contacts, span)
     return (base, q, qd, qdd, floating_id.measured(wrench, tau, rows)), np.concatenate([wrench, tau], axis=1)
 
@@ -78,23 +78,28 @@ def scales(whole: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """(6 + n,) each row's scale on a span: the base's force rows the largest |F| of the contacts' wrench on the
     base (`whole`'s first three columns), its moment rows the largest |M|, and each joint's the largest |value|
     of its motor's torque `tau` (N, n), not of its whole row: what a stance leg's motor gives is nearly all the
-    foot's force, and the leg's own dynamics, the whole row, a small remainder."""
+    foot's force, and the leg's own dynamics, the whole row, a small remainder. A channel that reads 0 throughout
+    (a dead one) is judged on the largest of the joints' scales."""
     F, M = (float(np.max(np.linalg.norm(whole[:, s], axis=1))) for s in (slice(0, 3), slice(3, 6)))
-    return np.maximum(np.concatenate([[F, F, F, M, M, M], np.max(np.abs(tau), axis=0)]), 1e-300)
+    motor = np.max(np.abs(tau), axis=0)
+    motor = np.where(motor > 0, motor, motor.max(initial=0.0))
+    return np.maximum(np.concatenate([[F, F, F, M, M, M], motor]), 1e-300)
 
 
-def _delays(mode: str, pm, robot, contacts, training, friction: bool) -> tuple[dict, object, delay.Delays | None]:
+def _delays(mode: str, pm, robot, contacts, training, friction: bool,
+            joints: list[str]) -> tuple[dict, object, delay.Delays | None]:
     """Each joint's torque channel's lag behind the encoders (`[data] delay`, as for an arm: estimated on the
     training span, and with "correct" each one found corrected there and, by the judging, on the validation
     span): the motor's torque read d later, plus the contacts' J^T F on the encoders' clock, fitted by the
     joint's rows of the floating robot's regressor (harness/identify/delay.py). The results' section, the
-    training span (corrected or as it was) and the delays the judging corrects (None: none)."""
-    joints = robot.joint_names
+    training span (corrected or as it was) and the delays the judging corrects (None: none). `joints`: those
+    whose torque the log measures."""
     if mode == "none":
         return delay_section(None, None, mode, joints), training, None
     base, q, qd, qdd, _, rows = whole_rows(robot, contacts, training)
-    tau = training.joint_data(joints)[3]
-    W = floating_id.regressor(pm, base, q, qd, qdd, friction)[:, 6:, :]
+    at = [robot.joint_names.index(j) for j in joints]
+    rows, tau = rows[:, at], training.joint_data(joints)[3]
+    W = floating_id.regressor(pm, base, q, qd, qdd, friction)[:, 6:, :][:, at]
     try:
         lags = delay.estimate(training.t, tau, W, filtered=training.full_rate is not None, offset=rows - tau)
     except ValueError as exc:
@@ -128,21 +133,27 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     config = config or FloatingLogConfig()
     rows, robot, friction = config.rows, sc.robot, config.friction
     names = list(floating_id.BASE_ROWS) + robot.joint_names
+    # the joints whose torque the log measures ([data] unmeasured): only their rows are read and judged
+    measured = [j for j in robot.joint_names if j not in sc.data.unmeasured]
+    judged_rows = np.r_[0:6, [6 + robot.joint_names.index(j) for j in measured]].astype(int)
+    if len(measured) < len(robot.joint_names) and rows == "all":
+        rows = judged_rows
     pm = build_model(robot, sc.gravity_W, floating=True)
     if sc.data.delay != "none":
         ctx.progress("the torque channels' delays behind the encoders", None)
-    delays, training_span, lags = _delays(sc.data.delay, pm, robot, fl.contacts, ctx.training, friction)
+    delays, training_span, lags = _delays(sc.data.delay, pm, robot, fl.contacts, ctx.training, friction, measured)
     training, whole_t = _data(robot, fl.contacts, training_span, rows)
     Y_t = floating_id.regressor(pm, *training[:4], with_friction=True)  # once: the start check's, both fits'
     model_t = Y_t[..., :floating_id.rigid_columns(pm)] @ floating_id.true_parameters(pm)
     start = _start(model_t[:, :6], whole_t[:, :6])
     ctx.progress("floating-base structural base parameters", None)
-    structure = ctx.once(("floating-base structural base parameters", rows, friction),
+    structure = ctx.once(("floating-base structural base parameters", rows if isinstance(rows, str) else tuple(rows),
+                          friction),
                          lambda: floating_id.structural_base(pm, robot.limits, rows, with_friction=friction))
     span = ctx.validation.get(VALIDATION_SPAN)
     judged_span, judged = ("validation", span) if span is not None else ("training", ctx.training)
     if lags is not None:  # the delays found on the training span, corrected on the span judged as they were there
-        judged = delay.corrected(judged, lags, robot.joint_names)
+        judged = delay.corrected(judged, lags, measured)
     validation, whole_v = _data(robot, fl.contacts, judged, rows)
     fit, _, _ = floating_id.identify(pm, structure, rows, training, validation, Y_t)
     parameters = floating_id.parameter_names(robot, pm, friction)
@@ -183,13 +194,15 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
             "masses": {b: {"identified": float(physical.theta[k, 0]), "model": float(model[k, 0])}
                        for k, b in enumerate(links)}}
     judged_out = {}
+    c, named = judged_rows, [names[i] for i in judged_rows]
     for name, pred in predictions.items():
-        entry = {"measured": _errors(pred, whole_v, scale, names)}
+        entry = {"measured": _errors(pred[:, c], whole_v[:, c], scale[c], named)}
         if truth_rows is not None and name != "truth":
-            entry["truth"] = _errors(pred, truth_rows, scale, names)
+            entry["truth"] = _errors(pred[:, c], truth_rows[:, c], scale[c], named)
         judged_out[name] = entry
     results = {
-        "rows": rows, "friction": friction, "span": judged_span, "base_body_in": holding, "unseen": unseen,
+        "rows": config.rows, "unmeasured": [j for j in robot.joint_names if j not in measured], "friction": friction,
+        "span": judged_span, "base_body_in": holding, "unseen": unseen,
         "unseen_definition": UNSEEN, "contacts": [c.name for c in fl.contacts],
         "start": start, "parameters": len(parameters), "base_parameters": len(structure.independent),
         "condition_number": float(fit.condition_number), "judged": judged_out, **out,

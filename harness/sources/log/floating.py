@@ -174,8 +174,9 @@ def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of, ro
 
 def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> FloatingLog:
     """What a floating base's log is not read with yet, refused in one line naming the key: a ROS bag (its
-    base and contacts are other topics), joint-side torques (no motor-side log, payload or unmeasured
-    channels; currents with their declared constants are read as torques, constants identified are not); no
+    base and contacts are other topics), joint-side torques (no motor-side log or payload; currents with their
+    declared constants are read as torques, constants identified are not; unmeasured channels, `unmeasured`,
+    leave their joints' rows unread and unjudged); no
     identification method, friction law search or refinement beside it (their fits read a fixed base). A log
     in several files joined on time, or with its torques in a file of their own, is read as for an arm, the
     base's and contacts' columns in any of the files (in `file` beside a torque file); the torque channels'
@@ -185,7 +186,7 @@ def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> Floati
     for key, given in (("bag", source.topic is not None), ("side", source.side != "joint"),
                        ("identify_torque_constants", source.identify_constants),
                        ("payload", source.payload is not None),
-                       ("repeat", source.repeat is not None), ("unmeasured", bool(source.unmeasured)),
+                       ("repeat", source.repeat is not None),
                        ("counterbalanced", bool(source.counterbalanced))):
         if given:
             raise t.error(key, why)
