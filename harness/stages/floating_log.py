@@ -62,7 +62,12 @@ class FloatingLogFit:
 
 def _data(robot, contacts, span, rows) -> tuple:
     """(base, q, q', q'', the rows read: floating_id.read_rows) of a span, and its whole rows (N, 6 + n)."""
-    base, q, qd, qdd, wrench, tau = whole_rows(robot, contacts, span)
+    return _read(whole_rows(robot, contacts, span), rows)
+
+
+def _read(whole: tuple, rows) -> tuple:
+    """`_data` of a span's `whole_rows`."""
+    base, q, qd, qdd, wrench, tau = whole
     return (base, q, qd, qdd, floating_id.measured(wrench, tau, rows)), np.concatenate([wrench, tau], axis=1)
 
 
@@ -86,22 +91,23 @@ def scales(whole: np.ndarray, tau: np.ndarray) -> np.ndarray:
     return np.maximum(np.concatenate([[F, F, F, M, M, M], motor]), 1e-300)
 
 
-def _delays(mode: str, pm, robot, contacts, training, friction: bool,
+def _delays(mode: str, pm, robot, training, whole: tuple, Y: np.ndarray, friction: bool,
             joints: list[str]) -> tuple[dict, object, delay.Delays | None]:
     """Each joint's torque channel's lag behind the encoders (`[data] delay`, as for an arm: estimated on the
     training span, and with "correct" each one found corrected there and, by the judging, on the validation
     span): the motor's torque read d later, plus the contacts' J^T F on the encoders' clock, fitted by the
-    joint's rows of the floating robot's regressor (harness/identify/delay.py). The results' section, the
-    training span (corrected or as it was) and the delays the judging corrects (None: none). `joints`: those
-    whose torque the log measures."""
+    joint's rows of the floating robot's regressor (harness/identify/delay.py). `whole` is the span's
+    `whole_rows`, Y its regressor with the drives' columns. The results' section, the training span (corrected
+    or as it was) and the delays the judging corrects (None: none). `joints`: those whose torque the log
+    measures."""
     if mode == "none":
         return delay_section(None, None, mode, joints), training, None
-    base, q, qd, qdd, _, rows = whole_rows(robot, contacts, training)
     at = [robot.joint_names.index(j) for j in joints]
-    rows, tau = rows[:, at], training.joint_data(joints)[3]
-    W = floating_id.regressor(pm, base, q, qd, qdd, friction)[:, 6:, :][:, at]
+    tau = training.joint_data(joints)[3]
+    W = (Y if friction else Y[..., :floating_id.rigid_columns(pm)])[:, 6:, :][:, at]
     try:
-        lags = delay.estimate(training.t, tau, W, filtered=training.full_rate is not None, offset=rows - tau)
+        lags = delay.estimate(training.t, tau, W, filtered=training.full_rate is not None,
+                              offset=whole[5][:, at] - tau)
     except ValueError as exc:
         return delay_section(None, f"delays not estimated: {exc}", mode, joints), training, None
     if mode != "correct":
@@ -141,9 +147,14 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     pm = build_model(robot, sc.gravity_W, floating=True)
     if sc.data.delay != "none":
         ctx.progress("the torque channels' delays behind the encoders", None)
-    delays, training_span, lags = _delays(sc.data.delay, pm, robot, fl.contacts, ctx.training, friction, measured)
-    training, whole_t = _data(robot, fl.contacts, training_span, rows)
-    Y_t = floating_id.regressor(pm, *training[:4], with_friction=True)  # once: the start check's, both fits'
+    # the training span's rows and regressor, once: the delays', the start check's and both fits'
+    whole = whole_rows(robot, fl.contacts, ctx.training)
+    Y_t = floating_id.regressor(pm, *whole[:4], with_friction=True)
+    delays, training_span, lags = _delays(sc.data.delay, pm, robot, ctx.training, whole, Y_t, friction, measured)
+    if lags is not None:  # corrected: the torques read later, the rows where that falls beyond an end dropped
+        whole = whole_rows(robot, fl.contacts, training_span)
+        Y_t = floating_id.regressor(pm, *whole[:4], with_friction=True)
+    training, whole_t = _read(whole, rows)
     model_t = Y_t[..., :floating_id.rigid_columns(pm)] @ floating_id.true_parameters(pm)
     start = _start(model_t[:, :6], whole_t[:, :6])
     ctx.progress("floating-base structural base parameters", None)
