@@ -150,8 +150,13 @@ class TimeSeries:
 
     def span(self, rows: np.ndarray | slice) -> TimeSeries:
         """The rows `rows` (indices, a boolean mask or a slice) of every per-row array; `meta` kept."""
-        return dataclasses.replace(self, **{f.name: getattr(self, f.name)[rows] for f in fields(self)
-                                            if isinstance(getattr(self, f.name), np.ndarray)})
+        return dataclasses.replace(self, **{k: x[rows] for k, x in TimeSeries.per_row(self).items()})
+
+    @staticmethod
+    def per_row(series: TimeSeries) -> dict[str, np.ndarray]:
+        """Every per-row array of `series` (the joints', and a floating base's, its contacts', the bodies')."""
+        return {f.name: getattr(series, f.name) for f in fields(series)
+                if isinstance(getattr(series, f.name), np.ndarray)}
 
     def columns(self) -> dict[str, np.ndarray]:
         """The CSV's columns in order, {name: (N,) values}: the joints', then the bodies' and the joint
@@ -257,6 +262,12 @@ def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:
         column = "t" if exc.field == "t" else next((c for c in df.columns if not np.all(np.isfinite(df[c]))), exc.field)
         raise InputError(path, column, f"{exc.what} (a {kind} is strictly increasing in t, every value "
                                        "finite)") from None
+
+
+def every_row(parts: list[TimeSeries]) -> dict[str, np.ndarray]:
+    """Every per-row array the parts hold (TimeSeries.per_row), joined in the parts' order: a log's stretches
+    between gaps, or its training and validation spans."""
+    return {k: np.concatenate([getattr(p, k) for p in parts]) for k in TimeSeries.per_row(parts[0])}
 
 
 def _contact_names(columns) -> tuple[str, ...]:

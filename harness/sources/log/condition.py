@@ -15,7 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from harness.base.numerics import sampled
-from harness.base.series import TimeSeries
+from harness.base.series import TimeSeries, every_row
 from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
 from harness.sources.log.checks import Checked, check
@@ -102,13 +102,6 @@ class TrainingSpan(ConditionedLog):
     @staticmethod
     def of(log: ConditionedLog) -> TrainingSpan:
         return TrainingSpan(**{f.name: getattr(log, f.name) for f in fields(log)})
-
-
-def every_row(parts: list[TimeSeries]) -> dict[str, np.ndarray]:
-    """Every per-row array the parts hold (the joints', and a floating base's and its contacts'), joined in
-    the parts' order: stretches between gaps, or a log's training and validation spans."""
-    return {f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(TimeSeries)
-            if isinstance(getattr(parts[0], f.name), np.ndarray)}
 
 
 def fits_on(series: TimeSeries) -> TrainingSpan:
@@ -252,7 +245,7 @@ def conditioned(kept: RawLog, pieces: list[np.ndarray], source: DataSource, robo
                                            f"trim ({2 * reach:.3g} s of trim and 10 samples at least)")
     if len(logs) == 1:
         return logs[0]
-    rows = every_row(logs)
+    rows = every_row(logs)  # the stretches in time order
     conditioning = dict(logs[0].meta)
     conditioning["t_end"] = logs[-1].meta["t_end"]
     full_rate = FilteredColumns.joined([g.full_rate for g in logs]) if all(g.full_rate is not None for g in logs) \

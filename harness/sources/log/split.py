@@ -10,11 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.series import every_row
 from harness.base.tomlio import InputError
 from harness.model.spec import RobotSpec
 from harness.sources.log import defaults
 from harness.sources.log.checks import check
-from harness.sources.log.condition import ConditionedLog, TrainingSpan, condition, conditioned, every_row
+from harness.sources.log.condition import ConditionedLog, TrainingSpan, condition, conditioned
 from harness.sources.log.indexed import resolved
 from harness.sources.log.read import read_raw
 from harness.sources.log.schema import DataSource
