@@ -147,6 +147,16 @@ def ols_of(red: Reduced, W1: np.ndarray | SideBySide, tau: np.ndarray, n: int, l
     return _finish(W1, z, r, np.ones(len(tau)), n, red.s, start, lags, (red.sv, red.Vt), red.s)
 
 
+def row_variance(W1: np.ndarray, tau: np.ndarray, n: int, weights: np.ndarray | None = None) -> np.ndarray:
+    """(n,) the residual variance of each of a sample's n rows (a joint's torque, a wrench's component) after an
+    ordinary fit (the first pass of `wls`, whose weights are its inverse), or after the fit weighted by
+    `weights` (n,), each sample's row i by weights[i]."""
+    s = column_scale(W1)
+    w = np.ones(len(tau)) if weights is None else np.tile(weights, len(tau) // n)
+    _, r0 = _weighted_fit(W1, tau, n, w, s)
+    return _per_joint_variance(r0, n, W1.shape[1])
+
+
 def _per_joint_variance(r: np.ndarray, n: int, dof: int) -> np.ndarray:
     """(n,) residual variance of each joint's rows; a joint fitted to round-off gets the smallest
     positive variance of the others (its rows are the best read, never the worst weighted)."""
@@ -160,8 +170,7 @@ def wls(W1: np.ndarray, tau: np.ndarray, n: int, instruments: Instruments | None
         lags: int = 0) -> Estimate:
     start = time.perf_counter()
     s = column_scale(W1)
-    _, r0 = _weighted_fit(W1, tau, n, np.ones(len(tau)), s)
-    w = np.tile(1.0 / _per_joint_variance(r0, n, W1.shape[1]), len(tau) // n)
+    w = np.tile(1.0 / row_variance(W1, tau, n), len(tau) // n)
     w /= w.max()
     z, r = _weighted_fit(W1, tau, n, w, s)
     return _finish(W1 / s, z, r, w, n, s, start, lags)

@@ -17,7 +17,8 @@ carry. The base parameters are found as for a fixed base
 (harness/identify/torque_id.py, base_parameters: QR with column pivoting of the regressor at random
 states, here with the base's pose uniform on SO(3)); a floating base has more of them than the same
 robot bolted down (the base's own parameters, and those the base's motion excites), counted side by side
-(`fixed_base_parameters`).
+(`fixed_base_parameters`). The rows are of kinds whose noise no one scale serves (a force, a moment, a
+motor's torque): the fits may weight each by the inverse of its residual variance (`row_weights`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from harness.engines.pinocchio import PinocchioModel, states
+from harness.identify.estimators import row_variance
 from harness.identify.torque_id import STRUCTURAL_STATES, BaseParameters, base_parameters, fit_base, with_structure
 from harness.model import drives, friction
 from harness.model.floating import BaseMotion, random_base_motion
@@ -116,19 +118,60 @@ def measured(base_wrench_W: np.ndarray, tau: np.ndarray, rows) -> np.ndarray:
     return np.concatenate([base_wrench_W, tau], axis=1)[:, read_rows(rows, tau.shape[1])]
 
 
+def base_columns(pm: PinocchioModel, structure: BaseParameters, rows, Y: np.ndarray) -> np.ndarray:
+    """(N k, r): the rows a fit reads (`selected`) of the base parameters `structure`, from the states' `regressor`
+    with the drives' columns."""
+    return selected(Y if structure.with_friction else Y[..., :rigid_columns(pm)], rows)[:, structure.independent]
+
+
+WEIGHT_ITERATIONS = 10  # the weights' passes at most (measured: 3 to 5 settle within WEIGHT_SETTLED)
+WEIGHT_SETTLED = 1e-3  # relative change of every row's residual variance between passes that ends them
+
+
+def row_weights(pm: PinocchioModel, structure: BaseParameters, rows, training: tuple,
+                Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(k,) each read row's weight in a weighted fit, the inverse of its residual variance (harness/identify/
+    estimators.py, row_variance: Gautier and Poignet's per-joint weighting), the largest 1; and (k,) that
+    residual's standard deviation, the row's noise as the data show it. A floating base's rows are of three
+    kinds that no one scale serves: the contacts' force on the base (N), their moment about its origin (N m,
+    each foot's force noise at the foot's lever) and the motors' torques (N m, their own sensors'). The
+    ordinary least squares' residual carries the noisiest rows' noise into the others' (its fit follows the
+    forces' noise, which the moments' rows then miss): the variances are found again after the fit they
+    weight, until they settle (iterated feasible generalised least squares)."""
+    y = training[4]
+    W1, tau, k = base_columns(pm, structure, rows, Y), y.reshape(-1), y.shape[1]
+    var = row_variance(W1, tau, k)
+    for _ in range(WEIGHT_ITERATIONS):
+        again = row_variance(W1, tau, k, var.min() / var)
+        settled = np.all(np.abs(again - var) <= WEIGHT_SETTLED * var)
+        var = again
+        if settled:
+            break
+    return var.min() / var, np.sqrt(var)
+
+
+def _weighted(W: np.ndarray, y: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """W (N k, p) and y (N, k) with each sample's row i multiplied by sqrt(weights[i]) (None: as they are)."""
+    if weights is None:
+        return W, y
+    root = np.sqrt(weights)
+    return W * np.tile(root, len(y))[:, None], y * root
+
+
 def identify(pm: PinocchioModel, structure: BaseParameters, rows, training: tuple, validation: tuple | None,
-             Y: np.ndarray | None = None):
+             Y: np.ndarray | None = None, weights: np.ndarray | None = None):
     """Least squares of the base parameters `structure` from `training` = (base, q, q', q'', y), y (N, k)
     the measured rows (`measured`), judged on `validation` (the same, another motion): the fit
     (harness/identify/lstsq.py Estimate, with the structure's weak parameters) and the validation's
     predicted less measured rows (N_v, k), None without one. `Y`: the training states' `regressor` with
-    friction, where the caller has it."""
+    friction, where the caller has it. `weights` (k,): each read row's (`row_weights`), a weighted least
+    squares (its intervals the weighted problem's); None, the ordinary one."""
     base, q, qd, qdd, y = training
     friction_too = structure.with_friction
     Y = regressor(pm, base, q, qd, qdd, True) if Y is None else Y
-    W1 = selected(Y if friction_too else Y[..., :rigid_columns(pm)], rows)[:, structure.independent]
+    W1 = base_columns(pm, structure, rows, Y)
     beta_model = structure.of(true_parameters(pm, friction_too))
-    fit = with_structure(fit_base(W1, y, beta_model), structure)
+    fit = with_structure(fit_base(*_weighted(W1, y, weights), beta_model), structure)
     if validation is None:
         return fit, beta_model, None
     base_v, q_v, qd_v, qdd_v, y_v = validation
@@ -153,14 +196,14 @@ def rigid_columns(pm: PinocchioModel) -> int:
 
 
 def consistent(pm: PinocchioModel, spec: RobotSpec, rows, training: tuple, with_friction: bool,
-               Y: np.ndarray | None = None):
+               Y: np.ndarray | None = None, weights: np.ndarray | None = None):
     """The physically consistent fit of the floating robot (harness/identify/consistent.py: every body's
     pseudo-inertia positive definite, the base's included; the drives' rotor inertia, viscous and Coulomb
     friction non-negative; what the data cannot see pulled to the model's values) on the same rows as the
     least squares: (the fit, its links' order). Its links are the base's body, then each joint's body in
     the spec's order; its drives a placeholder for the base (no columns: it stays at zero) and the joints'
     (their columns where `with_friction`, else at the model's values). `Y`: the training states' `regressor`
-    with friction, where the caller has it."""
+    with friction, where the caller has it; `weights` (k,), each read row's, as the least squares' (`identify`)."""
     from harness.identify import consistent as sdp
     from harness.model.inertia import model_kind_scales
 
@@ -176,6 +219,7 @@ def consistent(pm: PinocchioModel, spec: RobotSpec, rows, training: tuple, with_
     # model, at least 1e-3 of the largest (or of 1 where the model declares none: the terms then stay at zero)
     scale = np.concatenate([model_kind_scales(theta_model).ravel(),
                             np.maximum(np.abs(friction_model), 1e-3 * np.abs(friction_model).max(initial=1.0)).ravel()])
+    W, y = _weighted(W, y, weights)
     fit = sdp.fit(W, y.reshape(-1), theta_model, friction_model, scale)
     return fit, [spec.floating.body.name, *(j.child for j in spec.joints)]
 

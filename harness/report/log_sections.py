@@ -279,6 +279,13 @@ def delays(lags: dict) -> str:
                       num(v["residual"]), num(v["residual_at_zero"])] for j, v in lags["per_joint"].items()]))
 
 
+def _estimator(e: dict) -> str:
+    """The floating log's estimator and each read row's noise as the fit's residual shows it."""
+    return (f"<p>Estimator: {esc(e['name'])} ({esc(e['definition'])}).</p>"
+            + table(["row", "residual (standard deviation)", "weight"],
+                    [[esc(r), num(v["residual_std"]), num(v["weight"])] for r, v in e["rows"].items()]))
+
+
 def floating_log(r: dict, log) -> str:
     """A floating base's log (harness/stages/floating_log.py): what each model predicts on the judged span."""
     f = r["floating_log"]
@@ -288,8 +295,9 @@ def floating_log(r: dict, log) -> str:
     for name, judged in f["judged"].items():
         measured, truth = judged["measured"], judged.get("truth")
         rows.append([esc(name), num(measured["max_rel_error"]), num(measured["rms_rel_error"]),
-                     esc(measured["max_rel_row"]), num(truth["max_rel_error"]) if truth else DASH,
-                     num(truth["rms_rel_error"]) if truth else DASH])
+                     esc(measured["max_rel_row"]),
+                     *((num(truth[k]) for k in ("max_rel_error", "rms_rel_error", "rms_rel_error_base",
+                                                "rms_rel_error_joints")) if truth else (DASH,) * 4)])
     start = f["start"]
     c = f.get("consistent")
     consistent = (f"<p>The consistent fit ({esc(c['status'])}, {esc(c['solver'])}): training residual "
@@ -301,6 +309,7 @@ def floating_log(r: dict, log) -> str:
             f"{start['findings']} finding(s) ({esc(start['definition'])}; limit {num(start['limit'])}). "
             f"{esc(f['prediction'])}. Unseen by these rows: "
             f"{esc(', '.join(f['unseen']) or 'nothing')}.</p>"
-            + table(["model", "against the log: largest", "RMS", "where", "against the truth: largest", "RMS"], rows)
-            + f"<p>{esc(f['definition'])}.</p>" + consistent + delays(f["delays"]))
+            + table(["model", "against the log: largest", "RMS", "where", "against the truth: largest", "RMS",
+                     "RMS, base rows", "RMS, motors"], rows)
+            + f"<p>{esc(f['definition'])}.</p>" + consistent + _estimator(f["estimator"]) + delays(f["delays"]))
     return section("floating_log", "A floating base's log", body)

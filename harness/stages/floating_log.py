@@ -31,15 +31,22 @@ START_LIMIT = 0.25  # the model as given may differ from the log's base rows by 
 # (a model's error is a few per cent; a wrench in the wrong axes or unit is of the order of the wrench)
 
 
+ESTIMATORS = ("wls", "ols")
+
+
 @dataclass(frozen=True)
 class FloatingLogConfig:
-    """`[floating_log] rows = "base", consistent = true, friction = ...`: `friction` (the joints' drive columns,
-    rotor inertia, viscous and Coulomb friction and offset, on their own rows) by default where the model
-    declares any and the joints' rows are read; never from the base rows alone (no drive reaches them)."""
+    """`[floating_log] rows = "base", consistent = true, friction = ..., estimator = "wls"`: `friction` (the
+    joints' drive columns, rotor inertia, viscous and Coulomb friction and offset, on their own rows) by default
+    where the model declares any and the joints' rows are read; never from the base rows alone (no drive reaches
+    them). `estimator`: "wls", both fits weight each row (the base's force and moment components, each joint's
+    torque) by the inverse of its residual variance after an ordinary least squares (floating_id.row_weights);
+    "ols", every row alike."""
 
     rows: str = "base"
     consistent: bool = True
     friction: bool = False
+    estimator: str = "wls"
 
 
 def configure(t, scenario) -> FloatingLogConfig:
@@ -48,7 +55,8 @@ def configure(t, scenario) -> FloatingLogConfig:
     friction = t.boolean("friction", default=declared and rows == "all")
     if friction and rows == "base":
         raise t.error("friction", "a drive's friction never reaches the base's rows: rows = \"all\" reads it")
-    return FloatingLogConfig(rows, t.boolean("consistent", default=True), friction)
+    return FloatingLogConfig(rows, t.boolean("consistent", default=True), friction,
+                             t.string("estimator", default="wls", choices=ESTIMATORS))
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,11 +80,13 @@ def _read(whole: tuple, rows) -> tuple:
 
 
 def _errors(predicted: np.ndarray, reference: np.ndarray, scale: np.ndarray, names: list[str]) -> dict:
-    """Each row's |predicted - reference| over its scale: the largest, where, and the RMS."""
+    """Each row's |predicted - reference| over its scale: the largest, where, and the RMS, of every row and of the
+    base's six and the joints' apart (`names` the base's six first)."""
     rel = np.abs(predicted - reference) / scale
     worst = int(np.argmax(np.max(rel, axis=0)))
-    return {"max_rel_error": float(rel.max()), "max_rel_row": names[worst],
-            "rms_rel_error": float(np.sqrt(np.mean(rel**2)))}
+    rms = lambda x: float(np.sqrt(np.mean(x**2))) if x.size else float("nan")  # noqa: E731
+    return {"max_rel_error": float(rel.max()), "max_rel_row": names[worst], "rms_rel_error": rms(rel),
+            "rms_rel_error_base": rms(rel[:, :6]), "rms_rel_error_joints": rms(rel[:, 6:])}
 
 
 def scales(whole: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -131,6 +141,18 @@ def _start(model_rows: np.ndarray, measured: np.ndarray) -> dict:
                           "force and moment each over the RMS of the log's, on the training span"}
 
 
+def _estimator(name: str, read: list[str], noise: np.ndarray, weights: np.ndarray | None) -> dict:
+    """results.json's `estimator`: which, and each read row's residual on the training span after the weighted
+    fits (floating_id.row_weights: its noise as the data show it) and its weight (1 throughout with "ols")."""
+    weights = np.ones(len(read)) if weights is None else weights
+    return {"name": name, "rows": {r: {"residual_std": float(s), "weight": float(w)}
+                                   for r, s, w in zip(read, noise, weights, strict=True)},
+            "definition": "wls weights each row by the inverse of its residual variance on the training span (a "
+                          "force, a moment and a motor's torque each read with its own noise), found from the "
+                          "ordinary least squares and again after each weighted fit until it settles, the largest "
+                          "weight 1; ols weighs every row alike"}
+
+
 def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     sc = ctx.scenario
     fl = sc.data.floating
@@ -166,7 +188,10 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     if lags is not None:  # the delays found on the training span, corrected on the span judged as they were there
         judged = delay.corrected(judged, lags, measured)
     validation, whole_v = _data(robot, fl.contacts, judged, rows)
-    fit, _, _ = floating_id.identify(pm, structure, rows, training, validation, Y_t)
+    weights, noise = floating_id.row_weights(pm, structure, rows, training, Y_t)
+    if config.estimator == "ols":
+        weights = None
+    fit, _, _ = floating_id.identify(pm, structure, rows, training, validation, Y_t, weights)
     parameters = floating_id.parameter_names(robot, pm, friction)
     holding, unseen = seen(structure, parameters, robot)
     declared = not all(f.none for f in robot.frictions)  # the model's drives judged with their laws
@@ -189,7 +214,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     out, files = {}, {}
     if config.consistent:
         ctx.progress("physically consistent parameters (semidefinite program)", None)
-        physical, links = floating_id.consistent(pm, robot, rows, training, friction, Y_t)
+        physical, links = floating_id.consistent(pm, robot, rows, training, friction, Y_t, weights)
         # its joints' rows with the drives' laws identified, or the model's where they were not
         predictions["consistent"] = floating_id.consistent_rows(pm, physical, "all", validation, friction)
         model = floating_id.link_parameters(pm)
@@ -217,6 +242,8 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
         "unseen_definition": UNSEEN, "contacts": [c.name for c in fl.contacts],
         "start": start, "parameters": len(parameters), "base_parameters": len(structure.independent),
         "condition_number": float(fit.condition_number), "judged": judged_out, **out,
+        "estimator": _estimator(config.estimator, [names[i] for i in floating_id.read_rows(rows, len(robot.joints))],
+                                noise, weights),
         "definition": "each row's |predicted - reference| over its scale on the judged span: the base's force rows "
                       "over the largest |F| of the contacts' wrench on the base, its moment rows over the largest "
                       "|M|; each joint's motor torque (its row less the contacts' J^T F as the log reads them) over "
