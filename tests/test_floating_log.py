@@ -576,3 +576,123 @@ def test_a_sensor_s_axes_follow_its_body_on_a_base_the_file_draws_turned(tmp_pat
         mujoco.mj_kinematics(model, data)
         expected = data.xmat[shin].reshape(3, 3) @ at_file.T @ R_W0
         assert np.abs(got[i] - expected).max() <= 1e-12
+
+
+def _write_bag(path, log: pd.DataFrame, kind: str, late_ns: int, missing: int | None = None) -> list[str]:
+    """The log as a lab's ROS bag (rosbags' writer): sensor_msgs/JointState on /joint_states (named joints, in
+    another order than the model's), nav_msgs/Odometry on /odom (the twist in the child frame, the base's; one
+    message more, a second after the last joint state, and the one of row `missing` left out), and a
+    geometry_msgs/WrenchStamped per foot on /<foot>/wrench, stamped `late_ns` after the joint states (another
+    sensor's clock). The joints' names, in the model's order."""
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import Writer as Writer2
+    from rosbags.typesys import Stores, get_typestore
+
+    from harness.runner.scenario import load_scenario as load
+
+    names = load(BENCH / "bench.toml").robot.joint_names
+    store = get_typestore(Stores.ROS1_NOETIC if kind == "ros1" else Stores.ROS2_HUMBLE)
+    T = store.types
+    js, odo, ws = "sensor_msgs/msg/JointState", "nav_msgs/msg/Odometry", "geometry_msgs/msg/WrenchStamped"
+    vec, quat = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
+    serialize = store.serialize_ros1 if kind == "ros1" else store.serialize_cdr
+
+    def header(ns: int, frame: str):
+        stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+        return T["std_msgs/msg/Header"](**({"seq": 0} if kind == "ros1" else {}), stamp=stamp, frame_id=frame)
+
+    order = names[::-1]  # the driver's own order
+    at = [names.index(j) for j in order]
+    writer = Writer1(path) if kind == "ros1" else Writer2(path, version=9)
+    with writer:
+        joints = writer.add_connection("/joint_states", js, typestore=store)
+        base = writer.add_connection("/odom", odo, typestore=store)
+        feet = {f: writer.add_connection(f"/{f}/wrench", ws, typestore=store) for f in FEET}
+        rows = pd.concat([log, log.iloc[-1:].assign(t=log["t"].iloc[-1] + 1.0)]).reset_index(drop=True)
+        for k, row in rows.iterrows():
+            ns = round(row["t"] * 1e9)
+            q, qd, tau = (np.array([row[f"{c}{i + 1}"] for i in at]) for c in ("q", "qd", "tau"))
+            if k < len(log):  # the odometry's extra message last
+                writer.write(joints, ns, serialize(T[js](header=header(ns, ""), name=order, position=q, velocity=qd,
+                                                         effort=tau), js))
+            pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=row["px"], y=row["py"],
+                                                                                      z=row["pz"]),
+                                               orientation=quat(x=row["qx"], y=row["qy"], z=row["qz"], w=row["qw"]))
+            twist = T["geometry_msgs/msg/Twist"](linear=vec(x=row["vx"], y=row["vy"], z=row["vz"]),
+                                                 angular=vec(x=row["wx"], y=row["wy"], z=row["wz"]))
+            msg = T[odo](header=header(ns, "world"), child_frame_id="base_link",
+                         pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+                         twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=np.zeros(36)))
+            if k != missing:
+                writer.write(base, ns, serialize(msg, odo))
+            for f, connection in feet.items() if k < len(log) else ():
+                wrench = T["geometry_msgs/msg/Wrench"](force=vec(x=row[f"{f}_fx"], y=row[f"{f}_fy"], z=row[f"{f}_fz"]),
+                                                       torque=vec(x=0.0, y=0.0, z=0.0))
+                writer.write(connection, ns + late_ns, serialize(T[ws](header=header(ns + late_ns, "world"),
+                                                                      wrench=wrench), ws))
+    return names
+
+
+def _from_bag(text: str, log: str, bag: str) -> str:
+    """A CSV log's scenario (`_scenario`) made the same log's from its bag (`_write_bag`): the joint states' topic,
+    the base's odometry topic (its twist in base axes) and each foot's wrench topic."""
+    text = text.replace(f'file = "{log}"\ncolumns = {{ t = "t", q = "q{{j}}", qd = "qd{{j}}", tau = "tau{{j}}" }}',
+                        f'bag = "{bag}"\ntopic = "/joint_states"')
+    text = re.sub(r'\[data\.base\].*?(?=\[\[data\.contacts\]\])',
+                  '[data.base]\ntopic = "/odom"\ntwist_axes = "base"\n\n', text, flags=re.DOTALL)
+    return re.sub(r'force = \["(\w+)_fx", "\w+", "\w+"\]', r'topic = "/\1/wrench"', text)
+
+
+@pytest.mark.parametrize("kind", ["ros2", "ros1"])
+def test_a_floating_log_in_a_ros_bag_reads_as_its_csv(standing, tmp_path, kind):
+    """The log as a ROS bag (`_write_bag`: joint states, the base's odometry with one message more and row 150's
+    left out, each foot's wrench 0.1 ms later): `[data] bag` with `[data.base] topic` and each contact's `topic`,
+    joined on the stamps to the joint states' (the feet's to the nearest, the joint state without an odometry
+    dropped, both said), reads as the same log written as a CSV with the stamps' times, that row left out: the
+    conditioned training span's every channel to the bit."""
+    _write(standing, tmp_path / "log.csv")
+    log = pd.read_csv(tmp_path / "log.csv")
+    ns = np.round(log["t"].to_numpy() * 1e9).astype(np.int64)
+    log["t"] = ns // 10**9 + (ns % 10**9) * 1e-9  # the stamps' times, as a bag's reader adds them
+    log.drop(index=150).to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    plain = load_scenario(_scenario(tmp_path, tmp_path / "log.csv"))
+    (tmp_path / "b").mkdir()
+    _write_bag(tmp_path / "b" / ("run.bag" if kind == "ros1" else "run"), log, kind, 100_000, missing=150)
+    (tmp_path / "b" / "s.toml").write_text(_from_bag(_scenario(tmp_path / "b", "x").read_text(), "x",
+                                                     "run.bag" if kind == "ros1" else "run"))
+    published = load_scenario(tmp_path / "b" / "s.toml")
+    a, b = (load(sc.data, sc.robot).training for sc in (plain, published))
+    for field in ("t", "q", "qd", "qdd", "tau", "base_pose", "base_twist_W", "base_rate_W", "contact_F_W",
+                  "contact_x_W"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+    said = b.meta["warnings"]
+    assert any("/FL_foot/wrench joined to the joint states on 'header.stamp': 300 of 300 rows to the nearest" in w
+               for w in said), said
+    assert any("1 of 301 rows of the joint states have no row of /odom within half a step" in w for w in said), said
+
+
+def test_a_floating_log_s_topics_badly_given_are_refused_in_one_line(standing, tmp_path, capsys):
+    """A bag's base and contacts are topics, a CSV's columns, each refused in the other's place; a topic the bag
+    lacks, or of another message type, is refused at load naming the scenario's key and what the bag has."""
+    _write(standing, tmp_path / "log.csv")
+    _write_bag(tmp_path / "run", pd.read_csv(tmp_path / "log.csv").iloc[:40], "ros2", 0)
+    csv = _scenario(tmp_path, "log.csv").read_text()
+    bag = _from_bag(csv, "log.csv", "run")
+    cases = [
+        (csv.replace('twist_axes = "base"', 'twist_axes = "base"\ntopic = "/odom"'), "data.base.topic",
+         "read from a ROS bag"),
+        (bag.replace('topic = "/odom"', 'position = ["px", "py", "pz"]'), "data.base.topic", "missing"),
+        (bag.replace('topic = "/odom"', 'topic = "/odom"\norder = "xyzw"'), "data.base.order", "carry it"),
+        (bag.replace('topic = "/FL_foot/wrench"', 'topic = "/FL_foot/wrench"\nforce = ["a", "b", "c"]'),
+         "data.contacts[0].force", "carry it"),
+        (bag.replace('topic = "/odom"', 'topic = "/imu"'), "data.base.topic", "no topic '/imu' in the bag"),
+        (bag.replace('topic = "/odom"', 'topic = "/FL_foot/wrench"'), "data.base.topic", "not nav_msgs/Odometry"),
+        (bag.replace('topic = "/HR_foot/wrench"', 'topic = "/odom"'), "data.contacts[3].topic",
+         "not geometry_msgs/WrenchStamped"),
+    ]
+    for text, key, said in cases:
+        (tmp_path / "bad.toml").write_text(text)
+        assert main(["run", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "bad"), "--quiet"]) == 2, key
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and key in err[0] and said in err[0], err
+        assert not (tmp_path / "bad").exists()

@@ -212,7 +212,7 @@ def load_reference(ref: str, folder: Path) -> Any:
     return obj
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _installed(group: str) -> tuple:
     """The entry points of `group` installed, read once per process: importlib.metadata reads every installed
     distribution's metadata at each call (9 ms here, with this project's dependencies), and every scenario

@@ -18,6 +18,20 @@
     rpy = [0.0, 0.0, 0.0]                          # with axes = "body": the sensor's axes at q = 0, as a URDF
                                                    # <origin rpy> in world (rad; default: the world's axes)
 
+From a ROS bag (`[data] bag`, its joint states' `topic`), the base and each contact are topics of the same bag,
+joined on their stamps to the joint states' (exactly, or the nearest within half a step, said):
+
+    [data.base]
+    topic = "/odom"                                # nav_msgs/Odometry: position, orientation (x y z w), twist
+    twist_axes = "base"                            # declared: REP 105 puts it in the child frame, estimators vary
+
+    [[data.contacts]]
+    name = "FL_foot"
+    body = "FL_LOWER_LEG"
+    point = [0.1946, 0.14695, -0.32]
+    topic = "/FL_foot/wrench"                      # geometry_msgs/WrenchStamped: force and torque about the point
+    axes = "world"                                 # the frame its header names, declared as for columns
+
 Read into the harness's convention (harness/model/floating.py, every vector in world axes): the quaternion
 put in w x y z order and refused where its norm is off 1 by more than QUATERNION_NORM (a column in the wrong
 order or unit reads as that), then normalised, its sign made continuous (q and -q are one orientation: a
@@ -54,6 +68,7 @@ class LogContact:
     torque: tuple[str, ...] | None
     axes: str
     R_W0: np.ndarray | None = None  # axes = "body": the sensor's axes at q = 0 in world (`rpy`)
+    topic: str | None = None  # a bag's geometry_msgs/WrenchStamped topic (its force and torque), else columns
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,13 +81,14 @@ class FloatingLog:
     twist: tuple[str, ...]
     twist_axes: str
     contacts: tuple[LogContact, ...] = ()
+    topic: str | None = None  # a bag's nav_msgs/Odometry topic (its pose and twist), else columns
 
     def describe(self) -> dict:
         return {"position": list(self.position), "quaternion": list(self.quaternion), "order": self.order,
-                "twist": list(self.twist), "twist_axes": self.twist_axes,
+                "twist": list(self.twist), "twist_axes": self.twist_axes, "topic": self.topic,
                 "contacts": [{"name": c.name, "body": c.body, "point": [float(x) for x in c.point_W0],
                               "force": list(c.force), "torque": list(c.torque) if c.torque else None, "axes": c.axes,
-                              **({"R_W0": c.R_W0.tolist()} if c.R_W0 is not None else {})}
+                              "topic": c.topic, **({"R_W0": c.R_W0.tolist()} if c.R_W0 is not None else {})}
                              for c in self.contacts]}
 
     def columns(self) -> dict[str, list[str]]:
@@ -97,9 +113,14 @@ def read_floating_log(t: Table, robot: RobotSpec) -> FloatingLog | None:
     why = not_free(robot, "read from a log")
     if why is not None:
         raise t.error("base", why)
-    b = t.table("base")
-    base = FloatingLog(_names(b, "position", 3), _names(b, "quaternion", 4), b.string("order", choices=ORDERS),
-                       _names(b, "twist", 6), b.string("twist_axes", choices=AXES))
+    b, bag = t.table("base"), t.has("bag")
+    if _from_topic(b, bag, ("position", "quaternion", "order", "twist"), "nav_msgs/Odometry"):
+        topic = b.string("topic")  # the message's own names, its quaternion in x y z w order
+        position, quaternion, twist = _odometry_names(topic)
+        base = FloatingLog(position, quaternion, "xyzw", twist, b.string("twist_axes", choices=AXES), topic=topic)
+    else:
+        base = FloatingLog(_names(b, "position", 3), _names(b, "quaternion", 4), b.string("order", choices=ORDERS),
+                           _names(b, "twist", 6), b.string("twist_axes", choices=AXES))
     b.finish()
     contacts, bodies = [], {x.name for x in robot.massive_bodies}
     for ct in t.tables("contacts") if t.has("contacts") else ():
@@ -116,10 +137,59 @@ def read_floating_log(t: Table, robot: RobotSpec) -> FloatingLog | None:
             from harness.model.urdf import rpy_matrix
 
             R_W0 = rpy_matrix(ct.vector("rpy", 3)) if ct.has("rpy") else np.eye(3)
-        contacts.append(LogContact(name, body, ct.vector("point"), _names(ct, "force", 3),
-                                   _names(ct, "torque", 3) if ct.has("torque") else None, axes, R_W0))
+        if _from_topic(ct, bag, ("force", "torque"), "geometry_msgs/WrenchStamped"):
+            topic = ct.string("topic")
+            force, torque = ([f"{topic}: wrench.{kind}.{x}" for x in "xyz"] for kind in ("force", "torque"))
+            contacts.append(LogContact(name, body, ct.vector("point"), tuple(force), tuple(torque), axes, R_W0, topic))
+        else:
+            contacts.append(LogContact(name, body, ct.vector("point"), _names(ct, "force", 3),
+                                       _names(ct, "torque", 3) if ct.has("torque") else None, axes, R_W0))
         ct.finish()
-    return FloatingLog(base.position, base.quaternion, base.order, base.twist, base.twist_axes, tuple(contacts))
+    return FloatingLog(base.position, base.quaternion, base.order, base.twist, base.twist_axes, tuple(contacts),
+                       base.topic)
+
+
+def _from_topic(t: Table, bag: bool, columns: tuple[str, ...], message: str) -> bool:
+    """Whether a base's or a contact's channels are a bag's topic (`topic`, of `message`) rather than a CSV's
+    `columns`: a bag's are topics, a CSV's columns, each refused in the other's place."""
+    if t.has("topic") and not bag:
+        raise t.error("topic", "a topic is read from a ROS bag: give [data] bag, or the CSV's columns")
+    if bag and not t.has("topic"):
+        raise t.error("topic", f"missing: a bag's {'base' if 'twist' in columns else 'contact'} is read from its "
+                               f"{message} topic")
+    given = [k for k in columns if t.has(k)]
+    if bag and given:
+        raise t.error(given[0], f"the {message} messages carry it: no column to give")
+    return bag
+
+
+def _odometry_names(topic: str) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
+    """The position's, the quaternion's (x y z w) and the twist's names of a nav_msgs/Odometry topic."""
+    return (tuple(f"{topic}: pose.pose.position.{x}" for x in "xyz"),
+            tuple(f"{topic}: pose.pose.orientation.{x}" for x in "xyzw"),
+            tuple(f"{topic}: twist.twist.{kind}.{x}" for kind in ("linear", "angular") for x in "xyz"))
+
+
+def bag_channels(fl: FloatingLog, path, t_joints: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray], dict,
+                                                                      list[str]]:
+    """The base's and the contacts' channels of a bag, their topics' messages joined on their stamps to the
+    joint states' (harness/sources/log/join.py: exactly, or the nearest within half a step, said): which joint
+    states are kept (N,), the channels {kind: (kept, k)} (FloatingLog.columns' kinds), the join's record and what
+    it says."""
+    from harness.sources.bag import ODOMETRY, WRENCH, read_stamped
+    from harness.sources.log.join import join_on_time
+
+    topics = {fl.topic: read_stamped(path, fl.topic, ODOMETRY, "data.base.topic")}
+    for k, c in enumerate(fl.contacts):
+        if c.topic not in topics:
+            topics[c.topic] = read_stamped(path, c.topic, WRENCH, f"data.contacts[{k}].topic")
+    join = join_on_time("the joint states", t_joints, {topic: v[0] for topic, v in topics.items()}, "header.stamp")
+    odometry = topics[fl.topic][1][join.rows[fl.topic]]
+    read = {"base_position": odometry[:, :3], "base_quaternion": odometry[:, 3:7], "base_twist": odometry[:, 7:]}
+    for c in fl.contacts:
+        wrench = topics[c.topic][1][join.rows[c.topic]]
+        read[f"contact_force:{c.name}"], read[f"contact_torque:{c.name}"] = wrench[:, :3], wrench[:, 3:]
+    return join.keep, read, join.record, join.warnings
 
 
 def _names(t: Table, key: str, n: int) -> tuple[str, ...]:
@@ -173,17 +243,18 @@ def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of, ro
 
 
 def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> FloatingLog:
-    """What a floating base's log is not read with yet, refused in one line naming the key: a ROS bag (its
-    base and contacts are other topics), joint-side torques (no motor-side log or payload; currents with their
-    declared constants are read as torques, constants identified are not; unmeasured channels, `unmeasured`,
-    leave their joints' rows unread and unjudged); no
+    """What a floating base's log is not read with yet, refused in one line naming the key: joint-side torques
+    (no motor-side log or payload; currents with their declared constants are read as torques, constants
+    identified are not; unmeasured channels, `unmeasured`, leave their joints' rows unread and unjudged); no
     identification method, friction law search or refinement beside it (their fits read a fixed base). A log
     in several files joined on time, or with its torques in a file of their own, is read as for an arm, the
     base's and contacts' columns in any of the files (in `file` beside a torque file); the torque channels'
     delays are estimated and corrected as an arm's (`delay`); its validation a part of it or another log
-    (`validation = { file = ... }`, in the same columns)."""
+    (`validation = { file = ... }`, in the same columns). From a ROS bag, the base's pose and twist are its
+    nav_msgs/Odometry topic and each contact's wrench its geometry_msgs/WrenchStamped topic (`topic`), joined on
+    their stamps to the joint states'."""
     why = "not read with a floating base's log yet (docs/floating_base.md)"
-    for key, given in (("bag", source.topic is not None), ("side", source.side != "joint"),
+    for key, given in (("side", source.side != "joint"),
                        ("identify_torque_constants", source.identify_constants),
                        ("payload", source.payload is not None),
                        ("repeat", source.repeat is not None),

@@ -27,10 +27,16 @@ class Join:
     warnings: list[str]
 
 
-def join_on_time(reference: Path, t_ref: np.ndarray, others: dict[Path, np.ndarray], column: str) -> Join:
+def _name(source: Path | str) -> str:
+    """A file's name, or a bag's topic as it is."""
+    return source.name if isinstance(source, Path) else source
+
+
+def join_on_time(reference: Path | str, t_ref: np.ndarray, others: dict, column: str) -> Join:
     """Each file of `others` ({file: its times (M,)}, times in the same unit and origin as t_ref (N,))
     joined to the reference's rows: exactly, or to its nearest row within half the reference's median
-    step (`column`, the time column's name, for the errors)."""
+    step (`column`, the time column's name, for the errors). A bag's topics join as files do, each named by
+    its topic (a str) where a file is by its path."""
     steps = np.diff(t_ref)
     tolerance = 0.5 * float(np.median(steps[steps > 0])) if np.any(steps > 0) else 0.0
     keep = np.ones(len(t_ref), dtype=bool)
@@ -49,7 +55,7 @@ def join_on_time(reference: Path, t_ref: np.ndarray, others: dict[Path, np.ndarr
         keep &= offsets[path] <= tolerance
     if keep.sum() < MIN_JOINED:
         worst = max(others, key=lambda p: int(np.sum(offsets[p] > tolerance)))
-        raise InputError(worst, column, f"{int(keep.sum())} rows of {reference.name} have a row of every file within "
+        raise InputError(worst, column, f"{int(keep.sum())} rows of {_name(reference)} have a row of every file within "
                                         f"half a step ({tolerance:.3g} s): not the files of one run, or not of "
                                         "one clock (times in another unit or from another origin?)")
     record = {"reference": str(reference), "column": column, "tolerance_s": tolerance,
@@ -62,11 +68,12 @@ def join_on_time(reference: Path, t_ref: np.ndarray, others: dict[Path, np.ndarr
                                       "largest_offset_s": float(off.max()),
                                       "unmatched_rows_of_reference": int(np.sum(offsets[path] > tolerance))}
         if exact < len(off):
-            warnings.append(f"{path.name} joined to {reference.name} on {column!r}: {len(off) - exact} of {len(off)} "
-                            f"rows to the nearest within half a step (largest offset {off.max() * 1e3:.3g} ms)")
+            warnings.append(f"{_name(path)} joined to {_name(reference)} on {column!r}: {len(off) - exact} of "
+                            f"{len(off)} rows to the nearest within half a step (largest offset {off.max() * 1e3:.3g} "
+                            "ms)")
     dropped = len(t_ref) - int(keep.sum())
     if dropped:
-        alone = [p.name for p in others if np.any(offsets[p] > tolerance)]
-        warnings.append(f"{dropped} of {len(t_ref)} rows of {reference.name} have no row of {', '.join(alone)} within "
-                        f"half a step ({tolerance * 1e3:.3g} ms): dropped")
+        alone = [_name(p) for p in others if np.any(offsets[p] > tolerance)]
+        warnings.append(f"{dropped} of {len(t_ref)} rows of {_name(reference)} have no row of {', '.join(alone)} "
+                        f"within half a step ({tolerance * 1e3:.3g} ms): dropped")
     return Join(keep, {p: nearest[p][keep] for p in others}, record, warnings)

@@ -95,11 +95,14 @@ def check_columns(source: DataSource, robot: RobotSpec, t: Table) -> None:
     """At load, before any work: the log (and a validation log) has the columns the scenario names,
     or the bag the topic."""
     if source.topic is not None:
-        from harness.sources.bag import check_bag
+        from harness.sources.bag import ODOMETRY, WRENCH, check_bag
 
+        fl = source.floating  # a floating base's topics: its odometry and its contacts' wrenches
+        others = () if fl is None else ((fl.topic, ODOMETRY, "data.base.topic"), *(
+            (c.topic, WRENCH, f"data.contacts[{k}].topic") for k, c in enumerate(fl.contacts)))
         for path in (source.file, source.validation_file, source.payload and source.payload.file):
             if path is not None:
-                check_bag(path, source.topic)
+                check_bag(path, source.topic, others)
         return
     if source.joined:
         _holders(source, robot, {p: _header(p, _first_line(p)) for p in source.files})
@@ -162,13 +165,26 @@ def read_raw(source: DataSource, robot: RobotSpec, file: Path | None = None) -> 
 
         t, q, qd, tau = read_bag(path, source.topic, source.log_names(robot.joint_names))
         tau = np.where([j in source.unmeasured for j in robot.joint_names], 0.0, tau)  # what it says, not read
+        joined, notes, channels = None, [], {}
+        if source.floating is not None:  # the base's and the contacts' topics, joined to the joint states
+            from harness.sources.log.floating import bag_channels
+
+            keep, channels, joined, notes = bag_channels(source.floating, path, t)
+            t, q, tau, qd = t[keep], q[keep], tau[keep], None if qd is None else qd[keep]
         q, qd, tau = to_si(source, robot, q, qd, tau)
         kinds, names = ("q", "qd", "tau"), [f"{source.topic}: {j}" for j in source.log_names(robot.joint_names)]
         _refuse_absurd(source, robot, {"q": q, "qd": qd, "tau": tau}, dict.fromkeys(kinds, path),
                        dict.fromkeys(kinds, names), lambda i: f"message {i + 1}")
-        record = _read_record(source, robot, [path], f"the bag's stamps (topic {source.topic})")
+        record = _read_record(source, robot, [path], f"the bag's stamps (topic {source.topic})", notes)
+        extra = {}
+        if joined is not None:
+            from harness.sources.log.floating import in_convention
+
+            record["joined_on_time"] = joined
+            extra = in_convention(source.floating, channels, path, lambda i: f"joint state {i + 1} joined", robot, q)
         series = raw_log(path, digest(path), t, *at_joints(source, robot, q, qd, tau), tuple(robot.joint_names),
-                         record, {"t": [f"{source.topic}: header.stamp"], **dict.fromkeys(kinds, names)})
+                         record, {"t": [f"{source.topic}: header.stamp"], **dict.fromkeys(kinds, names),
+                                  **({} if source.floating is None else source.floating.columns())}, extra)
         return _windowed(source, series)
     from harness.sources.log.indexed import resolved
 
