@@ -800,3 +800,21 @@ def test_the_identified_model_drifts_in_simulation_about_as_little_as_the_truth(
         assert m["consistent"][h]["diverged"] == 0
         assert m["consistent"][h]["q_rms"] <= 3 * m["truth"][h]["q_rms"], (h, m["consistent"][h], m["truth"][h])
     assert m["model as given"]["h200ms"]["q_rms"] > 10 * m["truth"]["h200ms"]["q_rms"]
+
+
+def test_a_signed_constant_s_interval_reads_low_to_high():
+    """results.json's torque constants: a motor wired the other way has a negative constant, and its identified
+    constant's 95 % interval (the factor's interval times the nominal constant) is written low to high, the
+    identified value inside it, as a positive one's."""
+    from types import SimpleNamespace
+
+    from harness.identify.scale import TorqueScales
+    from harness.stages.log_results import _constants_section
+
+    found = TorqueScales(np.array([1.1, 0.9]), np.array([0.01, 0.02]), np.array([[1.08, 1.12], [0.86, 0.94]]),
+                         "payload", 0.01, 1.0, 0.0, 200, 40)
+    section = _constants_section(found, SimpleNamespace(torque_constant=(0.05, -0.2)), ["a", "b"])
+    for joint, nominal in (("a", 0.05), ("b", -0.2)):
+        v = section["per_joint"][joint]
+        assert v["ci95"][0] < v["identified"] < v["ci95"][1] and v["nominal"] == nominal
+    assert section["per_joint"]["b"]["ci95"] == pytest.approx([-0.188, -0.172], rel=1e-12)

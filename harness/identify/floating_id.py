@@ -138,8 +138,12 @@ def row_weights(pm: PinocchioModel, structure: BaseParameters, rows, training: t
     ordinary least squares' residual carries the noisiest rows' noise into the others' (its fit follows the
     forces' noise, which the moments' rows then miss): the variances are found again after the fit they
     weight, until they settle (iterated feasible generalised least squares)."""
-    y = training[4]
-    W1, tau, k = base_columns(pm, structure, rows, Y), y.reshape(-1), y.shape[1]
+    return _settled_weights(base_columns(pm, structure, rows, Y), training[4])
+
+
+def _settled_weights(W1: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """`row_weights` of the regressor W1 (N k, p) and the rows y (N, k)."""
+    tau, k = y.reshape(-1), y.shape[1]
     var = row_variance(W1, tau, k)
     for _ in range(WEIGHT_ITERATIONS):
         again = row_variance(W1, tau, k, var.min() / var)
@@ -148,6 +152,33 @@ def row_weights(pm: PinocchioModel, structure: BaseParameters, rows, training: t
         if settled:
             break
     return var.min() / var, np.sqrt(var)
+
+
+def torque_factors(pm: PinocchioModel, structure: BaseParameters, rows, training: tuple, Y: np.ndarray,
+                   motor: np.ndarray, weighted: bool = True):
+    """Each read joint's torque factor c_j, the torque its motor gives over the torque its currents give with
+    the declared constant, identified with the base parameters beta from every read row (`rows`: the base's six
+    and the joints'): joint j's rows Y_j beta - c_j tau_j = (J^T F)_j, the base's Y_base beta = w. The contacts'
+    wrench, read in newtons by no motor constant, fixes the scale that a log of currents alone leaves free (an
+    arm needs a known payload for it: harness/identify/scale.py). `training` = (base, q, q', q'', y), y (N, 6 + m)
+    the read rows as measured (each joint's its motor's torque at the declared constant plus the contacts' J^T F);
+    `motor` (N, m) the motors' part; `Y` the states' `regressor` with the drives' columns. Weighted by each row's
+    residual variance as the fits are (`row_weights`, on this problem), or alike. The Estimate of (beta, c) and
+    m, the number of factors at its end."""
+    y = training[4]
+    N, k = y.shape
+    m = motor.shape[1]
+    if k != 6 + m:
+        raise ValueError(f"the constants are read from the base's rows and every measured joint's: {k} rows, "
+                         f"{m} joints")
+    C = np.zeros((N, k, m))
+    C[:, 6 + np.arange(m), np.arange(m)] = -motor
+    W = np.concatenate([base_columns(pm, structure, rows, Y), C.reshape(N * k, m)], axis=1)
+    rhs = y.copy()
+    rhs[:, 6:] -= motor  # the joints' rows less their motors' part: the contacts' J^T F
+    weights = _settled_weights(W, rhs)[0] if weighted else None
+    beta_model = np.concatenate([structure.of(true_parameters(pm, structure.with_friction)), np.ones(m)])
+    return fit_base(*_weighted(W, rhs, weights), beta_model)
 
 
 def _weighted(W: np.ndarray, y: np.ndarray, weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:

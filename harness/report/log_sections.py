@@ -85,16 +85,7 @@ def log_identification(r: dict, log) -> str:
                                            for m, v in pred["models"].items()]))
     elif pred.get("note"):
         extra += f"<h3>Forward simulation under the measured torques</h3><p>{esc(pred['note'])}.</p>"
-    constants = li.get("torque_constants")
-    if constants:
-        extra += ("<h3>Torque constants (motor currents)</h3>"
-                  f"<p>{esc(constants['definition'])}. The common scale is fixed by "
-                  f"{esc(constants['common_scale']['fixed_by'])}.</p>"
-                  + table(["joint", "nominal [N m/A]", "factor", "identified [N m/A]", "95 % interval [N m/A]",
-                           "factor's std"],
-                          [[esc(j), num(v["nominal"]), num(v["factor"]), num(v["identified"]),
-                            f"{num(v['ci95'][0])} to {num(v['ci95'][1])}", num(v["factor_std"])]
-                           for j, v in constants["per_joint"].items()]))
+    extra += torque_constants(li.get("torque_constants"))
     joints = list(li["errors"][span][models[0]]["per_joint"])
     per_joint = table(["joint", *(f"{m}: RMS [N m] / relative" for m in models)],
                       [[esc(j), *(f"{num(li['errors'][span][m]['per_joint'][j]['rms_error'])} / "
@@ -279,6 +270,20 @@ def delays(lags: dict) -> str:
                       num(v["residual"]), num(v["residual_at_zero"])] for j, v in lags["per_joint"].items()]))
 
 
+def torque_constants(constants: dict | None) -> str:
+    """The motor currents' constants identified (an arm's log or a floating base's), or nothing."""
+    if not constants:
+        return ""
+    return ("<h3>Torque constants (motor currents)</h3>"
+            f"<p>{esc(constants['definition'])}. The common scale is fixed by "
+            f"{esc(constants['common_scale']['fixed_by'])}.</p>"
+            + table(["joint", "nominal [N m/A]", "factor", "identified [N m/A]", "95 % interval [N m/A]",
+                     "factor's std"],
+                    [[esc(j), num(v["nominal"]), num(v["factor"]), num(v["identified"]),
+                      f"{num(v['ci95'][0])} to {num(v['ci95'][1])}", num(v["factor_std"])]
+                     for j, v in constants["per_joint"].items()]))
+
+
 def _estimator(e: dict) -> str:
     """The floating log's estimator and each read row's noise as the fit's residual shows it."""
     return (f"<p>Estimator: {esc(e['name'])} ({esc(e['definition'])}).</p>"
@@ -311,5 +316,6 @@ def floating_log(r: dict, log) -> str:
             f"{esc(', '.join(f['unseen']) or 'nothing')}.</p>"
             + table(["model", "against the log: largest", "RMS", "where", "against the truth: largest", "RMS",
                      "RMS, base rows", "RMS, motors"], rows)
-            + f"<p>{esc(f['definition'])}.</p>" + consistent + _estimator(f["estimator"]) + delays(f["delays"]))
+            + f"<p>{esc(f['definition'])}.</p>" + consistent + _estimator(f["estimator"])
+            + torque_constants(f.get("torque_constants")) + delays(f["delays"]))
     return section("floating_log", "A floating base's log", body)

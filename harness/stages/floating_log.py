@@ -22,6 +22,7 @@ from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model
 from harness.identify import consistent as sdp
 from harness.identify import delay, floating_id
+from harness.identify.scale import scaled
 from harness.stages.context import VALIDATION_SPAN
 from harness.stages.floating_fit import UNSEEN, seen, whole_rows
 from harness.stages.log_results import delay_section
@@ -141,6 +142,58 @@ def _start(model_rows: np.ndarray, measured: np.ndarray) -> dict:
                           "force and moment each over the RMS of the log's, on the training span"}
 
 
+def _judged(ctx, lags: delay.Delays | None, factor: np.ndarray | None, measured: list[str]) -> tuple:
+    """The span judged (the validation span, else the training span) and its series, read as the training span was
+    read for the fits: its torque channels' delays corrected and its torques at the constants found there."""
+    span = ctx.validation.get(VALIDATION_SPAN)
+    name, judged = ("validation", span) if span is not None else ("training", ctx.training)
+    if lags is not None:
+        judged = delay.corrected(judged, lags, measured)
+    if factor is not None:
+        judged = scaled(judged, factor, measured)
+    return name, judged
+
+
+def _truth_rows(sc, data: tuple) -> np.ndarray | None:
+    """(N, 6 + n): the rows the robot that made a bench log (`[data] truth`) gives at the states of `data`; None
+    without one."""
+    if sc.truth is None:
+        return None
+    truth_pm = build_model(sc.truth, sc.gravity_W, floating=True)
+    own = not all(f.none for f in sc.truth.frictions)
+    return floating_id.regressor(truth_pm, *data[:4], own) @ floating_id.true_parameters(truth_pm, own)
+
+
+def _torque_constants(ctx, pm, structure, rows, span, whole: tuple, Y: np.ndarray, measured: list[str],
+                      weighted: bool) -> tuple:
+    """Where a log of motor currents asks for its constants (`identify_torque_constants`): each measured joint's
+    factor identified with the base parameters from the base's rows and the joints' (floating_id.torque_factors:
+    the contacts' wrench fixes the scale), and the training span `span` (its `whole_rows` `whole`, its regressor
+    Y) with every torque times its factor; the factors (None where not asked) and results.json's section, as an
+    arm's (harness/stages/log_results.py)."""
+    data = ctx.scenario.data
+    if not data.identify_constants:
+        return span, None, None
+    ctx.progress("torque constants (motor currents), their scale the contacts' wrenches'", None)
+    motor = span.joint_data(measured)[3]
+    est = floating_id.torque_factors(pm, structure, rows, _read(whole, rows)[0], Y, motor, weighted)
+    m = len(measured)
+    factor, std, half = est.beta[-m:], est.std[-m:], est.ci_half_width[-m:]
+    nominal = [data.torque_constant[ctx.scenario.robot.joint_names.index(j)] for j in measured]
+    section = {
+        "definition": "per joint, the torque it carries over the torque its currents give with the nominal constant, "
+                      "identified with the base parameters from the base's rows and the joints' (harness/identify/"
+                      "floating_id.py, torque_factors); identified = factor x nominal; ci95 its 95 % interval (the "
+                      "least squares' CR3 interval, clustered by sample), for this log's motion and its noise; read "
+                      "from the training span, and applied to the span judged as found there",
+        "fixed_by": "contacts",
+        "common_scale": {"fixed_by": "the contacts' wrenches on the base, read in newtons by no motor constant"},
+        "per_joint": {j: {"nominal": k, "factor": float(f), "identified": float(f * k), "factor_std": float(sd),
+                          "ci95": sorted([float((f - h) * k), float((f + h) * k)])}  # low to high: k is signed
+                      for j, k, f, sd, h in zip(measured, nominal, factor, std, half, strict=True)}}
+    return scaled(span, factor, measured), factor, section
+
+
 def _estimator(name: str, read: list[str], noise: np.ndarray, weights: np.ndarray | None) -> dict:
     """results.json's `estimator`: which, and each read row's residual on the training span after the weighted
     fits (floating_id.row_weights: its noise as the data show it) and its weight (1 throughout with "ols")."""
@@ -183,10 +236,11 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     structure = ctx.once(("floating-base structural base parameters", rows if isinstance(rows, str) else tuple(rows),
                           friction),
                          lambda: floating_id.structural_base(pm, robot.limits, rows, with_friction=friction))
-    span = ctx.validation.get(VALIDATION_SPAN)
-    judged_span, judged = ("validation", span) if span is not None else ("training", ctx.training)
-    if lags is not None:  # the delays found on the training span, corrected on the span judged as they were there
-        judged = delay.corrected(judged, lags, measured)
+    training_span, factor, constants = _torque_constants(ctx, pm, structure, rows, training_span, whole, Y_t, measured,
+                                                         config.estimator == "wls")
+    if factor is not None:  # the torques at the constants found: the training span's rows read again
+        training, whole_t = _data(robot, fl.contacts, training_span, rows)
+    judged_span, judged = _judged(ctx, lags, factor, measured)
     validation, whole_v = _data(robot, fl.contacts, judged, rows)
     weights, noise = floating_id.row_weights(pm, structure, rows, training, Y_t)
     if config.estimator == "ols":
@@ -204,12 +258,8 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     lsq = floating_id.selected(Y_v if friction else Y_v[..., :rigid], "all")[:, structure.independent] @ fit.beta
     predictions = {"least_squares": lsq.reshape(len(whole_v), -1),
                    "model_as_given": Y_v @ floating_id.true_parameters(pm, declared)}
-    truth_rows = None
-    if sc.truth is not None:
-        truth_pm = build_model(sc.truth, sc.gravity_W, floating=True)
-        own = not all(f.none for f in sc.truth.frictions)
-        truth_rows = (floating_id.regressor(truth_pm, *validation[:4], own)
-                      @ floating_id.true_parameters(truth_pm, own))
+    truth_rows = _truth_rows(sc, validation)
+    if truth_rows is not None:
         predictions["truth"] = truth_rows
     out, files = {}, {}
     if config.consistent:
@@ -249,7 +299,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
                       "|M|; each joint's motor torque (its row less the contacts' J^T F as the log reads them) over "
                       "its largest |value| in the log; `measured` against the log's, `truth` against what the robot "
                       "that made it gives at the same states and contact forces",
-        "delays": delays,
+        "delays": delays, "torque_constants": constants,
         "prediction": "No forward prediction from a floating base's log: the contacts' forces, read here, would have "
                       "to be simulated (a contact law the harness does not identify)"}
     return FloatingLogFit(results, files)

@@ -247,7 +247,8 @@ def _constants_section(constants, source, joints: list[str]) -> dict | None:
             "per_joint": {j: {"nominal": source.torque_constant[k], "factor": float(c.factor[k]),
                               "identified": float(c.factor[k] * source.torque_constant[k]),
                               "factor_std": finite_or_null(float(c.std[k])),
-                              "ci95": [finite_or_null(float(v * source.torque_constant[k])) for v in c.ci95[k]]}
+                              "ci95": [finite_or_null(v) for v in  # low to high: a constant may be signed
+                                       sorted(float(v * source.torque_constant[k]) for v in c.ci95[k])]}
                           for k, j in enumerate(joints)}}
 
 

@@ -244,18 +244,17 @@ def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of, ro
 
 def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> FloatingLog:
     """What a floating base's log is not read with yet, refused in one line naming the key: joint-side torques
-    (no motor-side log or payload; currents with their declared constants are read as torques, constants
-    identified are not; unmeasured channels, `unmeasured`, leave their joints' rows unread and unjudged); no
-    identification method, friction law search or refinement beside it (their fits read a fixed base). A log
-    in several files joined on time, or with its torques in a file of their own, is read as for an arm, the
-    base's and contacts' columns in any of the files (in `file` beside a torque file); the torque channels'
-    delays are estimated and corrected as an arm's (`delay`); its validation a part of it or another log
-    (`validation = { file = ... }`, in the same columns). From a ROS bag, the base's pose and twist are its
-    nav_msgs/Odometry topic and each contact's wrench its geometry_msgs/WrenchStamped topic (`topic`), joined on
-    their stamps to the joint states'."""
+    (no motor-side log or payload; currents with their declared constants are read as torques, and their
+    constants identified, the scale the contacts' wrenches', with `[floating_log] rows = "all"`; unmeasured
+    channels, `unmeasured`, leave their joints' rows unread and unjudged); no identification method, friction
+    law search or refinement beside it (their fits read a fixed base). A log in several files joined on time,
+    or with its torques in a file of their own, is read as for an arm, the base's and contacts' columns in any
+    of the files (in `file` beside a torque file); the torque channels' delays are estimated and corrected as
+    an arm's (`delay`); its validation a part of it or another log (`validation = { file = ... }`, in the same
+    columns). From a ROS bag, the base's pose and twist are its nav_msgs/Odometry topic and each contact's
+    wrench its geometry_msgs/WrenchStamped topic (`topic`), joined on their stamps to the joint states'."""
     why = "not read with a floating base's log yet (docs/floating_base.md)"
     for key, given in (("side", source.side != "joint"),
-                       ("identify_torque_constants", source.identify_constants),
                        ("payload", source.payload is not None),
                        ("repeat", source.repeat is not None),
                        ("counterbalanced", bool(source.counterbalanced))):
@@ -264,4 +263,7 @@ def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> Floati
     for table in ("identification", "friction_law", "refinement"):
         if root.has(table):
             raise root.error(table, "reads a fixed base's log: not beside [data.base]")
+    if source.identify_constants and not (root.has("floating_log") and root.data["floating_log"].get("rows") == "all"):
+        raise t.error("identify_torque_constants", "the constants are read from the base's rows and the joints' "
+                                                   "together: give [floating_log] rows = \"all\"")
     return fl
