@@ -41,8 +41,8 @@ class FloatingLogConfig:
     joints' drive columns, rotor inertia, viscous and Coulomb friction and offset, on their own rows) by default
     where the model declares any and the joints' rows are read; never from the base rows alone (no drive reaches
     them). `estimator`: "wls", both fits weight each row (the base's force and moment components, each joint's
-    torque) by the inverse of its residual variance after an ordinary least squares (floating_id.row_weights);
-    "ols", every row alike."""
+    torque) by the inverse of its residual variance, found again after each weighted fit until it settles
+    (floating_id.row_weights); "ols", every row alike."""
 
     rows: str = "base"
     consistent: bool = True
@@ -164,19 +164,19 @@ def _truth_rows(sc, data: tuple) -> np.ndarray | None:
     return floating_id.regressor(truth_pm, *data[:4], own) @ floating_id.true_parameters(truth_pm, own)
 
 
-def _torque_constants(ctx, pm, structure, rows, span, whole: tuple, Y: np.ndarray, measured: list[str],
+def _torque_constants(ctx, pm, structure, rows, span, training: tuple, Y: np.ndarray, measured: list[str],
                       weighted: bool) -> tuple:
     """Where a log of motor currents asks for its constants (`identify_torque_constants`): each measured joint's
     factor identified with the base parameters from the base's rows and the joints' (floating_id.torque_factors:
-    the contacts' wrench fixes the scale), and the training span `span` (its `whole_rows` `whole`, its regressor
-    Y) with every torque times its factor; the factors (None where not asked) and results.json's section, as an
+    the contacts' wrench fixes the scale), and the training span `span` (`training` its rows read, `_read`, Y its
+    regressor) with every torque times its factor; the factors (None where not asked) and results.json's section, as an
     arm's (harness/stages/log_results.py)."""
     data = ctx.scenario.data
     if not data.identify_constants:
         return span, None, None
     ctx.progress("torque constants (motor currents), their scale the contacts' wrenches'", None)
     motor = span.joint_data(measured)[3]
-    est = floating_id.torque_factors(pm, structure, rows, _read(whole, rows)[0], Y, motor, weighted)
+    est = floating_id.torque_factors(pm, structure, rows, training, Y, motor, weighted)
     m = len(measured)
     factor, std, half = est.beta[-m:], est.std[-m:], est.ci_half_width[-m:]
     nominal = [data.torque_constant[ctx.scenario.robot.joint_names.index(j)] for j in measured]
@@ -236,8 +236,8 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     structure = ctx.once(("floating-base structural base parameters", rows if isinstance(rows, str) else tuple(rows),
                           friction),
                          lambda: floating_id.structural_base(pm, robot.limits, rows, with_friction=friction))
-    training_span, factor, constants = _torque_constants(ctx, pm, structure, rows, training_span, whole, Y_t, measured,
-                                                         config.estimator == "wls")
+    training_span, factor, constants = _torque_constants(ctx, pm, structure, rows, training_span, training, Y_t,
+                                                         measured, config.estimator == "wls")
     if factor is not None:  # the torques at the constants found: the training span's rows read again
         training, whole_t = _data(robot, fl.contacts, training_span, rows)
     judged_span, judged = _judged(ctx, lags, factor, measured)
