@@ -14,8 +14,8 @@ log(R^T R_d), exact at any angle), and
 set here). The base's six rows of tau are the world's wrench on the base: what the bench records as its
 answer (`base_rows`), with the base's pose, twist and acceleration.
 
-Standing on contacts (harness/model/contacts.py: MuJoCo's connect equalities, held or released between
-rows, `hold`), the world acts through them: with J the held contacts' rows of MuJoCo's constraint
+Standing on contacts (harness/model/contacts.py: MuJoCo's connect equalities, a sole's weld, held or released
+between rows, `hold`), the world acts through them: with J the held contacts' rows of MuJoCo's constraint
 Jacobian (efc_J, world components, d(x_foot - x_ground)/dq), the contact forces mu the least-squares
 solution of J_base^T mu = tau_base, and
 
@@ -24,8 +24,9 @@ solution of J_base^T mu = tau_base, and
 MuJoCo's constraint forces are then mu (its constrained dynamics, M q'' + bias = passive + applied +
 ctrl + J^T lambda, are met by q''_cmd and lambda = mu, to its loops' softness): the base is held by its
 feet, and by the world's own wrench only where they cannot balance it (fewer than three points, or
-three in a line), recorded as before. Each contact's force on its body, where its point is and whether
-it held are recorded beside the base's rows.
+three in a line), recorded as before. Each contact's force on its body (a sole's moment too: `_weld_wrench`),
+where its point is and whether it held are recorded beside the base's rows. Two soles, or more points than
+the base's rows need, are statically indeterminate: mu is then the least-norm split among them.
 """
 
 from __future__ import annotations
@@ -53,6 +54,7 @@ class FreeBaseDrive:
         feet the model holds (harness/engines/mujoco.py, build_model's `ground`)."""
         if spec.transmission is not None or spec.loops:
             raise ValueError(f"{spec.name}: a floating base moved with drives or loops is not simulated")
+        self._model = model
         free = model.joint(spec.floating.joint)
         self.base_q, self.base_v = int(free.qposadr[0]), int(free.dofadr[0])
         self.qadr = np.array([model.joint(j).qposadr[0] for j in spec.joint_names], dtype=int)
@@ -62,7 +64,8 @@ class FreeBaseDrive:
         self.contacts = contacts
         self.eq_ids = np.array([model.equality(f"contact_{c.name}").id for c in contacts], dtype=int)
         self.site_ids = np.array([model.site(f"contact_{c.name}").id for c in contacts], dtype=int)
-        self.ROW = 25 + 7 * len(contacts)
+        self.soles = [getattr(c, "sole", False) for c in contacts]
+        self.ROW = 25 + 10 * len(contacts)
         if model.nv != n + 6 or model.nu != n:
             raise RuntimeError("the MuJoCo model has other coordinates or actuators than the base and the joints")
         qpos, qvel, qacc = floating.to_mujoco(base)
@@ -118,19 +121,39 @@ class FreeBaseDrive:
 
     def base_rows(self, d: mujoco.MjData) -> np.ndarray:
         """(ROW,) the base's qpos (7), qvel (6), qacc (6) and the world's wrench on it (6), MuJoCo's convention,
-        then each contact's force on its body (world components), its point and whether it holds (7 each)."""
+        then each contact's force and moment on its body (world components, the moment about its point: a
+        point's zero), its point and whether it held (10 each)."""
         bq, bv = self.base_q, self.base_v
         out = [d.qpos[bq:bq + 7], d.qvel[bv:bv + 6], d.qacc[bv:bv + 6], d.qfrc_applied[bv:bv + 6]]
         if len(self.contacts):
+            m = self._model
             rows = np.flatnonzero(d.efc_type[: d.nefc] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY))
-            for eq, site in zip(self.eq_ids, self.site_ids, strict=True):
+            for eq, site, sole in zip(self.eq_ids, self.site_ids, self.soles, strict=True):
                 mine = rows[d.efc_id[rows] == eq]
-                out += [d.efc_force[mine] if len(mine) else np.zeros(3), d.site_xpos[site], [float(d.eq_active[eq])]]
+                if not len(mine):
+                    wrench = np.zeros(6)
+                elif sole:
+                    wrench = _weld_wrench(m, d, mine, site)
+                else:
+                    wrench = np.concatenate([d.efc_force[mine], np.zeros(3)])
+                out += [wrench, d.site_xpos[site], [float(d.eq_active[eq])]]
         return np.concatenate(out)
 
     def stages_by_step(self) -> np.ndarray:
         """(steps, evaluations per step, joints) in the spec's joint order."""
         return self.stages[:self.captured[0]].reshape(self.n_steps, self.per_step, self.n)
+
+
+def _weld_wrench(m: mujoco.MjModel, d: mujoco.MjData, rows: np.ndarray, site: int) -> np.ndarray:
+    """(6,) a weld's force and moment on its body, world components, the moment about its site: the wrench
+    [F; M] whose generalised force through the site's point and angular Jacobians (mj_jacSite, world axes) is
+    the weld's, J_eq^T lambda (efc_J's and efc_force's rows of the weld). Convention-free: MuJoCo's rotation
+    rows are the angular Jacobian turned and scaled by the weld's orientation error and torquescale, which this
+    does not need to know."""
+    jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    mujoco.mj_jacSite(m, d, jacp, jacr, site)
+    J_eq = d.efc_J[: d.nefc * m.nv].reshape(d.nefc, m.nv)[rows]
+    return np.linalg.lstsq(np.concatenate([jacp, jacr]).T, J_eq.T @ d.efc_force[rows], rcond=None)[0]
 
 
 def recorded_base(rows: np.ndarray, contacts: tuple = ()) -> dict:
@@ -141,8 +164,7 @@ def recorded_base(rows: np.ndarray, contacts: tuple = ()) -> dict:
     out = {"base_pose": pose, "base_twist_W": twist, "base_rate_W": rate,
            "base_wrench_W": floating.base_rows_from_mujoco(motion, rows[:, 19:25])}
     if contacts:
-        each = rows[:, 25:].reshape(len(rows), len(contacts), 7)
-        out.update(contacts=tuple(c.name for c in contacts), contact_F_W=each[..., :3],
-                   contact_M_W=np.zeros_like(each[..., :3]), contact_x_W=each[..., 3:6],
-                   contact_held=each[..., 6] > 0.5)
+        each = rows[:, 25:].reshape(len(rows), len(contacts), 10)
+        out.update(contacts=tuple(c.name for c in contacts), contact_F_W=each[..., :3], contact_M_W=each[..., 3:6],
+                   contact_x_W=each[..., 6:9], contact_held=each[..., 9] > 0.5)
     return out

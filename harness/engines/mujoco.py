@@ -52,7 +52,7 @@ def _driven(spec: RobotSpec, gravity_W: np.ndarray, integrator: str, timestep: f
     """The robot with its integrator and timestep, contacts off, and one motor per joint
     (`drive_<joint>`, control = torque): what `build_spec` and `dynamics_spec` share. With `floating`,
     its floating base on a free joint (harness/model/mjspec.py, add_robot); with `ground` (contacts, their
-    ground points), its feet held there as stiffly as a closed chain's loops (add_contacts)."""
+    ground points and frames), its feet held there as stiffly as a closed chain's loops (add_contacts)."""
     ms = new_spec(spec.name, gravity_W)
     ms.option.integrator = _MJ_INTEGRATOR[integrator]
     ms.option.timestep = float(timestep)
@@ -307,9 +307,10 @@ def simulate(spec: RobotSpec, gravity_W: np.ndarray, prescribed: Callable, outpu
     `contacts` (harness/model/contacts.py) the base stands on them, and the recording keeps their wrenches."""
     ground = ()
     if contacts:
-        from harness.model.contacts import ground_points
+        from harness.model.contacts import ground_frames, ground_points
 
-        ground = (contacts, ground_points(spec, contacts, base(np.zeros(1)), prescribed(np.zeros(1))[0][0]))
+        base0, q0 = base(np.zeros(1)), prescribed(np.zeros(1))[0][0]
+        ground = (contacts, ground_points(spec, contacts, base0, q0), ground_frames(spec, contacts, base0, q0))
     model = build_model(spec, gravity_W, simulation, floating=base is not None, ground=ground)
     data = mujoco.MjData(model)
     dt = simulation.timestep

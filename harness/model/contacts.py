@@ -10,8 +10,12 @@ swings: its joints move by `swing` (joint = displacement at the lift's middle) w
 w(s) = sin^4(pi s), s = (t - from) / (to - from), which starts and ends with w, w' and w'' zero, so the
 foot leaves and lands on its point with no velocity or acceleration: the contacts change, no impact.
 
-The joints from the base to a contact's body (its chain, at least three for a point) follow from the
-contact: their [motion] gives the stance at t = 0 (a constant: a chain joint that moves is refused), and
+A contact is a point (`kind = "point"`, the default: a foot of a legged robot, its force alone) or a sole
+(`kind = "sole"`: the body's whole frame held, as a flat foot standing on its sole; MuJoCo's weld, its force and
+its moment about the point), the frame held the body's own as it stands at t = 0.
+
+The joints from the base to a contact's body (its chain, at least three for a point, six for a sole) follow
+from the contact: their [motion] gives the stance at t = 0 (a constant: a chain joint that moves is refused), and
 the bench moves them so that the point stays put. With (R(t), p(t)) the base frame's pose, c_W the
 ground point and (R_WF0, p_WF0) the base frame where the file draws it, the point must be, on the robot
 read with its base fixed there (harness/model/loops.py's kinematics),
@@ -21,7 +25,13 @@ read with its base fixed there (harness/model/loops.py's kinematics),
 
 (omega, alpha the base's angular velocity and acceleration, world axes): Newton's method on x(q) = target
 for the chain's joints at every time at once, then J q'_chain = x' and J q''_chain = x'' - b(q, q') (the
-point's Jacobian and acceleration bias, loops.jacobian and loops.bias).
+point's Jacobian and acceleration bias, loops.jacobian and loops.bias). A sole's frame, R_W its orientation
+on the ground, must have on that robot the orientation, angular velocity and angular acceleration
+
+    R_F = R_WF0 R^T R_W,    w_F = -R_WF0 R^T omega,    w'_F = -R_WF0 R^T alpha
+
+(the ground's frame seen from the moving base): its three rows more, phi(R_now R_F^T) = 0 (the weld's
+rotation vector, loops.py) and the angular rows of J and b.
 """
 
 from __future__ import annotations
@@ -38,6 +48,8 @@ from harness.model.spec import WORLD, Loop, RobotSpec
 
 NEWTON_ITERATIONS = 30
 NEWTON_TOLERANCE = 1e-13  # of the robot's size: the point's distance from its target after Newton's method
+CONTACT_KINDS = ("point", "sole")
+CHAIN_NEEDS = {"point": 3, "sole": 6}  # the joints a contact's chain needs: its constraint's rows
 
 
 @dataclass(frozen=True)
@@ -70,6 +82,11 @@ class Contact:
     point_W0: np.ndarray  # (3,) where the point is at q = 0, world components
     chain: tuple[str, ...]
     lift: Lift | None = None
+    kind: str = "point"  # "point" (its force) or "sole" (the body's frame held: its force and moment)
+
+    @property
+    def sole(self) -> bool:
+        return self.kind == "sole"
 
     def planted(self, t: np.ndarray) -> np.ndarray:
         """(N,) whether the contact holds at times t: outside its lift, and at the lift's two ends."""
@@ -80,6 +97,14 @@ class Contact:
         """The point as a loop to the world's origin: its residual is where the point is (loops.py)."""
         return _to_origin(self)
 
+    def held(self, x: np.ndarray, R: np.ndarray | None) -> Loop:
+        """The contact as a loop to where it must be at each of N times, seen from the base (`_targets`): its
+        point at x (N, 3), a sole's frame (the body's axes, the world's at q = 0) at R (N, 3, 3); loops.py's
+        residual is then the distance (and rotation) still to go, its Jacobian and bias those of the contact."""
+        if not self.sole:
+            return Loop(self.name, "connect", self.body, WORLD, self.point_W0, x)
+        return Loop(self.name, "weld", self.body, WORLD, self.point_W0, x, np.eye(3), R)
+
 
 def _to_origin(c) -> Loop:
     """The point of `c` (a `body`, its `point_W0`) as a loop to the world's origin (loops.py's residual: the point)."""
@@ -87,10 +112,10 @@ def _to_origin(c) -> Loop:
 
 
 def read_contacts(root: Table, robot: RobotSpec, motions: dict, t_out: np.ndarray) -> tuple[Contact, ...]:
-    """`[[contacts]]` (`name`, `body`, `point`, optional `lift = { from, to, swing = { joint = value } }`),
-    validated: beside `[base_motion]` only, on a body of the robot that is not its base, chains of at least
-    three joints that share none, a chain's joints held by their [motion] (the stance), a lift on the
-    recording's grid `t_out`. () without the table."""
+    """`[[contacts]]` (`name`, `body`, `point`, optional `kind = "point" | "sole"` and `lift = { from, to, swing =
+    { joint = value } }`), validated: beside `[base_motion]` only, on a body of the robot that is not its base,
+    chains of at least three joints (six for a sole) that share none, a chain's joints held by their [motion] (the
+    stance), a lift on the recording's grid `t_out`. () without the table."""
     if not root.has("contacts"):
         if "contact_wrenches" in root.data.get("measurement", {}).get("noise", {}):
             raise root.error("measurement.noise.contact_wrenches", "contact wrenches are recorded only where the "
@@ -109,10 +134,11 @@ def read_contacts(root: Table, robot: RobotSpec, motions: dict, t_out: np.ndarra
         if body not in bodies:
             why = " (the base: a contact on it holds no joint)" if body == robot.floating.body.name else ""
             raise t.error("body", f"no moving body {body!r} in model {robot.name!r}{why}")
+        kind = t.string("kind", "point", choices=CONTACT_KINDS)
         chain = tuple(j for j, c in zip(robot.joint_names, loop_eqs.carried(robot, body), strict=True) if c)
-        if len(chain) < 3:
-            raise t.error("body", f"{len(chain)} joint(s) between the base and {body!r}: a point held on the ground "
-                                  "needs three")
+        if len(chain) < CHAIN_NEEDS[kind]:
+            raise t.error("body", f"{len(chain)} joint(s) between the base and {body!r}: a {kind} held on the ground "
+                                  f"needs {('three', 'six')[kind == 'sole']}")
         for j in chain:
             if j in owner:
                 raise t.error("body", f"joint {j!r} carries contact {owner[j]!r} too: each contact needs joints of "
@@ -124,7 +150,7 @@ def read_contacts(root: Table, robot: RobotSpec, motions: dict, t_out: np.ndarra
         lift = _read_lift(t.table("lift"), chain, t_out) if t.has("lift") else None
         point = t.vector("point")
         t.finish()
-        out.append(Contact(name, body, point, chain, lift))
+        out.append(Contact(name, body, point, chain, lift, kind))
     return tuple(out)
 
 
@@ -187,34 +213,50 @@ def _targets(spec: RobotSpec, c_W: np.ndarray, base) -> tuple[np.ndarray, np.nda
     return fb.p_WF0 + y @ fb.R_WF0.T, yd @ fb.R_WF0.T, ydd @ fb.R_WF0.T
 
 
+def _frame_targets(spec: RobotSpec, R_W: np.ndarray, base) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A sole's frame on the ground, R_W (3, 3), seen from the base: its orientation R_F (N, 3, 3), angular
+    velocity w_F and acceleration w'_F (N, 3) on the robot whose base is where the file draws it (module
+    docstring: the ground's frame is still, the base turns with omega)."""
+    turn = spec.floating.R_WF0 @ np.swapaxes(base.R_WB, 1, 2)  # (N, 3, 3) world axes -> the fixed robot's
+    return turn @ R_W, -(turn @ base.omega_W[..., None])[..., 0], -(turn @ base.alpha_W[..., None])[..., 0]
+
+
+def ground_frames(spec: RobotSpec, contacts: tuple[Contact, ...], base0, q0: np.ndarray) -> np.ndarray:
+    """(k, 3, 3) each contact's frame on the ground (the body's axes, the world's at q = 0): its orientation at
+    t = 0, the base at `base0` and the joints at q0 (n,) (a point's too, unused)."""
+    R_frame = loop_eqs.frames_now(spec, tuple((c.body, np.eye(3)) for c in contacts), q0[None])[0]
+    return base0.R_WB[0] @ spec.floating.R_WF0.T @ R_frame
+
+
 def stance(spec: RobotSpec, contacts: tuple[Contact, ...], base_at: Callable, given: Callable, source) -> Callable:
     """t -> (q, q', q''), each (N, n): `given`'s motion with every contact's chain moved to keep its point
-    on the ground while the base moves along `base_at` (t -> BaseMotion), swung within its lift (module
-    docstring). A point out of its chain's reach is bad input, named by the contact and the time."""
+    (a sole: its frame) on the ground while the base moves along `base_at` (t -> BaseMotion), swung within its
+    lift (module docstring). A contact out of its chain's reach is bad input, named by the contact and the time."""
     def motion(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         q, qd, qdd = (np.array(x, dtype=float) for x in given(t))
-        base = base_at(t)
-        c_W = ground_points(spec, contacts, base_at(np.zeros(1)), given(np.zeros(1))[0][0])
+        base, base0, q0 = base_at(t), base_at(np.zeros(1)), given(np.zeros(1))[0][0]
+        c_W = ground_points(spec, contacts, base0, q0)
+        R_W = ground_frames(spec, contacts, base0, q0) if any(c.sole for c in contacts) else None
         x, xd, xdd = _targets(spec, c_W, base)
         size = max(1.0, float(np.max(np.abs(c_W))))
         for k, c in enumerate(contacts):
             cols = [spec.joint_names.index(j) for j in c.chain]
-            loop = (c.loop(),)
+            R_F, v, a = _frame_targets(spec, R_W[k], base) if c.sole else (None, xd[:, k, :0], xdd[:, k, :0])
+            loop = (c.held(x[:, k], R_F),)
             for _ in range(NEWTON_ITERATIONS):
                 r, J = loop_eqs.residual_and_jacobian(spec, loop, q)
-                r = r - x[:, k]
                 if np.max(np.abs(r)) <= NEWTON_TOLERANCE * size:
                     break
                 q[:, cols] -= (np.linalg.pinv(J[:, :, cols]) @ r[..., None])[..., 0]
             else:
                 worst = int(np.argmax(np.max(np.abs(r), axis=1)))
-                raise InputError(source, "contacts", f"contact {c.name!r}: its point cannot stay on the ground at "
-                                                     f"t = {t[worst]:.6g} s (out of its chain's reach)")
+                raise InputError(source, "contacts", f"contact {c.name!r}: its {c.kind} cannot stay on the ground "
+                                                     f"at t = {t[worst]:.6g} s (out of its chain's reach)")
             J_p = np.linalg.pinv(loop_eqs.jacobian(spec, loop, q)[:, :, cols])
-            qd[:, cols] = (J_p @ xd[:, k, :, None])[..., 0]
+            qd[:, cols] = (J_p @ np.concatenate([xd[:, k], v], axis=1)[..., None])[..., 0]
             b = loop_eqs.bias(spec, loop, q, qd)
-            qdd[:, cols] = (J_p @ (xdd[:, k] - b)[..., None])[..., 0]
+            qdd[:, cols] = (J_p @ (np.concatenate([xdd[:, k], a], axis=1) - b)[..., None])[..., 0]
             if c.lift is not None:
                 w, wd, wdd = c.lift.weight(t)
                 for j, value in c.lift.swing:

@@ -119,15 +119,21 @@ def add_loops(ms: mujoco.MjSpec, spec: RobotSpec, elements: dict, frames: dict) 
                         name1=names[0], name2=names[1])
 
 
-def add_contacts(ms: mujoco.MjSpec, spec: RobotSpec, elements: dict, contacts: tuple, ground_W: np.ndarray) -> None:
-    """Each contact (harness/model/contacts.py) as MuJoCo's connect equality `contact_<name>` of a site on its
-    body at its point (`contact_<name>`) and a site of the world at its ground point `ground_W` (k, 3),
-    (`ground_<name>`): the point held where it stands."""
-    for c, g in zip(contacts, ground_W, strict=True):
-        elements[c.body].add_site(name=f"contact_{c.name}", pos=spec.body(c.body).arm_B(c.point_W0))
-        ms.worldbody.add_site(name=f"ground_{c.name}", pos=np.asarray(g, dtype=float))
-        ms.add_equality(name=f"contact_{c.name}", type=mujoco.mjtEq.mjEQ_CONNECT, objtype=mujoco.mjtObj.mjOBJ_SITE,
-                        name1=f"contact_{c.name}", name2=f"ground_{c.name}")
+def add_contacts(ms: mujoco.MjSpec, spec: RobotSpec, elements: dict, contacts: tuple, ground_W: np.ndarray,
+                 ground_R: np.ndarray | None = None) -> None:
+    """Each contact (harness/model/contacts.py) as MuJoCo's equality `contact_<name>` of a site on its body at
+    its point (`contact_<name>`) and a site of the world at its ground point `ground_W` (k, 3),
+    (`ground_<name>`): a point's connect holds the point where it stands; a sole's weld holds the site's frame
+    (the body's axes, the world's at q = 0) at its frame on the ground, `ground_R` (k, 3, 3)."""
+    for k, (c, g) in enumerate(zip(contacts, ground_W, strict=True)):
+        body = spec.body(c.body)
+        sole = getattr(c, "sole", False)
+        elements[c.body].add_site(name=f"contact_{c.name}", pos=body.arm_B(c.point_W0),
+                                  quat=_quat(body.R_WB0.T) if sole else [1.0, 0.0, 0.0, 0.0])
+        ms.worldbody.add_site(name=f"ground_{c.name}", pos=np.asarray(g, dtype=float),
+                              quat=_quat(ground_R[k]) if sole else [1.0, 0.0, 0.0, 0.0])
+        ms.add_equality(name=f"contact_{c.name}", type=mujoco.mjtEq.mjEQ_WELD if sole else mujoco.mjtEq.mjEQ_CONNECT,
+                        objtype=mujoco.mjtObj.mjOBJ_SITE, name1=f"contact_{c.name}", name2=f"ground_{c.name}")
 
 
 def add_drives(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False) -> list[mujoco.MjsTendon]:

@@ -25,6 +25,7 @@ from harness.model.spec import FLOATING_BASE_FIXED, WORLD, Body, Joint
 
 KNOWN_ROBOTS = {
     "panda": "panda_description/urdf/panda.urdf",
+    "g1": "g1_description/urdf/g1_29dof_rev_1_0.urdf",
     "ur5": "ur_description/urdf/ur5_robot.urdf",
     "ur3": "ur_description/urdf/ur3_robot.urdf",
     "ur10": "ur_description/urdf/ur10_robot.urdf",

@@ -249,7 +249,8 @@ def _standing(fl: dict) -> str:
             f"{num(fl['base_wrench_besides_contacts_max_rel'])} of its whole wrench on the base, and a held point "
             f"slipped at most {num(fl['contact_slip_m'])} m; the least a held point pressed on the ground was "
             f"{num(fl['contact_least_normal_force_N'])} N and the motion needs a friction coefficient of "
-            f"{num(fl['contact_friction_needed'])} ({esc(fl['standing_definition'])}).</p>")
+            f"{num(fl['contact_friction_needed'])}; a pressing contact's centre of pressure lay at most "
+            f"{num(fl.get('contact_centre_of_pressure_m'))} m from its point ({esc(fl['standing_definition'])}).</p>")
 
 
 def _closed_chain(cc: dict | None) -> str:

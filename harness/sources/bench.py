@@ -54,7 +54,8 @@ def write_log(rec: TimeSeries, joints: list[str], path: Path) -> None:
     to the last bit. A floating base's recording adds what its state estimator and foot sensors would log,
     as published (harness/sources/log/floating.py reads it): the base's position `px py pz`, its quaternion
     in ROS's order `qx qy qz qw`, its twist in base axes `vx vy vz wx wy wz`, and each contact's force on its
-    body, world axes, `<contact>_fx <contact>_fy <contact>_fz`."""
+    body, world axes, `<contact>_fx <contact>_fy <contact>_fz`, then, for a contact whose moment is not zero
+    throughout (a sole's), its moment about its point `<contact>_mx <contact>_my <contact>_mz`."""
     import pandas as pd
 
     cols = {"t": rec.t}
@@ -72,4 +73,6 @@ def write_log(rec: TimeSeries, joints: list[str], path: Path) -> None:
         cols.update(zip(("vx", "vy", "vz", "wx", "wy", "wz"), twist_B.T, strict=True))
         for k, name in enumerate(rec.contacts):
             cols.update(zip((f"{name}_fx", f"{name}_fy", f"{name}_fz"), rec.contact_F_W[:, k].T, strict=True))
+            if np.any(rec.contact_M_W[:, k] != 0.0):
+                cols.update(zip((f"{name}_mx", f"{name}_my", f"{name}_mz"), rec.contact_M_W[:, k].T, strict=True))
     pd.DataFrame(cols).to_csv(path, index=False, float_format="%.17g")

@@ -105,25 +105,31 @@ def standing(rec, whole: np.ndarray, gravity_W: np.ndarray) -> dict:
     normal = rec.contact_F_W @ up  # (N, k) the force along the ground's normal (against gravity)
     across = np.linalg.norm(rec.contact_F_W - normal[..., None] * up, axis=-1)
     pushing = held & (normal > 0.0)
+    # a sole's centre of pressure from its moment about its point: r = (n x M) / F_n (the pressure's moment r x F_n n)
+    cop = np.linalg.norm(np.cross(up, rec.contact_M_W), axis=-1) / np.where(pushing, normal, np.inf)
     return {"contacts": list(rec.contacts), "contacts_held_rows": held.sum(axis=0).tolist(),
             "base_wrench_besides_contacts_max_rel": float(np.max(np.max(np.abs(rec.base_wrench_W), axis=0) / scale)),
             "contact_slip_m": float(np.max(slip)),
             "contact_least_normal_force_N": float(np.min(normal[held])) if held.any() else None,
             "contact_friction_needed": float(np.max(across[pushing] / normal[pushing])) if pushing.any() else None,
+            "contact_centre_of_pressure_m": float(np.max(cop[pushing])) if pushing.any() else None,
             "standing_definition": STANDING_DEFINITION}
 
 
 STANDING_DEFINITION = (
     "the floating base stood on [[contacts]] (harness/model/contacts.py), each a point held on the ground by a stiff "
-    "connect constraint while it holds: the base wrenches above are the world's whole wrench on the base, the "
-    "contacts' included (the recorded contact forces' and what the bench applied besides them); the joints' "
-    "torques are the motors' (a model's joint rows less the contacts' J^T F); base_wrench_besides_contacts_max_rel "
+    "connect constraint while it holds (a sole: its frame, by a weld): the base wrenches above are the world's whole "
+    "wrench on the base, the contacts' included (the recorded contact wrenches' and what the bench applied besides "
+    "them); the joints' torques are the motors' (a model's joint rows less the contacts' J^T [F; M]); "
+    "base_wrench_besides_contacts_max_rel "
     "the largest wrench the world applied to the base besides the contacts, each component over its largest "
     "whole value; contact_slip_m the largest distance of a held contact's point from where it stood at t = 0; "
     "contact_least_normal_force_N the least force a held contact pressed on the ground with, along the ground's "
     "normal (against gravity: negative where the motion had a foot pull, which a real foot cannot), and "
     "contact_friction_needed the largest ratio of its force across the normal to its force along it (the "
-    "friction coefficient the motion needs not to slip)")
+    "friction coefficient the motion needs not to slip); contact_centre_of_pressure_m the largest distance from a "
+    "pressing contact's point to its centre of pressure, |n x M| / F_n (n the normal, M its moment about the point: "
+    "a point's is zero; a sole stands only while it lies within the sole)")
 
 
 def floating_models(sc, base, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> dict[str, float]:
