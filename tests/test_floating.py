@@ -238,6 +238,49 @@ def test_a_scenario_moves_its_floating_base_and_judges_the_world_s_wrench_on_it(
     assert "s.toml: base_motion: drives the simulation to non-finite values" in capsys.readouterr().err
 
 
+def test_a_floating_robot_with_drives_is_moved_by_its_motors_as_pinocchio_says(tmp_path):
+    """The trunk's three joints driven through [drives] (gear ratios of either sign, the knee's motor also turning
+    with the hip, each motor's rotor inertia, viscous, Coulomb (smooth) friction and offset, and a Coulomb term that
+    grows with the load on the coupled motor), the base moved: the bench's joint torques and the world's wrench on
+    the base are Pinocchio's free-flyer inverse dynamics with the drives' laws through N (harness/model/drives.py)
+    at the recorded states, to 1e-9 of each one's largest (round-off ~1e-14), and not the rigid bodies' alone
+    (the drives' terms are over 1e-3 of the torques here). A motor with rotor inertia turning the hip and the arm's
+    joint (separate branches, which MuJoCo's tendon armature cannot couple) is refused in one line naming it."""
+    from harness.base.tomlio import InputError
+    from harness.engines.pinocchio import build_model, rnea
+    from harness.runner.scenario import load_scenario
+    from harness.sources.bench import record
+
+    (tmp_path / "robot.xml").write_text(DOG.replace('<joint name="a2" type="hinge" axis="0 0 1"/>', ""))
+    laws = "".join(f"[drives.motor_{k}]\narmature = {a}\nviscous = {v}\ncoulomb = {c}\noffset = 0.002\n"
+                   f"coulomb_velocity = 0.5\n" for k, a, v, c in ((1, 1e-4, 1e-3, 0.01), (2, 2e-4, 2e-3, 0.02),
+                                                                  (3, 5e-5, 5e-4, 0.005)))
+    drives = '[mjcf]\nfile = "robot.xml"\n[drives]\ngear_ratio = [20, 10, -15]\n'  # hip, a1, knee
+    (tmp_path / "m.toml").write_text(drives + 'coupling = [{ motor = "motor_3", joint = "hip", ratio = 5 }]\n'
+                                     + laws + "load_coulomb = 0.01\n")
+    motion = "".join(f'[motion.{j}]\ntype = "sinusoids"\noffset = 0.1\nsin = [[0.5, {w}]]\n'
+                     for j, w in (("hip", 3.0), ("knee", 4.0), ("a1", 2.0)))
+    base = ('[base_motion.yaw]\ntype = "sinusoids"\noffset = 0.3\nsin = [[1.0, 2.0]]\n'
+            '[base_motion.z]\ntype = "sinusoids"\nsin = [[0.05, 6.0]]\n'
+            '[base_motion.pitch]\ntype = "sinusoids"\noffset = 0.2\ncos = [[0.4, 3.0]]\n')
+    gate = '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n'
+    (tmp_path / "s.toml").write_text('[scenario]\nmodel = "m.toml"\nduration = 0.3\noutput_steps = 30\n'
+                                     + motion + base + gate)
+    sc = load_scenario(tmp_path / "s.toml")
+    assert sc.robot.transmission is not None and sc.robot.floating is not None
+    rec = record(sc)
+    moved = floating.BaseMotion.from_rows(rec.base_pose, rec.base_twist_W, rec.base_rate_W)
+    ref = rnea(build_model(sc.robot, sc.gravity_W, floating=True), rec.q, rec.qd, rec.qdd, base=moved)
+    rigid = rnea(build_model(sc.robot.rigid(), sc.gravity_W, floating=True), rec.q, rec.qd, rec.qdd, base=moved)
+    assert largest_relative_difference(ref.tau, rec.tau) <= 1e-9
+    assert largest_relative_difference(ref.base, rec.base_wrench_W) <= 1e-9
+    assert largest_relative_difference(rigid.tau, rec.tau) > 1e-3
+    (tmp_path / "m.toml").write_text(drives + 'coupling = [{ motor = "motor_2", joint = "hip", ratio = 5 }]\n' + laws)
+    with pytest.raises(InputError) as err:
+        record(load_scenario(tmp_path / "s.toml"))
+    assert err.value.key == "model" and "[drives.motor_2]" in str(err.value) and "'hip' and 'a1'" in str(err.value)
+
+
 def test_the_bench_s_wrench_on_a_rigidly_held_robot_is_its_composite_body_s_newton_euler(tmp_path):
     """The trunk with its joints locked (held at 0 by the drive) is one rigid body: the world's wrench the
     bench applies to its base while moving it is F = m (a_c - g), M = I_W alpha + omega x I_W omega + r x F

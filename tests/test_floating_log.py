@@ -371,6 +371,56 @@ def test_a_floating_log_s_joint_channels_read_as_an_arm_s(standing, tmp_path, sh
         assert fits[1] == pytest.approx(fits[0], rel=1e-9)
 
 
+DRIVES = """[model]
+name = "solo12_drives"
+description = "Solo12 with drives: gear 9, the front-left knee's motor also turning with its hip"
+
+[urdf]
+robot = "solo12"
+floating = true
+
+[drives]
+gear_ratio = [9, 9, 9, 9, 9, 9, 9, 9, -9, 9, 9, 9]
+coupling = [{ motor = "motor_9", joint = "FL_HFE", ratio = 9 }]
+joint_offset = [0.0, 0.0, 0.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+"""
+
+
+def test_a_floating_robot_s_motor_side_log_reads_as_its_joint_side_log(standing, tmp_path):
+    """A legged robot with drives (gear ratios of either sign, a knee's motor turning with its hip, a joint's
+    offset) logged at its motors (q_m = N q + o, q'_m = N q', tau_m = N^-T tau, `side = "motor"`), its base's and
+    feet's columns as they are: the conditioned training span is the joint-side log's, every joint channel to
+    1e-12 of its size (N^-1 and N^T's round-off), the feet's points (the kinematics at those joint positions) to
+    1e-12 m, the base's and the feet's forces to the bit."""
+    from harness.model.load import load_spec
+
+    (tmp_path / "drives.toml").write_text(DRIVES)
+    t = load_spec(tmp_path / "drives.toml").transmission
+    _write(standing, tmp_path / "log.csv")
+    joints = pd.read_csv(tmp_path / "log.csv")
+    motors = joints.copy()
+    cols = {kind: [f"{kind}{k + 1}" for k in range(12)] for kind in ("q", "qd", "tau")}
+    for kind, to_motor in (("q", t.motor_positions), ("qd", t.motor_rates), ("tau", t.motor_torques)):
+        motors[cols[kind]] = to_motor(joints[cols[kind]].to_numpy())
+    motors.to_csv(tmp_path / "motors.csv", index=False, float_format="%.17g")
+    read = []
+    for name, side in (("log.csv", ""), ("motors.csv", 'side = "motor"')):
+        folder = tmp_path / name[:-4]
+        folder.mkdir()
+        path = _scenario(folder, tmp_path / name, extra_data=side)
+        path.write_text(path.read_text().replace(str(SCENARIOS.parent / "models" / "solo12.toml"),
+                                                 str(tmp_path / "drives.toml")))
+        sc = load_scenario(path)
+        read.append(load(sc.data, sc.robot).training)
+    a, b = read
+    assert not np.allclose(motors[cols["q"]].to_numpy(), joints[cols["q"]].to_numpy())  # the log is the motors'
+    for field in ("q", "qd", "qdd", "tau", "contact_x_W"):
+        x, y = getattr(a, field), getattr(b, field)
+        assert np.max(np.abs(x - y)) <= 1e-12 * np.max(np.abs(x)), field
+    for field in ("t", "base_pose", "base_twist_W", "base_rate_W", "contact_F_W"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
 def test_the_feet_s_forces_alone_are_judged_on_the_motors_torques_too(standing, tmp_path):
     """`rows = "base"`: the least squares reads the feet's forces alone (no joint torque); its base parameters
     hold on the joints' rows too (tests/test_floating.py), so its verdict judges every row, the motors' torques

@@ -37,7 +37,7 @@ import mujoco
 import numpy as np
 
 from harness.engines.simulation import EVALUATIONS_PER_STEP, Simulation
-from harness.model import floating, friction
+from harness.model import drives, floating, friction
 from harness.model.floating import BaseMotion
 from harness.model.spec import RobotSpec
 
@@ -52,8 +52,8 @@ class FreeBaseDrive:
                  simulation: Simulation, n_steps: int, contacts: tuple = ()):
         """in_spec_order (q, q', q'') and `base` the prescribed motion on the half-step grid; `contacts` the
         feet the model holds (harness/engines/mujoco.py, build_model's `ground`)."""
-        if spec.transmission is not None or spec.loops:
-            raise ValueError(f"{spec.name}: a floating base moved with drives or loops is not simulated")
+        if spec.loops:
+            raise ValueError(f"{spec.name}: a floating base moved with loops is not simulated")
         self._model = model
         free = model.joint(spec.floating.joint)
         self.base_q, self.base_v = int(free.qposadr[0]), int(free.dofadr[0])
@@ -74,8 +74,13 @@ class FreeBaseDrive:
         bq, bv = slice(self.base_q, self.base_q + 7), slice(self.base_v, self.base_v + 6)
         self.q_d[:, bq], self.qd_d[:, bv], self.qdd_d[:, bv] = qpos, qvel, qacc
         self.q_d[:, self.qadr], self.qd_d[:, self.vadr], self.qdd_d[:, self.vadr] = in_spec_order
-        self.dry = friction.Dry.of(tuple(spec.frictions))
-        self.armature = friction.values(spec.frictions)[:, 0]
+        if spec.transmission is None:  # each joint's own law
+            self.dry = friction.Dry.of(tuple(spec.frictions))
+            self.armature = friction.values(spec.frictions)[:, 0]
+        else:  # the motors' laws through N (harness/model/drives.py), in the spec's joint order; their rotors' inertia
+            # and viscous friction are MuJoCo's, on the motors' tendons (harness/model/mjspec.py)
+            self.dry = drives.Dry(spec.frictions, spec.transmission)
+            self.armature = drives.mass(spec.frictions, spec.transmission)
         self.per_step = EVALUATIONS_PER_STEP[simulation.integrator]
         self.n_steps = n_steps
         self.stages = np.empty((n_steps * self.per_step, n))
@@ -90,6 +95,12 @@ class FreeBaseDrive:
         dry, armature, stages, captured = self.dry, self.armature, self.stages, self.captured
         e, tau = np.empty(len(qd_d[0])), np.empty(len(qd_d[0]))
         standing, equality = len(self.contacts) > 0, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+        if armature.ndim == 1:  # the rotors' part of the computed torque: diag(I_a) q'', or N^T diag(I_m) N q''
+            def rotors(qdd: np.ndarray) -> np.ndarray:
+                return armature * qdd
+        else:
+            def rotors(qdd: np.ndarray) -> np.ndarray:
+                return armature @ qdd
 
         def drive(m: mujoco.MjModel, d: mujoco.MjData) -> None:
             k = round(d.time / half)
@@ -99,7 +110,7 @@ class FreeBaseDrive:
             applied = d.qfrc_applied
             applied[:] = 0.0
             if dry.any:  # the rigid-body torque: the computed torque less the rotor inertia's part
-                rigid = (tau + d.qfrc_bias)[vadr] - armature * qacc_cmd[vadr] if dry.needs_load else None
+                rigid = (tau + d.qfrc_bias)[vadr] - rotors(qacc_cmd[vadr]) if dry.needs_load else None
                 applied[vadr] = -dry(d.qvel[vadr], rigid)
             full = tau + d.qfrc_bias - d.qfrc_passive - applied
             if standing:  # the held contacts balance the base's rows as far as they can (module docstring)

@@ -158,13 +158,12 @@ def random_base_motion(count: int, seed: int, reach: float = 1.0, speed: float =
 
 def not_free(robot, done: str) -> str | None:
     """Why the floating base of `robot` (a RobotSpec) cannot be `done` ("moved by the bench", "read from a
-    log"), None where it can: a robot without a floating base, or with loops or drives (an open tree of
-    joints driven directly is judged with its base free)."""
+    log"), None where it can: a robot without a floating base, or with loops (an open tree of joints, driven
+    directly or through [drives], is judged with its base free)."""
     if robot.floating is None:
         return (f"model {robot.name!r} has no floating base (an MJCF free joint, a URDF floating joint or "
                 "[urdf] floating = true)")
-    if robot.loops or robot.transmission is not None:
-        return (f"model {robot.name!r} has {'loops' if robot.loops else 'drives'}: a floating base is {done} only "
-                "on an open tree of joints driven directly")
+    if robot.loops:
+        return (f"model {robot.name!r} has loops: a floating base is {done} only on an open tree of joints")
     return None
 

@@ -36,6 +36,7 @@ def record(scenario: Setup) -> TimeSeries:
     draws it. A motion that drives the simulation to non-finite values is bad input, named by its joint
     and time."""
     base = scenario.base_motion
+    _simulable_drives(scenario)
     try:
         return simulate(scenario.robot, scenario.gravity_W, scenario.prescribed, scenario.output_steps,
                         scenario.output_dt, scenario.simulation, None if base is None else base.evaluate,
@@ -46,6 +47,25 @@ def record(scenario: Setup) -> TimeSeries:
                          f"drives the simulation to non-finite values at t = {exc.t:.6g} s (MuJoCo: "
                          f"{exc.engine_message.split('. ')[0]}); a motion this fast or this far cannot be "
                          "simulated") from None
+
+
+def _simulable_drives(scenario: Setup) -> None:
+    """Drives the bench can simulate, else bad input naming the motor (harness/model/drives.py, across_branches)."""
+    from harness.model.drives import across_branches
+    from harness.model.loops import carried
+
+    spec = scenario.robot
+    if spec.transmission is None:
+        return
+    inner = np.stack([carried(spec, j.child) for j in spec.joints], axis=1) > 0  # [j, k]: j carries k's body
+    found = across_branches(spec.frictions, spec.transmission, inner)
+    if found is not None:
+        motor, a, b = found
+        raise InputError(scenario.source, "model", f"[drives.{motor}] of model {spec.name!r} turns "
+                                                   f"{spec.joint_names[a]!r} and {spec.joint_names[b]!r}, on separate "
+                                                   "branches of the tree, with a rotor inertia MuJoCo cannot couple "
+                                                   "them by: the bench does not simulate it (a rotor inertia of 0 "
+                                                   "there is simulated)")
 
 
 def write_log(rec: TimeSeries, joints: list[str], path: Path) -> None:

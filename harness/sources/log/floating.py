@@ -243,8 +243,9 @@ def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of, ro
 
 
 def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> FloatingLog:
-    """What a floating base's log is not read with yet, refused in one line naming the key: joint-side torques
-    (no motor-side log or payload; currents with their declared constants are read as torques, and their
+    """What a floating base's log is not read with yet, refused in one line naming the key: no payload,
+    `repeat` or counterbalanced channel (a motor-side log of a robot with [drives] is read through N as an arm's; currents
+    with their declared constants are read as torques, and their
     constants identified, the scale the contacts' wrenches', with `[floating_log] rows = "all"`; unmeasured
     channels, `unmeasured`, leave their joints' rows unread and unjudged); no identification method, friction
     law search or refinement beside it (their fits read a fixed base). A log in several files joined on time,
@@ -254,8 +255,7 @@ def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> Floati
     columns). From a ROS bag, the base's pose and twist are its nav_msgs/Odometry topic and each contact's
     wrench its geometry_msgs/WrenchStamped topic (`topic`), joined on their stamps to the joint states'."""
     why = "not read with a floating base's log yet (docs/floating_base.md)"
-    for key, given in (("side", source.side != "joint"),
-                       ("payload", source.payload is not None),
+    for key, given in (("payload", source.payload is not None),
                        ("repeat", source.repeat is not None),
                        ("counterbalanced", bool(source.counterbalanced))):
         if given:
