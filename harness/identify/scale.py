@@ -32,7 +32,7 @@ from itertools import pairwise
 
 import numpy as np
 
-from harness.base.numerics import column_scale, relative_residual
+from harness.base.numerics import column_scale, finite_or_null, relative_residual
 from harness.base.series import TimeSeries
 
 SIZED = 1e-3  # of the largest: a model's base parameter below it gives no scale
@@ -200,3 +200,12 @@ def scaled(series: TimeSeries, factor: np.ndarray, joints) -> TimeSeries:
     tau = series.tau.copy()
     tau[:, cols] *= factor
     return dataclasses.replace(series, tau=tau)
+
+
+def constants_table(joints: list[str], nominal, factor: np.ndarray, std: np.ndarray, interval: np.ndarray) -> dict:
+    """results.json's per-joint torque constants (an arm's and a floating base's alike): each joint's nominal
+    constant, its factor and std, the identified constant (factor x nominal) and its 95 % interval from the factor's
+    (`interval` (m, 2)) times the nominal, written low to high (a constant may be signed)."""
+    return {j: {"nominal": k, "factor": float(f), "identified": float(f * k), "factor_std": finite_or_null(float(sd)),
+                "ci95": [finite_or_null(v) for v in sorted(float(x * k) for x in ci)]}
+            for j, k, f, sd, ci in zip(joints, nominal, factor, std, interval, strict=True)}

@@ -22,7 +22,7 @@ from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model
 from harness.identify import consistent as sdp
 from harness.identify import delay, floating_id
-from harness.identify.scale import scaled
+from harness.identify.scale import constants_table, scaled
 from harness.stages.context import VALIDATION_SPAN
 from harness.stages.floating_fit import UNSEEN, seen, whole_rows
 from harness.stages.log_results import delay_section
@@ -188,9 +188,7 @@ def _torque_constants(ctx, pm, structure, rows, span, training: tuple, Y: np.nda
                       "from the training span, and applied to the span judged as found there",
         "fixed_by": "contacts",
         "common_scale": {"fixed_by": "the contacts' wrenches on the base, read in newtons by no motor constant"},
-        "per_joint": {j: {"nominal": k, "factor": float(f), "identified": float(f * k), "factor_std": float(sd),
-                          "ci95": sorted([float((f - h) * k), float((f + h) * k)])}  # low to high: k is signed
-                      for j, k, f, sd, h in zip(measured, nominal, factor, std, half, strict=True)}}
+        "per_joint": constants_table(measured, nominal, factor, std, np.stack([factor - half, factor + half], axis=1))}
     return scaled(span, factor, measured), factor, section
 
 

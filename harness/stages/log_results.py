@@ -7,6 +7,7 @@ import numpy as np
 
 from harness.base.numerics import evenly_spaced, finite_or_null, parameter_scale, relative_error
 from harness.identify import consistent, delay, friction_law
+from harness.identify.scale import constants_table
 from harness.identify.torque_id import describe_base
 from harness.model.friction import FAMILIES
 from harness.model.inertia import PARAMETER_NAMES
@@ -244,12 +245,7 @@ def _constants_section(constants, source, joints: list[str]) -> dict | None:
                           "as right as the scale's source",
             "fixed_by": c.fixed_by, "common_scale": scale, "relative_residual": c.relative_residual,
             "resamples": c.resamples, "blocks": c.blocks,
-            "per_joint": {j: {"nominal": source.torque_constant[k], "factor": float(c.factor[k]),
-                              "identified": float(c.factor[k] * source.torque_constant[k]),
-                              "factor_std": finite_or_null(float(c.std[k])),
-                              "ci95": [finite_or_null(v) for v in  # low to high: a constant may be signed
-                                       sorted(float(v * source.torque_constant[k]) for v in c.ci95[k])]}
-                          for k, j in enumerate(joints)}}
+            "per_joint": constants_table(joints, source.torque_constant[:len(joints)], c.factor, c.std, c.ci95)}
 
 
 def _truth_errors(li, span: str) -> dict:

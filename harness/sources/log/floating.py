@@ -243,10 +243,10 @@ def in_convention(fl: FloatingLog, read: dict[str, np.ndarray], path, row_of, ro
 
 
 def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> FloatingLog:
-    """What a floating base's log is not read with yet, refused in one line naming the key: no payload,
-    `repeat` or counterbalanced channel (a motor-side log of a robot with [drives] is read through N as an arm's; currents
-    with their declared constants are read as torques, and their
-    constants identified, the scale the contacts' wrenches', with `[floating_log] rows = "all"`; unmeasured
+    """What a floating base's log is not read with yet, refused in one line naming the key: no payload, `repeat`
+    or counterbalanced channel (a motor-side log of a robot with [drives] is read through N as an arm's; currents
+    with their declared constants are read as torques, and their constants identified, the scale the contacts'
+    wrenches', with `[floating_log] rows = "all"`; unmeasured
     channels, `unmeasured`, leave their joints' rows unread and unjudged); no identification method, friction
     law search or refinement beside it (their fits read a fixed base). A log in several files joined on time,
     or with its torques in a file of their own, is read as for an arm, the base's and contacts' columns in any
