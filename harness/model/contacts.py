@@ -49,7 +49,7 @@ from harness.model.spec import WORLD, Loop, RobotSpec
 NEWTON_ITERATIONS = 30
 NEWTON_TOLERANCE = 1e-13  # of the robot's size: the point's distance from its target after Newton's method
 CONTACT_KINDS = ("point", "sole")
-CHAIN_NEEDS = {"point": 3, "sole": 6}  # the joints a contact's chain needs: its constraint's rows
+CHAIN_NEEDS = {"point": (3, "three"), "sole": (6, "six")}  # the joints a contact's chain needs: its constraint's rows
 
 
 @dataclass(frozen=True)
@@ -136,9 +136,10 @@ def read_contacts(root: Table, robot: RobotSpec, motions: dict, t_out: np.ndarra
             raise t.error("body", f"no moving body {body!r} in model {robot.name!r}{why}")
         kind = t.string("kind", "point", choices=CONTACT_KINDS)
         chain = tuple(j for j, c in zip(robot.joint_names, loop_eqs.carried(robot, body), strict=True) if c)
-        if len(chain) < CHAIN_NEEDS[kind]:
+        needs, in_words = CHAIN_NEEDS[kind]
+        if len(chain) < needs:
             raise t.error("body", f"{len(chain)} joint(s) between the base and {body!r}: a {kind} held on the ground "
-                                  f"needs {('three', 'six')[kind == 'sole']}")
+                                  f"needs {in_words}")
         for j in chain:
             if j in owner:
                 raise t.error("body", f"joint {j!r} carries contact {owner[j]!r} too: each contact needs joints of "
