@@ -284,6 +284,22 @@ def torque_constants(constants: dict | None) -> str:
                      for j, v in constants["per_joint"].items()]))
 
 
+def _floating_prediction(pred) -> str:
+    """A floating base's forward simulation under the measured torques and contact wrenches: per model and horizon,
+    the base's RMS position and angle errors and the joints' RMS; its note where none was made (an older run's
+    results hold a sentence)."""
+    head = "<h3>Forward simulation under the measured torques and contact wrenches</h3>"
+    if isinstance(pred, str):
+        return f"{head}<p>{esc(pred)}.</p>"
+    if not pred.get("models"):
+        return f"{head}<p>{esc(pred.get('note', ''))}.</p>"
+    hs = list(next(iter(pred["models"].values())))
+    rows = [[esc(m), *(f"{num(v[h]['base_position_rms_m'])} m, {num(v[h]['base_angle_rms_rad'])} rad, "
+                       f"{num(v[h]['q_rms'])}" for h in hs)] for m, v in pred["models"].items()]
+    return (f"{head}<p>{esc(pred['definition'])}. Per horizon: the base's RMS position and angle errors, the joints' "
+            "RMS [rad or m]:</p>" + table(["model", *hs], rows))
+
+
 def _estimator(e: dict) -> str:
     """The floating log's estimator and each read row's noise as the fit's residual shows it."""
     return (f"<p>Estimator: {esc(e['name'])} ({esc(e['definition'])}).</p>"
@@ -311,11 +327,11 @@ def floating_log(r: dict, log) -> str:
     body = (f"<p>The floating robot identified from {read} on the training span ({f['base_parameters']} base "
             f"parameters of {f['parameters']}, condition number {num(f['condition_number'])}), judged on the "
             f"{esc(f['span'])} span; contacts {esc(', '.join(f['contacts']) or 'none')}. The start check: "
-            f"{start['findings']} finding(s) ({esc(start['definition'])}; limit {num(start['limit'])}). "
-            f"{esc(f['prediction'])}. Unseen by these rows: "
-            f"{esc(', '.join(f['unseen']) or 'nothing')}.</p>"
+            f"{start['findings']} finding(s) ({esc(start['definition'])}; limit {num(start['limit'])}). Unseen by "
+            f"these rows: {esc(', '.join(f['unseen']) or 'nothing')}.</p>"
             + table(["model", "against the log: largest", "RMS", "where", "against the truth: largest", "RMS",
                      "RMS, base rows", "RMS, motors"], rows)
-            + f"<p>{esc(f['definition'])}.</p>" + consistent + _estimator(f["estimator"])
+            + f"<p>{esc(f['definition'])}.</p>" + consistent + _floating_prediction(f["prediction"])
+            + _estimator(f["estimator"])
             + torque_constants(f.get("torque_constants")) + delays(f["delays"]))
     return section("floating_log", "A floating base's log", body)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.base.numerics import PREDICTION_TIMESTEP, finite_or_null
 from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model
 from harness.identify import consistent as sdp
@@ -259,7 +260,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
     truth_rows = _truth_rows(sc, validation)
     if truth_rows is not None:
         predictions["truth"] = truth_rows
-    out, files = {}, {}
+    out, files, identified = {}, {}, None
     if config.consistent:
         ctx.progress("physically consistent parameters (semidefinite program)", None)
         physical, links = floating_id.consistent(pm, robot, rows, training, friction, Y_t, weights)
@@ -268,7 +269,7 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
         model = floating_id.link_parameters(pm)
         frictions = tuple(dataclasses.replace(f, armature=a, viscous=v, coulomb=c, offset=o) if friction else f
                           for f, (a, v, c, o) in zip(robot.frictions, physical.friction[1:], strict=True))
-        files = _exported(sc, physical.theta, frictions)
+        files, identified = _exported(sc, physical.theta, frictions)
         out["consistent"] = {
             "exported": sorted(files),
             "status": physical.status, "solver": physical.solver,
@@ -298,14 +299,65 @@ def run(ctx, config: FloatingLogConfig | None) -> FloatingLogFit | None:
                       "its largest |value| in the log; `measured` against the log's, `truth` against what the robot "
                       "that made it gives at the same states and contact forces",
         "delays": delays, "torque_constants": constants,
-        "prediction": "No forward prediction from a floating base's log: the contacts' forces, read here, would have "
-                      "to be simulated (a contact law the harness does not identify)"}
+        "prediction": _prediction(ctx, judged, judged_span, identified)}
     return FloatingLogFit(results, files)
 
 
-def _exported(sc, theta: np.ndarray, frictions: tuple) -> dict[str, str]:
-    """The consistent fit as files: an MJCF file of the robot on its free joint with the identified bodies, and
-    where the robot comes from a URDF, that URDF with them and a floating joint (harness/model/export.py)."""
+FLOATING_PREDICTION = (
+    "from {starts} measured states along the {span} span (the base's pose and twist, the joints' q and q'), each "
+    "model forward-simulated on its free joint in MuJoCo (RK4, 1 ms) under the measured joint torques less its dry "
+    "friction and the measured contact wrenches applied to their bodies (no contact law: the ground acts as the log "
+    "says it did; harness/engines/free_predict.py); at each horizon the base origin's distance from the log's [m] and "
+    "the angle between the two orientations [rad] (RMS and largest over the starts), and q_sim - q_meas [rad or m] "
+    "(RMS over the starts and joints, and the largest joint's RMS). The least-squares fit is not simulated: its base "
+    "parameters are not a full set of physical parameters")
+
+
+def _prediction(ctx, judged, span: str, identified) -> dict:
+    """results.json's `prediction` of a floating base's log (FLOATING_PREDICTION): the model as given, the consistent
+    fit's robot (`identified`, where made) and the truth (a bench log's) simulated from `[data] prediction`'s starts
+    of the span judged (`judged`, a TimeSeries with the base's and the contacts' columns)."""
+    from harness.engines.free_predict import predict
+    from harness.model.floating import BaseMotion
+    from harness.stages.log_judge import prediction_starts
+
+    sc = ctx.scenario
+    plan = sc.data.prediction
+    starts = prediction_starts(judged.t, plan.horizons[-1], plan.starts)
+    out = {"definition": FLOATING_PREDICTION.format(starts=len(starts), span=span), "span": span,
+           "starts": len(starts), "timestep_s": PREDICTION_TIMESTEP, "horizons_s": list(plan.horizons), "models": {}}
+    if sc.data.unmeasured or not plan.starts or not len(starts):
+        out["note"] = ("not made: joints without a torque channel ([data] unmeasured) have nothing to drive them"
+                       if sc.data.unmeasured else "not made: [data] prediction.starts = 0" if not plan.starts else
+                       f"no stretch of the {span} span is {plan.horizons[-1]:g} s long")
+        return out
+    ctx.progress("forward simulation under the measured torques and contact wrenches", None)
+    base = BaseMotion.from_rows(judged.base_pose, judged.base_twist_W, judged.base_rate_W)
+    bodies = tuple(c.body for c in sc.data.floating.contacts)
+    models = {"model_as_given": sc.robot, "consistent": identified, "truth": sc.truth}
+    for name, spec in models.items():
+        if spec is None:
+            continue
+        position, angle, q_err = predict(spec, sc.gravity_W, judged.t, base, judged.q, judged.qd, judged.tau, bodies,
+                                         judged.contact_F_W, judged.contact_M_W, judged.contact_x_W, starts,
+                                         plan.horizons)
+        out["models"][name] = {f"h{round(h * 1e3)}ms": {
+            "base_position_rms_m": finite_or_null(float(np.sqrt(np.mean(position[:, k] ** 2)))),
+            "base_position_max_m": finite_or_null(float(np.max(position[:, k]))),
+            "base_angle_rms_rad": finite_or_null(float(np.sqrt(np.mean(angle[:, k] ** 2)))),
+            "base_angle_max_rad": finite_or_null(float(np.max(angle[:, k]))),
+            "q_rms": finite_or_null(float(np.sqrt(np.mean(q_err[:, k] ** 2)))),
+            "q_rms_largest_joint": finite_or_null(float(np.max(np.sqrt(np.mean(q_err[:, k] ** 2, axis=0))))),
+            "q_rms_per_joint": {j: finite_or_null(float(np.sqrt(np.mean(q_err[:, k, i] ** 2))))
+                                for i, j in enumerate(sc.robot.joint_names)},
+            "diverged": int(np.sum(~np.isfinite(position[:, k])))} for k, h in enumerate(plan.horizons)}
+    return out
+
+
+def _exported(sc, theta: np.ndarray, frictions: tuple) -> tuple[dict[str, str], object]:
+    """The consistent fit as files, and its robot (a RobotSpec): an MJCF file of the robot on its free joint with
+    the identified bodies, and where the robot comes from a URDF, that URDF with them and a floating joint
+    (harness/model/export.py)."""
     from harness.model.export import MJCF_FILE, URDF_FILE, identified_floating_spec, write_urdf
     from harness.model.mjcf import write_mjcf
 
@@ -316,7 +368,7 @@ def _exported(sc, theta: np.ndarray, frictions: tuple) -> dict[str, str]:
                                                                        "consistent fit)", floating=True)}
     if robot.urdf is not None:
         files[f"identified/{URDF_FILE}"] = write_urdf(robot, theta[1:], frictions, theta[0])
-    return files
+    return files, spec
 
 
 STAGE = Stage("floating_log", "a floating base's log: identification and judging", run,

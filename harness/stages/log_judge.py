@@ -29,7 +29,7 @@ def as_fitted(validation: TimeSeries | None, lags, factor: np.ndarray | None, jo
     return validation if factor is None else scale.scaled(validation, factor, joints)
 
 
-def _starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
+def prediction_starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
     """Rows from which `reach` seconds lie within the same stretch of the span (no gap crossed)."""
     usable = np.flatnonzero(room(t)[1] >= reach)
     if not len(usable):
@@ -48,7 +48,7 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
     [data] prediction's (harness/sources/log/schema.py, Prediction; None, its defaults)."""
     plan = plan or Prediction()
     horizons = plan.horizons
-    starts = _starts(t, horizons[-1], plan.starts)
+    starts = prediction_starts(t, horizons[-1], plan.starts)
     out = {"definition": f"from {len(starts)} measured states along the {span} span, each model forward-simulated "
                          "in MuJoCo (RK4, 1 ms) under the measured joint torques less its dry friction (Coulomb, "
                          "offset and its family's terms); at each horizon q_sim - q_meas [rad or m] and "
