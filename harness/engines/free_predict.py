@@ -15,7 +15,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from harness.base.numerics import PREDICTION_TIMESTEP
+from harness.base.numerics import PREDICTION_TIMESTEP, sampled
 from harness.engines.mujoco import build_model
 from harness.engines.simulation import Simulation
 from harness.model import drives, floating
@@ -24,10 +24,8 @@ from harness.model.spec import RobotSpec
 
 
 def _channels(t: np.ndarray, x: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """x (N, ...) at times `at` (M,), each channel interpolated linearly (held at the ends)."""
-    flat = x.reshape(len(t), -1)
-    return np.stack([np.interp(at, t, flat[:, c]) for c in range(flat.shape[1])], axis=-1).reshape(
-        (len(at),) + x.shape[1:])
+    """x (N, ...) at times `at` (M,): numerics.sampled over its channels flattened (held at the ends)."""
+    return sampled(t, x.reshape(len(t), -1), at).reshape((len(at),) + x.shape[1:])
 
 
 def predict(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, base: BaseMotion, q: np.ndarray, qd: np.ndarray,

@@ -319,17 +319,17 @@ def _prediction(ctx, judged, span: str, identified) -> dict:
     of the span judged (`judged`, a TimeSeries with the base's and the contacts' columns)."""
     from harness.engines.free_predict import predict
     from harness.model.floating import BaseMotion
-    from harness.stages.log_judge import prediction_starts
+    from harness.stages.log_judge import joint_drift, not_predicted, prediction_starts
 
     sc = ctx.scenario
     plan = sc.data.prediction
     starts = prediction_starts(judged.t, plan.horizons[-1], plan.starts)
     out = {"definition": FLOATING_PREDICTION.format(starts=len(starts), span=span), "span": span,
            "starts": len(starts), "timestep_s": PREDICTION_TIMESTEP, "horizons_s": list(plan.horizons), "models": {}}
-    if sc.data.unmeasured or not plan.starts or not len(starts):
-        out["note"] = ("not made: joints without a torque channel ([data] unmeasured) have nothing to drive them"
-                       if sc.data.unmeasured else "not made: [data] prediction.starts = 0" if not plan.starts else
-                       f"no stretch of the {span} span is {plan.horizons[-1]:g} s long")
+    note = not_predicted(plan, starts, span, "not made: joints without a torque channel ([data] unmeasured) have "
+                                             "nothing to drive them" if sc.data.unmeasured else None)
+    if note is not None:
+        out["note"] = note
         return out
     ctx.progress("forward simulation under the measured torques and contact wrenches", None)
     base = BaseMotion.from_rows(judged.base_pose, judged.base_twist_W, judged.base_rate_W)
@@ -346,10 +346,7 @@ def _prediction(ctx, judged, span: str, identified) -> dict:
             "base_position_max_m": finite_or_null(float(np.max(position[:, k]))),
             "base_angle_rms_rad": finite_or_null(float(np.sqrt(np.mean(angle[:, k] ** 2)))),
             "base_angle_max_rad": finite_or_null(float(np.max(angle[:, k]))),
-            "q_rms": finite_or_null(float(np.sqrt(np.mean(q_err[:, k] ** 2)))),
-            "q_rms_largest_joint": finite_or_null(float(np.max(np.sqrt(np.mean(q_err[:, k] ** 2, axis=0))))),
-            "q_rms_per_joint": {j: finite_or_null(float(np.sqrt(np.mean(q_err[:, k, i] ** 2))))
-                                for i, j in enumerate(sc.robot.joint_names)},
+            **joint_drift(q_err[:, k], sc.robot.joint_names),
             "diverged": int(np.sum(~np.isfinite(position[:, k])))} for k, h in enumerate(plan.horizons)}
     return out
 

@@ -57,9 +57,9 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
                          "simulated: its base parameters are not a full set of physical parameters",
            "span": span, "starts": len(starts), "timestep_s": PREDICTION_TIMESTEP,
            "horizons_s": list(horizons), "models": {}}
-    if not_made or not plan.starts or not len(starts):
-        out["note"] = not_made or ("not made: [data] prediction.starts = 0" if not plan.starts else
-                                   f"no stretch of the {span} span is {horizons[-1]:g} s long")
+    note = not_predicted(plan, starts, span, not_made)
+    if note is not None:
+        out["note"] = note
         return out
     chains = {name: spec for name, spec in models.items() if spec.loops}
     if chains:
@@ -71,16 +71,29 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
         per = {}
         for h, horizon in enumerate(horizons):
             e, ed = q_err[:, h], qd_err[:, h]
-            diverged = int(np.sum(~np.all(np.isfinite(e), axis=1)))
-            per[f"h{round(horizon * 1e3)}ms"] = {
-                "q_rms": finite_or_null(float(np.sqrt(np.mean(e**2)))),
-                "q_rms_largest_joint": finite_or_null(float(np.max(np.sqrt(np.mean(e**2, axis=0))))),
-                "qd_rms": finite_or_null(float(np.sqrt(np.mean(ed**2)))),
-                "q_rms_per_joint": {j: finite_or_null(float(np.sqrt(np.mean(e[:, k] ** 2))))
-                                    for k, j in enumerate(joints)},
-                "diverged": diverged}
+            per[f"h{round(horizon * 1e3)}ms"] = {**joint_drift(e, joints),
+                                                 "qd_rms": finite_or_null(float(np.sqrt(np.mean(ed**2)))),
+                                                 "diverged": int(np.sum(~np.all(np.isfinite(e), axis=1)))}
         out["models"][name] = per
     return out
+
+
+def not_predicted(plan: Prediction, starts: np.ndarray, span: str, not_made: str | None = None) -> str | None:
+    """Why no forward prediction is made from a span (`not_made`, the caller's reason; no start asked for; no
+    stretch of the span as long as the last horizon), None where one is."""
+    if not_made:
+        return not_made
+    if not plan.starts:
+        return "not made: [data] prediction.starts = 0"
+    return None if len(starts) else f"no stretch of the {span} span is {plan.horizons[-1]:g} s long"
+
+
+def joint_drift(e: np.ndarray, joints: list[str]) -> dict:
+    """A horizon's joints' position errors e (starts, n): the RMS over every start and joint, the largest joint's
+    RMS and each joint's (null where not finite)."""
+    return {"q_rms": finite_or_null(float(np.sqrt(np.mean(e**2)))),
+            "q_rms_largest_joint": finite_or_null(float(np.max(np.sqrt(np.mean(e**2, axis=0))))),
+            "q_rms_per_joint": {j: finite_or_null(float(np.sqrt(np.mean(e[:, k] ** 2)))) for k, j in enumerate(joints)}}
 
 
 CHAIN_PREDICTION = (
