@@ -64,7 +64,7 @@ class FreeBaseDrive:
         self.contacts = contacts
         self.eq_ids = np.array([model.equality(f"contact_{c.name}").id for c in contacts], dtype=int)
         self.site_ids = np.array([model.site(f"contact_{c.name}").id for c in contacts], dtype=int)
-        self.soles = [getattr(c, "sole", False) for c in contacts]
+        self.soles = [c.sole for c in contacts]
         self.ROW = 25 + 10 * len(contacts)
         if model.nv != n + 6 or model.nu != n:
             raise RuntimeError("the MuJoCo model has other coordinates or actuators than the base and the joints")

@@ -127,7 +127,7 @@ def add_contacts(ms: mujoco.MjSpec, spec: RobotSpec, elements: dict, contacts: t
     (the body's axes, the world's at q = 0) at its frame on the ground, `ground_R` (k, 3, 3)."""
     for k, (c, g) in enumerate(zip(contacts, ground_W, strict=True)):
         body = spec.body(c.body)
-        sole = getattr(c, "sole", False)
+        sole = c.sole
         elements[c.body].add_site(name=f"contact_{c.name}", pos=body.arm_B(c.point_W0),
                                   quat=_quat(body.R_WB0.T) if sole else [1.0, 0.0, 0.0, 0.0])
         ms.worldbody.add_site(name=f"ground_{c.name}", pos=np.asarray(g, dtype=float),
