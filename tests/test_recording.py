@@ -187,3 +187,33 @@ def test_the_bodies_cardano_angles_are_written_beside_the_recording_and_reproduc
     np.testing.assert_array_equal(angles["t"].to_numpy(), kr500_csv.t)
     theta = angles[names[1:]].to_numpy().reshape(len(angles), len(kr500_csv.bodies), 3)
     np.testing.assert_allclose(A_0i(theta), kr500_csv.R_WB, rtol=0, atol=1e-12)
+
+
+def test_the_csv_writer_writes_the_bytes_of_numpys_and_pandas_writers_every_double_read_back_equal():
+    """harness/base/csvtext.py against the two writers it stands for, on the values that tell printf
+    formats apart: subnormals, -0, infinities, NaN (pandas' empty cell, numpy's "nan"), an integer and a
+    boolean column ("%d"); and every float read back is the double written."""
+    import io
+
+    import pandas as pd
+
+    from harness.base.csvtext import csv_text
+
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal(64) * np.logspace(-310, 300, 64)
+    x[[3, 9, 20]] = (-0.0, np.inf, -np.inf)
+    y = rng.standard_normal(64)
+    y[[0, 5, 63]] = np.nan
+    floats = {"t": np.arange(64) * 1e-3, "x": x, "y": y}
+    assert csv_text(floats, missing="") == pd.DataFrame(floats).to_csv(index=False, float_format="%.17g")
+    with_ints = {**floats, "k": np.arange(64), "held": np.arange(64) % 3 == 0}
+    expected = io.StringIO()
+    expected.write(",".join(with_ints) + "\n")
+    np.savetxt(expected, np.column_stack(list(with_ints.values())).astype(float), delimiter=",",
+               fmt=["%.17g"] * 3 + ["%d"] * 2)
+    text = csv_text(with_ints)
+    assert text == expected.getvalue()
+    back = pd.read_csv(io.StringIO(text))
+    for name in floats:
+        np.testing.assert_array_equal(back[name].to_numpy(), floats[name])  # NaN where NaN, else bit-equal
+    assert list(back["held"]) == [int(h) for h in with_ints["held"]]

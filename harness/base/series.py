@@ -208,14 +208,12 @@ class TimeSeries:
         return cols
 
     def write_csv(self, path: Path) -> None:
-        """Every value to 17 significant digits (a double read back is the same double), with numpy's
-        printf formatting (as pandas' float_format="%.17g" writes it, without importing pandas)."""
-        cols = self.columns()
-        fmt = ["%d" if v.dtype.kind in "iub" else "%.17g" for v in cols.values()]
-        data = np.column_stack(list(cols.values())).astype(float)  # '%d' % 1.0 is '1'
+        """Every value to 17 significant digits (a double read back is the same double; a NaN as "nan"):
+        harness/base/csvtext.py."""
+        from harness.base.csvtext import csv_text
+
         with open(path, "w", newline="") as f:
-            f.write(",".join(cols) + "\n")
-            np.savetxt(f, data, fmt=fmt, delimiter=",")
+            f.write(csv_text(self.columns()))
 
 
 def read_csv(path: Path | str, bodies: bool = True) -> TimeSeries:

@@ -82,9 +82,9 @@ def cmd_excite(args: argparse.Namespace) -> int:
     cols = {"t": t}
     for k, j in enumerate(scenario.robot.joint_names):
         cols[f"q_{j}"], cols[f"qd_{j}"], cols[f"qdd_{j}"] = q[:, k], qd[:, k], qdd[:, k]
-    import pandas as pd
+    from harness.base.csvtext import csv_text
 
-    text = pd.DataFrame(cols).to_csv(index=False, float_format="%.17g")
+    text = csv_text(cols, missing="")
     try:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         write_file_atomically(args.out, text)

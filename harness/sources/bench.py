@@ -76,7 +76,7 @@ def write_log(rec: TimeSeries, joints: list[str], path: Path) -> None:
     in ROS's order `qx qy qz qw`, its twist in base axes `vx vy vz wx wy wz`, and each contact's force on its
     body, world axes, `<contact>_fx <contact>_fy <contact>_fz`, then, for a contact whose moment is not zero
     throughout (a sole's), its moment about its point `<contact>_mx <contact>_my <contact>_mz`."""
-    import pandas as pd
+    from harness.base.csvtext import csv_text
 
     cols = {"t": rec.t}
     for k, j in enumerate(joints):
@@ -95,4 +95,4 @@ def write_log(rec: TimeSeries, joints: list[str], path: Path) -> None:
             cols.update(zip((f"{name}_fx", f"{name}_fy", f"{name}_fz"), rec.contact_F_W[:, k].T, strict=True))
             if np.any(rec.contact_M_W[:, k] != 0.0):
                 cols.update(zip((f"{name}_mx", f"{name}_my", f"{name}_mz"), rec.contact_M_W[:, k].T, strict=True))
-    pd.DataFrame(cols).to_csv(path, index=False, float_format="%.17g")
+    Path(path).write_text(csv_text(cols, missing=""), newline="")

@@ -62,14 +62,11 @@ def angles_csv(readings: Readings) -> str:
     """The Cardano angles (Eq. 29) of every body, row by row as the recording's: t, then
     <body>_alpha, <body>_beta, <body>_gamma for each massive body in the recording's order, rad, to
     17 significant digits (a double read back is the same double)."""
-    import io
+    from harness.base.csvtext import csv_text
 
-    header = ["t", *(f"{b}_{a}" for b in readings.bodies for a in ANGLE_NAMES)]
-    data = np.column_stack([readings.t, readings.theta.reshape(len(readings.t), -1)])
-    out = io.StringIO()
-    out.write(",".join(header) + "\n")
-    np.savetxt(out, data, fmt="%.17g", delimiter=",")
-    return out.getvalue()
+    theta = readings.theta.reshape(len(readings.t), -1)
+    names = (f"{b}_{a}" for b in readings.bodies for a in ANGLE_NAMES)
+    return csv_text({"t": readings.t, **{name: theta[:, k] for k, name in enumerate(names)}})
 
 
 def joint_point_accelerations(rec: TimeSeries, arm_O_B: np.ndarray) -> np.ndarray:
