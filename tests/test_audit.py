@@ -241,8 +241,8 @@ def test_a_misread_mjcf_disagrees_with_mujocos_own_reading_of_the_file(tmp_path,
 
 REFUSED = {
     "ball.xml": ('<mujoco><worldbody><body name="a"><joint name="j" type="hinge"/><geom size=".1"/><body name="b" '
-                 'pos="0 0 -.3"><joint name="elbow0" type="ball"/><geom size=".1"/></body></body></worldbody></mujoco>',
-                 "joint 'elbow0' is a ball joint"),
+                 'pos="0 0 -.3"><joint name="elbow0" type="ball" damping="1"/><geom size=".1"/></body></body>'
+                 '</worldbody></mujoco>', "ball joint 'elbow0' has damping"),
     "coupled.xml": ('<mujoco><worldbody><body name="a"><joint name="l" type="slide"/><geom size=".1"/></body><body '
                     'name="b" pos="0 1 0"><joint name="r" type="slide"/><geom size=".1"/></body></worldbody><equality>'
                     '<joint joint1="r" joint2="l" polycoef="0 1 1 0 0"/></equality></mujoco>',

@@ -28,10 +28,8 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import re
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -181,44 +179,6 @@ def inverse_dynamics(spec: RobotSpec, gravity_W: np.ndarray, q: np.ndarray, qd: 
         return tau + dry(qd)
     # the load law reads the rigid bodies' torque: MuJoCo's own, its model without the drives
     return tau + dry(qd, inverse_dynamics(spec.rigid(), gravity_W, q, qd, qdd))
-
-
-def rigid_file_model(path: Path, gravity_W: np.ndarray) -> mujoco.MjModel:
-    """MuJoCo's own model of the MJCF file at `path`, rigid bodies alone (`file_inverse_dynamics`)."""
-    model = mujoco.MjModel.from_xml_path(str(path))
-    model.opt.gravity[:] = gravity_W
-    model.opt.density = model.opt.viscosity = 0.0
-    flag = mujoco.mjtDisableBit
-    model.opt.disableflags |= (flag.mjDSBL_EQUALITY | flag.mjDSBL_CONTACT | flag.mjDSBL_LIMIT
-                               | flag.mjDSBL_FRICTIONLOSS)
-    model.dof_armature[:] = model.dof_damping[:] = model.jnt_stiffness[:] = model.body_gravcomp[:] = 0.0
-    model.tendon_armature[:] = model.tendon_damping[:] = model.tendon_stiffness[:] = 0.0
-    return model
-
-
-def file_inverse_dynamics(path: Path, joints: list[str], gravity_W: np.ndarray, q: np.ndarray, qd: np.ndarray,
-                          qdd: np.ndarray) -> np.ndarray:
-    """MuJoCo's inverse dynamics (mj_inverse, (N, n) in the order of `joints`, named as in the file) of its
-    own model of the MJCF file at `path`, compiled from the file, rigid bodies alone: the joints' armature,
-    damping, stiffness and the bodies' gravity compensation zeroed, the equality constraints (a closed
-    chain's loops), contacts, joint limits and friction loss off, no fluid; a free joint held at the
-    file's pose (qpos0) at rest, as the harness holds it. ValueError: the file's model lacks a joint."""
-    model = rigid_file_model(path, gravity_W)
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
-    # an unnamed joint is '#k' in the harness's reading (harness/model/mjcf.py): MuJoCo's joint k
-    ids = [int(j[1:]) if i < 0 and re.fullmatch(r"#\d+", j) else i for i, j in zip(ids, joints, strict=True)]
-    missing = [j for i, j in zip(ids, joints, strict=True) if not 0 <= i < model.njnt]
-    if missing:
-        raise ValueError(f"MuJoCo's model of {Path(path).name} has no joint {missing[0]!r}")
-    cols, pos = model.jnt_dofadr[ids], model.jnt_qposadr[ids]
-    data = mujoco.MjData(model)
-    tau = np.empty_like(q)
-    for k in range(len(q)):
-        data.qpos[:], data.qvel[:], data.qacc[:] = model.qpos0, 0.0, 0.0
-        data.qpos[pos], data.qvel[cols], data.qacc[cols] = q[k], qd[k], qdd[k]
-        mujoco.mj_inverse(model, data)
-        tau[k] = data.qfrc_inverse[cols]
-    return tau
 
 
 def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:

@@ -31,7 +31,12 @@ closed chain (harness/model/loops.py), its actuated joints those a joint actuato
 equality of two joints whose polynomial is linear (polycoef a_0 a_1 0 0 0) couples them, joint1
 following joint2 (q_1 = a_1 q_2 + a_0 + ref_1 - a_1 ref_2, in the harness's q, MuJoCo's qpos).
 
-Refused, with a line naming the element: ball joints, free joints below the root, a body whose joints
+A ball joint is read as the three hinges about its body's axes at q = 0, `<ball>_x`, `<ball>_y`, `<ball>_z`,
+applied in that order (harness/model/cardano.py: Cardano angles, singular where `<ball>_y` = +-pi/2), two
+massless bodies carrying the second and third; its cone of range is not read (said in the notes).
+
+Refused, with a line naming the element: a ball joint with a motor, armature, damping or friction loss or
+beside other joints in its body, free joints below the root, a body whose joints
 are apart or have a slide after the first, tendons that are not such drives, tendon and flex
 equalities (a tendon loop), a joint equality of higher degree or of one joint, an equality that starts
 inactive, loops beside drive tendons, joint stiffness (springs) and gravity compensation, which the
@@ -107,7 +112,7 @@ def _read(model, mujoco, path: Path) -> tuple:
         name, body = _name(model, obj.mjOBJ_JOINT, j), int(model.jnt_bodyid[j])
         kind = model.jnt_type[j]
         if kind == jt.mjJNT_BALL:
-            raise _Refused(f"joint {name!r} is a ball joint (hinge and slide joints are supported)")
+            _check_ball(model, mujoco, j)
         if kind == jt.mjJNT_FREE:
             if model.body_parentid[body] != 0:
                 raise _Refused(f"joint {name!r}: a free joint below the root is not supported")
@@ -119,11 +124,14 @@ def _read(model, mujoco, path: Path) -> tuple:
             raise _Refused(f"joint {name!r}: stiffness {model.jnt_stiffness[j]:g} (a spring) is not supported")
     data = mujoco.MjData(model)
     data.qpos[:] = 0.0
-    notes: tuple[str, ...] = ()
+    balls = [j for j in range(model.njnt) if model.jnt_type[j] == jt.mjJNT_BALL]
+    data.qpos[model.jnt_qposadr[balls]] = 1.0  # a ball at q = 0: its identity quaternion (not left to MuJoCo's
+    # normalising of a zero one)
+    notes: tuple[str, ...] = tuple(_ball_note(model, mujoco, path, j) for j in balls)
     if free_root is not None:  # fixed at the file's pose
         adr = model.jnt_qposadr[free_root]
         data.qpos[adr:adr + 7] = model.qpos0[adr:adr + 7]
-        notes = (f"{path.name}: free joint {_name(model, obj.mjOBJ_JOINT, free_root)!r} of body "
+        notes += (f"{path.name}: free joint {_name(model, obj.mjOBJ_JOINT, free_root)!r} of body "
                  f"{_name(model, obj.mjOBJ_BODY, int(model.jnt_bodyid[free_root]))!r}: {FLOATING_BASE_FIXED}",)
     mujoco.mj_kinematics(model, data)
     _check_joint_chains(model, data, mujoco)
@@ -157,6 +165,11 @@ def _read(model, mujoco, path: Path) -> tuple:
                                  coulomb=float(model.dof_frictionloss[dof]))
         parent = owner[int(model.body_parentid[b])]
         inner, outer = (_name(model, obj.mjOBJ_BODY, parent) if parent else "world"), _name(model, obj.mjOBJ_BODY, b)
+        if j in balls:  # three hinges about the body's axes, two massless carriages between them
+            hinges, carriages = _ball_hinges(model, data, obj, j, inner, outer, friction)
+            joints += hinges
+            bodies += carriages
+            continue
         first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
         if count > 1:  # joints of one body: a chain, each after the first carried by a massless body at their point
             if j > first:
@@ -212,6 +225,61 @@ def _parts(model, data, bodies: list[int]) -> list[tuple[float, np.ndarray, np.n
         R = data.ximat[k].reshape(3, 3)
         out.append((float(model.body_mass[k]), data.xipos[k].copy(), R @ np.diag(model.body_inertia[k]) @ R.T))
     return out
+
+
+BALL_AXES = ("x", "y", "z")  # a ball joint's hinges, `<ball>_x` .. `<ball>_z`, about its body's axes in this order
+
+
+def _check_ball(model, mujoco, j: int) -> None:
+    """A ball joint read as its three hinges (`_ball_hinges`), else refused in one line: one with a motor, or
+    armature, damping or friction loss (MuJoCo's act on the ball's angular velocity, which is not its hinges'
+    rates: harness/model/cardano.py), one beside other joints in its body, one whose hinges' names the file
+    gives other joints."""
+    obj = mujoco.mjtObj
+    name, body = _name(model, obj.mjOBJ_JOINT, j), int(model.jnt_bodyid[j])
+    dofs = slice(int(model.jnt_dofadr[j]), int(model.jnt_dofadr[j]) + 3)
+    for term, values in (("armature", model.dof_armature), ("damping", model.dof_damping),
+                         ("frictionloss", model.dof_frictionloss)):
+        if np.any(values[dofs] != 0.0):
+            raise _Refused(f"ball joint {name!r} has {term} (a ball is read as three hinges about its body's axes, "
+                           "on whose rates MuJoCo's ball terms do not act alike): only a ball without them is read")
+    driven = [a for a in range(model.nu) if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+              and int(model.actuator_trnid[a, 0]) == j]
+    if driven:
+        raise _Refused(f"actuator {_name(model, obj.mjOBJ_ACTUATOR, driven[0])!r} drives ball joint {name!r}: a motor "
+                       "on a ball joint is not supported")
+    if int(model.body_jntnum[body]) > 1:
+        raise _Refused(f"body {_name(model, obj.mjOBJ_BODY, body)!r} has ball joint {name!r} and other joints (a ball "
+                       "joint is read alone in its body)")
+    taken = {_name(model, obj.mjOBJ_JOINT, k) for k in range(model.njnt)} & {f"{name}_{s}" for s in BALL_AXES}
+    if taken:
+        raise _Refused(f"ball joint {name!r} is read as hinges {name}_x, {name}_y, {name}_z, and the file names "
+                       f"another joint {sorted(taken)[0]!r}")
+
+
+def _ball_hinges(model, data, obj, j: int, inner: str, outer: str, friction: JointFriction) -> tuple[list, list]:
+    """Ball joint j as the three hinges about its body's x, y and z axes at q = 0, in that order, at its
+    anchor (harness/model/cardano.py: the body then turns by R(theta) = Rx Ry Rz in its own axes, as the
+    ball's quaternion turns it), and the two massless bodies that carry the second and third hinge."""
+    name, body = _name(model, obj.mjOBJ_JOINT, j), int(model.jnt_bodyid[j])
+    axes_W = data.xmat[body].reshape(3, 3)  # its columns: the body's axes in world
+    point = data.xanchor[j].copy()
+    names = [f"{name}_{s}" for s in BALL_AXES]
+    carriages = [f"{_name(model, obj.mjOBJ_BODY, body)}[{n}]" for n in names[:2]]
+    ends = [inner, *carriages, outer]
+    hinges = [Joint(n, "revolute", ends[k], ends[k + 1], point.copy(), axes_W[:, k].copy(), friction)
+              for k, n in enumerate(names)]
+    return hinges, [Body(c, 0.0, np.zeros((3, 3)), np.eye(3), point.copy()) for c in carriages]
+
+
+def _ball_note(model, mujoco, path: Path, j: int) -> str:
+    """What the reading of ball joint j assumed, one line."""
+    obj = mujoco.mjtObj
+    name = _name(model, obj.mjOBJ_JOINT, j)
+    cone = f"; its range, a cone of {model.jnt_range[j, 1]:g} rad, is not read" if model.jnt_limited[j] else ""
+    return (f"{path.name}: ball joint {name!r} of body {_name(model, obj.mjOBJ_BODY, int(model.jnt_bodyid[j]))!r} "
+            f"read as the hinges {name}_x, {name}_y, {name}_z about the body's axes, in that order (Cardano angles: "
+            f"singular where {name}_y = +-pi/2){cone}")
 
 
 def _carriage(model, obj, body: int, joint: int) -> str:

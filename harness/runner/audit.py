@@ -51,6 +51,7 @@ from harness.base.numerics import largest_relative_difference as _largest  # eac
 from harness.base.tomlio import InputError, in_one_line
 from harness.model.inertia import not_rigid
 from harness.model.spec import RobotSpec
+from harness.runner.audit_pinocchio import PinocchioParse, massive_ranks
 
 STATES = 100
 RANK_STATES = 300
@@ -85,6 +86,8 @@ class AuditRow:
     invalid_bodies: list[str] = field(default_factory=list)
     base_parameters: int | None = None
     pinocchio_regressor_rank: int | None = None
+    massive_ranks: tuple[int, int] | None = None  # with massless bodies: the harness's and Pinocchio's ranks of
+    # their massive bodies' columns, compared instead of the base and the rank (audit_pinocchio.py)
     notes: list[str] = field(default_factory=list)
     identified: dict | None = None  # `identify_from_bench`'s figures, where asked for (--identify)
     seconds: float = 0.0
@@ -140,7 +143,7 @@ def _against_pinocchios_parser(row: AuditRow, spec: RobotSpec, described: Path |
         return ""
     try:
         with _CapturedStderr() as said:
-            pin_model = _Pinocchio(described, spec)
+            pin_model = PinocchioParse(described, spec, GRAVITY_W)
         row.notes += pin_model.notes + [f"Pinocchio's parser said: {line}" for line in said.lines]
     except Exception as exc:  # Pinocchio's parser refusing the file is a finding, not a crash
         return f"Pinocchio's {_format(described)} parser cannot read it: {in_one_line(str(exc)) or type(exc).__name__}"
@@ -151,10 +154,15 @@ def _against_pinocchios_parser(row: AuditRow, spec: RobotSpec, described: Path |
     row.torques_vs_pinocchio = _largest(ours, theirs)
     row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
     row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
+    if any(b.massless for b in spec.bodies):
+        from harness.engines.pinocchio import build_model
+
+        row.massive_ranks = massive_ranks(spec, build_model(spec.rigid(), GRAVITY_W), pin_model,
+                                          _states(spec, RANK_STATES, seed=2))
     return "" if coupled is None else _couplings_against_pinocchio(row, coupled, pin_model)
 
 
-def _couplings_against_pinocchio(row: AuditRow, spec: RobotSpec, pin_model: _Pinocchio) -> str:
+def _couplings_against_pinocchio(row: AuditRow, spec: RobotSpec, pin_model: PinocchioParse) -> str:
     """A chain of joint couplings: the actuated torques G^T tau and mass matrix G^T M G of the harness's
     tree at STATES random consistent states against Pinocchio's own parse with each follower made its
     leader's mimic joint (transformJointIntoMimic: the reduction inside Pinocchio's RNEA and CRBA, no
@@ -175,7 +183,7 @@ def _couplings_against_pinocchio(row: AuditRow, spec: RobotSpec, pin_model: _Pin
     pm = build_model(spec.rigid(), GRAVITY_W)
     ours, M = actuated_torques(m.G, rnea(pm, m.q, m.qd, m.qdd).tau), np.swapaxes(m.G, 1, 2) @ crba(pm, m.q) @ m.G
     act = list(chain.actuated)
-    reduced = _Pinocchio.reduced(pin_model, model, [spec.joint_names[k] for k in act])
+    reduced = PinocchioParse.reduced(pin_model, model, [spec.joint_names[k] for k in act])
     theirs, M_pin = reduced.torques_and_mass(m.q[:, act], m.qd[:, act], m.qdd[:, act])
     row.couplings = len(spec.loops)
     row.couplings_vs_pinocchio = max(_largest(ours, theirs), float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin))))
@@ -254,72 +262,6 @@ class _CapturedStderr:
         self._file.seek(0)
         self.lines = [line.strip() for line in self._file.read().decode(errors="replace").splitlines() if line.strip()]
         self._file.close()
-
-
-class _Pinocchio:
-    """Pinocchio's own parse of the file (harness/engines/pinocchio_file.py: `notes`, what was done to
-    let it read an MJCF file), evaluated at the harness's joint coordinates; `other_joints`, the names
-    in one reading and not the other."""
-
-    def __init__(self, path: Path, spec: RobotSpec):
-        import pinocchio as pin
-
-        from harness.engines.pinocchio_file import parse
-
-        self.pin = pin
-        self.model, notes = parse(path)
-        self.notes = [f"Pinocchio's parser given the file with: {n}" for n in notes]
-        self.model.gravity.linear = GRAVITY_W
-        self.model.armature[:] = 0.0  # rigid bodies only
-        names = [self.model.names[i] for i in range(1, self.model.njoints)]
-        self.other_joints = sorted(set(spec.joint_names) ^ set(names))
-        if not self.other_joints:
-            self.joints = [self.model.joints[self.model.getJointId(j)] for j in spec.joint_names]
-        self.data = self.model.createData()
-
-    @classmethod
-    def reduced(cls, parsed: _Pinocchio, model, joints: list[str]) -> _Pinocchio:
-        """`parsed` with `model` (its mimic joints made) evaluated at `joints`' coordinates alone."""
-        out = cls.__new__(cls)
-        out.pin, out.model, out.notes, out.other_joints = parsed.pin, model, [], []
-        out.joints = [model.joints[model.getJointId(j)] for j in joints]
-        out.data = model.createData()
-        return out
-
-    def configuration(self, q: np.ndarray) -> np.ndarray:
-        """Pinocchio's configuration vector: a continuous joint (nq = 2) as (cos q, sin q)."""
-        full = self.pin.neutral(self.model)
-        for k, jm in enumerate(self.joints):
-            full[jm.idx_q: jm.idx_q + jm.nq] = [np.cos(q[k]), np.sin(q[k])] if jm.nq == 2 else q[k]
-        return full
-
-    def torques_and_mass(self, q, qd, qdd) -> tuple[np.ndarray, np.ndarray]:
-        from harness.engines.pinocchio import full_crba
-
-        v_idx = [jm.idx_v for jm in self.joints]
-        tau, M = np.empty_like(q), np.empty((len(q), q.shape[1], q.shape[1]))
-        v, a = np.zeros(self.model.nv), np.zeros(self.model.nv)
-        for k in range(len(q)):
-            cfg = self.configuration(q[k])
-            v[v_idx], a[v_idx] = qd[k], qdd[k]
-            tau[k] = self.pin.rnea(self.model, self.data, cfg, v, a)[v_idx]
-            M[k] = full_crba(self.model, self.data, cfg)[np.ix_(v_idx, v_idx)]
-        return tau, M
-
-    def regressor_rank(self, q, qd, qdd) -> int:
-        from harness.base.numerics import column_scale
-
-        v_idx = [jm.idx_v for jm in self.joints]
-        v, a = np.zeros(self.model.nv), np.zeros(self.model.nv)
-        rows = []
-        for k in range(len(q)):
-            v[v_idx], a[v_idx] = qd[k], qdd[k]
-            rows.append(self.pin.computeJointTorqueRegressor(self.model, self.data, self.configuration(q[k]), v, a)
-                        [v_idx])
-        W = np.vstack(rows)
-        W = W / column_scale(W)
-        sv = np.linalg.svd(W, compute_uv=False)
-        return int(np.sum(sv > sv[0] * max(W.shape) * np.finfo(float).eps * 1e3)) if sv.size else 0
 
 
 def _mujoco_conversion(path: Path, name: str) -> RobotSpec:
@@ -420,7 +362,10 @@ def audit(name: str, path: Path, identify_in: Path | None = None) -> AuditRow:
                           row.couplings_vs_pinocchio)):
         if value is not None and not value <= TOLERANCE:
             problems.append(f"{label} {value:.2g}")
-    if row.pinocchio_regressor_rank is not None and row.pinocchio_regressor_rank != row.base_parameters:
+    if row.massive_ranks is not None and row.massive_ranks[0] != row.massive_ranks[1]:
+        problems.append(f"the massive bodies' columns of the regressor have rank {row.massive_ranks[0]}, of "
+                        f"Pinocchio's {row.massive_ranks[1]}")
+    elif row.massive_ranks is None and row.pinocchio_regressor_rank not in (None, row.base_parameters):
         problems.append(f"{row.base_parameters} structural base parameters, Pinocchio's regressor has rank "
                         f"{row.pinocchio_regressor_rank}")
     if identify_in is not None:
@@ -446,7 +391,7 @@ def _against_mujocos_reading(row: AuditRow, spec: RobotSpec, described: Path | N
     pose), a URDF through MuJoCo's URDF import read back as an MJCF file is (a URDF it refuses is said in
     `row.mjcf`: Pinocchio's parser is the URDF's reference). A difference its import makes by what it
     drops (links of zero mass with an inertia) is added to `uncompared`; what disagrees is returned."""
-    from harness.engines.mujoco import file_inverse_dynamics
+    from harness.engines.mujoco_file import file_inverse_dynamics
     from harness.engines.pinocchio import build_model, rnea
 
     q, qd, qdd = states

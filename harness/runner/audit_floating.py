@@ -51,7 +51,7 @@ def _mujoco_file(spec: RobotSpec, path: Path, g: np.ndarray, base, states) -> tu
     """MuJoCo's own model of the MJCF file (rigid bodies, as harness/engines/mujoco.py's
     file_inverse_dynamics prepares it) with its free joint: the base rows and joint torques."""
     from harness.engines.floating import mujoco_inverse
-    from harness.engines.mujoco import rigid_file_model
+    from harness.engines.mujoco_file import rigid_file_model
 
     out = mujoco_inverse(rigid_file_model(path, g), spec.floating.joint, spec.joint_names, base, *states)
     return out.base, out.tau

@@ -19,46 +19,16 @@ import math
 
 import numpy as np
 
+# Eq. (29) A(0i) = Rx(alpha) Ry(beta) Rz(gamma) (A_0i, and component-major A_0i_components), Eq. (33)
+# omega^(i) = D theta' and Eq. (34) D' (whose printed last entry 1 is the derivative of the constant
+# D[2, 2] = 1: 0 here), written once in the core, where a ball joint's coordinates are these angles
+from harness.model.cardano import rate_matrix as D
+from harness.model.cardano import rate_matrix_dot as D_dot  # noqa: F401  (this module's name for it)
+from harness.model.cardano import rotation as A_0i  # noqa: F401  (this module's name for it)
+from harness.model.cardano import rotation_components as A_0i_components  # noqa: F401  (this module's name for it)
+
 LOCK_COS_BETA = 1e-10  # |cos beta| below which alpha and gamma are not separable at all
 GIMBAL_COND_D = 100.0  # rows with cond(D) above this are flagged as near gimbal lock
-
-
-def A_0i(theta: np.ndarray) -> np.ndarray:
-    """Eq. (29): rotation matrix from Cardano angles, shape (..., 3) -> (..., 3, 3)."""
-    return np.moveaxis(A_0i_components(np.moveaxis(np.asarray(theta, dtype=float), -1, 0)), (0, 1), (-2, -1))
-
-
-def A_0i_components(theta_c: np.ndarray) -> np.ndarray:
-    """Eq. (29) in component-major form: angles (3, ...) -> entries (3, 3, ...), contiguous, so that
-    a batch of rotations is nine whole arrays (harness/papers/graph_theory_2021/inverse.py)."""
-    a, b, g = np.asarray(theta_c, dtype=float)
-    ca, sa, cb, sb, cg, sg = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(g), np.sin(g)
-    out = np.empty((3, 3) + a.shape)
-    sa_sb, ca_sb = sa * sb, ca * sb
-    np.multiply(cb, cg, out=out[0, 0])
-    np.multiply(cb, sg, out=out[0, 1])
-    np.negative(out[0, 1], out=out[0, 1])
-    out[0, 2] = sb
-    out[1, 0] = ca * sg + sa_sb * cg
-    out[1, 1] = ca * cg - sa_sb * sg
-    np.multiply(sa, cb, out=out[1, 2])
-    np.negative(out[1, 2], out=out[1, 2])
-    out[2, 0] = sa * sg - ca_sb * cg
-    out[2, 1] = sa * cg + ca_sb * sg
-    np.multiply(ca, cb, out=out[2, 2])
-    return out
-
-
-def D(theta: np.ndarray) -> np.ndarray:
-    """Eq. (33): omega_B = D(theta) theta', shape (..., 3) -> (..., 3, 3)."""
-    _, b, g = np.moveaxis(np.asarray(theta, dtype=float), -1, 0)
-    cb, sb, cg, sg = np.cos(b), np.sin(b), np.cos(g), np.sin(g)
-    zero, one = np.zeros_like(b), np.ones_like(b)
-    return np.stack([
-        np.stack([cb * cg, sg, zero], axis=-1),
-        np.stack([-cb * sg, cg, zero], axis=-1),
-        np.stack([sb, zero, one], axis=-1),
-    ], axis=-2)
 
 
 def D_from_rotations(theta: np.ndarray) -> np.ndarray:
@@ -78,20 +48,6 @@ def D_from_rotations(theta: np.ndarray) -> np.ndarray:
         Ry_Rz = pin.exp3(beta * e_y) @ Rz
         out[k] = np.column_stack([Ry_Rz[0], Rz[1], e_z])  # rows of R are the columns of R^T
     return out.reshape(theta.shape[:-1] + (3, 3))
-
-
-def D_dot(theta: np.ndarray, theta_dot: np.ndarray) -> np.ndarray:
-    """Eq. (34): time derivative of D. The printed Eq. (34) has 1 in its last entry; the
-    derivative of the constant entry D[2, 2] = 1 is 0, which is what is used here."""
-    _, b, g = np.moveaxis(np.asarray(theta, dtype=float), -1, 0)
-    _, bd, gd = np.moveaxis(np.asarray(theta_dot, dtype=float), -1, 0)
-    cb, sb, cg, sg = np.cos(b), np.sin(b), np.cos(g), np.sin(g)
-    zero = np.zeros_like(b)
-    return np.stack([
-        np.stack([-bd * sb * cg - gd * cb * sg, gd * cg, zero], axis=-1),
-        np.stack([bd * sb * sg - gd * cb * cg, -gd * sg, zero], axis=-1),
-        np.stack([bd * cb, zero, zero], axis=-1),
-    ], axis=-2)
 
 
 def cond_D(theta: np.ndarray) -> np.ndarray:

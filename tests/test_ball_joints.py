@@ -1,0 +1,153 @@
+"""Ball joints (MuJoCo's `ball`): read as the three hinges about the body's axes, in that order
+(harness/model/mjcf.py, harness/model/cardano.py), and judged against the engines' own ball joints.
+
+Independent references: MuJoCo's own model of the file (its ball's quaternion, angular velocity and
+acceleration, mj_inverse) and Pinocchio's own MJCF parse (its spherical joint, RNEA and CRBA), both
+reached from the hinges' coordinates through R(theta) and D; the same file written with the three
+hinges in one body, which MuJoCo applies in order; central finite differences of the ball's state.
+Tolerances: 1e-12 relative between engines (round-off measured 4e-16 to 2e-15; 1e-9 would already
+be a bug), 1e-15 m or rad between two readings of the same geometry (one rounding of an axis), 1e-7
+for central differences at a step of 1e-4 (their error is about step^2 = 1e-8 of the size).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from harness.base.tomlio import InputError
+from harness.engines import mujoco as mj_engine
+from harness.engines import pinocchio as pin_engine
+from harness.engines.mujoco_file import file_inverse_dynamics
+from harness.model import closure
+from harness.model.cardano import ball_state
+from harness.model.kinematics import forward_kinematics
+from harness.model.load import load_spec, spec_from_data
+from harness.model.quaternion import derivative
+from harness.runner.audit import audit
+
+from .conftest import ROOT
+
+GRAVITY_W = np.array([0.0, 0.0, -9.81])
+DELTA_BALL = ROOT / "tests" / "data" / "models" / "delta_ball.toml"
+
+PENDULUM = """<mujoco model="pendulum">
+  <worldbody>
+    <body name="upper" pos="0 0 1">
+      <joint name="shoulder" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.4" size="0.03" mass="1.5"/>
+      <body name="lower" pos="0.01 0.02 -0.4" quat="0.9 0.1 0.3 0.2">
+        JOINT
+        <geom type="box" pos="0.05 0.1 -0.2" size="0.03 0.05 0.2" mass="0.7" quat="0.8 0.1 0.2 0.3"/>
+      </body>
+    </body>
+  </worldbody>
+  ACTUATOR
+</mujoco>
+"""
+BALL = '<joint name="wrist" type="ball"/>'
+HINGES = ('<joint name="wrist_x" type="hinge" axis="1 0 0"/><joint name="wrist_y" type="hinge" axis="0 1 0"/>'
+          '<joint name="wrist_z" type="hinge" axis="0 0 1"/>')
+
+
+def _pendulum(tmp_path, joint: str = BALL, actuator: str = "", name: str = "pendulum"):
+    path = tmp_path / f"{name}.xml"
+    path.write_text(PENDULUM.replace("JOINT", joint).replace("ACTUATOR", actuator))
+    return path
+
+
+def _read(path):
+    return spec_from_data({"mjcf": {"file": path.name}}, path.with_suffix(".toml"))
+
+
+def test_a_ball_joint_reads_as_the_hinges_of_its_bodys_axes_in_order(tmp_path):
+    """The ball's reading is the file's with three hinges x, y, z in the ball's body (MuJoCo applies a
+    body's hinges in order): the same joints, points, axes, bodies and carriages, and one note."""
+    ball, hinges = _read(_pendulum(tmp_path)), _read(_pendulum(tmp_path, HINGES, name="hinges"))
+    assert list(ball.joint_names) == list(hinges.joint_names) == ["shoulder", "wrist_x", "wrist_y", "wrist_z"]
+    assert [b.name for b in ball.bodies] == [b.name for b in hinges.bodies] == [
+        "upper", "lower[wrist_x]", "lower[wrist_y]", "lower"]
+    for a, b in zip(ball.joints, hinges.joints, strict=True):
+        assert (a.parent, a.child) == (b.parent, b.child)
+        np.testing.assert_allclose(a.axis_W0, b.axis_W0, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(a.p_W0, b.p_W0, rtol=0, atol=1e-15)
+    for a, b in zip(ball.bodies, hinges.bodies, strict=True):
+        assert a.mass == b.mass
+        np.testing.assert_allclose(a.p_W_com0, b.p_W_com0, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(a.R_WB0 @ a.I_B @ a.R_WB0.T, b.R_WB0 @ b.I_B @ b.R_WB0.T, rtol=0, atol=1e-15)
+    assert len(ball.notes) == 1 and "ball joint 'wrist'" in ball.notes[0] and "wrist_y = +-pi/2" in ball.notes[0]
+
+
+def test_mujocos_ball_and_pinocchios_spherical_joint_agree_with_the_hinges(tmp_path):
+    """`harness audit` of the file: MuJoCo's own ball (quaternion, body-axes angular velocity) and
+    Pinocchio's own spherical joint against the harness's three hinges at random states, torques and
+    mass matrix; the massive bodies' regressor columns of equal rank (the carriages are the reading's)."""
+    row = audit("pendulum", _pendulum(tmp_path))
+    assert row.verdict == "agrees", row.reason
+    assert row.torques_vs_mujoco_file <= 1e-12 and row.torques_vs_pinocchio <= 1e-12
+    assert row.mass_matrix_vs_pinocchio <= 1e-12 and row.torques_vs_mujoco <= 1e-12
+    assert row.massive_ranks[0] == row.massive_ranks[1] > 0
+
+
+def test_the_balls_quaternion_and_angular_velocity_are_the_derivatives_of_its_hinges_motion():
+    """Along theta(t) = a sin(w t + phi): the quaternion's central difference is q' = q (0, omega_B) / 2
+    (harness/model/quaternion.py, derivative), and omega_B's is the acceleration ball_state gives."""
+    t, h = np.linspace(0.0, 2.0, 41), 1e-4
+    a, w, phi = np.array([0.9, 1.2, -1.4]), np.array([1.3, 2.1, 0.7]), np.array([0.2, -0.4, 1.0])
+
+    def state(times):
+        x = w * times[:, None] + phi
+        return ball_state(a * np.sin(x), a * w * np.cos(x), -a * w**2 * np.sin(x))
+
+    quat, omega, omegadot, _ = state(t)
+    (q_plus, w_plus, _, _), (q_minus, w_minus, _, _) = state(t + h), state(t - h)
+    np.testing.assert_allclose((q_plus - q_minus) / (2 * h), derivative(quat, omega), rtol=0, atol=1e-7)
+    np.testing.assert_allclose((w_plus - w_minus) / (2 * h), omegadot, rtol=0, atol=1e-7 * np.abs(omegadot).max())
+
+
+@pytest.fixture(scope="module")
+def delta_ball():
+    return closure.ClosedChain.of(load_spec(DELTA_BALL))
+
+
+def test_a_delta_on_a_ball_joint_closes_its_loops_and_two_engines_agree_through_g(delta_ball):
+    """The delta robot whose platform turns on a ball joint of MuJoCo's own: at 50 random consistent
+    states (the motors within +-0.5 rad) the platform stays level under the parallelograms (its frame's
+    turn from q = 0 under 1e-9 rad), the ball's middle hinge far from its lock, and G^T tau of Pinocchio
+    and of MuJoCo (the loops as its equality constraints) within 1e-9 of the largest; MuJoCo's own model
+    of the file, its ball as a quaternion, gives the tree's torques of the hinges within 1e-12."""
+    spec = delta_ball.spec
+    lo, hi = np.full(3, -0.5), np.full(3, 0.5)
+    m = closure.random_motion(delta_ball, lo, hi, np.ones(3), np.ones(3), count=50, seed=5)
+    x, y, z = (spec.joint_names.index(f"wrist_{s}") for s in "xyz")
+    assert np.max(np.abs(m.q[:, y])) < 1.0  # rad: cos > 0.5, D well conditioned
+    kin = forward_kinematics(spec, m.q, m.qd, m.qdd)
+    R = kin.R_WB[:, kin.body_index("platform")]
+    rest = np.zeros((1, len(spec.joints)))
+    R0 = forward_kinematics(spec, rest, rest, rest).R_WB[0, kin.body_index("platform")]
+    turn = np.arccos(np.clip((np.trace(R @ R0.T, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
+    assert np.max(turn) < 1e-6  # arccos near 1 loses half the digits: 1e-6 rad is cos within 5e-13
+    pm = pin_engine.build_model(spec, GRAVITY_W)
+    tau_pin = pin_engine.rnea(pm, m.q, m.qd, m.qdd).tau
+    tau_mj = mj_engine.inverse_dynamics(spec, GRAVITY_W, m.q, m.qd, m.qdd)
+    a_pin, a_mj = closure.actuated_torques(m.G, tau_pin), closure.actuated_torques(m.G, tau_mj)
+    assert np.abs(a_pin - a_mj).max() <= 1e-9 * np.abs(a_pin).max()
+    own = file_inverse_dynamics(DELTA_BALL.with_suffix(".xml"), list(spec.joint_names), GRAVITY_W,
+                                          m.q, m.qd, m.qdd)
+    rigid = pin_engine.rnea(pin_engine.build_model(spec.rigid(), GRAVITY_W), m.q, m.qd, m.qdd).tau
+    assert np.abs(own - rigid).max() <= 1e-12 * np.abs(rigid).max()
+    assert {x, y, z} <= set(delta_ball.passive)
+
+
+@pytest.mark.parametrize("joint, actuator, said", [
+    ('<joint name="wrist" type="ball" damping="0.1"/>', "", "ball joint 'wrist' has damping"),
+    (BALL, '<actuator><motor joint="wrist" gear="1 0 0"/></actuator>', "drives ball joint 'wrist'"),
+    ('<joint name="lift" type="slide" axis="0 0 1"/>' + BALL, "", "has ball joint 'wrist' and other joints"),
+    (BALL + '<geom type="sphere" size="0.05" mass="1"/></body><body name="other"><joint name="wrist_y"/>', "",
+     "the file names another joint 'wrist_y'"),
+], ids=["damping", "motor", "beside a slide", "names taken"])
+def test_a_ball_joint_the_hinges_cannot_stand_for_is_refused_in_one_line(tmp_path, joint, actuator, said):
+    path = _pendulum(tmp_path, joint, actuator)
+    with pytest.raises(InputError) as err:
+        _read(path)
+    assert err.value.key == "mjcf.file" and said in str(err.value) and "\n" not in str(err.value)
