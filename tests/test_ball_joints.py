@@ -151,3 +151,32 @@ def test_a_ball_joint_the_hinges_cannot_stand_for_is_refused_in_one_line(tmp_pat
     with pytest.raises(InputError) as err:
         _read(path)
     assert err.value.key == "mjcf.file" and said in str(err.value) and "\n" not in str(err.value)
+
+
+def test_pinocchios_parse_with_the_balls_as_hinges_is_the_harnesss_reading(tmp_path):
+    """What `harness init`'s placeholder model and the floating audit read (harness/engines/pinocchio_file.py,
+    `ball_hinges`): Pinocchio's parse of the file with its ball written as the three hinges has the
+    harness's joints, in its order, and the same torques at random states (1e-12 of the largest)."""
+    from harness.engines.pinocchio_file import parse
+
+    path = _pendulum(tmp_path)
+    model, notes = parse(path, ball_hinges=True)
+    spec = _read(path)
+    assert list(model.names)[1:] == list(spec.joint_names) and "1 ball joint(s)" in notes[0]
+    model.gravity.linear = GRAVITY_W
+    rng = np.random.default_rng(2)
+    q, qd, qdd = (rng.uniform(-1.0, 1.0, (20, 4)) for _ in range(3))
+    data = model.createData()
+    theirs = np.array([pin_engine.pin.rnea(model, data, *x) for x in zip(q, qd, qdd, strict=True)])
+    ours = pin_engine.rnea(pin_engine.build_model(spec.rigid(), GRAVITY_W), q, qd, qdd).tau
+    assert np.abs(theirs - ours).max() <= 1e-12 * np.abs(ours).max()
+
+
+def test_a_rank_the_massless_bodies_do_not_explain_is_a_disagreement(tmp_path, monkeypatch):
+    """The audit's verdict on the regressor's rank (harness/runner/audit.py): a base count and Pinocchio's
+    rank that differ pass only where their massive bodies' columns have one rank; given two, it disagrees."""
+    import harness.runner.audit as audit_module
+
+    monkeypatch.setattr(audit_module, "massive_ranks", lambda *args: (11, 12))
+    row = audit("pendulum", _pendulum(tmp_path))
+    assert row.verdict == "disagrees" and "of the massive bodies' columns alone 11 and 12" in row.reason

@@ -14,7 +14,10 @@ dynamics; what it is given is the file with those parts made readable, each said
   before it: the same chain); its parser would make them one composite joint named otherwise;
 - a free joint held at the file's pose, as the harness holds it (an MJCF body's pose is its free-flyer's
   configuration, MuJoCo's qpos0, not its neutral one; a URDF floating joint's is its origin): the joints
-  that remain are the harness's. With `free`, the free-flyer is kept.
+  that remain are the harness's. With `free`, the free-flyer is kept;
+- with `ball_hinges`, a `type="ball"` joint written as the three hinges `<ball>_x .. _z` about its body's axes,
+  as the harness reads it (harness/model/mjcf.py; nested bodies, as above): its joints are then the
+  harness's. Without, it is Pinocchio's spherical joint (a quaternion: what `harness audit` compares with).
 A file it still cannot read raises its own error (a ValueError or RuntimeError with its message).
 """
 
@@ -34,17 +37,17 @@ ROOT_BODY = "pinocchio_reading_root"  # the body that takes a file's root bodies
 MAX_INCLUDES = 100  # nested or repeated includes beyond this: a file that includes itself
 
 
-def parse(path: Path, free: bool = False) -> tuple[pin.Model, list[str]]:
+def parse(path: Path, free: bool = False, ball_hinges: bool = False) -> tuple[pin.Model, list[str]]:
     """Pinocchio's model of the URDF or MJCF file at `path` (told by its root element, <robot> or
     <mujoco>), with every free joint held at the file's pose (with `free`, kept: a floating base's
-    free-flyer, placed where the file draws the base), and what was done to let its parser read the
-    file, one line each."""
+    free-flyer, placed where the file draws the base), a ball joint as the harness's three hinges with
+    `ball_hinges` (the module docstring), and what was done to let its parser read the file, one line each."""
     root = ET.fromstring(read_bounded(path, MAX_XML_BYTES))
     notes = []
     if root.tag != "mujoco":
         model = pin.buildModelFromUrdf(str(path))  # a `floating` joint: its free-flyer
     else:
-        notes = _readable(root, Path(path).parent)
+        notes = _readable(root, Path(path).parent, ball_hinges)
         with tempfile.TemporaryDirectory() as folder:  # meshes are not read: the model's inertias are its own
             copy = Path(folder) / Path(path).name
             copy.write_text(ET.tostring(root, encoding="unicode"))
@@ -79,7 +82,7 @@ def _at_the_files_pose(model: pin.Model, flyers: list[int], path: Path, tag: str
     return q
 
 
-def _readable(root: ET.Element, folder: Path) -> list[str]:
+def _readable(root: ET.Element, folder: Path, ball_hinges: bool = False) -> list[str]:
     """The MJCF tree `root` made readable by Pinocchio's parser in place (the module docstring); what
     was done, one line each."""
     notes, count = [], 0
@@ -108,6 +111,8 @@ def _readable(root: ET.Element, folder: Path) -> list[str]:
         world.append(holder)
         notes.append(f"its {len(bodies)} root bodies put under one massless body (Pinocchio's parser reads the first "
                      "alone)")
+    if ball_hinges:
+        notes += _balls_as_hinges(root)
     chains = 0
     for body in list(root.iter("body")):
         joints = body.findall("joint")
@@ -130,6 +135,23 @@ def _readable(root: ET.Element, folder: Path) -> list[str]:
     return notes
 
 
+def _balls_as_hinges(root: ET.Element) -> list[str]:
+    """Each `<joint type="ball">` of the tree replaced, in place, by the hinges about its body's axes in the
+    harness's order and names (harness/model/mjcf.py, BALL_AXES), at its `pos`."""
+    from harness.model.mjcf import BALL_AXES
+
+    count = 0
+    for body in root.iter("body"):
+        for k, joint in [(k, c) for k, c in enumerate(body) if c.tag == "joint" and c.get("type") == "ball"][::-1]:
+            body.remove(joint)
+            for a, axis in reversed(list(enumerate(BALL_AXES))):
+                hinge = {"name": f"{joint.get('name', '')}_{axis}", "type": "hinge",
+                         "axis": " ".join("1" if b == a else "0" for b in range(3))}
+                body.insert(k, ET.Element("joint", hinge | ({"pos": joint.get("pos")} if joint.get("pos") else {})))
+            count += 1
+    return [f"{count} ball joint(s) written as the harness's three hinges about the body's axes"] if count else []
+
+
 def _first_include(root: ET.Element) -> tuple[ET.Element, int, ET.Element] | None:
     for parent in root.iter():
         for k, child in enumerate(parent):
@@ -149,7 +171,7 @@ def free_inverse_dynamics(path: Path, free_joint: str, joints: list[str], gravit
     from harness.model.floating import base_rows_from_pinocchio, to_pinocchio
     from harness.model.urdf import ROOT_FLOATING_JOINT
 
-    model, _ = parse(path, free=True)
+    model, _ = parse(path, free=True, ball_hinges=True)
     if not model.existJointName(free_joint) and free_joint == ROOT_FLOATING_JOINT:
         model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())  # a model file's floating root link
     model.gravity.linear = np.asarray(gravity_W, dtype=float)

@@ -99,11 +99,11 @@ def robot_model(path, gravity_W):
     """Pinocchio's model of the robot file (a URDF, or an MJCF file: told by the root element) with the
     scenario's gravity, its data, and its joints' names in its order. Pinocchio's own parser reads it,
     given an MJCF file with what that parser cannot read made readable (keyframes left out, several
-    root bodies under one) and a floating base held where the file puts it, as the harness holds it
-    (harness/engines/pinocchio_file.py)."""
+    root bodies under one), a ball joint as the three hinges the harness reads it as, and a floating base
+    held where the file puts it, as the harness holds it (harness/engines/pinocchio_file.py)."""
     from harness.engines.pinocchio_file import parse
 
-    model, _ = parse(Path(path))
+    model, _ = parse(Path(path), ball_hinges=True)
     model.gravity.linear = np.asarray(gravity_W, dtype=float)
     return model, model.createData(), list(model.names)[1:]
 
