@@ -16,20 +16,18 @@ import numpy as np
 import pytest
 
 from harness.base.tomlio import InputError
-from harness.engines import mujoco as mj_engine
 from harness.engines import pinocchio as pin_engine
 from harness.engines.mujoco_file import file_inverse_dynamics
 from harness.model import closure
 from harness.model.cardano import ball_state
-from harness.model.kinematics import forward_kinematics
 from harness.model.load import load_spec, spec_from_data
 from harness.model.quaternion import derivative
 from harness.runner.audit import audit
 
-from .conftest import ROOT
+from .conftest import MODELS
 
 GRAVITY_W = np.array([0.0, 0.0, -9.81])
-DELTA_BALL = ROOT / "tests" / "data" / "models" / "delta_ball.toml"
+DELTA = MODELS / "delta.toml"  # its platform on a ball joint of MuJoCo's own
 
 PENDULUM = """<mujoco model="pendulum">
   <worldbody>
@@ -106,37 +104,32 @@ def test_the_balls_quaternion_and_angular_velocity_are_the_derivatives_of_its_hi
 
 
 @pytest.fixture(scope="module")
-def delta_ball():
-    return closure.ClosedChain.of(load_spec(DELTA_BALL))
+def delta():
+    return closure.ClosedChain.of(load_spec(DELTA))
 
 
-def test_a_delta_on_a_ball_joint_closes_its_loops_and_two_engines_agree_through_g(delta_ball):
-    """The delta robot whose platform turns on a ball joint of MuJoCo's own: at 50 random consistent
-    states (the motors within +-0.5 rad) the platform stays level under the parallelograms (its frame's
-    turn from q = 0 under 1e-9 rad), the ball's middle hinge far from its lock, and G^T tau of Pinocchio
-    and of MuJoCo (the loops as its equality constraints) within 1e-9 of the largest; MuJoCo's own model
-    of the file, its ball as a quaternion, gives the tree's torques of the hinges within 1e-12."""
-    spec = delta_ball.spec
-    lo, hi = np.full(3, -0.5), np.full(3, 0.5)
-    m = closure.random_motion(delta_ball, lo, hi, np.ones(3), np.ones(3), count=50, seed=5)
-    x, y, z = (spec.joint_names.index(f"wrist_{s}") for s in "xyz")
-    assert np.max(np.abs(m.q[:, y])) < 1.0  # rad: cos > 0.5, D well conditioned
-    kin = forward_kinematics(spec, m.q, m.qd, m.qdd)
-    R = kin.R_WB[:, kin.body_index("platform")]
-    rest = np.zeros((1, len(spec.joints)))
-    R0 = forward_kinematics(spec, rest, rest, rest).R_WB[0, kin.body_index("platform")]
-    turn = np.arccos(np.clip((np.trace(R @ R0.T, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0))
-    assert np.max(turn) < 1e-6  # arccos near 1 loses half the digits: 1e-6 rad is cos within 5e-13
-    pm = pin_engine.build_model(spec, GRAVITY_W)
-    tau_pin = pin_engine.rnea(pm, m.q, m.qd, m.qdd).tau
-    tau_mj = mj_engine.inverse_dynamics(spec, GRAVITY_W, m.q, m.qd, m.qdd)
-    a_pin, a_mj = closure.actuated_torques(m.G, tau_pin), closure.actuated_torques(m.G, tau_mj)
-    assert np.abs(a_pin - a_mj).max() <= 1e-9 * np.abs(a_pin).max()
-    own = file_inverse_dynamics(DELTA_BALL.with_suffix(".xml"), list(spec.joint_names), GRAVITY_W,
-                                          m.q, m.qd, m.qdd)
-    rigid = pin_engine.rnea(pin_engine.build_model(spec.rigid(), GRAVITY_W), m.q, m.qd, m.qdd).tau
+def test_the_built_in_delta_turns_its_platform_on_a_ball_and_the_graph_theory_model_reads_it(delta):
+    """The built-in delta's platform turns on a ball joint of MuJoCo's own: read as three passive hinges
+    (its loops and both engines' agreement through G: tests/test_closed_chains.py). At 50 random
+    consistent states (motors within +-0.5 rad) the ball's middle hinge stays far from its lock; MuJoCo's
+    own model of the file, its ball a quaternion, gives the tree's torques of the hinges within 1e-12 of
+    the largest; and the graph-theory model, the ball an edge from the rod through two massless carriages
+    (harness/papers/graph_theory_2021/topology.py), gives the actuated torques G^T tau within 1e-12."""
+    from harness.papers.graph_theory_2021.model import make
+
+    spec = delta.spec
+    ball = [spec.joint_names.index(f"wrist_{s}") for s in "xyz"]
+    assert set(ball) <= set(delta.passive) and any("ball joint 'wrist'" in note for note in spec.notes)
+    m = closure.random_motion(delta, np.full(3, -0.5), np.full(3, 0.5), np.ones(3), np.ones(3), count=50, seed=5)
+    assert np.max(np.abs(m.q[:, ball[1]])) < 1.0  # rad: cos > 0.5, D well conditioned
+    pm = pin_engine.build_model(spec.rigid(), GRAVITY_W)
+    rigid = pin_engine.rnea(pm, m.q, m.qd, m.qdd).tau
+    own = file_inverse_dynamics(DELTA.with_suffix(".xml"), list(spec.joint_names), GRAVITY_W, m.q, m.qd, m.qdd)
     assert np.abs(own - rigid).max() <= 1e-12 * np.abs(rigid).max()
-    assert {x, y, z} <= set(delta_ball.passive)
+    actuated = closure.actuated_torques(m.G, pin_engine.rnea(pin_engine.build_model(spec, GRAVITY_W), m.q, m.qd,
+                                                                m.qdd).tau)
+    graph = make(spec, GRAVITY_W).inverse_dynamics(m.q, m.qd, m.qdd)
+    assert np.abs(graph - actuated).max() <= 1e-12 * np.abs(actuated).max()
 
 
 @pytest.mark.parametrize("joint, actuator, said", [

@@ -305,14 +305,31 @@ def test_g_lies_in_mujoco_s_constraint_null_space(name, request):
     model = mujoco.MjModel.from_xml_path(str(chain.spec.mjcf))
     data = mujoco.MjData(model)
     m = closure.random_motion(chain, *_bounds(chain), count=40, seed=2)
-    jid = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in chain.spec.joint_names]
     for k in range(len(m.q)):
-        data.qpos[model.jnt_qposadr[jid]] = m.q[k]
+        T = _file_configuration(model, data, chain.spec.joint_names, m.q[k])
         mujoco.mj_forward(model, data)
         rows = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
-        J = data.efc_J.reshape(data.nefc, model.nv)[rows][:, model.jnt_dofadr[jid]]
+        J = data.efc_J.reshape(data.nefc, model.nv)[rows] @ T
         assert np.abs(data.efc_pos[rows]).max() <= 1e-12 * chain.size
         assert np.abs(J @ m.G[k]).max() <= 1e-12 * np.linalg.norm(J) * np.linalg.norm(m.G[k])
+
+
+def _file_configuration(model, data, joints, q) -> np.ndarray:
+    """MuJoCo's qpos of the file's model set from the harness's q (n,) of `joints`, and T (nv, n), its
+    velocities from the harness's (v = T q'): a hinge its own, a ball joint from its three hinges
+    `<ball>_x .. _z` (harness/model/cardano.py: its quaternion and D)."""
+    from harness.model.cardano import ball_state
+
+    T = np.zeros((model.nv, len(joints)))
+    for i in range(model.njnt):
+        name, adr, dof = model.joint(i).name, model.jnt_qposadr[i], model.jnt_dofadr[i]
+        if model.jnt_type[i] == mujoco.mjtJoint.mjJNT_BALL:
+            ks = [joints.index(f"{name}_{s}") for s in "xyz"]
+            quat, _, _, D = ball_state(q[None, ks], np.zeros((1, 3)), np.zeros((1, 3)))
+            data.qpos[adr:adr + 4], T[dof:dof + 3, ks] = quat[0], D[0]
+        else:
+            data.qpos[adr], T[dof, joints.index(name)] = q[joints.index(name)], 1.0
+    return T
 
 
 def _bounds(chain):

@@ -175,12 +175,25 @@ def test_a_floating_base_is_fixed_to_the_world_and_said_so(tmp_path, capsys):
     assert "warning: s: arm.xml: free joint 'float'" in capsys.readouterr().err
 
 
-def test_the_graph_theory_model_refuses_a_carriage_it_cannot_carry(tmp_path):
-    """The first seed's method reads a massless carriage as part of the ground (its rail); one on a body
-    (a universal joint read from an MJCF file) is refused in one line when the model is built, not
-    computed wrong (engines agree on that robot: the test above)."""
+def test_the_graph_theory_model_carries_a_universal_joint_on_a_body_and_its_study_refuses_it(tmp_path):
+    """The first seed's method reads a chain of hinges through a massless carriage on a body (a universal
+    joint read from an MJCF file) as one edge from the body's massive ancestor: its joint torques are
+    Pinocchio's at random states (to 1e-12 of the largest; round-off is ~1e-15). The study's constraint
+    equations (Section 2.4), which read a carriage on the ground only, refuse it in one line."""
+    from harness.engines import pinocchio as pin_engine
+    from harness.model.states import random_states
+    from harness.papers.graph_theory_2021.constraints import build_constraints
     from harness.papers.graph_theory_2021.dynamics import build_graph_model
+    from harness.papers.graph_theory_2021.inverse import inverse_dynamics_of_motion
 
     spec = _spec(tmp_path, ARM.replace('range="-120 120"/>', 'range="-120 120"/><joint name="twist" axis="1 0 0"/>'))
-    with pytest.raises(ValueError, match="body 'fore\\[elbow\\]' is a massless carriage on body 'upper'"):
-        build_graph_model(spec, spec.gravity_W)
+    n = len(spec.joints)
+    q, qd, qdd = random_states(np.full(n, -1.0), np.full(n, 1.0), np.ones(n), np.ones(n), 40, seed=3)
+    graph = build_graph_model(spec, spec.gravity_W)
+    ours = inverse_dynamics_of_motion(spec, graph, q, qd, qdd).tau
+    pin = pin_engine.rnea(pin_engine.build_model(spec.rigid(), spec.gravity_W), q, qd, qdd).tau
+    assert np.abs(ours - pin).max() <= 1e-12 * np.abs(pin).max()
+    with pytest.raises(ValueError, match="only a prismatic joint from the world may carry the massless body"):
+        build_constraints(spec, graph.topology)
+
+

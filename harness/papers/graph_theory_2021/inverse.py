@@ -19,7 +19,7 @@ import numpy as np
 from harness.base.heap import keep_heap
 from harness.base.series import TimeSeries
 from harness.model.kinematics import KinematicsBuffers, cross, forward_kinematics, rotate
-from harness.model.spec import RobotSpec
+from harness.model.spec import WORLD, RobotSpec
 from harness.papers.graph_theory_2021.cardano import A_0i_components
 from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.papers.graph_theory_2021.topology import Topology, joint_arms_components
@@ -36,6 +36,11 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: TimeSeries) -> Gra
     """From a recording: Cardano angles, centre-of-mass accelerations, angular velocities and
     accelerations as measured, and the joint coordinates."""
     top = model.topology
+    off_ground = [j.name for j in spec.joints if spec.body(j.child).massless and j.parent != WORLD]
+    if off_ground:  # its axis turns with a carriage, whose orientation no recorded body gives
+        raise ValueError(f"joint {off_ground[0]!r} carries a massless body from another: the inverse dynamics of a "
+                         "recording reads a joint's axis off its bodies' orientations (inverse_dynamics_of_motion "
+                         "reads it off the joint coordinates)")
     b = [rec.body_index(x) for x in top.bodies]
     q = rec.q[:, [rec.joint_index(j) for j in top.joints]]
     a, w, wd = (_samples_last(x, b) for x in (rec.a_W, rec.omega_W, rec.omegadot_W))

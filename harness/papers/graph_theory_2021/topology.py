@@ -3,8 +3,12 @@
 The graph's vertices are the massive bodies B_1..B_n and the ground B_0; its edges are the
 joints O_j, each the inner joint of exactly one body (a tree). A massless carriage and the joint
 that carries it (kr500's rail) belong to the moving base: O_1 then connects B_1 to that base,
-which plays the part of B_0. The force elements of the paper are the joint force elements, one
-per joint, so the force-element matrices equal the joint matrices (S_e = S, C_e = C).
+which plays the part of B_0. A chain of hinges through massless carriages at one point between two
+bodies (a ball joint read as its three hinges, harness/model/mjcf.py; a universal joint) is one edge,
+from the body's nearest massive ancestor: a carriage transmits the wrench it carries unchanged, and
+each hinge of the chain drives the component of the edge's moment along its own axis. The force
+elements of the paper are the joint force elements, one per joint, so the force-element matrices
+equal the joint matrices (S_e = S, C_e = C).
 
 Conventions (signs restored where the text extraction lost them, and fixed by Eqs. 25-27):
 - S_ij = +1 if O_j starts at B_i (B_i is its inner body), -1 if O_j ends at B_i (B_i is its outer
@@ -30,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.model.kinematics import cross, rotate
-from harness.model.spec import WORLD, RobotSpec
+from harness.model.spec import RobotSpec
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,13 +93,11 @@ class Topology:
 
 
 def build_topology(spec: RobotSpec) -> Topology:
-    """S and c for any tree of the spec; nothing here is specific to six bodies. A massless carriage is
-    read on the ground only (the moving base of the module docstring); one carried by a joint from a
-    body (a body of several joints in an MJCF file) is refused."""
-    for b in spec.bodies:
-        if b.massless and spec.inner_joint(b.name).parent != WORLD:
-            raise ValueError(f"body {b.name!r} is a massless carriage on body {spec.inner_joint(b.name).parent!r}: the "
-                             "graph-theory model carries one on the ground only (the first paper's rail)")
+    """S and c for any tree of the spec; nothing here is specific to six bodies. Each edge joins a body to
+    its nearest massive ancestor or the ground, through the massless carriages between them (the module
+    docstring)."""
+    from harness.model.mjspec import massive_parent
+
     bodies = tuple(b.name for b in spec.massive_bodies)
     joints = tuple(spec.inner_joint(b).name for b in bodies)
     index = {b: i for i, b in enumerate(bodies)}
@@ -106,8 +108,9 @@ def build_topology(spec: RobotSpec) -> Topology:
     for k, name in enumerate(joints):
         joint = spec.joint(name)
         ends = [(index[joint.child], -1)]
-        if joint.parent in index:
-            ends.append((index[joint.parent], +1))
+        parent = massive_parent(spec, spec.body(joint.child))[0]
+        if parent in index:
+            ends.append((index[parent], +1))
         for i, sign in ends:
             body = spec.body(bodies[i])
             S[i, k] = sign
