@@ -77,24 +77,26 @@ def mujoco_inverse(model: mujoco.MjModel, free: str, joints: list[str], base: Ba
                    qd: np.ndarray, qdd: np.ndarray, wrenches: tuple[Wrench, ...] = ()) -> FloatingDynamics:
     """MuJoCo's inverse dynamics (mj_inverse) of `model`, its free joint named `free` and the joints
     `joints` (q's columns), at the states (base, q, q', q''), less the generalised force of `wrenches`."""
+    from harness.engines.mujoco_file import Coordinates
+
     data = mujoco.MjData(model)
     f = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, free)
     qf, vf = model.jnt_qposadr[f], model.jnt_dofadr[f]
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
-    qadr, vadr = model.jnt_qposadr[ids], model.jnt_dofadr[ids]
+    at = Coordinates(model, joints, q, qd, qdd, "the robot")  # a file's ball joint from its three hinges
     qpos, qvel, qacc = floating.to_mujoco(base)
     body_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, w.body) for w in wrenches]
     out, applied = np.empty((len(q), model.nv)), np.zeros(model.nv)
     for k in range(len(q)):
         data.qpos[qf:qf + 7], data.qvel[vf:vf + 6], data.qacc[vf:vf + 6] = qpos[k], qvel[k], qacc[k]
-        data.qpos[qadr], data.qvel[vadr], data.qacc[vadr] = q[k], qd[k], qdd[k]
+        at.put(data, k)
         mujoco.mj_inverse(model, data)  # the generalised force of everything but gravity and inertia
         out[k] = data.qfrc_inverse
         for w, b in zip(wrenches, body_ids, strict=True):  # J^T of each wrench, at its body's centre of mass
             applied[:] = 0.0
             mujoco.mj_applyFT(model, data, w.F_W[k], w.M_W[k], data.xipos[b], b, applied)
             out[k] -= applied
-    return FloatingDynamics(floating.base_rows_from_mujoco(base, out[:, vf:vf + 6]), out[:, vadr])
+    return FloatingDynamics(floating.base_rows_from_mujoco(base, out[:, vf:vf + 6]),
+                            np.array([at.torques(out[k], k) for k in range(len(q))]).reshape(q.shape))
 
 
 def _pinocchio_inverse(spec, gravity_W, base, q, qd, qdd, wrenches) -> FloatingDynamics:

@@ -30,52 +30,67 @@ def file_inverse_dynamics(path: Path, joints: list[str], gravity_W: np.ndarray, 
     damping, stiffness and the bodies' gravity compensation zeroed, the equality constraints (a closed
     chain's loops), contacts, joint limits and friction loss off, no fluid; a free joint held at the
     file's pose (qpos0) at rest, as the harness holds it. A ball joint of the file is the harness's three
-    hinges `<ball>_x .. _z` (harness/model/cardano.py): its quaternion, angular velocity and acceleration
-    made from theirs, its torque taken to theirs by D^T. ValueError: the file's model lacks a joint."""
-    from harness.model.cardano import ball_state
-
+    hinges `<ball>_x .. _z` (`Coordinates`). ValueError: the file's model lacks a joint."""
     model = rigid_file_model(path, gravity_W)
-    hinges, balls = _file_joints(model, path, joints)
-    cols, pos = model.jnt_dofadr[[i for _, i in hinges]], model.jnt_qposadr[[i for _, i in hinges]]
-    at = [k for k, _ in hinges]
-    states = [(model.jnt_qposadr[i], model.jnt_dofadr[i], ks, ball_state(q[:, ks], qd[:, ks], qdd[:, ks]))
-              for i, ks in balls]
+    at = Coordinates(model, joints, q, qd, qdd, Path(path).name)
     data = mujoco.MjData(model)
     tau = np.empty_like(q)
     for k in range(len(q)):
         data.qpos[:], data.qvel[:], data.qacc[:] = model.qpos0, 0.0, 0.0
-        data.qpos[pos], data.qvel[cols], data.qacc[cols] = q[k, at], qd[k, at], qdd[k, at]
-        for adr, dof, _, (quat, omega, omegadot, _) in states:
-            data.qpos[adr:adr + 4], data.qvel[dof:dof + 3], data.qacc[dof:dof + 3] = quat[k], omega[k], omegadot[k]
+        at.put(data, k)
         mujoco.mj_inverse(model, data)
-        tau[k, at] = data.qfrc_inverse[cols]
-        for _, dof, ks, (_, _, _, D) in states:
-            tau[k, ks] = D[k].T @ data.qfrc_inverse[dof:dof + 3]
+        tau[k] = at.torques(data.qfrc_inverse, k)
     return tau
 
 
-def _file_joints(model: mujoco.MjModel, path: Path, joints: list[str]) -> tuple[list, list]:
-    """Where each of `joints` (the harness's names) is in MuJoCo's model of the file: (k, joint id) of the
-    hinges and slides, and (ball joint id, [k of <ball>_x, _y, _z]) of the balls. An unnamed joint is '#k'
-    in the harness's reading (harness/model/mjcf.py): MuJoCo's joint k."""
-    from harness.model.mjcf import BALL_AXES
+class Coordinates:
+    """The harness's joints' (q, q', q'') (N, n) as a MuJoCo model's coordinates, sample by sample: a hinge or
+    slide its own, a ball joint from its three hinges `<ball>_x .. _z` (harness/model/cardano.py: its
+    quaternion, its angular velocity D theta' and acceleration D theta'' + D' theta'), and a generalised
+    force back on the harness's joints (a ball's torque by D^T). Joints are found by name; an unnamed one
+    is '#k' in the harness's reading (harness/model/mjcf.py): MuJoCo's joint k. ValueError: the model
+    lacks a joint (`model_name` says whose)."""
 
-    ball_of = {f"{model.joint(i).name}_{s}": (i, c) for i in range(model.njnt)
-               if int(model.jnt_type[i]) == int(mujoco.mjtJoint.mjJNT_BALL) for c, s in enumerate(BALL_AXES)}
-    hinges, balls, missing = [], {}, []
-    for k, j in enumerate(joints):
-        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)
-        if i < 0 and re.fullmatch(r"#\d+", j):
-            i = int(j[1:])
-        if 0 <= i < model.njnt and int(model.jnt_type[i]) in (int(mujoco.mjtJoint.mjJNT_HINGE),
-                                                               int(mujoco.mjtJoint.mjJNT_SLIDE)):
-            hinges.append((k, i))
-        elif j in ball_of:
-            balls.setdefault(ball_of[j][0], [None] * 3)[ball_of[j][1]] = k
-        else:
-            missing.append(j)
-    missing += [f"{model.joint(i).name}_{s}" for i, ks in balls.items() for s, k in zip(BALL_AXES, ks, strict=True)
-                if k is None]
-    if missing:
-        raise ValueError(f"MuJoCo's model of {Path(path).name} has no joint {missing[0]!r}")
-    return hinges, list(balls.items())
+    def __init__(self, model: mujoco.MjModel, joints: list[str], q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                 model_name: str):
+        from harness.model.cardano import ball_state
+        from harness.model.mjcf import BALL_AXES
+
+        ball_of = {f"{model.joint(i).name}_{s}": (i, c) for i in range(model.njnt)
+                   if int(model.jnt_type[i]) == int(mujoco.mjtJoint.mjJNT_BALL) for c, s in enumerate(BALL_AXES)}
+        hinges, balls, missing = [], {}, []
+        for k, j in enumerate(joints):
+            i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)
+            if i < 0 and re.fullmatch(r"#\d+", j):
+                i = int(j[1:])
+            if 0 <= i < model.njnt and int(model.jnt_type[i]) in (int(mujoco.mjtJoint.mjJNT_HINGE),
+                                                                   int(mujoco.mjtJoint.mjJNT_SLIDE)):
+                hinges.append((k, i))
+            elif j in ball_of:
+                balls.setdefault(ball_of[j][0], [None] * 3)[ball_of[j][1]] = k
+            else:
+                missing.append(j)
+        missing += [f"{model.joint(i).name}_{s}" for i, ks in balls.items()
+                    for s, k in zip(BALL_AXES, ks, strict=True) if k is None]
+        if missing:
+            raise ValueError(f"MuJoCo's model of {model_name} has no joint {missing[0]!r}")
+        ids = [i for _, i in hinges]
+        self.at, self.pos, self.cols = [k for k, _ in hinges], model.jnt_qposadr[ids], model.jnt_dofadr[ids]
+        self.q, self.qd, self.qdd = q, qd, qdd
+        self.balls = [(model.jnt_qposadr[i], model.jnt_dofadr[i], ks, ball_state(q[:, ks], qd[:, ks], qdd[:, ks]))
+                      for i, ks in balls.items()]
+
+    def put(self, data: mujoco.MjData, k: int) -> None:
+        """Sample k's coordinates, velocities and accelerations into `data` (the others left as they are)."""
+        data.qpos[self.pos], data.qvel[self.cols], data.qacc[self.cols] = (
+            self.q[k, self.at], self.qd[k, self.at], self.qdd[k, self.at])
+        for adr, dof, _, (quat, omega, omegadot, _) in self.balls:
+            data.qpos[adr:adr + 4], data.qvel[dof:dof + 3], data.qacc[dof:dof + 3] = quat[k], omega[k], omegadot[k]
+
+    def torques(self, force: np.ndarray, k: int) -> np.ndarray:
+        """The generalised force `force` (nv,) of sample k on the harness's joints, (n,)."""
+        out = np.empty(self.q.shape[1])
+        out[self.at] = force[self.cols]
+        for _, dof, ks, (_, _, _, D) in self.balls:
+            out[ks] = D[k].T @ force[dof:dof + 3]
+        return out

@@ -211,8 +211,11 @@ def _floating_base(model, data, mujoco, free_root: int, owner: dict):
         return False
 
     mass, com, moments, axes = union(_parts(model, data, [b for b in range(1, model.nbody) if on_base(b)]))
-    on_it = tuple(_name(model, obj.mjOBJ_JOINT, j) for j in range(model.njnt)
-                  if j != free_root and on_base(int(model.body_parentid[model.jnt_bodyid[j]])))
+    ball = int(mujoco.mjtJoint.mjJNT_BALL)  # a ball's three hinges (`_ball_hinges`), as a body's several joints
+    on_it = tuple(name for j in range(model.njnt)
+                  if j != free_root and on_base(int(model.body_parentid[model.jnt_bodyid[j]]))
+                  for name in ([f"{_name(model, obj.mjOBJ_JOINT, j)}_{s}" for s in BALL_AXES]
+                               if int(model.jnt_type[j]) == ball else [_name(model, obj.mjOBJ_JOINT, j)]))
     return FloatingBase(_name(model, obj.mjOBJ_JOINT, free_root),
                         Body(_name(model, obj.mjOBJ_BODY, base), mass, np.diag(moments), axes, com),
                         data.xmat[base].reshape(3, 3).copy(), data.xpos[base].copy(), on_it)
