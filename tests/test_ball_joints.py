@@ -85,7 +85,7 @@ def test_mujocos_ball_and_pinocchios_spherical_joint_agree_with_the_hinges(tmp_p
     assert row.verdict == "agrees", row.reason
     assert row.torques_vs_mujoco_file <= 1e-12 and row.torques_vs_pinocchio <= 1e-12
     assert row.mass_matrix_vs_pinocchio <= 1e-12 and row.torques_vs_mujoco <= 1e-12
-    assert row.massive_ranks[0] == row.massive_ranks[1] > 0
+    assert row.massive_ranks[0] == row.massive_ranks[1] == row.base_parameters == row.pinocchio_regressor_rank
 
 
 # test_floating.py's quadruped, its hip a ball joint
@@ -103,6 +103,14 @@ def test_a_floating_robot_on_a_ball_joint_agrees_with_both_engines_own_free_base
     row = audit("dog", path)
     assert row.verdict == "agrees", row.reason
     assert all(value <= 1e-12 for value in row.floating.values()), row.floating
+    from harness.identify import floating_id
+
+    spec = _read(path)
+    pm = pin_engine.build_model(spec, GRAVITY_W, floating=True)
+    base = floating_id.structural_base(pm, spec.limits, "all")
+    carriages = [k for k in range(1, pm.model.njoints) if pm.model.inertias[k].mass == 0.0]
+    assert len(carriages) == 3  # the ball's two, the arm's cross: the base holds none of their known zeros
+    assert not set(base.independent) & {10 * (k - 1) + c for k in carriages for c in range(10)}
 
 
 def test_the_balls_quaternion_and_angular_velocity_are_the_derivatives_of_its_hinges_motion():
@@ -150,6 +158,27 @@ def test_the_built_in_delta_turns_its_platform_on_a_ball_and_the_graph_theory_mo
     assert np.abs(graph - actuated).max() <= 1e-12 * np.abs(actuated).max()
 
 
+def test_a_balls_carriages_have_no_parameters_to_identify(delta):
+    """The two massless bodies between a ball's hinges carry nothing: their ten parameters each are known
+    zeros, in no base parameter of the delta's G^T Y (harness/identify/torque_id.py), whose count is then
+    the rank of the massive bodies' columns alone."""
+    from harness.identify.torque_id import chain_regressor, structural_base
+
+    spec = delta.spec
+    pm = pin_engine.build_model(spec, GRAVITY_W)
+    base = structural_base(pm, spec.limits, chain=delta)
+    carriages = [k for k, j in enumerate(spec.joints) if spec.body(j.child).massless]
+    assert [spec.joint_names[k] for k in carriages] == ["wrist_x", "wrist_y"]
+    assert not set(base.independent) & {10 * k + c for k in carriages for c in range(10)}
+    assert np.all(base.combination[:, np.isin(base.dependent, [10 * k + c for k in carriages for c in range(10)])] == 0)
+    m = closure.random_motion(delta, np.full(3, -0.5), np.full(3, 0.5), np.ones(3), np.ones(3), count=60, seed=8)
+    W = chain_regressor(pm, delta, m.q, m.qd, m.qdd, closed=True)
+    norms = np.linalg.norm(W, axis=0)  # a column at round-off of the largest is no parameter's effect
+    massive = [c for c in range(W.shape[1]) if c // 10 not in carriages and norms[c] > 1e-9 * norms.max()]
+    sv = np.linalg.svd(W[:, massive] / norms[massive], compute_uv=False)
+    assert len(base.independent) == np.sum(sv > 1e-8 * sv[0])  # torque_id's RANK_TOL
+
+
 @pytest.mark.parametrize("joint, actuator, said", [
     ('<joint name="wrist" type="ball" damping="0.1"/>', "", "ball joint 'wrist' has damping"),
     (BALL, '<actuator><motor joint="wrist" gear="1 0 0"/></actuator>', "drives ball joint 'wrist'"),
@@ -185,9 +214,11 @@ def test_pinocchios_parse_with_the_balls_as_hinges_is_the_harnesss_reading(tmp_p
 
 def test_a_rank_the_massless_bodies_do_not_explain_is_a_disagreement(tmp_path, monkeypatch):
     """The audit's verdict on the regressor's rank (harness/runner/audit.py): a base count and Pinocchio's
-    rank that differ pass only where their massive bodies' columns have one rank; given two, it disagrees."""
+    rank that differ (the file's hinges in one body: Pinocchio's nested bodies have columns the harness's
+    massless carriages have not) pass only where their massive bodies' columns have one rank; given two,
+    it disagrees."""
     import harness.runner.audit as audit_module
 
     monkeypatch.setattr(audit_module, "massive_ranks", lambda *args: (11, 12))
-    row = audit("pendulum", _pendulum(tmp_path))
+    row = audit("hinges", _pendulum(tmp_path, HINGES, name="hinges"))
     assert row.verdict == "disagrees" and "of the massive bodies' columns alone 11 and 12" in row.reason

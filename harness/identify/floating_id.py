@@ -28,7 +28,14 @@ import pinocchio as pin
 
 from harness.engines.pinocchio import PinocchioModel, states
 from harness.identify.estimators import row_variance
-from harness.identify.torque_id import STRUCTURAL_STATES, BaseParameters, base_parameters, fit_base, with_structure
+from harness.identify.torque_id import (
+    STRUCTURAL_STATES,
+    BaseParameters,
+    base_parameters,
+    fit_base,
+    massless,
+    with_structure,
+)
 from harness.model import drives, friction
 from harness.model.floating import BaseMotion, random_base_motion
 from harness.model.inertia import PARAMETER_NAMES
@@ -109,6 +116,8 @@ def structural_base(pm: PinocchioModel, limits: dict | None, rows, seed: int = 0
     ones = np.ones(len(names))
     q, qd, qdd = random_states(lo, hi, ones, ones, STRUCTURAL_STATES, seed)
     Y = regressor(pm, random_base_motion(STRUCTURAL_STATES, seed), q, qd, qdd, with_friction)
+    for k in massless(pm, range(1, pm.model.njoints)):  # the base's, then each joint's body (`regressor`)
+        Y[:, :, 10 * k: 10 * k + 10] = 0.0
     return base_parameters(selected(Y, rows), with_friction)
 
 
