@@ -193,13 +193,18 @@ def test_a_ball_joint_the_hinges_cannot_stand_for_is_refused_in_one_line(tmp_pat
     assert err.value.key == "mjcf.file" and said in str(err.value) and "\n" not in str(err.value)
 
 
-def test_pinocchios_parse_with_the_balls_as_hinges_is_the_harnesss_reading(tmp_path):
+@pytest.mark.parametrize("default", [False, True], ids=["stated", "from a default class"])
+def test_pinocchios_parse_with_the_balls_as_hinges_is_the_harnesss_reading(tmp_path, default):
     """What `harness init`'s placeholder model and the floating audit read (harness/engines/pinocchio_file.py,
-    `ball_hinges`): Pinocchio's parse of the file with its ball written as the three hinges has the
-    harness's joints, in its order, and the same torques at random states (1e-12 of the largest)."""
+    `ball_hinges`): Pinocchio's parse of the file with its ball written as the three hinges (the ball's type
+    stated, or given by the file's default class) has the harness's joints, in its order, and the same
+    torques at random states (1e-12 of the largest)."""
     from harness.engines.pinocchio_file import parse
 
     path = _pendulum(tmp_path)
+    if default:
+        path.write_text(path.read_text().replace('<joint name="wrist" type="ball"/>', '<joint name="wrist"/>')
+                        .replace("<worldbody>", '<default><joint type="ball"/></default><worldbody>'))
     model, notes = parse(path, ball_hinges=True)
     spec = _read(path)
     assert list(model.names)[1:] == list(spec.joint_names) and "1 ball joint(s)" in notes[0]

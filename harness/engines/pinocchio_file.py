@@ -47,7 +47,7 @@ def parse(path: Path, free: bool = False, ball_hinges: bool = False) -> tuple[pi
     if root.tag != "mujoco":
         model = pin.buildModelFromUrdf(str(path))  # a `floating` joint: its free-flyer
     else:
-        notes = _readable(root, Path(path).parent, ball_hinges)
+        notes = _readable(root, Path(path).parent, _ball_names(path) if ball_hinges else set())
         with tempfile.TemporaryDirectory() as folder:  # meshes are not read: the model's inertias are its own
             copy = Path(folder) / Path(path).name
             copy.write_text(ET.tostring(root, encoding="unicode"))
@@ -82,7 +82,7 @@ def _at_the_files_pose(model: pin.Model, flyers: list[int], path: Path, tag: str
     return q
 
 
-def _readable(root: ET.Element, folder: Path, ball_hinges: bool = False) -> list[str]:
+def _readable(root: ET.Element, folder: Path, balls: set[str] = frozenset()) -> list[str]:
     """The MJCF tree `root` made readable by Pinocchio's parser in place (the module docstring); what
     was done, one line each."""
     notes, count = [], 0
@@ -111,8 +111,8 @@ def _readable(root: ET.Element, folder: Path, ball_hinges: bool = False) -> list
         world.append(holder)
         notes.append(f"its {len(bodies)} root bodies put under one massless body (Pinocchio's parser reads the first "
                      "alone)")
-    if ball_hinges:
-        notes += _balls_as_hinges(root)
+    if balls:
+        notes += _balls_as_hinges(root, balls)
     chains = 0
     for body in list(root.iter("body")):
         joints = body.findall("joint")
@@ -135,14 +135,23 @@ def _readable(root: ET.Element, folder: Path, ball_hinges: bool = False) -> list
     return notes
 
 
-def _balls_as_hinges(root: ET.Element) -> list[str]:
-    """Each `<joint type="ball">` of the tree replaced, in place, by the hinges about its body's axes in the
-    harness's order and names (harness/model/mjcf.py, BALL_AXES), at its `pos`."""
+def _ball_names(path: Path) -> set[str]:
+    """The names of the MJCF file's ball joints as MuJoCo compiles it (a joint's type may come from a
+    default class)."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_path(str(path))
+    return {model.joint(i).name for i in range(model.njnt) if model.jnt_type[i] == mujoco.mjtJoint.mjJNT_BALL}
+
+
+def _balls_as_hinges(root: ET.Element, balls: set[str]) -> list[str]:
+    """Each `<joint>` of the tree named in `balls` replaced, in place, by the hinges about its body's axes in
+    the harness's order and names (harness/model/mjcf.py, BALL_AXES), at its `pos`."""
     from harness.model.mjcf import BALL_AXES
 
     count = 0
     for body in root.iter("body"):
-        for k, joint in [(k, c) for k, c in enumerate(body) if c.tag == "joint" and c.get("type") == "ball"][::-1]:
+        for k, joint in [(k, c) for k, c in enumerate(body) if c.tag == "joint" and c.get("name") in balls][::-1]:
             body.remove(joint)
             for a, axis in reversed(list(enumerate(BALL_AXES))):
                 hinge = {"name": f"{joint.get('name', '')}_{axis}", "type": "hinge",
