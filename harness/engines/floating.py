@@ -95,8 +95,7 @@ def mujoco_inverse(model: mujoco.MjModel, free: str, joints: list[str], base: Ba
             applied[:] = 0.0
             mujoco.mj_applyFT(model, data, w.F_W[k], w.M_W[k], data.xipos[b], b, applied)
             out[k] -= applied
-    return FloatingDynamics(floating.base_rows_from_mujoco(base, out[:, vf:vf + 6]),
-                            np.array([at.torques(out[k], k) for k in range(len(q))]).reshape(q.shape))
+    return FloatingDynamics(floating.base_rows_from_mujoco(base, out[:, vf:vf + 6]), at.torques(out))
 
 
 def _pinocchio_inverse(spec, gravity_W, base, q, qd, qdd, wrenches) -> FloatingDynamics:

@@ -34,13 +34,13 @@ def file_inverse_dynamics(path: Path, joints: list[str], gravity_W: np.ndarray, 
     model = rigid_file_model(path, gravity_W)
     at = Coordinates(model, joints, q, qd, qdd, Path(path).name)
     data = mujoco.MjData(model)
-    tau = np.empty_like(q)
+    force = np.empty((len(q), model.nv))
     for k in range(len(q)):
         data.qpos[:], data.qvel[:], data.qacc[:] = model.qpos0, 0.0, 0.0
         at.put(data, k)
         mujoco.mj_inverse(model, data)
-        tau[k] = at.torques(data.qfrc_inverse, k)
-    return tau
+        force[k] = data.qfrc_inverse
+    return at.torques(force)
 
 
 class Coordinates:
@@ -87,10 +87,10 @@ class Coordinates:
         for adr, dof, _, (quat, omega, omegadot, _) in self.balls:
             data.qpos[adr:adr + 4], data.qvel[dof:dof + 3], data.qacc[dof:dof + 3] = quat[k], omega[k], omegadot[k]
 
-    def torques(self, force: np.ndarray, k: int) -> np.ndarray:
-        """The generalised force `force` (nv,) of sample k on the harness's joints, (n,)."""
-        out = np.empty(self.q.shape[1])
-        out[self.at] = force[self.cols]
+    def torques(self, force: np.ndarray) -> np.ndarray:
+        """The generalised forces `force` (N, nv), one per sample, on the harness's joints, (N, n)."""
+        out = np.empty(self.q.shape)
+        out[:, self.at] = force[:, self.cols]
         for _, dof, ks, (_, _, _, D) in self.balls:
-            out[ks] = D[k].T @ force[dof:dof + 3]
+            out[:, ks] = np.einsum("nij,ni->nj", D, force[:, dof:dof + 3])
         return out

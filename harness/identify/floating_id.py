@@ -33,7 +33,7 @@ from harness.identify.torque_id import (
     BaseParameters,
     base_parameters,
     fit_base,
-    massless,
+    known_zero,
     with_structure,
 )
 from harness.model import drives, friction
@@ -116,8 +116,7 @@ def structural_base(pm: PinocchioModel, limits: dict | None, rows, seed: int = 0
     ones = np.ones(len(names))
     q, qd, qdd = random_states(lo, hi, ones, ones, STRUCTURAL_STATES, seed)
     Y = regressor(pm, random_base_motion(STRUCTURAL_STATES, seed), q, qd, qdd, with_friction)
-    for k in massless(pm, range(1, pm.model.njoints)):  # the base's, then each joint's body (`regressor`)
-        Y[:, :, 10 * k: 10 * k + 10] = 0.0
+    known_zero(pm.model, range(1, pm.model.njoints), Y)  # the base's body, then each joint's (`regressor`)
     return base_parameters(selected(Y, rows), with_friction)
 
 

@@ -269,7 +269,7 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
         from harness.model.closure import random_within_limits
 
         m = random_within_limits(chain, limits, STRUCTURAL_STATES, seed)
-        W = _known_zero(pm, chain_regressor(pm, chain, m.q, m.qd, m.qdd, with_friction, closed=True))
+        W = known_zero(pm.model, pm.joint_ids, chain_regressor(pm, chain, m.q, m.qd, m.qdd, with_friction, closed=True))
         return base_parameters(W if channels is None else selected_rows(W, len(chain.actuated), channels),
                                with_friction)
     rng = np.random.default_rng(seed)
@@ -279,23 +279,24 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
                              limits)
     q = rng.uniform(lo, hi, (STRUCTURAL_STATES, n))
     qd, qdd = rng.standard_normal((2, STRUCTURAL_STATES, n))
-    W = _known_zero(pm, without_gravity(pm, q, regressor(pm, q, qd, qdd, with_friction), weightless))
+    W = known_zero(pm.model, pm.joint_ids, without_gravity(pm, q, regressor(pm, q, qd, qdd, with_friction), weightless))
     return base_parameters(W if channels is None else selected_rows(W, n, channels), with_friction)
 
 
-def _known_zero(pm: PinocchioModel, W: np.ndarray) -> np.ndarray:
-    """W with the ten columns of each massless body zeroed, in place (`massless`)."""
-    for k in massless(pm, pm.joint_ids):
-        W[:, 10 * k: 10 * k + 10] = 0.0
+def known_zero(model, joint_ids, W: np.ndarray) -> np.ndarray:
+    """W (..., 10 per joint of `joint_ids` [+ drives]) with the ten columns of each massless body zeroed,
+    in place (`massless`)."""
+    for k in massless(model, joint_ids):
+        W[..., 10 * k: 10 * k + 10] = 0.0
     return W
 
 
-def massless(pm: PinocchioModel, joint_ids) -> list[int]:
-    """The places k in `joint_ids` (Pinocchio joint ids, whose ten regressor columns are the body each
-    carries) of the joints that carry a massless body (a carriage: between a ball's hinges, a universal
-    joint's cross, a rail's): its parameters are known to be zero, and its columns, zeroed, enter no
-    base parameter."""
-    return [k for k, jid in enumerate(joint_ids) if pm.model.inertias[jid].mass == 0.0]
+def massless(model, joint_ids) -> list[int]:
+    """The places k in `joint_ids` (joint ids of the Pinocchio model `model`, whose ten regressor columns are
+    the body each carries) of the joints that carry a massless body (a carriage: between a ball's hinges, a
+    universal joint's cross, a rail's): its parameters are known to be zero, and its columns, zeroed, enter
+    no base parameter."""
+    return [k for k, jid in enumerate(joint_ids) if model.inertias[jid].mass == 0.0]
 
 
 @dataclass(eq=False)

@@ -51,7 +51,7 @@ from harness.base.numerics import largest_relative_difference as _largest  # eac
 from harness.base.tomlio import InputError, in_one_line
 from harness.model.inertia import not_rigid
 from harness.model.spec import RobotSpec
-from harness.runner.audit_pinocchio import PinocchioParse, massive_ranks
+from harness.runner.audit_pinocchio import PinocchioParse, massive_ranks, rank
 
 STATES = 100
 RANK_STATES = 300
@@ -154,12 +154,13 @@ def _against_pinocchios_parser(row: AuditRow, spec: RobotSpec, described: Path |
     theirs, M_pin = pin_model.torques_and_mass(*states)
     row.torques_vs_pinocchio = _largest(ours, theirs)
     row.mass_matrix_vs_pinocchio = float(np.max(np.abs(M - M_pin)) / np.max(np.abs(M_pin)))
-    row.pinocchio_regressor_rank = pin_model.regressor_rank(*_states(spec, RANK_STATES, seed=2))
+    states = _states(spec, RANK_STATES, seed=2)
+    W_pin = pin_model.regressor(*states)
+    row.pinocchio_regressor_rank = rank(W_pin)
     if any(b.massless for b in spec.bodies):
         from harness.engines.pinocchio import build_model
 
-        row.massive_ranks = massive_ranks(spec, build_model(spec.rigid(), GRAVITY_W), pin_model,
-                                          _states(spec, RANK_STATES, seed=2))
+        row.massive_ranks = massive_ranks(build_model(spec.rigid(), GRAVITY_W), pin_model, W_pin, states)
     return "" if coupled is None else _couplings_against_pinocchio(row, coupled, pin_model)
 
 

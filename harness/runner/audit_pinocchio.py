@@ -91,16 +91,11 @@ class PinocchioParse:
             M[k] = T[k].T @ full_crba(self.model, self.data, cfg[k]) @ T[k]
         return tau, M
 
-    def regressor_rank(self, q, qd, qdd, massive_only: bool = False) -> int:
-        """The rank of Pinocchio's joint torque regressor T^T Y at (q, q', q''); `massive_only`: of the
-        columns of its bodies with mass alone (a massless joint frame's ten are left out)."""
+    def regressor(self, q, qd, qdd) -> np.ndarray:
+        """Pinocchio's joint torque regressor T^T Y at (q, q', q''), (N n, 10 per joint of its model)."""
         cfg, v, a, T = self.states(q, qd, qdd)
-        W = np.vstack([T[k].T @ self.pin.computeJointTorqueRegressor(self.model, self.data, cfg[k], v[k], a[k])
-                       for k in range(len(q))])
-        if massive_only:
-            W = W[:, [10 * (j - 1) + c for j in range(1, self.model.njoints) if self.model.inertias[j].mass > 0
-                      for c in range(10)]]
-        return rank(W)
+        return np.vstack([T[k].T @ self.pin.computeJointTorqueRegressor(self.model, self.data, cfg[k], v[k], a[k])
+                          for k in range(len(q))])
 
 
 def rank(W: np.ndarray) -> int:
@@ -113,11 +108,13 @@ def rank(W: np.ndarray) -> int:
     return int(np.sum(sv > sv[0] * max(W.shape) * np.finfo(float).eps * 1e3)) if sv.size else 0
 
 
-def massive_ranks(spec: RobotSpec, pm, pin_model: PinocchioParse, states: tuple) -> tuple[int, int]:
-    """The ranks of the harness's and of Pinocchio's regressors over the columns of their bodies with mass,
-    at the same states (q, q', q''): how a reading with massless bodies is compared with a parse that has other
-    ones (a ball joint's two carriages, harness/model/mjcf.py, where Pinocchio's spherical joint has none)."""
-    from harness.identify.torque_id import regressor
+def massive_ranks(pm, pin_model: PinocchioParse, W_pin: np.ndarray, states: tuple) -> tuple[int, int]:
+    """The ranks of the harness's regressor (of `pm`, at `states`) and of Pinocchio's (`W_pin`, its parse's
+    at the same states) over the columns of their bodies with mass: how a reading with massless bodies is
+    compared with a parse that has other ones (a ball joint's two carriages, harness/model/mjcf.py, where
+    Pinocchio's spherical joint has none). A massless body's ten columns are torque_id's known zeros."""
+    from harness.identify.torque_id import known_zero, regressor
 
-    massive = [10 * k + c for k, j in enumerate(spec.joints) if not spec.body(j.child).massless for c in range(10)]
-    return rank(regressor(pm, *states)[:, massive]), pin_model.regressor_rank(*states, massive_only=True)
+    ours = known_zero(pm.model, pm.joint_ids, regressor(pm, *states))
+    theirs = known_zero(pin_model.model, range(1, pin_model.model.njoints), W_pin.copy())
+    return rank(ours), rank(theirs)
