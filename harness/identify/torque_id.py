@@ -254,7 +254,7 @@ def selected_rows(W: np.ndarray, per_sample: int, joints: tuple[int, ...]) -> np
 
 def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 0,
                     with_friction: bool = False, chain=None, channels: tuple[int, ...] | None = None,
-                    weightless: tuple[int, ...] = ()) -> BaseParameters:
+                    weightless: tuple[int, ...] = (), known_zeros: bool = True) -> BaseParameters:
     """The base parameters of the model's structure, chosen once: QR with column pivoting of the
     noise-free regressor at STRUCTURAL_STATES random states (q uniform within the joint limits, or
     +-pi, +-1 m; q', q'' standard normal), not of a measured trajectory, whose noise or poor
@@ -264,12 +264,15 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
     their limits, q'_a and q''_a within +-1, the passive joints' from the loops). `channels`: the joints
     whose rows a log holds (an open tree's measured joints, a closed chain's measured actuated joints:
     harness/stages/log_model.py): the base of their rows alone, every joint's motion in them;
-    `weightless`: joints whose rows carry no gravity (`without_gravity`)."""
+    `weightless`: joints whose rows carry no gravity (`without_gravity`); `known_zeros`: a massless body's
+    parameters in no base parameter (`known_zero`; without, the base of every body's ten, what a method
+    that takes each body's parameters as unknowns is judged on)."""
     if chain is not None:
         from harness.model.closure import random_within_limits
 
         m = random_within_limits(chain, limits, STRUCTURAL_STATES, seed)
-        W = known_zero(pm.model, pm.joint_ids, chain_regressor(pm, chain, m.q, m.qd, m.qdd, with_friction, closed=True))
+        W = chain_regressor(pm, chain, m.q, m.qd, m.qdd, with_friction, closed=True)
+        W = known_zero(pm.model, pm.joint_ids, W) if known_zeros else W
         return base_parameters(W if channels is None else selected_rows(W, len(chain.actuated), channels),
                                with_friction)
     rng = np.random.default_rng(seed)
@@ -279,7 +282,8 @@ def structural_base(pm: PinocchioModel, limits: dict | None = None, seed: int = 
                              limits)
     q = rng.uniform(lo, hi, (STRUCTURAL_STATES, n))
     qd, qdd = rng.standard_normal((2, STRUCTURAL_STATES, n))
-    W = known_zero(pm.model, pm.joint_ids, without_gravity(pm, q, regressor(pm, q, qd, qdd, with_friction), weightless))
+    W = without_gravity(pm, q, regressor(pm, q, qd, qdd, with_friction), weightless)
+    W = known_zero(pm.model, pm.joint_ids, W) if known_zeros else W
     return base_parameters(W if channels is None else selected_rows(W, n, channels), with_friction)
 
 

@@ -50,14 +50,16 @@ class BaseMap:
 def base_map(ctx, truth: bool = False, with_friction: bool = False) -> BaseMap:
     """The structural base parameters of the scenario's robot, or (`truth`) of the model that made a
     bench log (a log scenario's `[data] truth`), with that model's own values; `with_friction`: of the
-    links' parameters and each joint's [armature, viscous, coulomb, offset] after them (T: (r, 14 n))."""
+    links' parameters and each joint's [armature, viscous, coulomb, offset] after them (T: (r, 14 n)). The
+    base of every body's ten, a massless body's too (torque_id.structural_base, `known_zeros` off): a method
+    takes them all as unknowns, and a massless body's that it finds apart from zero are its, not round-off."""
     sc = ctx.scenario
     robot = sc.truth if truth else sc.robot
 
     def make() -> BaseMap:
         pm = build_model(robot, sc.gravity_W)
-        base = ctx.once(("truth's structural base" if truth else "structural base parameters", with_friction),
-                        lambda: structural_base(pm, robot.limits, with_friction=with_friction))
+        base = ctx.once(("truth's structural base" if truth else "every body's structural base", with_friction),
+                        lambda: structural_base(pm, robot.limits, with_friction=with_friction, known_zeros=False))
         r = len(base.independent)
         T = np.zeros((r, len(base.independent) + len(base.dependent)))
         T[np.arange(r), base.independent] = 1.0
