@@ -24,7 +24,7 @@ from harness.model.load import load_spec, spec_from_data
 from harness.model.quaternion import derivative
 from harness.runner.audit import audit
 
-from .conftest import MODELS
+from .conftest import BUILTIN, DATA, MODELS
 from .test_floating import DOG
 
 GRAVITY_W = np.array([0.0, 0.0, -9.81])
@@ -242,3 +242,48 @@ def test_init_on_a_file_with_a_ball_joint_passes_and_judges_its_method_on_every_
     assert main(["run", str(tmp_path / "p" / "scenario.toml"), "--out", str(tmp_path / "o"), "--quiet"]) == 0
     gates = json.loads((tmp_path / "o" / "results.json").read_text())["gates"]
     assert len(gates) == 6 and all(g["passed"] for g in gates)
+
+
+def test_a_balls_cone_judges_the_angle_of_its_rotation_and_bounds_the_motions_the_harness_makes(tmp_path):
+    """A ball's `range` is a cone: the largest angle its rotation may reach (30 degrees here, MuJoCo's default
+    unit). Read as RobotSpec.cones, it judges a motion by the angle of the ball's rotation (`motion.limits`,
+    the independent reference scipy's Rotation of the intrinsic x-y-z angles, to 1e-12), and its hinges'
+    limits are +-cone/3, inside which the rotation's angle cannot pass the cone (the angle of a product of
+    rotations is at most the sum of theirs)."""
+    from scipy.spatial.transform import Rotation
+
+    from harness.model.states import random_states
+    from harness.stages.limits import ratios
+
+    spec = _read(_pendulum(tmp_path, '<joint name="wrist" type="ball" range="0 30"/>'))
+    hinges, cone = spec.cones["wrist"]
+    assert hinges == ("wrist_x", "wrist_y", "wrist_z") and cone == pytest.approx(np.pi / 6, abs=1e-15)
+    assert all(spec.limits[h] == pytest.approx((-cone / 3, cone / 3), abs=1e-15) for h in hinges)
+    assert any("a cone of 0.523599 rad" in note for note in spec.notes)
+    k = [spec.joint_names.index(h) for h in hinges]
+    n = len(spec.joints)
+    q = random_states(np.full(n, -0.6), np.full(n, 0.6), np.ones(n), np.ones(n), 200, seed=4)[0]
+    angle = Rotation.from_euler("XYZ", q[:, k]).magnitude()
+    got = ratios(spec, q, np.zeros_like(q), np.zeros_like(q)).ratios["position"][k]
+    np.testing.assert_allclose(got, angle.max() / cone, rtol=1e-12)
+    assert got[0] > 1.0  # hinges at up to 0.6 rad turn the ball beyond its cone
+    lo, hi = zip(*(spec.limits[h] for h in hinges), strict=True)
+    inside = random_states(np.array(lo), np.array(hi), np.ones(3), np.ones(3), 2000, seed=5)[0]
+    assert Rotation.from_euler("XYZ", inside).magnitude().max() <= cone
+
+
+def test_the_constrained_models_integration_refuses_a_chain_of_hinges_in_one_line(tmp_path, capsys):
+    """The graph-theory study's forward simulation reads each joint's angle off its two bodies: the ball
+    arm's hinges turn massless carriages, so `forward_simulation = true` is bad input (exit 2, one line
+    naming the key), not a traceback from inside the integration."""
+    from harness.cli import main
+
+    text = (DATA / "scenarios" / "ball_arm_sines.toml").read_text()
+    text = text.replace('"../models/', f'"{DATA}/models/').replace('"../../../harness/data/', f'"{BUILTIN}/')
+    study = "[studies.graph_theory_2021]"
+    text = text.replace(study, f"{study[:-1]}.lagrange]\nforward_simulation = true")
+    (tmp_path / "s.toml").write_text(text)
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "lagrange.forward_simulation" in err[0] and "'elbow_x'" in err[0]
+    assert not (tmp_path / "out").exists()

@@ -13,7 +13,10 @@ from tests.conftest import DATA, SCENARIOS, graph_model, readings, results_of
 
 KR500 = SCENARIOS / "kr500_rail.toml"
 BRANCH = DATA / "scenarios" / "branch_sines.toml"
-TREES = pytest.mark.parametrize("path", [KR500, BRANCH], ids=["kr500_rail", "branch_sines"])
+# a ball elbow and a universal wrist: chains of hinges through massless carriages off the ground, a joint's
+# point rows alone (the ball) and one row keeping the angle between two axes (the wrist)
+BALL_ARM = DATA / "scenarios" / "ball_arm_sines.toml"
+TREES = pytest.mark.parametrize("path", [KR500, BRANCH, BALL_ARM], ids=["kr500_rail", "branch_sines", "ball_arm"])
 FORMS = pytest.mark.parametrize("form", ["paper", "normal"])
 
 

@@ -177,11 +177,13 @@ def test_a_floating_base_is_fixed_to_the_world_and_said_so(tmp_path, capsys):
     assert "warning: s: arm.xml: free joint 'float'" in capsys.readouterr().err
 
 
-def test_the_graph_theory_model_carries_a_universal_joint_on_a_body_and_its_study_refuses_it(tmp_path):
+def test_the_graph_theory_model_carries_a_universal_joint_on_a_body_and_its_study_refuses_parallel_hinges(tmp_path):
     """The first seed's method reads a chain of hinges through a massless carriage on a body (a universal
     joint read from an MJCF file) as one edge from the body's massive ancestor: its joint torques are
     Pinocchio's at random states (to 1e-12 of the largest; round-off is ~1e-15). The study's constraint
-    equations (Section 2.4), which read a carriage on the ground only, refuse it in one line."""
+    equations (Section 2.4) read it as the joint point and the angle between the two axes (judged on a
+    recording in tests/test_lagrange.py); two hinges about one axis leave a rotation unconstrained that
+    they cannot make, and are refused in one line naming them."""
     from harness.engines import pinocchio as pin_engine
     from harness.model.states import random_states
     from harness.papers.graph_theory_2021.constraints import build_constraints
@@ -195,7 +197,10 @@ def test_the_graph_theory_model_carries_a_universal_joint_on_a_body_and_its_stud
     ours = inverse_dynamics_of_motion(spec, graph, q, qd, qdd).tau
     pin = pin_engine.rnea(pin_engine.build_model(spec.rigid(), spec.gravity_W), q, qd, qdd).tau
     assert np.abs(ours - pin).max() <= 1e-12 * np.abs(pin).max()
-    with pytest.raises(ValueError, match="only a prismatic joint from the world may carry the massless body"):
-        build_constraints(spec, graph.topology)
+    rows = build_constraints(spec, graph.topology).rows
+    assert [r.label for r in rows if r.joint == "twist"] == ["x", "y", "z", "angle"]
+    twice = _spec(tmp_path, ARM.replace('range="-120 120"/>', 'range="-120 120"/><joint name="twist" axis="0 1 0"/>'))
+    with pytest.raises(ValueError, match="two or three hinges at one point whose axes span their rotations"):
+        build_constraints(twice, build_graph_model(twice, twice.gravity_W).topology)
 
 

@@ -17,8 +17,9 @@ from tests.conftest import DATA, MODELS, SCENARIOS, graph_model, readings, resul
 # branch_deep: MuJoCo numbers its coordinates depth-first, the spec breadth-first, and there they differ
 SCENARIO_PATHS = pytest.mark.parametrize(
     "path", [SCENARIOS / "kr500_rail.toml", SCENARIOS / "kr500_all_joints.toml",
-             DATA / "scenarios" / "branch_sines.toml", DATA / "scenarios" / "branch_deep_sines.toml"],
-    ids=["kr500_rail", "kr500_all_joints", "branch", "branch_deep"])
+             DATA / "scenarios" / "branch_sines.toml", DATA / "scenarios" / "branch_deep_sines.toml",
+             DATA / "scenarios" / "ball_arm_sines.toml"],
+    ids=["kr500_rail", "kr500_all_joints", "branch", "branch_deep", "ball_arm"])
 REL = 1e-9  # measured agreement is about 1e-14 of each joint's load
 
 

@@ -37,7 +37,7 @@ import numpy as np
 from harness.base.series import Drive, TimeSeries
 from harness.engines.simulation import EVALUATIONS_PER_STEP, Simulation
 from harness.model import drives, friction
-from harness.model.mjspec import add_contacts, add_robot, massive_parent, new_spec
+from harness.model.mjspec import add_contacts, add_robot, new_spec
 from harness.model.quaternion import to_matrix
 from harness.model.spec import Joint, RobotSpec
 
@@ -98,7 +98,7 @@ def build_spec(spec: RobotSpec, gravity_W: np.ndarray, integrator: str = "RK4",
         el = elements[body.name]
         el.add_site(name=f"com_{body.name}", pos=np.zeros(3))
         # A carriage's joint shares its point with the child's joint (checked by the spec).
-        chain = massive_parent(spec, body)[1]
+        chain = spec.massive_parent(body.name)[1]
         el.add_site(name=f"joint_{chain[-1].name}", pos=body.arm_B(chain[-1].p_W0))
     S, site, jnt = mujoco.mjtSensor, mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_JOINT
 

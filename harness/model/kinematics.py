@@ -129,6 +129,31 @@ def axis_rotation(axis: np.ndarray, angle: np.ndarray, samples_last: bool = Fals
     return np.eye(3) + np.sin(angle)[:, None, None] * K + (1.0 - np.cos(angle))[:, None, None] * (K @ K)
 
 
+def joint_axes_W(spec: RobotSpec, bodies, R_WB: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(N, n, 3) every joint's axis in the world now, u = R_P u_J0, from the orientations R_WB (N, len(bodies),
+    3, 3) of the bodies named (every massive body at least) and the joint coordinates q (N, n), spec joint
+    order. A body's displacement from the initial pose is R_WB R_WB0^T; a massless carriage, which nothing
+    records, has its parent's followed by its inner joint's, R_P R_J (the module docstring), so a chain of
+    hinges through carriages (a ball joint read as three hinges) turns its middle axes with the hinges
+    before them."""
+    index = {b: k for k, b in enumerate(bodies)}
+    N = len(q)
+    turned: dict[str, np.ndarray] = {WORLD: np.broadcast_to(np.eye(3), (N, 3, 3))}
+
+    def displacement(body: str) -> np.ndarray:
+        if body not in turned:
+            if body in index:
+                turned[body] = R_WB[:, index[body]] @ spec.body(body).R_WB0.T
+            else:  # a massless carriage: its parent's displacement and its own joint's
+                joint = spec.inner_joint(body)
+                R_P = displacement(joint.parent)
+                k = spec.joint_names.index(joint.name)
+                turned[body] = R_P @ axis_rotation(joint.axis_W0, q[:, k]) if joint.revolute else R_P
+        return turned[body]
+
+    return np.stack([displacement(j.parent) @ j.axis_W0 for j in spec.joints], axis=1)
+
+
 def _times_constant(R: np.ndarray, C_T: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """R C for R (3, 3, N) component-major and a constant C given as its transpose C_T: row i of R C
     is C^T R[i], one matrix product over the stack of rows."""

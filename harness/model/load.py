@@ -52,7 +52,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
     model.finish()
-    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = tendons = closure = floating = None
+    dh = limits = urdf_path = drive_limits = gravity = mjcf_path = tendons = closure = floating = cones = None
     fixed: tuple[str, ...] = ()
     notes: tuple[str, ...] = ()
     if root.has("dh"):
@@ -104,7 +104,8 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
         if not mjcf_path.is_file():
             raise mt.error("file", f"MJCF file {mjcf_path} not found")
         mt.finish()
-        bodies, joints, limits, drive_limits, gravity, notes, tendons, closure, floating = read_mjcf(mjcf_path, mt)
+        bodies, joints, limits, drive_limits, gravity, notes, tendons, closure, floating, cones = read_mjcf(mjcf_path,
+                                                                                                              mt)
         joints = _joint_friction(root, joints, "the MJCF file")
         body_tables = [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies]
         joint_tables = [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints]
@@ -121,7 +122,8 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     if urdf_path or mjcf_path:
         notes = notes + _degenerate(bodies, "the URDF" if urdf_path else "the MJCF file")
     spec = _assemble(RobotSpec(name, description, path, tuple(bodies), tuple(joints), dh, limits, urdf_path, fixed,
-                               drive_limits, gravity, mjcf_path, notes, floating=floating), body_tables, joint_tables)
+                               drive_limits, gravity, mjcf_path, notes, floating=floating, cones=cones),
+                     body_tables, joint_tables)
     if root.has("mjcf") and tendons is not None:
         if drives is not None:
             raise drives.error("", f"{mjcf_path} states its drives (tendons): give them there or here, not both")
@@ -274,9 +276,10 @@ def spec_from_mjmodel(model, path: Path, name: str) -> RobotSpec:
     from harness.model.mjcf import read_model
 
     table = Table({}, path)
-    bodies, joints, limits, drive_limits, gravity, notes, tendons, closure, floating = read_model(model, path, table)
+    bodies, joints, limits, drive_limits, gravity, notes, tendons, closure, floating, cones = read_model(model, path,
+                                                                                                          table)
     spec = _assemble(RobotSpec(name, "", path, tuple(bodies), tuple(joints), None, limits, None, (), drive_limits,
-                               gravity, path, notes, floating=floating),
+                               gravity, path, notes, floating=floating, cones=cones),
                      [Table({"name": b.name}, path, f"mjcf.{b.name}") for b in bodies],
                      [Table({"name": j.name}, path, f"mjcf.{j.name}") for j in joints])
     spec = spec if tendons is None else with_tendon_drives(spec, tendons, table)

@@ -33,7 +33,8 @@ following joint2 (q_1 = a_1 q_2 + a_0 + ref_1 - a_1 ref_2, in the harness's q, M
 
 A ball joint is read as the three hinges about its body's axes at q = 0, `<ball>_x`, `<ball>_y`, `<ball>_z`,
 applied in that order (harness/model/cardano.py: Cardano angles, singular where `<ball>_y` = +-pi/2), two
-massless bodies carrying the second and third; its cone of range is not read (said in the notes).
+massless bodies carrying the second and third; its range, a cone, is RobotSpec.cones (judged by
+the angle of its rotation) and each hinge's limits +-cone/3 (inside it).
 
 Refused, with a line naming the element: a ball joint with a motor, armature, damping or friction loss or
 beside other joints in its body, free joints below the root, a body whose joints
@@ -155,7 +156,7 @@ def _read(model, mujoco, path: Path) -> tuple:
         _, com, moments, axes = union(parts)
         bodies.append(Body(name, mass, np.diag(moments), axes, com))
 
-    joints, limits, efforts = [], {}, {}
+    joints, limits, efforts, cones = [], {}, {}, {}
     for j in range(model.njnt):
         if j == free_root:
             continue
@@ -169,6 +170,10 @@ def _read(model, mujoco, path: Path) -> tuple:
             hinges, carriages = _ball_hinges(model, data, obj, j, inner, outer, friction)
             joints += hinges
             bodies += carriages
+            if model.jnt_limited[j]:  # its cone; each hinge within a third of it keeps the ball inside it
+                cone = float(model.jnt_range[j, 1])
+                cones[name] = (tuple(h.name for h in hinges), cone)
+                limits |= {h.name: (-cone / 3, cone / 3) for h in hinges}
             continue
         first, count = int(model.body_jntadr[b]), int(model.body_jntnum[b])
         if count > 1:  # joints of one body: a chain, each after the first carried by a massless body at their point
@@ -192,7 +197,7 @@ def _read(model, mujoco, path: Path) -> tuple:
         efforts[name] = {"effort": effort + efforts.get(name, {}).get("effort", 0.0)}  # actuators on one joint add
     closure = _closure(model, data, mujoco, owner) if model.neq else None
     floating = None if free_root is None else _floating_base(model, data, mujoco, free_root, owner)
-    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives, closure, floating
+    return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives, closure, floating, cones
 
 
 def _floating_base(model, data, mujoco, free_root: int, owner: dict):
@@ -279,7 +284,9 @@ def _ball_note(model, mujoco, path: Path, j: int) -> str:
     """What the reading of ball joint j assumed, one line."""
     obj = mujoco.mjtObj
     name = _name(model, obj.mjOBJ_JOINT, j)
-    cone = f"; its range, a cone of {model.jnt_range[j, 1]:g} rad, is not read" if model.jnt_limited[j] else ""
+    r = model.jnt_range[j, 1]
+    cone = (f"; its range, a cone of {r:g} rad, judges the motion (results.json: motion.limits), and the motions "
+            f"the harness makes keep each hinge within +-{r / 3:g} rad, inside it") if model.jnt_limited[j] else ""
     return (f"{path.name}: ball joint {name!r} of body {_name(model, obj.mjOBJ_BODY, int(model.jnt_bodyid[j]))!r} "
             f"read as the hinges {name}_x, {name}_y, {name}_z about the body's axes, in that order (Cardano angles: "
             f"singular where {name}_y = +-pi/2){cone}")

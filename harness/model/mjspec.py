@@ -22,7 +22,7 @@ import numpy as np
 
 from harness.model.friction import NO_FRICTION
 from harness.model.inertia import MOMENT_FLOOR
-from harness.model.spec import WORLD, Body, Joint, RobotSpec
+from harness.model.spec import WORLD, RobotSpec
 
 _JOINT_TYPE = {True: mujoco.mjtJoint.mjJNT_HINGE, False: mujoco.mjtJoint.mjJNT_SLIDE}
 
@@ -31,16 +31,6 @@ def _quat(R: np.ndarray) -> np.ndarray:
     q = np.zeros(4)
     mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).ravel())
     return q
-
-
-def massive_parent(spec: RobotSpec, body: Body) -> tuple[str, list[Joint]]:
-    """The nearest massive ancestor (or world) and the joints from it to `body`, inner first."""
-    chain = [spec.inner_joint(body.name)]
-    parent = chain[0].parent
-    while parent != WORLD and spec.body(parent).massless:
-        chain.insert(0, spec.inner_joint(parent))
-        parent = chain[0].parent
-    return parent, chain
 
 
 def add_robot(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False,
@@ -66,7 +56,7 @@ def add_robot(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False,
         frames[WORLD] = (R_WF, p_WF)
     elements = {WORLD: root}
     for body in spec.massive_bodies:
-        parent, chain = massive_parent(spec, body)
+        parent, chain = spec.massive_parent(body.name)
         R_WP, p_WP = frames[parent]
         holder = elements[parent]
         if floating and parent == WORLD and chain[0].name not in spec.floating.joints:  # on the ground

@@ -36,6 +36,13 @@ def from_matrix(R: np.ndarray) -> np.ndarray:
     return q * np.where(q[..., :1] < 0, -1.0, 1.0)
 
 
+def angle(q: np.ndarray) -> np.ndarray:
+    """(..., 4) -> (...,) the rotation's angle in [0, pi], 2 atan2(|(x, y, z)|, |w|): accurate at every angle,
+    where arccos of the trace loses half the digits near zero."""
+    q = np.asarray(q, dtype=float)
+    return 2.0 * np.arctan2(np.linalg.norm(q[..., 1:], axis=-1), np.abs(q[..., 0]))
+
+
 def derivative(q: np.ndarray, omega_B: np.ndarray) -> np.ndarray:
     """q' = q (x) (0, omega_B) / 2 for body-frame angular velocity omega_B."""
     w, x, y, z = np.moveaxis(q, -1, 0)

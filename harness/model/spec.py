@@ -158,6 +158,8 @@ class RobotSpec:
     actuated: tuple[str, ...] = ()  # a closed chain's actuated joints (the others are passive)
     floating: FloatingBase | None = None  # the file's floating base, which every fixed-base reading fixes at
     # the file's pose (said in `notes`); harness/engines/floating.py judges the robot with it free
+    cones: dict[str, tuple[tuple[str, ...], float]] | None = None  # an MJCF ball joint's range: its hinges and
+    # the largest angle (rad) its rotation may reach
 
     def body(self, name: str) -> Body:
         return next(b for b in self.bodies if b.name == name)
@@ -212,6 +214,16 @@ class RobotSpec:
         for j in self.outer_joints(body):
             out += self.subtree(j.child)
         return out
+
+    def massive_parent(self, body: str) -> tuple[str, list[Joint]]:
+        """The nearest massive ancestor of `body` (or the world) and the joints from it to `body`, inner
+        first: more than one where massless carriages lie between them."""
+        chain = [self.inner_joint(body)]
+        parent = chain[0].parent
+        while parent != WORLD and self.body(parent).massless:
+            chain.insert(0, self.inner_joint(parent))
+            parent = chain[0].parent
+        return parent, chain
 
     def carried_joint(self, joint: str) -> Joint:
         """The joint itself, or, for the inner joint of a massless carriage, the joint the carriage

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.base.plugins import Stage
+from harness.model import quaternion
+from harness.model.cardano import rotation
 
 KINDS = ("position", "velocity", "effort")
 
@@ -32,8 +34,9 @@ class LimitRatios:
 
         return {
             "definition": "per joint the largest over the run of |q - centre| / half range (position), |q'| / limit "
-                          "(velocity) and |tau| / limit (effort); null where the model states no such limit; above 1 "
-                          "the motion goes beyond it",
+                          "(velocity) and |tau| / limit (effort), a ball joint's hinges the angle of its rotation / "
+                          "its cone (position); null where the model states no such limit; above 1 the motion goes "
+                          "beyond it",
             "limits": {j: {kind: value(self.ratios[kind][k]) for kind in KINDS} for k, j in enumerate(self.joints)},
             "largest": {kind: value(np.nanmax(self.ratios[kind])) if np.any(~np.isnan(self.ratios[kind])) else None
                         for kind in KINDS},
@@ -43,7 +46,8 @@ class LimitRatios:
 
 def ratios(robot, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> LimitRatios:
     """(N, n) motion and drive torques in the robot's joint order against its limits: position as
-    |q - centre| / half range, velocity |q'| / limit, effort |tau| / limit."""
+    |q - centre| / half range, velocity |q'| / limit, effort |tau| / limit; a ball joint's three hinges
+    (RobotSpec.cones) each the angle of the ball's rotation over its cone."""
     n = len(robot.joint_names)
     out = {kind: np.full(n, np.nan) for kind in KINDS}
     for k, j in enumerate(robot.joint_names):
@@ -55,6 +59,9 @@ def ratios(robot, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> LimitRatios
             limit = drive.get(kind)
             if limit is not None and np.isfinite(limit) and limit > 0:
                 out[kind][k] = np.max(np.abs(x)) / limit
+    for hinges, cone in (robot.cones or {}).values():  # a ball joint: the angle of its rotation against its cone
+        k = [robot.joint_names.index(h) for h in hinges]
+        out["position"][k] = np.max(quaternion.angle(quaternion.from_matrix(rotation(q[:, k])))) / cone
     return LimitRatios(list(robot.joint_names), out)
 
 

@@ -26,22 +26,28 @@ import numpy as np
 
 from harness.base.series import TimeSeries
 from harness.model import friction
-from harness.model.kinematics import cross, skew
+from harness.model.kinematics import cross, joint_axes_W, skew
 from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.cardano import GIMBAL_COND_D, D, D_dot
 from harness.papers.graph_theory_2021.constraints import ConstraintSet, State
 from harness.papers.graph_theory_2021.dynamics import BodySeries, GraphModel, angle_rates, at_rest_floor
 
 
-def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.ndarray, r: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.ndarray, r: np.ndarray,
+                    q: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Drive forces and moments (about each centre of mass) on every body from the drive forces
     and torques tau (N, joints of the spec), world components, (N, n, 3) each.
-    A: (N, n, 3, 3), r: (N, n, 3) in graph order."""
+    A: (N, n, 3, 3), r: (N, n, 3) in graph order; q (N, joints of the spec), the joint coordinates, needed
+    where a chain of hinges through massless carriages turns its middle axes (kinematics.joint_axes_W).
+    A drive acts between the body it moves and that body's massive ancestor (carriages pass its wrench on).
+    A chain's hinges each drive the component of one moment M along their axes u_k (N, h, 3), u_k . M =
+    tau_k: M = U^T (U U^T)^-1 tau, in their span (the rest of the joint's moment is the constraints'); a
+    lone hinge's is tau u."""
     N = tau.shape[0]
     F = np.zeros((N, model.topology.n, 3))
     M = np.zeros((N, model.topology.n, 3))
-    for jj, revolute, j, inner, frame, u_frame, c in _drives(spec, model):
+    drives, chains = _drives(spec, model)
+    for jj, revolute, j, inner, frame, u_frame, c in drives:
         tau_j = tau[:, jj]
         u = np.broadcast_to(u_frame, (N, 3)) if frame is None else np.einsum("nab,b->na", A[:, frame], u_frame)
         if revolute:
@@ -56,27 +62,44 @@ def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.n
             if inner is not None:
                 F[:, inner] -= force
                 M[:, inner] -= cross(point - r[:, inner], force)
+    if chains:
+        if q is None:
+            raise ValueError("a chain of hinges through massless carriages: its axes need the joint coordinates")
+        axes = joint_axes_W(spec, model.topology.bodies, A, q)
+        for j, inner, hinges in chains:
+            U = axes[:, list(hinges)]
+            coefficients = np.linalg.solve(U @ np.swapaxes(U, 1, 2), tau[:, list(hinges), None])[..., 0]
+            moment = np.einsum("nka,nk->na", U, coefficients)
+            M[:, j] += moment
+            if inner is not None:
+                M[:, inner] -= moment
     return F, M
 
 
 @functools.lru_cache(maxsize=8)
-def _drives(spec: RobotSpec, model: GraphModel) -> tuple:
+def _drives(spec: RobotSpec, model: GraphModel) -> tuple[tuple, tuple]:
     """Per joint of the spec, where its drive acts: (joint, revolute, body j it drives (a carriage's
-    drive acts on the body it carries), inner body or None, the body whose frame carries the axis
-    (a revolute axis turns with the outer body, a prismatic one with the inner body or the ground;
-    None: the world), the axis in that frame, the joint point in body j)."""
+    drive acts on the body it carries), j's massive ancestor or None (the ground), the body whose frame
+    carries the axis (a revolute axis turns with the outer body, a prismatic one with the inner body or
+    the ground; None: the world), the axis in that frame, the joint point in body j); and apart, each
+    chain of two or more hinges through massless carriages: (j, its ancestor or None, the hinges' spec
+    indices, inner first)."""
     top = model.topology
     index = {b: i for i, b in enumerate(top.bodies)}
-    out = []
+    out, chains = [], {}
     for jj, joint in enumerate(spec.joints):
         carrier = spec.carried_joint(joint.name).child
         j = index[carrier]
-        inner = index.get(joint.parent)
-        frame = j if joint.revolute else inner
+        ancestor, chain = spec.massive_parent(carrier)
+        inner = index.get(ancestor)
+        if len(chain) > 1 and all(h.revolute for h in chain):
+            chains.setdefault(j, (j, inner, tuple(spec.joint_names.index(h.name) for h in chain)))
+            continue
+        frame = j if joint.revolute else index.get(joint.parent)
         u = joint.axis_W0 if frame is None else spec.body(top.bodies[frame]).R_WB0.T @ joint.axis_W0
         c = None if joint.revolute else top.c_B[j, top.joints.index(spec.inner_joint(carrier).name)]
         out.append((jj, joint.revolute, j, inner, frame, u, c))
-    return tuple(out)
+    return tuple(out), tuple(chains.values())
 
 
 def generalized_mass(model: GraphModel, theta: np.ndarray) -> np.ndarray:
@@ -197,7 +220,7 @@ def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: Constrain
     cols = [rec.joint_index(j) for j in spec.joint_names]
     # the drives' friction and rotor inertia act between motor and joint: the bodies get the rest
     tau = rec.tau[:, cols] - friction.torque(spec.frictions, rec.qd[:, cols], rec.qdd[:, cols])
-    F_a, M_a = active_wrenches(spec, model, tau, s.A, state.r)
+    F_a, M_a = active_wrenches(spec, model, tau, s.A, state.r, rec.q[:, cols])
     Q = generalized_forces(model, s.theta, thd, s.A, F_a, M_a)
     K = kkt_matrix(M, Phi_q)
     cond_Phi, rank_Phi = _cond_rank(Phi_q)

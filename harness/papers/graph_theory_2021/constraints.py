@@ -46,6 +46,7 @@ from harness.papers.graph_theory_2021.cardano import A_0i, D, D_dot
 from harness.papers.graph_theory_2021.topology import Topology
 
 FORMULATIONS = ("paper", "normal")
+CHAIN_AXES = 1e-6  # |det| of three unit axes (|a1 x a2| of two) below which they do not span the rotations
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,15 +193,15 @@ def build_constraints(spec: RobotSpec, top: Topology, formulation: str = "normal
         child = spec.body(joint.child)
         Pj = _e(j, top.c_B[j, k], point=True)
         pj = child.R_WB0.T @ joint.axis_W0  # the axis in the outer body
-        if joint.parent not in index:  # joined to the ground, possibly through a carriage
+        ancestor, chain = spec.massive_parent(joint.child)
+        if len(chain) > 1 and (chain[0].revolute or len(chain) > 2 or chain[0].parent != WORLD):
+            i = index.get(ancestor, -1)
+            Pi = _e(-1, joint.p_W0, point=True) if i < 0 else _e(i, top.c_B[i, k], point=True)
+            rows += _hinge_chain_rows(spec, name, chain, ancestor, i, Pi, j, Pj)
+            continue
+        if joint.parent not in index:  # joined to the ground, possibly through a carriage on a rail
             i, Pi, pi = -1, _e(-1, joint.p_W0, point=True), joint.axis_W0
-            point_dirs = world
-            if joint.parent != WORLD:
-                rail = spec.inner_joint(joint.parent)
-                if rail.revolute or rail.parent != WORLD:
-                    raise ValueError(f"joint {name}: only a prismatic joint from the world may carry "
-                                     f"the massless body {joint.parent!r}")
-                point_dirs = np.array(_normals(rail.axis_W0))
+            point_dirs = world if joint.parent == WORLD else np.array(_normals(chain[0].axis_W0))
             normals = _normals(joint.axis_W0)
         else:
             i = index[joint.parent]
@@ -219,6 +220,28 @@ def build_constraints(spec: RobotSpec, top: Topology, formulation: str = "normal
         else:
             rows += [Row(name, f"axis{a + 1}", _e(i, normals[a]), ZERO, _e(j, pj), ZERO) for a in range(2)]
     return ConstraintSet(formulation, rows, top.n)
+
+
+def _hinge_chain_rows(spec: RobotSpec, name: str, chain: list, ancestor: str, i: int, Pi: Element, j: int,
+                      Pj: Element) -> list[Row]:
+    """A chain of two or three hinges through massless carriages at one point (a universal joint; a ball
+    joint read as its three hinges), from body i (-1: the ground) to body j: the points coincide (3 rows),
+    and two hinges keep the angle between their axes, the first's fixed in i, the last's in j:
+    (A(0i) a_1^(i)) . (A(0j) a_2^(j) - c A(0i) a_1^(i)) = 0 with c = a_1 . a_2 at q = 0 (1 row); three
+    independent axes leave the rotation free. Refused in one line: a slide in the chain (but the rail's),
+    more than three hinges, axes that do not span their rotations."""
+    axes = np.array([h.axis_W0 / np.linalg.norm(h.axis_W0) for h in chain])
+    span = abs(np.linalg.det(axes)) if len(chain) == 3 else float(np.linalg.norm(np.cross(*axes[:2])))
+    if any(not h.revolute for h in chain) or len(chain) > 3 or span < CHAIN_AXES:
+        raise ValueError(f"joint {name}: the constraint equations read a chain of joints through massless bodies "
+                         "as a rail (a prismatic joint from the world, then a hinge) or as two or three hinges at "
+                         f"one point whose axes span their rotations ({', '.join(h.name for h in chain)})")
+    rows = [Row(name, lab, _e(-1, e), ZERO, Pi, Pj) for lab, e in zip("xyz", np.eye(3), strict=True)]
+    if len(chain) == 2:
+        a1 = axes[0] if ancestor == WORLD else spec.body(ancestor).R_WB0.T @ axes[0]
+        a2 = spec.body(chain[-1].child).R_WB0.T @ axes[1]
+        rows.append(Row(name, "angle", _e(i, a1), ZERO, _e(j, a2), _e(i, float(axes[0] @ axes[1]) * a1)))
+    return rows
 
 
 def _prismatic_rows(name, i, Pi, pi, j, Pj, pj, twist_j) -> list[Row]:

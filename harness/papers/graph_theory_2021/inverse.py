@@ -18,8 +18,8 @@ import numpy as np
 
 from harness.base.heap import keep_heap
 from harness.base.series import TimeSeries
-from harness.model.kinematics import KinematicsBuffers, cross, forward_kinematics, rotate
-from harness.model.spec import WORLD, RobotSpec
+from harness.model.kinematics import KinematicsBuffers, cross, forward_kinematics, joint_axes_W, rotate
+from harness.model.spec import RobotSpec
 from harness.papers.graph_theory_2021.cardano import A_0i_components
 from harness.papers.graph_theory_2021.dynamics import GraphModel
 from harness.papers.graph_theory_2021.topology import Topology, joint_arms_components
@@ -36,19 +36,20 @@ def inverse_dynamics(spec: RobotSpec, model: GraphModel, rec: TimeSeries) -> Gra
     """From a recording: Cardano angles, centre-of-mass accelerations, angular velocities and
     accelerations as measured, and the joint coordinates."""
     top = model.topology
-    off_ground = [j.name for j in spec.joints if spec.body(j.child).massless and j.parent != WORLD]
-    if off_ground:  # its axis turns with a carriage, whose orientation no recorded body gives
-        raise ValueError(f"joint {off_ground[0]!r} carries a massless body from another: the inverse dynamics of a "
-                         "recording reads a joint's axis off its bodies' orientations (inverse_dynamics_of_motion "
-                         "reads it off the joint coordinates)")
     b = [rec.body_index(x) for x in top.bodies]
     q = rec.q[:, [rec.joint_index(j) for j in top.joints]]
     a, w, wd = (_samples_last(x, b) for x in (rec.a_W, rec.omega_W, rec.omegadot_W))
     # the angles only feed sines and cosines, which read a strided view as fast: no copy
     A = A_0i_components(_select(rec.theta, b).transpose(2, 1, 0))
     F, M = newton_euler(model, A, a, w, wd, *joint_arms_components(top, A, np.ascontiguousarray(q.T)))
-    tau, F_W, M_W = joint_drives(spec, top, F, M, lambda jj, on: np.einsum(
-        "ijn,j->in", A[:, :, top.bodies.index(on)], spec.body(on).R_WB0.T @ spec.joints[jj].axis_W0))
+    if any(j.revolute and spec.body(j.child).massless for j in spec.joints):
+        # a hinge that turns a carriage: its axis turns with the hinges before it, read off the joint coordinates
+        axes = joint_axes_W(spec, top.bodies, A.transpose(3, 2, 0, 1), rec.q[:, [rec.joint_index(j)
+                                                                                   for j in spec.joint_names]])
+        tau, F_W, M_W = joint_drives(spec, top, F, M, lambda jj, on: axes[:, jj].T)
+    else:
+        tau, F_W, M_W = joint_drives(spec, top, F, M, lambda jj, on: np.einsum(
+            "ijn,j->in", A[:, :, top.bodies.index(on)], spec.body(on).R_WB0.T @ spec.joints[jj].axis_W0))
     return GraphInverse(np.ascontiguousarray(tau.T), F_W.transpose(2, 1, 0), M_W.transpose(2, 1, 0))
 
 

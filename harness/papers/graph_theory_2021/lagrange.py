@@ -26,7 +26,7 @@ class Formulation:
     solution: Constrained
     max_abs_phi: float  # on the recording
     max_abs_phi_dot: float | None  # Phi_q q' on the recording, where the Cardano angles are regular
-    axis_rank_deficient: dict[str, int]  # joint -> rows where its two axis rows have rank < 2
+    axis_rank_deficient: dict[str, int]  # joint -> rows where its two axis rows have rank < 2 (a hinge's)
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,6 +50,8 @@ def _formulation(spec: RobotSpec, model: GraphModel, rec: TimeSeries, s: BodySer
     deficient = {}
     for joint in model.topology.joints:
         rows = [k for k, lab in enumerate(cs.labels) if lab.startswith(f"{joint}.axis")]
+        if not rows:  # a chain of hinges (a ball or universal joint) has none
+            continue
         sv = np.linalg.svd(sol.Phi_q[well][:, rows], compute_uv=False)
         deficient[joint] = int(np.sum(sv[:, -1] < 1e-8 * sv[:, 0]))
     return Formulation(cs, sol, float(np.max(np.abs(sol.phi))), largest(np.abs(sol.phi_dot[well])), deficient)

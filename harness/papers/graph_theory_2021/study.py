@@ -84,6 +84,12 @@ def configure(t: Table, scenario) -> Config:
     if settings.forward_simulation and not all(f.none for f in scenario.robot.frictions):
         raise lt.error("forward_simulation", "the constrained model is integrated without the joints' friction and "
                                              "rotor inertia, which this robot's model declares")
+    robot = scenario.robot
+    chains = [j.name for j in robot.joints if j.revolute and robot.body(j.child).massless]
+    if settings.forward_simulation and chains:
+        raise lt.error("forward_simulation", f"the constrained model's integration reads each joint's angle off its "
+                                             f"two bodies, and hinge {chains[0]!r} turns a massless carriage (a ball "
+                                             "or universal joint): its angle has no body to be read from")
     lt.finish()
     return Config(tested, _table_name(t, "paper_identified"), _table_name(t, "paper_abs_error"), settings)
 

@@ -96,8 +96,6 @@ def build_topology(spec: RobotSpec) -> Topology:
     """S and c for any tree of the spec; nothing here is specific to six bodies. Each edge joins a body to
     its nearest massive ancestor or the ground, through the massless carriages between them (the module
     docstring)."""
-    from harness.model.mjspec import massive_parent
-
     bodies = tuple(b.name for b in spec.massive_bodies)
     joints = tuple(spec.inner_joint(b).name for b in bodies)
     index = {b: i for i, b in enumerate(bodies)}
@@ -108,7 +106,7 @@ def build_topology(spec: RobotSpec) -> Topology:
     for k, name in enumerate(joints):
         joint = spec.joint(name)
         ends = [(index[joint.child], -1)]
-        parent = massive_parent(spec, spec.body(joint.child))[0]
+        parent = spec.massive_parent(joint.child)[0]
         if parent in index:
             ends.append((index[parent], +1))
         for i, sign in ends:
