@@ -287,3 +287,20 @@ def test_the_constrained_models_integration_refuses_a_chain_of_hinges_in_one_lin
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "lagrange.forward_simulation" in err[0] and "'elbow_x'" in err[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_a_passive_ball_at_its_charts_lock_is_refused_naming_its_hinges(delta):
+    """The delta's platform ball, read as Cardano hinges, turned to its chart's lock (the middle hinge at
+    pi/2): its first and last hinges turn about one axis through one point, their columns of the loops'
+    Jacobian are equal, and the passive joints are not determined; the refusal names the three hinges. A
+    thousandth of a radian from the lock the pseudo-inverse is made (the singular values' ratio ~1e-3 there,
+    far above closure.RANK)."""
+    from harness.model.loops import jacobian
+
+    spec = delta.spec
+    q = np.zeros((2, len(spec.joints)))
+    q[1, spec.joint_names.index("wrist_y")] = np.pi / 2
+    with pytest.raises(closure.ClosureError, match=r"at sample 1 .* the hinges wrist_x wrist_y wrist_z \(a ball"):
+        closure.pinv_passive(delta, jacobian(spec, delta.loops, q), "sample")
+    q[1, spec.joint_names.index("wrist_y")] = np.pi / 2 - 1e-3
+    assert np.all(np.isfinite(closure.pinv_passive(delta, jacobian(spec, delta.loops, q), "sample")))

@@ -38,6 +38,7 @@ CLOSED = 1e-12  # a loop is closed when |Phi| <= CLOSED times the mechanism's si
 NULL_SPACE = 1e-12  # |J G| <= NULL_SPACE |J| |G|: G's columns in J's null space
 RANK = 1e-9  # J_p's smallest singular value over its largest: below, the passive joints are not determined
 CONTINUATION_STEP = 0.05  # rad (or this fraction of the size, m): the largest actuated step between solves
+LOCK = 1e-9  # two columns a, b of J in line: |a (b.b) - b (a.b)| <= LOCK |a| |b|^2, the sine of their angle
 CONTINUATION_BLOCK = 8  # stations closed by one Newton's method, each predicted from the last one kept
 
 
@@ -112,10 +113,29 @@ def pinv_passive(chain: ClosedChain, J: np.ndarray, where: str, numbered: bool =
     bad = np.flatnonzero(~(ratio > RANK))
     if bad.size:
         at = f"{where} {bad[0]}" if numbered else where
+        locked = _locked_chains(chain, J[bad[0]])
         raise ClosureError(f"{chain.spec.name}: the passive joints are not determined by the loops at {at} "
                            f"(J_p's singular values' ratio {ratio[bad[0]]:.1e}: a singular "
-                           "configuration, or fewer independent loop equations than passive joints)")
+                           "configuration, or fewer independent loop equations than passive joints)"
+                           + (f"; at their lock, the first and last axes in line: the hinges {', '.join(locked)} "
+                              "(a ball joint's Cardano hinges, its middle one at +-pi/2)" if locked else ""))
     return np.swapaxes(Vt, 1, 2) @ np.swapaxes(U / s[:, None, :], 1, 2)
+
+
+def _locked_chains(chain: ClosedChain, J: np.ndarray) -> list[str]:
+    """The passive chains of three hinges through massless carriages (a ball joint read as its hinges)
+    whose first and last hinges move the loops alike at one configuration's J (rows, n): their axes in
+    line through their common point, the chain's lock (its Cardano chart's singularity)."""
+    spec, out = chain.spec, []
+    for body in spec.massive_bodies:
+        hinges = spec.massive_parent(body.name)[1]
+        k = [spec.joint_names.index(h.name) for h in hinges]
+        if len(k) != 3 or not all(h.revolute for h in hinges) or not set(k) <= set(chain.passive):
+            continue
+        a, b = J[:, k[0]], J[:, k[2]]
+        if np.linalg.norm(a * (b @ b) - b * (a @ b)) <= LOCK * np.linalg.norm(a) * (b @ b):  # sin(angle) <= LOCK
+            out.append(" ".join(h.name for h in hinges))
+    return out
 
 
 def _G(chain: ClosedChain, J: np.ndarray, P: np.ndarray) -> np.ndarray:
