@@ -40,9 +40,9 @@ def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.n
     A: (N, n, 3, 3), r: (N, n, 3) in graph order; q (N, joints of the spec), the joint coordinates, needed
     where a chain of hinges through massless carriages turns its middle axes (kinematics.joint_axes_W).
     A drive acts between the body it moves and that body's massive ancestor (carriages pass its wrench on).
-    A chain's hinges each drive the component of one moment M along their axes u_k (N, h, 3), u_k . M =
-    tau_k: M = U^T (U U^T)^-1 tau, in their span (the rest of the joint's moment is the constraints'); a
-    lone hinge's is tau u."""
+    A chain's hinges each drive the component of one moment M along their axes u_k (rows of U, (N, h, 3)),
+    u_k . M = tau_k: M = U^+ tau = U^T (U U^T)^-1 tau, in their span (the rest of the joint's moment is the
+    constraints'); a lone hinge's is tau u."""
     N = tau.shape[0]
     F = np.zeros((N, model.topology.n, 3))
     M = np.zeros((N, model.topology.n, 3))
@@ -67,9 +67,8 @@ def active_wrenches(spec: RobotSpec, model: GraphModel, tau: np.ndarray, A: np.n
             raise ValueError("a chain of hinges through massless carriages: its axes need the joint coordinates")
         axes = joint_axes_W(spec, model.topology.bodies, A, q)
         for j, inner, hinges in chains:
-            U = axes[:, list(hinges)]
-            coefficients = np.linalg.solve(U @ np.swapaxes(U, 1, 2), tau[:, list(hinges), None])[..., 0]
-            moment = np.einsum("nka,nk->na", U, coefficients)
+            # the least-norm M with U M = tau: at a chain's lock (its first and last axes in line) it stays finite
+            moment = (np.linalg.pinv(axes[:, list(hinges)]) @ tau[:, list(hinges), None])[..., 0]
             M[:, j] += moment
             if inner is not None:
                 M[:, inner] -= moment
