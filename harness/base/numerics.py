@@ -35,6 +35,8 @@ ZERO_COLUMN = 1e-10  # a column below this fraction of the largest is round-off 
 RANGE_FLOOR = 1e-3  # a joint's range of motion is taken as at least this of its kind's largest, and 1 mrad or 1 mm
 RK4_A = (0.5, 0.5, 1.0)  # the classical Runge-Kutta tableau: stage i + 1 from stage i's rates, that far into the step
 RK4_B = (1 / 6, 1 / 3, 1 / 3, 1 / 6)  # and the four stages' weights
+SHIFT_GAIN = 0.9  # a time shift of a channel (a torque's delay, a velocity's lag) is found where reading the channel
+# that much later leaves at most 90 % of the residual at zero: a shift that explains less is noise's doing
 PREDICTION_TIMESTEP = 0.001  # s: RK4 steps of a prediction (the log's torques read at every stage)
 NORMAL_975 = 1.959963984540054  # the standard normal's 97.5 % quantile: a 95 % interval where no degrees of
 # freedom are stated (an estimate's own intervals take Student's t: harness/identify/lstsq.py)

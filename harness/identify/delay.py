@@ -19,13 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.base.numerics import column_scale, relative_residual, sample_step
+from harness.base.numerics import SHIFT_GAIN, column_scale, relative_residual, sample_step
 from harness.base.series import STRETCH_BREAK, TimeSeries, room
 from harness.identify.torque_id import SAMPLES_AT_A_TIME
 
 LARGEST = 0.02  # s: the candidates span +-20 ms
 STEP = 0.0005  # s
-GAIN = 0.9  # a delay is found where reading the torque that much later leaves at most 90 % of the residual at zero
 EDGE = 1  # a best candidate this many steps or fewer from an end of the search is at its edge: the parabola
 # through it and its neighbours then leans on the end, and the curve may go on falling beyond it
 
@@ -45,8 +44,8 @@ class Delays:
     @property
     def found(self) -> np.ndarray:
         """(n,) bool: per joint, whether the delay is found: inside the search, and the fit clearly
-        better for it (its residual at most GAIN times the residual at zero delay)."""
-        return ~self.at_edge & (self.residual <= GAIN * self.residual_at_zero)
+        better for it (its residual at most SHIFT_GAIN times the residual at zero delay)."""
+        return ~self.at_edge & (self.residual <= SHIFT_GAIN * self.residual_at_zero)
 
 
 def _basis(Wj: np.ndarray) -> np.ndarray:

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.base.numerics import evenly_spaced, finite_or_null, parameter_scale, relative_error
-from harness.identify import consistent, delay, friction_law
+from harness.base.numerics import SHIFT_GAIN, evenly_spaced, finite_or_null, parameter_scale, relative_error
+from harness.identify import consistent, friction_law
 from harness.identify.scale import constants_table
 from harness.identify.torque_id import describe_base
 from harness.model.friction import FAMILIES
@@ -219,7 +219,7 @@ def delay_section(lags, note: str | None, mode: str, joints: list[str]) -> dict:
             "definition": "per joint, d such that the torque measured d later fits the joint's regressor rows best "
                           "(least squares, every parameter); positive: the torque channel lags the encoders "
                           "(harness/identify/delay.py)",
-            "found_definition": f"inside the search, and the residual at the delay at most {delay.GAIN:g} x the "
+            "found_definition": f"inside the search, and the residual at the delay at most {SHIFT_GAIN:g} x the "
                                 "residual at zero delay; only a found delay is corrected",
             "search_s": [float(lags.candidates[0]), float(lags.candidates[-1])],
             "per_joint": {j: {"delay_s": float(lags.delay[k]), "found": bool(lags.found[k]),
