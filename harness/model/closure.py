@@ -127,10 +127,9 @@ def _locked_chains(chain: ClosedChain, J: np.ndarray) -> list[str]:
     whose first and last hinges move the loops alike at one configuration's J (rows, n): their axes in
     line through their common point, the chain's lock (its Cardano chart's singularity)."""
     spec, out = chain.spec, []
-    for body in spec.massive_bodies:
-        hinges = spec.massive_parent(body.name)[1]
+    for hinges in spec.hinge_chains():
         k = [spec.joint_names.index(h.name) for h in hinges]
-        if len(k) != 3 or not all(h.revolute for h in hinges) or not set(k) <= set(chain.passive):
+        if len(k) != 3 or not set(k) <= set(chain.passive):
             continue
         a, b = J[:, k[0]], J[:, k[2]]
         if np.linalg.norm(a * (b @ b) - b * (a @ b)) <= LOCK * np.linalg.norm(a) * (b @ b):  # sin(angle) <= LOCK

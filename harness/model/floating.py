@@ -98,12 +98,12 @@ def from_mujoco(qpos: np.ndarray, qvel: np.ndarray, qacc: np.ndarray) -> BaseMot
 def tracking_error(actual: BaseMotion, wanted: BaseMotion) -> tuple[np.ndarray, np.ndarray]:
     """(N,) m and (N,) rad: how far the base's origin is from where it is wanted, and the angle of the
     rotation between the two orientations, 2 atan2(|v|, |w|) of the quaternion q_wanted^-1 q (on SO(3):
-    the same for q and -q)."""
+    the same for q and -q: `quaternion.angle`)."""
     w1, v1 = wanted.quat_wxyz[:, 0], wanted.quat_wxyz[:, 1:]
     w2, v2 = actual.quat_wxyz[:, 0], actual.quat_wxyz[:, 1:]
     w = w1 * w2 + np.sum(v1 * v2, axis=1)  # the relative quaternion's scalar and vector parts
     v = w1[:, None] * v2 - w2[:, None] * v1 - np.cross(v1, v2)
-    return np.linalg.norm(actual.p_W - wanted.p_W, axis=1), 2.0 * np.arctan2(np.linalg.norm(v, axis=1), np.abs(w))
+    return np.linalg.norm(actual.p_W - wanted.p_W, axis=1), quaternion.angle(np.concatenate([w[:, None], v], axis=1))
 
 
 def to_pinocchio(base: BaseMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

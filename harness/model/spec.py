@@ -225,6 +225,12 @@ class RobotSpec:
             parent = chain[0].parent
         return parent, chain
 
+    def hinge_chains(self) -> list[list[Joint]]:
+        """Each chain of two or more hinges through massless carriages (`massive_parent`), inner first: a ball
+        joint read as its three hinges, a universal joint (a rail's slide and hinge is not one)."""
+        chains = (self.massive_parent(b.name)[1] for b in self.massive_bodies)
+        return [c for c in chains if len(c) > 1 and all(j.revolute for j in c)]
+
     def carried_joint(self, joint: str) -> Joint:
         """The joint itself, or, for the inner joint of a massless carriage, the joint the carriage
         carries: they share point and wrench, and its child is the massive body that moves."""

@@ -85,20 +85,22 @@ def _drives(spec: RobotSpec, model: GraphModel) -> tuple[tuple, tuple]:
     indices, inner first)."""
     top = model.topology
     index = {b: i for i, b in enumerate(top.bodies)}
-    out, chains = [], {}
+    names = spec.joint_names
+    chains = tuple((index[c[-1].child], index.get(c[0].parent), tuple(names.index(h.name) for h in c))
+                   for c in spec.hinge_chains())  # a chain's first joint starts at the massive ancestor
+    in_chains = {k for _, _, hinges in chains for k in hinges}
+    out = []
     for jj, joint in enumerate(spec.joints):
+        if jj in in_chains:
+            continue
         carrier = spec.carried_joint(joint.name).child
         j = index[carrier]
-        ancestor, chain = spec.massive_parent(carrier)
-        inner = index.get(ancestor)
-        if len(chain) > 1 and all(h.revolute for h in chain):
-            chains.setdefault(j, (j, inner, tuple(spec.joint_names.index(h.name) for h in chain)))
-            continue
+        inner = index.get(spec.massive_parent(carrier)[0])
         frame = j if joint.revolute else index.get(joint.parent)
         u = joint.axis_W0 if frame is None else spec.body(top.bodies[frame]).R_WB0.T @ joint.axis_W0
         c = None if joint.revolute else top.c_B[j, top.joints.index(spec.inner_joint(carrier).name)]
         out.append((jj, joint.revolute, j, inner, frame, u, c))
-    return tuple(out), tuple(chains.values())
+    return tuple(out), chains
 
 
 def generalized_mass(model: GraphModel, theta: np.ndarray) -> np.ndarray:
