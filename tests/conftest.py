@@ -148,6 +148,19 @@ def bench_log(scenario, folder, duration: float, steps: int) -> None:
     write_log(rec, scenario.robot.joint_names, folder / "log.csv")
 
 
+def write_frame(frame, path) -> None:
+    """`frame.to_csv(path, index=False, float_format="%.17g")`, the same bytes, written by the harness's own
+    writer (harness/base/csvtext.py; pandas' formats each value through a Python call of its own): numeric
+    columns only, a NaN an empty cell as pandas writes it."""
+    from harness.base.csvtext import csv_text
+
+    kinds = {name: frame[name].dtype.kind for name in frame.columns}
+    if frame.columns.duplicated().any() or any(k not in "fiu" for k in kinds.values()):
+        raise TypeError(f"write_frame writes distinct numeric columns only: {kinds}")
+    Path(path).write_text(csv_text({name: frame[name].to_numpy() for name in frame.columns}, missing=""),
+                          newline="")
+
+
 def log_scenario(folder, model, gates: str) -> None:
     """folder/s.toml: a [data] scenario of folder/log.csv on `model`, validated on its last 30 %."""
     (folder / "s.toml").write_text(

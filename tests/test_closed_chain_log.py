@@ -24,7 +24,7 @@ from harness.model import closure
 from harness.model.load import load_spec, spec_from_data
 from harness.runner.scenario import load_scenario
 
-from .conftest import MODELS, NO_PREDICTION, ROOT, SCENARIOS, pinocchio_rnea, viscous_coulomb
+from .conftest import MODELS, NO_PREDICTION, ROOT, SCENARIOS, pinocchio_rnea, viscous_coulomb, write_frame
 
 TRUTH = MODELS / "parallelogram_friction.toml"
 RATE = 500.0  # Hz
@@ -75,7 +75,7 @@ def _exact_log(path, truth, sines, rate: float, duration: float, noise: float = 
     for k in range(len(act)):
         columns |= {f"q{k + 1}": q[:, act[k]], f"qd{k + 1}": qd[:, act[k]], f"tau{k + 1}": read[:, k]}
     kept = np.ones(len(t), dtype=bool) if cut is None else (t < cut[0]) | (t > cut[1])
-    pd.DataFrame(columns)[kept].to_csv(path, index=False, float_format="%.17g")
+    write_frame(pd.DataFrame(columns)[kept], path)
     return chain, (q, qd, qdd), tau_a
 
 
@@ -329,8 +329,8 @@ def unmeasured_runs(exact, tmp_path_factory):
     unmeasured: their runs' exit status, results and folder."""
     folder = tmp_path_factory.mktemp("unmeasured_chain")
     log = pd.read_csv(exact[0] / "log.csv")
-    log.drop(columns=["tau3"]).to_csv(folder / "absent.csv", index=False, float_format="%.17g")
-    log.assign(tau3=0.0).to_csv(folder / "dead.csv", index=False, float_format="%.17g")
+    write_frame(log.drop(columns=["tau3"]), folder / "absent.csv")
+    write_frame(log.assign(tau3=0.0), folder / "dead.csv")
     runs = {}
     for name, tau in (("absent", '["tau1", "tau2"]'), ("dead", '"tau{j}"')):
         text = _scenario_text(folder / f"{name}.csv", 'unmeasured = ["crank"]', predicted=True)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from .conftest import MODELS
+from .conftest import MODELS, write_frame
 from .test_closed_chain_log import DURATION, RATE, SINES, TRUTH, _exact_log, _run, _scenario_text
 
 
@@ -40,7 +40,7 @@ def _currents(path, torques, factor: float = 1.1) -> None:
     log = pd.read_csv(torques)
     for k in range(3):
         log[f"tau{k + 1}"] = log[f"tau{k + 1}"] / (factor * K_T[k] * GEAR[k])
-    log.to_csv(path, index=False, float_format="%.17g")
+    write_frame(log, path)
 
 
 @pytest.mark.parametrize("fixed_by", ["model", "payload"])

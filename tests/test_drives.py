@@ -27,7 +27,7 @@ from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.drives import Transmission
 from harness.model.load import load_spec
 from harness.sources.bench import record
-from tests.conftest import ROOT, pinocchio_rnea, two_link_bench
+from tests.conftest import ROOT, pinocchio_rnea, two_link_bench, write_frame
 
 URDF = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"
 N = np.array([[50.0, 0.0], [20.0, -30.0]])
@@ -241,7 +241,7 @@ def test_a_position_repeated_while_the_torques_move_is_data_and_a_whole_row_repe
     _log_scenario(folder, 'file = "joints.csv"\ncolumns = { t = "t", q = "q{j}", tau = "tau{j}" }\n', "joints")
     df.loc[200:204, ["q1", "q2"]] = df.loc[199, ["q1", "q2"]].to_numpy()  # positions held, torques moving
     df.loc[400:402, df.columns[1:]] = df.loc[399, df.columns[1:]].to_numpy()  # the whole row held
-    df.to_csv(folder / "joints.csv", index=False, float_format="%.17g")
+    write_frame(df, folder / "joints.csv")
     s = load_scenario(folder / "joints.toml")
     c = check(read_raw(s.data, s.robot), s.robot, s.data)
     assert c.record["repeated_rows_dropped"] == 3 and c.record["repeated_positions_kept"] == 5
@@ -382,7 +382,7 @@ def wrist_bench(tmp_path_factory):
     columns = [f"Joint_{k + 1}" for k in range(6)]
     pd.DataFrame(np.round(t.motor_positions(rec.q) / ENCODER_STEP) * ENCODER_STEP, columns=columns).to_csv(
         folder / "pos.csv", index=False, float_format="%.17g")
-    pd.DataFrame(current, columns=columns).to_csv(folder / "cur.csv", index=False, float_format="%.17g")
+    write_frame(pd.DataFrame(current, columns=columns), folder / "cur.csv")
     (folder / "log.toml").write_text(
         '[scenario]\nmodel = "given.toml"\n[data]\nfile = "pos.csv"\ntorque_file = "cur.csv"\n'
         'columns = { q = "Joint_{j}", tau = "Joint_{j}" }\nsample_rate = 1000.0\nside = "motor"\n'
@@ -483,8 +483,8 @@ def test_a_coupled_arms_log_without_a_channel_identifies_what_reaches_the_other(
     alone) keeps the model's law exactly, motor 2's Coulomb term comes back within 1 %."""
     folder = coupled_bench[0]
     log = pd.read_csv(folder / "joints.csv")
-    log.drop(columns=["tau2"]).to_csv(folder / "no_elbow.csv", index=False, float_format="%.17g")
-    log.assign(tau1=0.0).to_csv(folder / "no_shoulder.csv", index=False, float_format="%.17g")
+    write_frame(log.drop(columns=["tau2"]), folder / "no_elbow.csv")
+    write_frame(log.assign(tau1=0.0), folder / "no_shoulder.csv")
     results = {}
     for joint, tau in (("elbow", '["tau1"]'), ("shoulder", '"tau{j}"')):
         _log_scenario(folder, f'file = "no_{joint}.csv"\ncolumns = {{ t = "t", q = "q{{j}}", tau = {tau} }}\n'
@@ -532,7 +532,7 @@ def test_a_motor_side_log_without_a_motors_channel_is_the_joint_side_log_without
     leaves no joint to read: refused in one line; a joint named on a motor-side log: refused naming the
     motors."""
     folder = coupled_bench[0]
-    pd.read_csv(folder / "cur.csv")[["M2"]].to_csv(folder / "cur_m2.csv", index=False, float_format="%.17g")
+    write_frame(pd.read_csv(folder / "cur.csv")[["M2"]], folder / "cur_m2.csv")
     pd.read_csv(folder / "joints.csv").assign(tau1=0.0).to_csv(folder / "joints_dead.csv", index=False,
                                                                  float_format="%.17g")
     t = pd.read_csv(folder / "joints.csv")["t"].to_numpy()

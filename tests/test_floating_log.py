@@ -23,7 +23,7 @@ from harness.runner.scenario import load_scenario
 from harness.sources.bench import record
 from harness.sources.log import load
 
-from .conftest import ROOT, SCENARIOS
+from .conftest import ROOT, SCENARIOS, write_frame
 
 BENCH = ROOT / "harness" / "data" / "logs" / "solo12_standing_bench"
 FEET = ("FL_foot", "FR_foot", "HL_foot", "HR_foot")
@@ -64,7 +64,7 @@ def _write(rec, path, order="xyzw", twist_axes="base", force_axes="world", flip=
     for k, name in enumerate(rec.contacts):
         F = rec.contact_F_W[:, k] if force_axes == "world" else (R_T @ rec.contact_F_W[:, k, :, None])[..., 0]
         cols.update(zip((f"{name}_fx", f"{name}_fy", f"{name}_fz"), F.T, strict=True))
-    pd.DataFrame(cols).to_csv(path, index=False, float_format="%.17g")
+    write_frame(pd.DataFrame(cols), path)
 
 
 def _scenario(tmp_path, log, order="xyzw", twist_axes="base", force_axes="world", extra_data="", extra="",
@@ -344,7 +344,7 @@ def _as_published(log: pd.DataFrame, folder, shape: str) -> tuple[str, str]:
     if shape == "currents":
         currents = log.copy()
         currents[joints] = log[joints].to_numpy() / (CONSTANT * GEAR)
-        currents.to_csv(folder / "log.csv", index=False, float_format="%.17g")
+        write_frame(currents, folder / "log.csv")
         return ('units = { q = "rad", qd = "rad/s", tau = "N m" }',
                 f'units = {{ q = "rad", qd = "rad/s", tau = "current" }}\ntorque_constant = {CONSTANT.tolist()}\n'
                 f'gear_ratio = {GEAR.tolist()}')
@@ -355,10 +355,10 @@ def _as_published(log: pd.DataFrame, folder, shape: str) -> tuple[str, str]:
     if shape == "three files":
         late = log.assign(t=log["t"] + 1e-4)
         for name, frame, cols in (("pose", log, positions), ("twist", log, velocities), ("effort", late, efforts)):
-            frame[cols].to_csv(folder / f"{name}.csv", index=False, float_format="%.17g")
+            write_frame(frame[cols], folder / f"{name}.csv")
         return 'file = "log.csv"', 'file = ["pose.csv", "twist.csv", "effort.csv"]'
-    log[[c for c in log.columns if c not in joints]].to_csv(folder / "states.csv", index=False, float_format="%.17g")
-    log[["t", *joints]].to_csv(folder / "torques.csv", index=False, float_format="%.17g")
+    write_frame(log[[c for c in log.columns if c not in joints]], folder / "states.csv")
+    write_frame(log[["t", *joints]], folder / "torques.csv")
     return 'file = "log.csv"', 'file = "states.csv"\ntorque_file = "torques.csv"'
 
 
@@ -423,7 +423,7 @@ def test_a_floating_robot_s_motor_side_log_reads_as_its_joint_side_log(standing,
     cols = {kind: [f"{kind}{k + 1}" for k in range(12)] for kind in ("q", "qd", "tau")}
     for kind, to_motor in (("q", t.motor_positions), ("qd", t.motor_rates), ("tau", t.motor_torques)):
         motors[cols[kind]] = to_motor(joints[cols[kind]].to_numpy())
-    motors.to_csv(tmp_path / "motors.csv", index=False, float_format="%.17g")
+    write_frame(motors, tmp_path / "motors.csv")
     read = []
     for name, side in (("log.csv", ""), ("motors.csv", 'side = "motor"')):
         folder = tmp_path / name[:-4]
@@ -502,7 +502,7 @@ def test_a_foot_s_force_in_its_sensor_s_axes_reads_as_the_bench_recorded_it(stan
         R = _sensor_axes(rec, f"{name[:2]}_LOWER_LEG", rpy)
         F_S = (np.swapaxes(R, 1, 2) @ rec.contact_F_W[:, k, :, None])[..., 0]
         log[[f"{name}_fx", f"{name}_fy", f"{name}_fz"]] = F_S
-    log.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    write_frame(log, tmp_path / "log.csv")
     path = _scenario(tmp_path, tmp_path / "log.csv")
     text = path.read_text()
     for name, extra in (("FL_foot", f'axes = "body"\nrpy = {list(SENSOR_RPY)}'), ("FR_foot", 'axes = "body"')):
@@ -534,7 +534,7 @@ def test_torque_channels_that_lag_the_encoders_are_found_and_corrected_as_an_arm
     rows = round(LAG / 0.005)
     log[joints] = np.concatenate([np.repeat(log[joints].to_numpy()[:1], rows, axis=0),
                                   log[joints].to_numpy()[:-rows]])
-    log.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    write_frame(log, tmp_path / "log.csv")
     path = _scenario(tmp_path, tmp_path / "log.csv")
     path.write_text(path.read_text().replace('delay = "none"', f'delay = "{mode}"'))
     code, results = _run(path, tmp_path / "out")
@@ -563,8 +563,8 @@ def test_a_floating_log_is_judged_on_another_log_of_the_same_robot(standing, tmp
     _write(standing, tmp_path / "whole.csv")
     whole = pd.read_csv(tmp_path / "whole.csv")
     cut = int(np.searchsorted(whole["t"].to_numpy(), 1.05))
-    whole.iloc[:cut].to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
-    whole.iloc[cut:].to_csv(tmp_path / "other.csv", index=False, float_format="%.17g")
+    write_frame(whole.iloc[:cut], tmp_path / "log.csv")
+    write_frame(whole.iloc[cut:], tmp_path / "other.csv")
     path = _scenario(tmp_path, tmp_path / "log.csv")
     path.write_text(path.read_text().replace("validation = { from = 0.7 }",
                                              f'validation = {{ file = "{tmp_path / "other.csv"}" }}'))
@@ -592,8 +592,8 @@ def test_joints_without_a_torque_channel_keep_their_motion_and_leave_their_rows_
     (`estimator = "ols"`) they leave the fit far off (4.6)."""
     _write(standing, tmp_path / "log.csv")
     log = pd.read_csv(tmp_path / "log.csv")
-    log.drop(columns=["tau1", "tau12"]).to_csv(tmp_path / "absent.csv", index=False, float_format="%.17g")
-    log.assign(tau1=0.0, tau12=0.0).to_csv(tmp_path / "zero.csv", index=False, float_format="%.17g")
+    write_frame(log.drop(columns=["tau1", "tau12"]), tmp_path / "absent.csv")
+    write_frame(log.assign(tau1=0.0, tau12=0.0), tmp_path / "zero.csv")
     figures = {}
     for name, log_file, extra, estimator in (("absent", "absent", 'unmeasured = ["FL_HAA", "HR_KFE"]', "wls"),
                                              ("zero", "zero", "", "wls"), ("zero alike", "zero", "", "ols")):
@@ -727,7 +727,7 @@ def test_a_floating_log_in_a_ros_bag_reads_as_its_csv(standing, tmp_path, kind):
     log = pd.read_csv(tmp_path / "log.csv")
     ns = np.round(log["t"].to_numpy() * 1e9).astype(np.int64)
     log["t"] = ns // 10**9 + (ns % 10**9) * 1e-9  # the stamps' times, as a bag's reader adds them
-    log.drop(index=150).to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    write_frame(log.drop(index=150), tmp_path / "log.csv")
     plain = load_scenario(_scenario(tmp_path, tmp_path / "log.csv"))
     (tmp_path / "b").mkdir()
     _write_bag(tmp_path / "b" / ("run.bag" if kind == "ros1" else "run"), log, kind, 100_000, missing=150)
@@ -786,7 +786,7 @@ def test_a_floating_log_s_torque_constants_are_fixed_by_the_feet_s_forces(standi
     joints = [f"tau{k + 1}" for k in range(12)]
     off = np.array([1.3, 0.8, 1.1, 0.9, 1.2, 1.0, 0.85, 1.25, 1.05, 0.95, 1.15, 0.8])
     log[joints] = log[joints].to_numpy() / (CONSTANT * GEAR)
-    log.to_csv(tmp_path / "log.csv", index=False, float_format="%.17g")
+    write_frame(log, tmp_path / "log.csv")
     currents = (f'units = {{ q = "rad", qd = "rad/s", tau = "current" }}\n'
                 f'torque_constant = {(CONSTANT * off).tolist()}\ngear_ratio = {GEAR.tolist()}')
     figures = {}

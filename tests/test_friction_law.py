@@ -16,7 +16,16 @@ import pytest
 from harness.api import identified_model, load_scenario
 from harness.cli import main
 from harness.model.load import load_spec
-from tests.conftest import KINOVA_JOINTS, SCENARIOS, bench_log, kinova_bench, kinova_files, kinova_model, log_scenario
+from tests.conftest import (
+    KINOVA_JOINTS,
+    SCENARIOS,
+    bench_log,
+    kinova_bench,
+    kinova_files,
+    kinova_model,
+    log_scenario,
+    write_frame,
+)
 
 MODEL = SCENARIOS.parent / "models" / "ur5_friction.toml"
 GATE = '[[gates]]\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1\n'
@@ -145,7 +154,7 @@ def _kinova_log(folder, quantum: float | None = None) -> None:
         for c in (c for c in df.columns if c.startswith("q") and not c.startswith("qd")):
             df[c] = np.round(df[c] / quantum) * quantum
         df = df[[c for c in df.columns if not c.startswith("qd")]]
-    df.to_csv(folder / "log.csv", index=False, float_format="%.17g")
+    write_frame(df, folder / "log.csv")
 
 
 @pytest.mark.slow  # a 20 s log of a six-joint arm through the whole pipeline, twice

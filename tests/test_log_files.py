@@ -12,7 +12,7 @@ import pytest
 from harness.api import load_scenario
 from harness.base.tomlio import InputError
 from harness.sources.log import read
-from tests.conftest import BUILTIN, SCENARIOS
+from tests.conftest import BUILTIN, SCENARIOS, write_frame
 
 LOG = BUILTIN / "logs" / "ur5_bench" / "log.csv"
 MODEL = SCENARIOS.parent / "models" / "ur5.toml"
@@ -44,14 +44,14 @@ def _published(folder, log: pd.DataFrame, stamps=None, rows=None) -> None:
         frame = pd.DataFrame({"t": stamps.get(quantity, log["t"].to_numpy())[kept]}
                              | {f"- {name}_{quantity}": log[f"{prefix}{j + 1}"].to_numpy()[kept]
                                 for j, name in enumerate(NAMES)})
-        frame.to_csv(folder / f"{quantity}.csv", index=False, float_format="%.17g")
+        write_frame(frame, folder / f"{quantity}.csv")
 
 
 THREE = '["position.csv", "velocity.csv", "effort.csv"]'
 
 
 def _single(folder, log: pd.DataFrame):
-    log.to_csv(folder / "one.csv", index=False, float_format="%.17g")
+    write_frame(log, folder / "one.csv")
     columns = '{ t = "t", q = "q{j}", qd = "qd{j}", tau = "tau{j}" }'
     return read.read_raw(*_data(_scenario(folder, '"one.csv"', columns)))
 
@@ -130,7 +130,7 @@ def test_a_log_in_several_files_that_cannot_be_joined_is_refused_naming_file_and
     """A time column missing, a torque column missing, a column in two files (which to read?), a file
     out of time order: refused, the column and the file named, when the scenario loads or the log is read."""
     _published(tmp_path, _log())
-    edit(pd.read_csv(tmp_path / file)).to_csv(tmp_path / file, index=False, float_format="%.17g")
+    write_frame(edit(pd.read_csv(tmp_path / file)), tmp_path / file)
     with pytest.raises(InputError) as caught:
         sc = _scenario(tmp_path, THREE, PUBLISHED)
         read.read_raw(sc.data, sc.robot)
@@ -153,7 +153,7 @@ def test_a_plotjuggler_export_is_read_as_written(tmp_path):
                          | {f"/joint_states/{n}/{field}": log[f"{p}{j + 1}"].to_numpy()
                             for j, n in enumerate(NAMES) for field, p in (("position", "q"), ("velocity", "qd"),
                                                                          ("effort", "tau"))})
-    frame.to_csv(tmp_path / "plotjuggler.csv", index=False, float_format="%.17g")
+    write_frame(frame, tmp_path / "plotjuggler.csv")
     columns = ('{ t = "__time", q = "/joint_states/{name}/position", qd = "/joint_states/{name}/velocity", '
                'tau = "/joint_states/{name}/effort" }')
     series = read.read_raw(*_data(_scenario(tmp_path, '"plotjuggler.csv"', columns)))
@@ -177,7 +177,7 @@ def _rostopic(folder, log: pd.DataFrame, names=None) -> None:
     frame |= {f"field.name{k}": [row[k] for row in names] for k in range(6)}
     for field, prefix in (("position", "q"), ("velocity", "qd"), ("effort", "tau")):
         frame |= {f"field.{field}{k}": log[f"{prefix}{j + 1}"].to_numpy() for k, j in enumerate(ORDER)}
-    pd.DataFrame(frame).to_csv(folder / "joint_states.csv", index=False, float_format="%.17g")
+    pd.DataFrame(frame).to_csv(folder / "joint_states.csv", index=False, float_format="%.17g")  # names: text
 
 
 def test_a_ros_joint_states_export_is_read_as_written_whatever_its_joint_order(tmp_path):

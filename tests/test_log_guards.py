@@ -30,7 +30,7 @@ from harness.sources.bench import record, write_log
 from harness.sources.log import load
 from harness.sources.log.schema import Prediction
 from harness.sources.log.segments import guard_band
-from tests.conftest import ROOT, numbers_of, two_link_bench
+from tests.conftest import ROOT, numbers_of, two_link_bench, write_frame
 
 URDF = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"
 DRIVES = {"shoulder": dict(armature=0.031, viscous=0.42, coulomb=0.63, offset=0.05, coulomb_velocity=0.021),
@@ -66,7 +66,7 @@ def _with_validation_sample_changed(folder, name: str) -> None:
     row = int(0.85 * len(df))
     df.loc[row, "tau2"] *= 1000.0
     (folder / name).mkdir(exist_ok=True)
-    df.to_csv(folder / name / "log.csv", index=False, float_format="%.17g")
+    write_frame(df, folder / name / "log.csv")
     (folder / name / "arm.toml").write_text((folder / "arm.toml").read_text())
     (folder / name / "s.toml").write_text((folder / "s.toml").read_text())
 
@@ -158,7 +158,7 @@ def _positions_log(arm_log, name: str, step: float | None, spike: bool = False) 
         df.loc[int(0.85 * len(df)), "q1"] += 0.05
     folder = arm_log / name
     folder.mkdir(exist_ok=True)
-    df.to_csv(folder / "log.csv", index=False, float_format="%.17g")
+    write_frame(df, folder / "log.csv")
     (folder / "arm.toml").write_text((arm_log / "arm.toml").read_text())
     (folder / "s.toml").write_text(
         '[scenario]\nmodel = "arm.toml"\n[data]\nfile = "log.csv"\ncolumns = { t = "t", q = "q{j}", tau = "tau{j}" }'

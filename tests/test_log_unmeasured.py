@@ -17,7 +17,7 @@ from harness.cli import main
 from harness.identify.torque_id import drive_columns
 from harness.model.friction import IDENTIFIED_KEYS
 from harness.stages.log_model import log_model
-from tests.conftest import SCENARIOS, bench_log, pinocchio_rnea, viscous_coulomb
+from tests.conftest import SCENARIOS, bench_log, pinocchio_rnea, viscous_coulomb, write_frame
 
 MODEL = SCENARIOS.parent / "models" / "ur5_friction.toml"
 UNMEASURED = ("wrist_2_joint", "wrist_3_joint")
@@ -102,8 +102,8 @@ def logs(tmp_path_factory):
     bench_log(load_scenario(SCENARIOS / "ur5_friction.toml"), folder, 2.0, 400)
     df = pd.read_csv(folder / "log.csv")
     dead = df.assign(tau5=0.0, tau6=0.0)
-    dead.to_csv(folder / "dead.csv", index=False, float_format="%.17g")
-    dead.drop(columns=["tau5", "tau6"]).to_csv(folder / "absent.csv", index=False, float_format="%.17g")
+    write_frame(dead, folder / "dead.csv")
+    write_frame(dead.drop(columns=["tau5", "tau6"]), folder / "absent.csv")
     return folder
 
 

@@ -25,7 +25,7 @@ from harness.engines.mujoco import build_spec
 from harness.engines.rollout import ROWS_PER_THREAD, log_drives, rollouts, stage_times
 from harness.model import drives as drive_law
 from harness.stages.refinement import Candidate, choose, values
-from tests.conftest import SCENARIOS, late_log
+from tests.conftest import SCENARIOS, late_log, write_frame
 
 STEPS = 60
 TIMESTEP = 1e-3
@@ -208,7 +208,7 @@ def late_log_wrong_law(tmp_path_factory, ur5):
     from harness.base.tomlio import read_toml
 
     folder = tmp_path_factory.mktemp("late_wrong")
-    late_log(ur5, LAGS).to_csv(folder / "log.csv", index=False, float_format="%.17g")
+    write_frame(late_log(ur5, LAGS), folder / "log.csv")
     model = read_toml(SCENARIOS.parent / "models" / "ur5_friction.toml")
     for joint in model["joints"].values():
         joint["coulomb_velocity"] = 0.1

@@ -159,7 +159,8 @@ def _polyline(px: np.ndarray, py: np.ndarray, color: str, style: str, lw: float,
         for seg in np.split(np.arange(len(px)), breaks):
             seg = seg[ok[seg]]
             if len(seg) > 1:
-                pts = " ".join(f"{a:.1f},{b:.1f}" for a, b in zip(px[seg], py[seg], strict=True))
+                xy = np.column_stack([px[seg], py[seg]]).ravel().tolist()  # one printf for the whole line
+                pts = ("%.1f,%.1f " * len(seg) % tuple(xy))[:-1]
                 out.append(f'<polyline points="{pts}" fill="none" stroke="{color}" stroke-width="{lw}"{dash}/>')
     return "".join(out)
 
