@@ -52,9 +52,10 @@ def robot_format(path: Path, content: bytes, flag: str) -> tuple[str, str, str]:
     return FORMATS[root]
 
 
-def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str | Path]:
+def project(robot: Path | None = None, flag: str = "--robot", floating: bool = False) -> dict[str, str | Path]:
     """{file name: its text, or the file to copy} of the project; `robot` a URDF or an MJCF file (`flag`:
-    the option that named it)."""
+    the option that named it); `floating`: a URDF's root link is a floating base (`[urdf] floating = true`;
+    an MJCF file states its own, a free joint, and is refused the flag)."""
     from harness.base.version import DISTRIBUTION
 
     files = {f.name: f.read_text() for f in sorted((TEMPLATE / "project").iterdir())}
@@ -71,15 +72,20 @@ def project(robot: Path | None = None, flag: str = "--robot") -> dict[str, str |
             text, named = named_files(robot, flag)
             files[name] = text if text is not None else files[name]
             files.update(named)
+        if floating and key != "urdf":
+            raise InputError(robot, "--floating", "an MJCF file's floating base is its root body's free joint "
+                                                  "(<freejoint/>): the file states it, the flag is a URDF's")
+        root_floats = {"floating": True} if floating else {}
         head = f"# The robot the harness simulates (MuJoCo) and takes as the truth (Pinocchio): your {kind} file.\n"
-        joints, mimic, floating = _joints(robot, key, flag)
+        joints, mimic, floating = _joints(robot, key, flag, root_floats)
         if mimic:
             head += ("# Its <mimic> joints are read as joints of their own (the project moves every joint and runs\n"
                      "# your model and method, a tree's); remove `mimic` to read them as couplings\n"
                      "# (docs/closed_chains.md).\n")
         files["robot.toml"] = head + tomli_w.dumps({"model": {"name": "my_robot",
                                                               "description": f"My robot, from its {kind} file"},
-                                                    key: {"file": name, **({"mimic": "independent"} if mimic else {})}})
+                                                    key: {"file": name, **({"mimic": "independent"} if mimic else {}),
+                                                          **root_floats}})
         files["scenario.toml"], files["validation.toml"] = scenarios(joints, floating)
         if floating:  # the base moved too, and judged in the project's own pytest and CI job
             files["floating.toml"] = floating_scenario(joints)
@@ -143,11 +149,12 @@ def named_files(robot: Path, flag: str) -> tuple[str | None, dict[str, Path]]:
     return robot_text, out
 
 
-def _joints(robot: Path, key: str, flag: str) -> tuple[list[tuple[str, float, float, float | None]], bool, bool]:
+def _joints(robot: Path, key: str, flag: str, extra: dict | None = None
+            ) -> tuple[list[tuple[str, float, float, float | None]], bool, bool]:
     """(name, middle, half range, velocity limit) of every joint of the robot file (`key`: urdf or
-    mjcf), read as the harness reads it, whether a URDF's <mimic> joints are read as joints of their
-    own (the project moves every joint), and whether it has a floating base; a file it refuses is
-    refused here, naming the file."""
+    mjcf; `extra`, more of the model file's [key] table), read as the harness reads it, whether a URDF's
+    <mimic> joints are read as joints of their own (the project moves every joint), and whether it has a
+    floating base; a file it refuses is refused here, naming the file."""
     from harness.model.load import load_spec
 
     path = Path(robot).resolve()
@@ -160,10 +167,10 @@ def _joints(robot: Path, key: str, flag: str) -> tuple[list[tuple[str, float, fl
             except InputError as exc:
                 raise InputError(robot, flag, exc.message.removeprefix(f"{path}: ")) from None
 
-    spec = read({"file": str(path)})
+    spec = read({"file": str(path), **(extra or {})})
     mimic = key == "urdf" and bool(spec.loops)  # a URDF's loops are its <mimic> couplings
     if mimic:
-        spec = read({"file": str(path), "mimic": "independent"})
+        spec = read({"file": str(path), "mimic": "independent", **(extra or {})})
     if spec.loops:
         raise InputError(robot, flag, f"a closed chain (loop {spec.loops[0].name!r}): the project written here moves "
                                       "every joint; start from the built-in fourbar, parallelogram or gripper "

@@ -501,6 +501,62 @@ def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_
     assert "floating.toml" in (tmp_path / "p" / "ci-job.yml").read_text()
 
 
+def test_init_floating_reads_a_urdfs_root_link_as_its_floating_base_and_refuses_where_it_cannot(tmp_path, capsys):
+    """`--floating`: a URDF whose root link is the base (no `floating` joint, as published legged robots
+    are) is written `floating = true`, its base read as a free body named on the root link, and the
+    project gets floating.toml, whose bench moves the base, in its pytest and CI job. Without the flag
+    the same file is a fixed-base arm with no floating.toml. Refused in one line, nothing written: the
+    flag without a robot file, with an MJCF file (which states its own free joint), and on a URDF whose
+    root link has no mass (no body to float)."""
+    import tomllib
+
+    from harness.runner.scenario import load_scenario
+    from tests.conftest import ROOT
+    from tests.test_mjcf import ARM
+
+    arm = tmp_path / "arm.urdf"  # the two-link arm on a trunk of 5 kg, its root link
+    arm.write_text((ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf").read_text().replace(
+        '<link name="base"/>', '<link name="base"><inertial><mass value="5.0"/>'
+                               '<inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>'))
+    assert main(["init", str(tmp_path / "p"), "--urdf", str(arm), "--floating"]) == 0
+    folder = tmp_path / "p"
+    assert tomllib.loads((folder / "robot.toml").read_text())["urdf"] == {"file": "robot.urdf", "floating": True}
+    moved = load_scenario(folder / "floating.toml")
+    assert moved.robot.floating.body.name == "base" and moved.base_motion is not None
+    assert "floating.toml" in (folder / "ci-job.yml").read_text()
+    assert "floating.toml" in (folder / "test_my_robot.py").read_text()
+    assert load_scenario(folder / "scenario.toml").robot.floating is not None  # fixed on this bench, judged free
+    assert main(["init", str(tmp_path / "fixed"), "--urdf", str(arm)]) == 0
+    assert not (tmp_path / "fixed" / "floating.toml").exists()
+    assert load_scenario(tmp_path / "fixed" / "scenario.toml").robot.floating is None
+    capsys.readouterr()
+    (tmp_path / "arm.xml").write_text(ARM)
+    massless = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"  # its root link has no mass: no base
+    for args in ([], ["--mjcf", str(tmp_path / "arm.xml")], ["--urdf", str(massless)]):
+        assert main(["init", str(tmp_path / "q"), *args, "--floating"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and ("--floating" in err or "no mass" in err) and not (tmp_path / "q").exists()
+
+
+@pytest.mark.slow  # a few seconds: two whole pipelines and a pytest
+def test_init_floating_on_a_published_quadruped_passes_both_its_scenarios_out_of_the_box(tmp_path):
+    """example-robot-data's Go1 (its URDF's root link the trunk, no floating joint), `harness init
+    --floating`: scenario.toml (the base held, every gate passed, the two that judge it free among them)
+    and floating.toml (the bench moving the base, the world's wrench on it found by the placeholder model
+    to 1e-9) pass, and so does the project's own pytest."""
+    from harness.model.urdf import example_robot_data_path
+
+    folder = tmp_path / "p"
+    assert main(["init", str(folder), "--robot", str(example_robot_data_path("go1")), "--floating"]) == 0
+    for name in ("scenario", "floating"):
+        assert main(["run", str(folder / f"{name}.toml"), "--out", str(tmp_path / name), "--quiet"]) == 0
+        gates = json.loads((tmp_path / name / "results.json").read_text())["gates"]
+        assert all(g["passed"] for g in gates) and any(g["metric"].startswith("torques.floating.") for g in gates)
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"], cwd=folder,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout[-2000:]
+
+
 @pytest.mark.slow  # a few seconds: a whole pipeline or a subprocess
 @pytest.mark.parametrize("robot", ["talos_reduced", "humanoid MJCF"])
 def test_init_at_humanoid_scale_passes_its_run_and_its_pytest_out_of_the_box(tmp_path, robot):

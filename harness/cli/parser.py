@@ -124,6 +124,11 @@ def parser() -> argparse.ArgumentParser:
                                 "placeholder model (Pinocchio on the file) to replace with yours (default: a two-link "
                                 "arm with a closed-form model); any of --urdf, --mjcf and --robot takes either format, "
                                 "told by its root element")
+    init.add_argument("--floating", action="store_true",
+                      help="the URDF's root link is a floating base (a legged robot or humanoid whose file, as most "
+                           "published ones, has no `floating` joint): robot.toml says `floating = true`, the bench "
+                           "holds the base where the file draws it while the joints move, and floating.toml judges "
+                           "the robot with its base moving (docs/floating_base.md)")
     return parser
 
 

@@ -85,7 +85,10 @@ def cmd_init(args: argparse.Namespace) -> int:
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise InputError(out, "DIR", "exists and is not an empty folder: init writes a new project")
     flag = next((f for f in ("urdf", "mjcf", "robot") if getattr(args, f, None) is not None), None)
-    files = project(getattr(args, flag) if flag else None, f"--{flag}")
+    if args.floating and flag is None:
+        raise InputError(out, "--floating", "needs your robot's URDF (--urdf, --robot): the two-link arm is "
+                                            "bolted down")
+    files = project(getattr(args, flag) if flag else None, f"--{flag}", args.floating)
     try:  # a file's text, or a file the robot file names, copied
         write_atomically(out, {name: (lambda p, v=value: shutil.copyfile(v, p) if isinstance(v, Path)
                                       else p.write_text(v)) for name, value in files.items()})

@@ -253,7 +253,9 @@ def _floating_base(order: list[str], joints: list, parent_of: dict, child_of: di
 
     parts = [inertial[n] for n in order if on_base(n)]
     if not sum(p[0] for p in parts) > 0:
-        raise _Bad(f"floating joint {name!r}: its link {base!r} and those fixed to it have no mass")
+        raise _Bad(f"floating joint {name!r}: its link {base!r} and those fixed to it have no mass" if joint is not None
+                   else f"floating = true: the root link {base!r} and those fixed to it have no mass (a floating "
+                        "base is a body; a root link named for the world is not one)")
     mass, com, moments, axes = union(parts)
     on_it = tuple(j.get("name") for j in joints if j.get("type") in ("revolute", "continuous", "prismatic")
                   and owner.get(child_of[j.get("name")]) != WORLD and on_base(parent_of[j.get("name")]))
