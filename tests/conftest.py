@@ -181,6 +181,22 @@ def pinocchio_rnea(pm, q, qd, qdd):
     return out
 
 
+def mujoco_inverse(model, q, qd, qdd, cols=None):
+    """(N, n) MuJoCo's own inverse dynamics (mj_inverse's qfrc_inverse) of a compiled model, state by state:
+    the file's own reference, no harness code; `cols`, the joints' coordinates (one per hinge or slide:
+    qpos's index is qvel's), every one where None."""
+    import mujoco
+    import numpy as np
+
+    data, out = mujoco.MjData(model), np.empty_like(q)
+    cols = slice(None) if cols is None else cols
+    for k in range(len(q)):
+        data.qpos[cols], data.qvel[cols], data.qacc[cols] = q[k], qd[k], qdd[k]
+        mujoco.mj_inverse(model, data)
+        out[k] = data.qfrc_inverse[cols]
+    return out
+
+
 def viscous_coulomb(frictions, qd, qdd):
     """(N, n) each joint's drive law written out here: I q'' + f_v q' + f_c tanh(q' / v_c) + f_o."""
     import numpy as np

@@ -27,7 +27,7 @@ from harness.engines.pinocchio import build_model, crba, rnea
 from harness.model.drives import Transmission
 from harness.model.load import load_spec
 from harness.sources.bench import record
-from tests.conftest import ROOT, pinocchio_rnea, two_link_bench, write_frame
+from tests.conftest import ROOT, mujoco_inverse, pinocchio_rnea, two_link_bench, write_frame
 
 URDF = ROOT / "examples" / "two_link_arm" / "two_link_arm.urdf"
 N = np.array([[50.0, 0.0], [20.0, -30.0]])
@@ -162,12 +162,7 @@ def test_the_drives_written_as_mjcf_reload_as_the_same_drives_and_mujoco_agrees(
     expected = rnea(build_model(no_coulomb, G), q, qd, qdd).tau
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "robot.xml"))
     model.tendon_frictionloss[:] = 0.0
-    data = mujoco.MjData(model)
-    got = np.empty_like(expected)
-    for k in range(len(q)):
-        data.qpos[:], data.qvel[:], data.qacc[:] = q[k], qd[k], qdd[k]
-        mujoco.mj_inverse(model, data)
-        got[k] = data.qfrc_inverse
+    got = mujoco_inverse(model, q, qd, qdd)
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
 
 

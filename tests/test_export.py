@@ -22,7 +22,7 @@ from harness.engines.pinocchio import build_model, rnea
 from harness.model.inertia import kind_scale
 from harness.model.load import load_spec
 from harness.model.states import random_states
-from tests.conftest import SCENARIOS, bench_log, log_scenario
+from tests.conftest import SCENARIOS, bench_log, log_scenario, mujoco_inverse
 
 RELOAD_TOL = 1e-9
 
@@ -84,14 +84,8 @@ def test_mujoco_simulates_the_identified_model_from_the_mjcf(exported):
     identified, spec, _, states, _ = exported
     model = mujoco.MjModel.from_xml_path(str(identified / "robot.xml"))
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS
-    data = mujoco.MjData(model)
     cols = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in spec.joint_names]
-    q, qd, qdd = states
-    tau = np.empty_like(q)
-    for k in range(len(q)):
-        data.qpos[cols], data.qvel[cols], data.qacc[cols] = q[k], qd[k], qdd[k]
-        mujoco.mj_inverse(model, data)
-        tau[k] = data.qfrc_inverse[cols]
+    tau = mujoco_inverse(model, *states, cols)
     ref = _torques(spec, states, model.opt.gravity)
     assert np.max(np.abs(tau - ref)) <= RELOAD_TOL * np.max(np.abs(ref))
     effort = {j: v["effort"] for j, v in spec.drive_limits.items() if "effort" in v}

@@ -33,6 +33,7 @@ FAMILY_TERMS = {  # the UR5 with drives (v_c = 0.02 everywhere) and a family of 
     "shoulder_lift_joint": ("offset = -0.6\n", "load_coulomb = 0.03\n"),
     "elbow_joint": ("offset = 0.2\n", "stribeck = 2.0\nstribeck_velocity = 0.1\n"),
     "wrist_1_joint": ("offset = -0.1\n", "viscous_asymmetry = 0.2\ncoulomb_asymmetry = 0.3\n"),
+    "wrist_2_joint": ("offset = 0.05\n", "stiffness = 3.0\n"),  # a spring: 3 N m/rad
 }
 
 
@@ -244,9 +245,10 @@ def test_a_joint_that_never_moves_keeps_the_models_law(tmp_path):
 
 
 def test_every_engine_simulates_every_family_alike(tmp_path):
-    """The UR5 with a Stribeck, a load-dependent and an asymmetric joint on ur5_friction's motion: the
-    drive torques MuJoCo records (the law applied at every stage of every step, the load term from its
-    rigid-body torque), Pinocchio's RNEA with the law and the graph model's agree within 1e-9 of the
+    """The UR5 with a Stribeck, a load-dependent, an asymmetric and a spring joint on ur5_friction's motion:
+    the drive torques MuJoCo records (the law applied at every stage of every step, the load term from its
+    rigid-body torque, the spring's from the joint's position), Pinocchio's RNEA with the law and the graph
+    model's agree within 1e-9 of the
     joint loads (round-off is 1e-13: above 1e-9 is a bug)."""
     _families_model(tmp_path)
     text = (SCENARIOS / "ur5_friction.toml").read_text()

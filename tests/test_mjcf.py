@@ -16,6 +16,7 @@ from harness.base.tomlio import InputError
 from harness.cli import main
 from harness.engines.pinocchio import build_model, rnea
 from harness.model.load import load_spec
+from tests.conftest import mujoco_inverse
 
 # an arm written the way MJCF files are: defaults and classes, degrees and Euler angles, inertia
 # from geoms, a welded sub-body, a joint `ref`, a slide joint, joint damping, armature and
@@ -72,14 +73,9 @@ def test_an_mjcf_arm_is_read_as_mujoco_simulates_it(tmp_path):
     assert (f["slide"].viscous, f["slide"].coulomb_velocity) == (2.0, 0.0)  # dry friction: a sharp sign
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "arm.xml"))
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS  # dry friction: a constraint, compared apart
-    data = mujoco.MjData(model)
     rng = np.random.default_rng(0)
     q, qd, qdd = (rng.uniform(-1, 1, (50, 3)) * s for s in (np.array([2.0, 1.5, 0.08]), 2.0, 5.0))
-    tau = np.empty_like(q)
-    for k in range(len(q)):
-        data.qpos[:], data.qvel[:], data.qacc[:] = q[k], qd[k], qdd[k]
-        mujoco.mj_inverse(model, data)
-        tau[k] = data.qfrc_inverse
+    tau = mujoco_inverse(model, q, qd, qdd)
     no_dry = dataclasses.replace(spec, joints=tuple(
         dataclasses.replace(j, friction=dataclasses.replace(j.friction, coulomb=0.0)) for j in spec.joints))
     ours = rnea(build_model(no_dry, spec.gravity_W), q, qd, qdd).tau
@@ -103,6 +99,10 @@ REFUSED = {
     "a ball joint with armature": ('<joint name="shoulder" type="hinge" axis="0 0 1" range="-170 170"',
                                         '<joint name="shoulder" type="ball"',
                                         "ball joint 'shoulder' has armature"),
+    "a ball joint with a spring": ('<joint name="shoulder" type="hinge" axis="0 0 1" range="-170 170" '
+                                   'frictionloss="0.3"/>',
+                                   '<joint name="shoulder" type="ball" damping="0" armature="0" stiffness="2"/>',
+                                   "ball joint 'shoulder' has stiffness"),
     # a body of several joints is the chain of joints it is (below), where it can be one
     "a slide after a body's first joint": ('<joint name="elbow" type="hinge" axis="0 1 0" ref="20" range="-120 120"/>',
                                            '<joint name="elbow" type="hinge" axis="0 1 0"/>'
@@ -119,7 +119,9 @@ REFUSED = {
     "equality": ("</worldbody>", '</worldbody><equality><joint name="geared" joint1="shoulder" joint2="elbow" '
                                  'polycoef="0 1 0.5 0 0"/></equality>', "equality constraint 'geared' couples its "
                                  "joints by a polynomial of degree above 1"),
-    "spring": ('range="-170 170" frictionloss="0.3"/>', 'range="-170 170" stiffness="5"/>', "stiffness"),
+    # a linear spring is read (tests/test_springs.py); a polynomial one is not the law's
+    "nonlinear spring": ('range="-170 170" frictionloss="0.3"/>', 'range="-170 170" stiffness="5 1 0"/>',
+                         "joint 'shoulder': a spring's polynomial terms"),
     "not MJCF": ("<mujoco", "<notmujoco", "MuJoCo cannot compile it"),
 }
 

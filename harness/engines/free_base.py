@@ -91,7 +91,7 @@ class FreeBaseDrive:
 
     def callback(self) -> Callable[[mujoco.MjModel, mujoco.MjData], None]:
         q_d, qd_d, qdd_d, half, kp, kd = self.q_d, self.qd_d, self.qdd_d, self.half, self.kp, self.kd
-        vadr, act, base = self.vadr, self.act, slice(self.base_v, self.base_v + 6)
+        vadr, qadr, act, base = self.vadr, self.qadr, self.act, slice(self.base_v, self.base_v + 6)
         dry, armature, stages, captured = self.dry, self.armature, self.stages, self.captured
         e, tau = np.empty(len(qd_d[0])), np.empty(len(qd_d[0]))
         standing, equality = len(self.contacts) > 0, int(mujoco.mjtConstraint.mjCNSTR_EQUALITY)
@@ -111,7 +111,7 @@ class FreeBaseDrive:
             applied[:] = 0.0
             if dry.any:  # the rigid-body torque: the computed torque less the rotor inertia's part
                 rigid = (tau + d.qfrc_bias)[vadr] - rotors(qacc_cmd[vadr]) if dry.needs_load else None
-                applied[vadr] = -dry(d.qvel[vadr], rigid)
+                applied[vadr] = -dry(d.qvel[vadr], rigid, q=d.qpos[qadr])
             full = tau + d.qfrc_bias - d.qfrc_passive - applied
             if standing:  # the held contacts balance the base's rows as far as they can (module docstring)
                 J = d.efc_J[: d.nefc * m.nv].reshape(d.nefc, m.nv)[d.efc_type[: d.nefc] == equality]

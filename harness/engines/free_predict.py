@@ -62,7 +62,7 @@ def predict(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, base: BaseMot
             wrench = np.concatenate([F_k[k], M_k[k] + np.cross(x_k[k] - data.xipos[body_ids], F_k[k])], axis=1)
             data.xfrc_applied[:] = 0.0
             np.add.at(data.xfrc_applied, body_ids, wrench)
-            data.ctrl[act] = tau_k[k] - dry(data.qvel[vadr])
+            data.ctrl[act] = tau_k[k] - dry(data.qvel[vadr], q=data.qpos[qadr])
             mujoco.mj_step(model, data)
             if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
                 break

@@ -176,9 +176,9 @@ def inverse_dynamics(spec: RobotSpec, gravity_W: np.ndarray, q: np.ndarray, qd: 
     if not dry.any:
         return tau
     if not dry.needs_load:
-        return tau + dry(qd)
+        return tau + dry(qd, q=q)
     # the load law reads the rigid bodies' torque: MuJoCo's own, its model without the drives
-    return tau + dry(qd, inverse_dynamics(spec.rigid(), gravity_W, q, qd, qdd))
+    return tau + dry(qd, inverse_dynamics(spec.rigid(), gravity_W, q, qd, qdd), q=q)
 
 
 def _measured_at(spec: RobotSpec, joint: Joint) -> Joint:
@@ -447,7 +447,7 @@ class _ComputedTorque:
             mujoco.mj_mulM(m, d, tau, qacc_cmd)
             if dry.any:  # the rigid-body torque: the computed torque less the rotor inertia's part
                 rigid = tau + qfrc_bias - armature * qacc_cmd if dry.needs_load else None
-                np.negative(dry(qvel, rigid), out=qfrc_applied)
+                np.negative(dry(qvel, rigid, q=qpos if dry.needs_position else None), out=qfrc_applied)
             add(tau, qfrc_bias, tau)
             subtract(tau, qfrc_passive, tau)
             subtract(tau, qfrc_applied, tau)
@@ -482,7 +482,7 @@ class _ComputedTorque:
             mujoco.mj_mulM(m, d, tau, qacc_cmd)
             if dry.any:  # the rigid-body torque: the computed torque less the rotors' part, N^T I_m N q''
                 rigid = (tau + qfrc_bias)[vadr] - rotors @ qacc_cmd[vadr] if dry.needs_load else None
-                qfrc_applied[:] = -dry(qvel[vadr], rigid)[order]
+                qfrc_applied[:] = -dry(qvel[vadr], rigid, q=qpos[vadr])[order]
             tau[:] = tau + qfrc_bias - qfrc_passive - qfrc_applied
             ctrl[:] = tau if to_ctrl is None else tau[to_ctrl]
             if captured[1]:

@@ -170,7 +170,7 @@ def rnea(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
         from harness.model.floating import base_rows_from_pinocchio
 
         rows = base_rows_from_pinocchio(base, rows)
-    return InverseDynamics(tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau), F, M, rows)
+    return InverseDynamics(tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau, q), F, M, rows)
 
 
 def joint_torques(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
@@ -185,7 +185,7 @@ def joint_torques(pm: PinocchioModel, q: np.ndarray, qd: np.ndarray, qdd: np.nda
         tau[k] = pin.rnea(model, data, qq[k], vv[k], aa[k])
     tau = np.ascontiguousarray(tau[:, pm.q_index])  # row-major as `rnea`'s (the column selection is not):
     # the same numbers in the same order, so that what reduces them (a norm, a mean) sums them alike
-    return tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau)
+    return tau + drives.torque(pm.frictions, pm.transmission, qd, qdd, tau, q)
 
 
 def rnea_on_recording(spec: RobotSpec, gravity_W: np.ndarray, rec: TimeSeries) -> InverseDynamics:
@@ -276,7 +276,7 @@ def constrained_rollout(pm: PinocchioModel, spec: RobotSpec, q0: np.ndarray, v0:
         G = projection(ClosedChain.of(spec), np.zeros(len(idx)))[0]
 
     def qdd(q, v, tau):
-        qq[idx], vv[idx], tt[idx] = q, v, (tau - viscous * v - dry(v)) if law else tau
+        qq[idx], vv[idx], tt[idx] = q, v, (tau - viscous * v - dry(v, q=q)) if law else tau
         if not couplings:
             return pin.constraintDynamics(model, data, qq, vv, tt, cmodels, cdatas, prox)[idx]
         M = full_crba(model, data, qq)[np.ix_(idx, idx)]  # with the armature

@@ -70,21 +70,22 @@ class _Stage:
         self.force = np.zeros((B, 1, model.nv))
         self.chunk = -(-B // max(pool.nthread, 1))  # one chunk per thread
 
-    def applied(self, qd: np.ndarray, drive: np.ndarray) -> np.ndarray:
-        """The drive less its dry friction. A load-dependent law reads the rigid-body torque as the drive
-        less the rest of its friction (the rotor inertia's part, I_a q'', is not known before the stage)."""
+    def applied(self, q: np.ndarray, qd: np.ndarray, drive: np.ndarray) -> np.ndarray:
+        """The drive less its dry friction (a spring's part read at q). A load-dependent law reads the
+        rigid-body torque as the drive less the rest of its friction (the rotor inertia's part, I_a q'', is
+        not known before the stage)."""
         dry = self.dry
         if not dry.any:
             return drive
         if dry.needs_load:
             viscous = (self.viscous * qd if self.viscous.ndim == 2 else np.einsum("bij,bj->bi", self.viscous, qd))
-            return drive - dry(qd, drive - dry(qd, load=False) - viscous)
-        return drive - dry(qd)
+            return drive - dry(qd, drive - dry(qd, load=False, q=q) - viscous, q=q)
+        return drive - dry(qd, q=q)
 
     def __call__(self, q: np.ndarray, qd: np.ndarray, drive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, n) q'' and (B,) whether MuJoCo took the state as it was (not reset on a bad one)."""
         self.state[:, self.qadr], self.state[:, self.vadr] = q, qd
-        self.force[:, 0, self.dofs] = self.applied(qd, drive)
+        self.force[:, 0, self.dofs] = self.applied(q, qd, drive)
         self.pool.rollout(self.models, self.data, self.state, self.force, control_spec=_APPLIED, skip_checks=True,
                           nstep=1, state=self.next, chunk_size=self.chunk)
         return ((self.next[:, 0, self.vadr] - qd) / ACCELERATION_STEP,

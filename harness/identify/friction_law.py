@@ -131,29 +131,40 @@ class FrictionChoice:
                      for f, law in zip(model, self.laws, strict=True))
 
 
+def _positions(q: np.ndarray | None, tried: bool, laws) -> np.ndarray | None:
+    """q, refused where a spring's column would need it and it is not given (a spring `tried`, or a law's)."""
+    if q is None and (tried or any("stiffness" in law.terms for law in laws)):
+        raise ValueError("a spring's column needs the joints' positions")
+    return q
+
+
 def extra_terms(laws: tuple[Law, ...]) -> list[tuple[int, str]]:
     return [(j, key) for j, law in enumerate(laws) for key in law.terms]
 
 
 def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray | None,
-                    transmission: Transmission | None = None, columns=None, t: np.ndarray | None = None) -> np.ndarray:
+                    transmission: Transmission | None = None, columns=None, t: np.ndarray | None = None,
+                    q: np.ndarray | None = None) -> np.ndarray:
     """(N n, e): the columns of the families' coefficients (extra_terms), each on its joint's rows; with
-    a transmission, each motor's at its rates and load, reaching joint j times N[k, j]. With a filtered
-    span's `columns` (at its times `t`), each shape filtered as the torques were (harness/identify/filtered.py)."""
+    a transmission, each motor's at its rates, positions and load, reaching joint j times N[k, j]. With a
+    filtered span's `columns` (at its times `t`), each shape of the velocities filtered as the torques were
+    (harness/identify/filtered.py); a spring's, the positions q (N, n), as the linear columns are."""
     terms = extra_terms(laws)
     N, n = qd.shape
     out = np.zeros((N, n, len(terms)))
     if not terms:
         return out.reshape(N * n, 0)
+    qd, q = drives.at_drives(transmission, qd, _positions(q, False, laws))
     if transmission is not None:
-        qd = transmission.motor_rates(qd)
         tau_rigid = None if tau_rigid is None else transmission.motor_torques(tau_rigid)
     if columns is None:
-        shapes = friction.extra_columns(tuple(law.shapes for law in laws), qd, tau_rigid)  # (N, n, 4)
+        shapes = friction.extra_columns(tuple(law.shapes for law in laws), qd, tau_rigid, q)  # (N, n, e)
 
     def shape(j: int, key: str) -> np.ndarray:  # drive j's column of `key`, filtered where the span was
         if columns is None:
             return shapes[:, j, EXTRA_KEYS.index(key)]
+        if key == "stiffness":
+            return q[:, j]
         if key == "load_coulomb" and tau_rigid is None:
             return np.zeros(N)
         column = filtered.drive_term(columns, t, laws[j], j, transmission, key)
@@ -167,10 +178,11 @@ def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray
     return out.reshape(N * n, len(terms))
 
 
-def _columns(law: Law, qd: np.ndarray, tau_rigid: np.ndarray) -> np.ndarray:
-    """(N, m): one joint's friction columns under `law`: q', s, then its family's terms."""
+def _columns(law: Law, qd: np.ndarray, tau_rigid: np.ndarray, q: np.ndarray | None = None) -> np.ndarray:
+    """(N, m): one joint's friction columns under `law`: q', s, then its family's terms (a spring's q)."""
     s = friction.coulomb_shape(qd[:, None], np.array([law.coulomb_velocity]))
-    extra = friction.extra_columns((law.shapes,), qd[:, None], tau_rigid[:, None])[:, 0]
+    positions = None if q is None else q[:, None]
+    extra = friction.extra_columns((law.shapes,), qd[:, None], tau_rigid[:, None], positions)[:, 0]
     return np.column_stack([qd, s[:, 0], *(extra[:, EXTRA_KEYS.index(k)] for k in law.terms)])
 
 
@@ -317,7 +329,7 @@ def regressor_rows(W: np.ndarray, n: int):
 def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray], tau: np.ndarray,
            qd: np.ndarray, t: np.ndarray, model: tuple[JointFriction, ...], config: FrictionLawConfig,
            reach: float = 0.0, transmission: Transmission | None = None, columns=None,
-           measured: np.ndarray | None = None) -> FrictionChoice:
+           measured: np.ndarray | None = None, q: np.ndarray | None = None) -> FrictionChoice:
     """Each joint's friction law, chosen within the training span. W: (N n, 10 n + 4 n) the
     regressor with friction (harness/identify/torque_id.py), or a function of sample indices that
     gives their rows (len, n, 10 n + 4 n) (`regressor_rows`: a long log's regressor made a chunk of
@@ -332,10 +344,10 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     bool: the joints whose torque the log holds (harness/stages/log_model.py); an unmeasured joint's rows
     are W's and tau's zeros; a drive that reaches none of the measured joints (`drives_reaching`) keeps
     the model's law, its columns none, and a motor's columns are weighed on the measured joints' rows
-    alone. Raises ValueError when the span is too short to cut."""
+    alone; q (N, n) the positions, a spring's column. Raises ValueError when the span is too short to cut."""
     N, n = tau.shape
     order = np.argsort(t, kind="stable")  # in time, so that each part is a slice (a view, not a copy)
-    tau, qd = tau[order], qd[order]
+    tau, qd, q = tau[order], qd[order], None if q is None else q[order]
     if min(f.stop - f.start for f in consecutive_blocks(N, config.folds)) < MIN_FOLD:
         raise ValueError(f"{N} training samples: too few for {config.folds} parts of at least {MIN_FOLD}")
     step = sample_step(t[order])
@@ -358,9 +370,8 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     def at_motor(x: np.ndarray) -> np.ndarray:  # a joint torque as its motors' share
         return x if transmission is None else transmission.motor_torques(x)
 
-    if transmission is not None:
-        qd = transmission.motor_rates(qd)
-    columns_of = _LawColumns(qd, t[order], transmission, columns)
+    qd, q = drives.at_drives(transmission, qd, _positions(q, "spring" in config.families, laws))
+    columns_of = _LawColumns(qd, t[order], transmission, columns, q)
     moving = _searched(qd, reached := drives_reaching(measured, transmission))
     rigid = np.zeros((N, n))
     total = float(np.sum(tau**2))
@@ -440,8 +451,9 @@ class _LawColumns:
     resolves (1 / (2 pi f_c)) shows only its area; its v_s is kept above the velocity each drive sweeps
     in that time (median |q''|); 0 on an unfiltered log."""
 
-    def __init__(self, qd: np.ndarray, t: np.ndarray, transmission: Transmission | None, columns):
-        self.qd, self.t, self.transmission, self.columns = qd, t, transmission, columns
+    def __init__(self, qd: np.ndarray, t: np.ndarray, transmission: Transmission | None, columns,
+                 q: np.ndarray | None = None):
+        self.qd, self.t, self.transmission, self.columns, self.q = qd, t, transmission, columns, q
         # (joint, term, the velocities it turns over) -> its filtered column, the KEPT_COLUMNS last asked
         # for (a search's continuous velocities make a new one at almost every trial: kept all, 2,500
         # columns of the span's length; the Panda's search filters 2,548 columns instead of 2,464)
@@ -463,8 +475,9 @@ class _LawColumns:
 
     def __call__(self, j: int, law: Law, rigid_j: np.ndarray) -> np.ndarray:
         if self.columns is None:
-            return _columns(law, self.qd[:, j], rigid_j)
-        extra = [self.term(j, law, k) * (np.abs(rigid_j) if k == "load_coulomb" else 1.0) for k in law.terms]
+            return _columns(law, self.qd[:, j], rigid_j, None if self.q is None else self.q[:, j])
+        extra = [self.q[:, j] if k == "stiffness" else self.term(j, law, k) * (np.abs(rigid_j) if k == "load_coulomb"
+                                                                              else 1.0) for k in law.terms]
         return np.column_stack([self.qd[:, j], self.term(j, law, "coulomb"), *extra])
 
 

@@ -106,7 +106,7 @@ class LeastSquaresModel(ExportedModel):
             raise ValueError(f"the model's friction families' terms ({', '.join(own) or 'none'}) are not the fit's "
                              f"({', '.join(f.families) or 'none'})")
         rigid = (Y[:, f.link] @ (f.beta[:r] - f.share)[f.link]).reshape(q.shape)
-        E = extra_regressor(laws, qd, rigid, self.spec.transmission)
+        E = extra_regressor(laws, qd, rigid, self.spec.transmission, q=q)
         return (np.hstack([Y, E]) @ f.beta).reshape(q.shape)
 
 

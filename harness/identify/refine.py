@@ -128,7 +128,7 @@ class _Problem:
     timestep: float
     slots: tuple[tuple[int, str], ...]  # what each entry of z is: (joint, key)
     laws: tuple[Law, ...]  # each joint's law (its family's terms)
-    motor: tuple[np.ndarray, ...]  # (qd, qdd, rigid, tau) at each drive: the joints', or the motors' (N^-T)
+    motor: tuple[np.ndarray, ...]  # (qd, qdd, rigid, tau, q) at each drive: the joints', or the motors' (N^-T)
     fits: dict = field(default_factory=dict)  # (joint, v_c, v_s, lag) -> its drive's fit (`_drive_fit_once`)
 
 
@@ -161,21 +161,22 @@ def _read(t: np.ndarray, tau_k: np.ndarray, rows: np.ndarray, lag: float) -> np.
 
 
 def _columns(qd: np.ndarray, qdd: np.ndarray, rigid: np.ndarray, v_c: float, v_s: float,
-             terms: tuple[str, ...]) -> tuple[np.ndarray, tuple[str, ...]]:
-    """One joint's drive regressor at velocities qd, accelerations qdd and rigid-body torque rigid
-    (each (N,)): [q'', q', s, 1] (harness/model/friction.py, columns), its family's shapes, and their keys."""
+             terms: tuple[str, ...], q: np.ndarray | None = None) -> tuple[np.ndarray, tuple[str, ...]]:
+    """One joint's drive regressor at velocities qd, accelerations qdd, rigid-body torque rigid and
+    positions q (each (N,)): [q'', q', s, 1] (harness/model/friction.py, columns), its family's shapes,
+    and their keys."""
     law = (Law(coulomb_velocity=v_c, stribeck_velocity=v_s).shapes,)
     drive = columns(law, qd[:, None], qdd[:, None])[:, 0]
-    extra = extra_columns(law, qd[:, None], rigid[:, None])[:, 0]
+    extra = extra_columns(law, qd[:, None], rigid[:, None], None if q is None else q[:, None])[:, 0]
     keys = (*IDENTIFIED_KEYS, *terms)
     return np.column_stack([drive, *(extra[:, EXTRA_KEYS.index(key)] for key in terms)]), keys
 
 
 def _drive_fit(p: _Problem, k: int, velocity: dict, lag: float) -> JointFriction:
     rows = p.rows
-    qd, qdd, rigid, tau = p.motor
+    qd, qdd, rigid, tau, q = p.motor
     A, keys = _columns(qd[rows, k], qdd[rows, k], rigid[rows, k], velocity["coulomb_velocity"],
-                       velocity["stribeck_velocity"], p.laws[k].terms)
+                       velocity["stribeck_velocity"], p.laws[k].terms, q[rows, k])
     y = _read(p.t, tau[:, k], rows, lag) - rigid[rows, k]
     size = np.sqrt(np.mean(A**2, axis=0))
     size = np.where(size > 0, size, 1.0)
@@ -197,24 +198,27 @@ def _inner(t: np.ndarray, largest: float) -> np.ndarray:
 
 def torque_rel_error(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray, rigid: np.ndarray,
                      frictions: tuple[JointFriction, ...], laws: tuple[Law, ...], lag: np.ndarray,
-                     largest: float, transmission: Transmission | None = None) -> float:
+                     largest: float, transmission: Transmission | None = None, q: np.ndarray | None = None) -> float:
     """||tau_pred - tau||_F / ||tau||_F with each joint's torque read lag[j] later and predicted as the
     rigid-body torque `rigid` plus its drive's law; over the rows at least `largest` s from a
     stretch's ends (the same rows whatever the lags). With a transmission the motors' laws reach the
-    joints through N (no lags)."""
+    joints through N (no lags). q (N, n), the positions, a spring's."""
     rows = _inner(t, largest)
+    if q is None and any("stiffness" in law.terms for law in laws):
+        raise ValueError("a spring's torque needs the joints' positions")
     if transmission is not None:
         qd_m, qdd_m, rigid_m = (transmission.motor_rates(qd), transmission.motor_rates(qdd),
                                 transmission.motor_torques(rigid))
+        q_m = None if q is None else transmission.motor_positions(q)
         drive = np.column_stack([_columns(qd_m[rows, k], qdd_m[rows, k], rigid_m[rows, k], f.coulomb_velocity,
-                                          f.stribeck_velocity, law.terms)[0]
+                                          f.stribeck_velocity, law.terms, None if q_m is None else q_m[rows, k])[0]
                                  @ np.array([getattr(f, key) for key in (*IDENTIFIED_KEYS, *law.terms)])
                                  for k, (f, law) in enumerate(zip(frictions, laws, strict=True))])
         return relative_residual(rigid[rows] + transmission.joint_torques(drive) - tau[rows], tau[rows])
     num = den = 0.0
     for k, (f, law) in enumerate(zip(frictions, laws, strict=True)):
         A, keys = _columns(qd[rows, k], qdd[rows, k], rigid[rows, k], f.coulomb_velocity, f.stribeck_velocity,
-                           law.terms)
+                           law.terms, None if q is None else q[rows, k])
         y = _read(t, tau[:, k], rows, lag[k])
         num += float(np.sum((y - rigid[rows, k] - A @ np.array([getattr(f, key) for key in keys])) ** 2))
         den += float(np.sum(y**2))
@@ -250,8 +254,9 @@ def _problem(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarra
     starts = usable[evenly_spaced(len(usable), config.starts)]
     steps = round(config.horizon / timestep)
     tm = spec.transmission
-    motor = ((qd, qdd, rigid, tau) if tm is None else
-             (tm.motor_rates(qd), tm.motor_rates(qdd), tm.motor_torques(rigid), tm.motor_torques(tau)))
+    motor = ((qd, qdd, rigid, tau, q) if tm is None else
+             (tm.motor_rates(qd), tm.motor_rates(qdd), tm.motor_torques(rigid), tm.motor_torques(tau),
+              tm.motor_positions(q)))
     return _Problem(spec, np.asarray(gravity_W, dtype=float), t, q, qd, qdd, tau, rigid, rows, starts, steps,
                     max(1, round(config.sample / timestep)), np.maximum(np.sqrt(np.mean(qd**2, axis=0)), 1e-9),
                     config.horizon, timestep, tuple(slots), tuple(laws), motor)
@@ -266,7 +271,7 @@ def judge(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, 
     r = _residuals(p, [(tuple(spec.frictions), lag)])[0]
     return (float(np.sqrt(np.mean(r**2))),
             torque_rel_error(t, qd, qdd, tau, rigid, tuple(spec.frictions), laws, lag, config.reach,
-                             spec.transmission))
+                             spec.transmission, q))
 
 
 def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
@@ -334,7 +339,7 @@ def refine(spec: RobotSpec, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray,
                            max_nfev=config.iterations)
     frictions, lag = _law(p, result.x)
     cost = {"start": float(np.sqrt(np.mean(r0**2))), "refined": float(np.sqrt(np.mean(fun(result.x) ** 2)))}
-    torque = {name: torque_rel_error(t, qd, qdd, tau, rigid, fr, p.laws, lg, largest, spec.transmission)
+    torque = {name: torque_rel_error(t, qd, qdd, tau, rigid, fr, p.laws, lg, largest, spec.transmission, q)
               for name, fr, lg in (("start", consistent_law, lag0), ("refined", frictions, lag))}
 
     def natural(z: np.ndarray) -> np.ndarray:

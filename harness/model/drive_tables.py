@@ -18,8 +18,9 @@ from harness.model.spec import Joint
 
 def read_friction(t: Table, base: JointFriction = NO_FRICTION) -> JointFriction:
     """The optional keys of a joint's table (harness/model/friction.py): armature, viscous, coulomb,
-    coulomb_velocity and stribeck_velocity non-negative; offset, viscous_asymmetry, coulomb_asymmetry,
-    stribeck and load_coulomb of any sign. Keys not given keep `base` (a URDF's <dynamics>)."""
+    coulomb_velocity, stribeck_velocity and stiffness non-negative; offset, viscous_asymmetry,
+    coulomb_asymmetry, stribeck and load_coulomb of any sign. Keys not given keep `base` (a URDF's
+    <dynamics>, an MJCF joint's own)."""
     values = {k: t.number(k, default=getattr(base, k), nonnegative=k in NONNEGATIVE) for k in FRICTION_KEYS
               if t.has(k) or getattr(base, k)}
     if values.get("stribeck") and not values.get("stribeck_velocity"):
@@ -27,7 +28,7 @@ def read_friction(t: Table, base: JointFriction = NO_FRICTION) -> JointFriction:
     return JointFriction(**values)
 
 
-NONNEGATIVE = ("armature", "viscous", "coulomb", "coulomb_velocity", "stribeck_velocity")
+NONNEGATIVE = ("armature", "viscous", "coulomb", "coulomb_velocity", "stribeck_velocity", "stiffness")
 
 
 MAX_TRANSMISSION_CONDITION = 1e12  # a transmission whose N is worse conditioned than this is not invertible

@@ -84,14 +84,24 @@ class Transmission:
 
 
 def torque(frictions: tuple[JointFriction, ...], transmission: Transmission | None, qd: np.ndarray,
-           qdd: np.ndarray, tau_rigid: np.ndarray | None = None) -> np.ndarray:
+           qdd: np.ndarray, tau_rigid: np.ndarray | None = None, q: np.ndarray | None = None) -> np.ndarray:
     """(N, n) at the joints: the drives' law (one per motor, `frictions`) through the transmission,
-    N^T f_m(N q', N q'', N^-T tau_R); the joints' own laws where there is no transmission."""
+    N^T f_m(N q + offset, N q', N q'', N^-T tau_R); the joints' own laws where there is no transmission
+    (q, the joints' positions, read by a spring)."""
     if transmission is None:
-        return friction.torque(frictions, qd, qdd, tau_rigid)
+        return friction.torque(frictions, qd, qdd, tau_rigid, q)
     t = transmission
     rigid_m = None if tau_rigid is None else t.motor_torques(tau_rigid)
-    return t.joint_torques(friction.torque(frictions, t.motor_rates(qd), t.motor_rates(qdd), rigid_m))
+    q_m = None if q is None else t.motor_positions(q)
+    return t.joint_torques(friction.torque(frictions, t.motor_rates(qd), t.motor_rates(qdd), rigid_m, q_m))
+
+
+def at_drives(transmission: Transmission | None, qd: np.ndarray, q: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray | None]:
+    """(q', q) at the drives: the joints' own, or through the transmission the motors' (N q', N q + offset)."""
+    if transmission is None:
+        return qd, q
+    return transmission.motor_rates(qd), None if q is None else transmission.motor_positions(q)
 
 
 def reach(transmission: Transmission | None, n: int) -> list[tuple[int, int, float]]:
@@ -154,9 +164,11 @@ class Dry:
         self.transmission = transmission
         self.any, self.needs_load = self.law.any, self.law.needs_load
 
-    def __call__(self, qd: np.ndarray, tau_rigid: np.ndarray | None = None, load: bool = True) -> np.ndarray:
+    def __call__(self, qd: np.ndarray, tau_rigid: np.ndarray | None = None, load: bool = True,
+                 q: np.ndarray | None = None) -> np.ndarray:
+        """At the joints' velocities qd and positions q (a spring's), the rigid torque tau_rigid (a load law's)."""
         t = self.transmission
         if t is None:
-            return self.law(qd, tau_rigid, load)
+            return self.law(qd, tau_rigid, load, q)
         rigid_m = None if tau_rigid is None else t.motor_torques(tau_rigid)
-        return t.joint_torques(self.law(t.motor_rates(qd), rigid_m, load))
+        return t.joint_torques(self.law(t.motor_rates(qd), rigid_m, load, None if q is None else t.motor_positions(q)))

@@ -218,7 +218,8 @@ def coulomb_mapping(spec: RobotSpec, qd: np.ndarray, tau: np.ndarray,
         qd, tau = t.motor_rates(qd), t.motor_torques(tau)
         tau_rigid = None if tau_rigid is None else t.motor_torques(tau_rigid)
     coulomb = np.array([f.coulomb for f in spec.frictions])
-    gap = np.abs(coulomb * np.sign(qd) - friction.dry(spec.frictions, qd, tau_rigid))
+    # a spring is MuJoCo's own (`stiffness`): the law's dry part without it (its position term at q = 0)
+    gap = np.abs(coulomb * np.sign(qd) - friction.dry(spec.frictions, qd, tau_rigid, q=np.zeros_like(qd)))
     out = {}
     for k, name in enumerate(spec.drive_names):
         largest, rms = float(np.max(np.abs(tau[:, k]))), float(np.sqrt(np.mean(tau[:, k] ** 2)))
@@ -256,7 +257,7 @@ def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float
         lines += [f"- `{JOINTS_FILE}`: per joint `armature`, `viscous`, `coulomb`, `offset`, `coulomb_velocity`, the "
                   "friction law I_a q'' + f_v q' + f_c tanh(q'/v_c) + f_o, and the terms of the family chosen for "
                   "the joint (`viscous_asymmetry`, `coulomb_asymmetry`, `stribeck` with `stribeck_velocity`, "
-                  "`load_coulomb`; zero where unused; harness/model/friction.py). Per joint the family: "
+                  "`load_coulomb`, `stiffness`; zero where unused; harness/model/friction.py). Per joint the family: "
                   + ", ".join(f"`{j.name}` {j.friction.family}" for j in spec.joints) + "."]
     if MODEL_FILE in files:
         lines += [f"- `{MODEL_FILE}`: a model file that `harness run` loads as any other: `{URDF_FILE}` with "
@@ -277,7 +278,8 @@ def readme(spec: RobotSpec, files: list[str], mapping: dict[str, dict[str, float
         lines += [f"- `{MJCF_FILE}`: MJCF for MuJoCo, every number at full precision: bodies with the identified "
                   f"inertials, joint ranges, {drive}. MuJoCo applies Coulomb friction as dry friction "
                   "(a sharp sign, solved as a constraint), not the smooth tanh law, and has no torque offset and none "
-                  "of the families' terms (asymmetry, Stribeck, load). "
+                  "of the families' terms (asymmetry, Stribeck, load) but a spring (`stiffness`, at rest at 0: "
+                  "the offset that sets its rest position is not in the file). "
                   "What this changes at the training span's velocities, per joint: the RMS change over the RMS "
                   "torque, and the largest change (at a velocity reversal) over the largest torque:"]
         lines += [f"  - `{j}`: RMS {v['rms']:.3g}, largest {v['largest']:.3g}" for j, v in (mapping or {}).items()]

@@ -4,6 +4,7 @@
                   + f_va |q'| + f_ca |s|                                 (asymmetric by direction)
                   + f_s s exp(-(q'/v_s)^2)                               (Stribeck)
                   + f_l |tau_R| s                                        (load-dependent Coulomb)
+                  + k q                                                  (a spring)
 
     s = tanh(q' / v_c) (v_c > 0), sign(q') (v_c = 0)
 
@@ -16,8 +17,10 @@ show: `viscous_asymmetry` f_va and `coulomb_asymmetry` f_ca (moving positively t
 Coulomb coefficients are f_v + f_va and f_c + f_ca, negatively f_v - f_va and f_c - f_ca);
 `stribeck` f_s with `stribeck_velocity` v_s (the extra torque to break away, fading over v_s);
 `load_coulomb` f_l (the Coulomb torque grows by f_l per N m the joint carries, |tau_R|, the
-rigid-body torque without the drive's). Each is linear in its coefficients once v_c and v_s are
-chosen. The law is written once, here; every engine and model takes it from here.
+rigid-body torque without the drive's); and a fourth, `spring`, a torque in proportion to the position,
+`stiffness` k (N m/rad or N/m; a spring at rest at q0 is k q with f_o = -k q0: MuJoCo's joint
+`stiffness` at `springref` q0, a counterbalance's linear part). Each is linear in its coefficients once
+v_c and v_s are chosen. The law is written once, here; every engine and model takes it from here.
 """
 
 from __future__ import annotations
@@ -27,9 +30,11 @@ from dataclasses import dataclass
 import numpy as np
 
 IDENTIFIED_KEYS = ("armature", "viscous", "coulomb", "offset")  # linear in the torque: identifiable
-EXTRA_KEYS = ("viscous_asymmetry", "coulomb_asymmetry", "stribeck", "load_coulomb")  # the families' coefficients
+EXTRA_KEYS = ("viscous_asymmetry", "coulomb_asymmetry", "stribeck", "load_coulomb", "stiffness")  # the families'
+# coefficients
 FRICTION_KEYS = (*IDENTIFIED_KEYS, "coulomb_velocity", *EXTRA_KEYS, "stribeck_velocity")
-NONNEGATIVE_KEYS = ("armature", "viscous", "coulomb", "stribeck", "load_coulomb")  # a physical drive's: the offset
+NONNEGATIVE_KEYS = ("armature", "viscous", "coulomb", "stribeck", "load_coulomb", "stiffness")  # a physical drive's:
+# the offset
 # and the asymmetries have either sign
 BOUNDED_BY = {"viscous_asymmetry": "viscous", "coulomb_asymmetry": "coulomb"}  # |asymmetry| <= its symmetric term
 FAMILIES = {  # name -> the coefficients it adds to viscous + Coulomb + offset, simplest first
@@ -37,6 +42,7 @@ FAMILIES = {  # name -> the coefficients it adds to viscous + Coulomb + offset, 
     "stribeck": ("stribeck",),
     "load": ("load_coulomb",),
     "asymmetric": ("viscous_asymmetry", "coulomb_asymmetry"),
+    "spring": ("stiffness",),
 }
 
 
@@ -52,6 +58,7 @@ class JointFriction:
     stribeck: float = 0.0
     load_coulomb: float = 0.0
     stribeck_velocity: float = 0.0
+    stiffness: float = 0.0
 
     @property
     def none(self) -> bool:
@@ -89,9 +96,12 @@ def columns(frictions: tuple[JointFriction, ...], qd: np.ndarray, qdd: np.ndarra
 
 
 def extra_shape(key: str, qd: np.ndarray, s: np.ndarray, stribeck_velocity: np.ndarray,
-                tau_rigid: np.ndarray | None) -> np.ndarray:
+                tau_rigid: np.ndarray | None, q: np.ndarray | None = None) -> np.ndarray:
     """(..., n): the shape of one of EXTRA_KEYS at velocities qd with Coulomb shape s: |q'|, |s|,
-    s exp(-(q'/v_s)^2) (zero where v_s = 0), |tau_R| s (zero where tau_rigid is not given)."""
+    s exp(-(q'/v_s)^2) (zero where v_s = 0), |tau_R| s (zero where tau_rigid is not given), q (zero where
+    the positions q are not given)."""
+    if key == "stiffness":
+        return np.zeros_like(s) if q is None else np.broadcast_to(q, np.shape(s)).astype(float)
     if key == "viscous_asymmetry":
         return np.abs(qd)
     if key == "coulomb_asymmetry":
@@ -104,27 +114,32 @@ def extra_shape(key: str, qd: np.ndarray, s: np.ndarray, stribeck_velocity: np.n
 
 
 def extra_shapes(qd: np.ndarray, s: np.ndarray, stribeck_velocity: np.ndarray,
-                 tau_rigid: np.ndarray | None) -> np.ndarray:
-    """(..., n, 4): the shapes of EXTRA_KEYS at velocities qd with Coulomb shape s (`extra_shape`)."""
-    return np.stack([extra_shape(key, qd, s, stribeck_velocity, tau_rigid) for key in EXTRA_KEYS], axis=-1)
+                 tau_rigid: np.ndarray | None, q: np.ndarray | None = None) -> np.ndarray:
+    """(..., n, e): the shapes of EXTRA_KEYS at velocities qd with Coulomb shape s (`extra_shape`)."""
+    return np.stack([extra_shape(key, qd, s, stribeck_velocity, tau_rigid, q) for key in EXTRA_KEYS], axis=-1)
 
 
 def extra_columns(frictions: tuple[JointFriction, ...], qd: np.ndarray,
-                  tau_rigid: np.ndarray | None = None) -> np.ndarray:
-    """(N, n, 4): per joint the regressor of EXTRA_KEYS: |q'|, |s|, s exp(-(q'/v_s)^2) (zero where
-    v_s = 0) and |tau_R| s (zero where tau_rigid, (N, n), is not given)."""
+                  tau_rigid: np.ndarray | None = None, q: np.ndarray | None = None) -> np.ndarray:
+    """(N, n, e): per joint the regressor of EXTRA_KEYS: |q'|, |s|, s exp(-(q'/v_s)^2) (zero where
+    v_s = 0), |tau_R| s (zero where tau_rigid, (N, n), is not given) and q (zero where q is not given)."""
     v = np.array([f.coulomb_velocity for f in frictions])
-    return extra_shapes(qd, coulomb_shape(qd, v), np.array([f.stribeck_velocity for f in frictions]), tau_rigid)
+    return extra_shapes(qd, coulomb_shape(qd, v), np.array([f.stribeck_velocity for f in frictions]), tau_rigid, q)
 
 
 def extra_values(frictions: tuple[JointFriction, ...]) -> np.ndarray:
-    """(n, 4): the EXTRA_KEYS coefficients per joint."""
-    return np.array([[getattr(f, k) for k in EXTRA_KEYS] for f in frictions]).reshape(-1, 4)
+    """(n, e): the EXTRA_KEYS coefficients per joint."""
+    return np.array([[getattr(f, k) for k in EXTRA_KEYS] for f in frictions]).reshape(-1, len(EXTRA_KEYS))
 
 
 def _needs_load(frictions: tuple[JointFriction, ...], tau_rigid: np.ndarray | None) -> None:
     if tau_rigid is None and any(f.load_coulomb for f in frictions):
         raise ValueError("load-dependent friction (load_coulomb) needs the rigid-body torque the joint carries")
+
+
+def _needs_position(frictions: tuple[JointFriction, ...], q: np.ndarray | None) -> None:
+    if q is None and any(f.stiffness for f in frictions):
+        raise ValueError("a spring (stiffness) needs the joint's position")
 
 
 def values(frictions: tuple[JointFriction, ...]) -> np.ndarray:
@@ -133,13 +148,14 @@ def values(frictions: tuple[JointFriction, ...]) -> np.ndarray:
 
 
 def torque(frictions: tuple[JointFriction, ...], qd: np.ndarray, qdd: np.ndarray,
-           tau_rigid: np.ndarray | None = None) -> np.ndarray:
+           tau_rigid: np.ndarray | None = None, q: np.ndarray | None = None) -> np.ndarray:
     """(N, n): the whole law of every joint (the module's docstring); tau_rigid (N, n), the
-    rigid-body torque, is needed where a joint has load-dependent friction."""
+    rigid-body torque, is needed where a joint has load-dependent friction, q (N, n) where one has a spring."""
     out = np.einsum("nja,ja->nj", columns(frictions, qd, qdd), values(frictions))
     if np.any(extra_values(frictions)):
         _needs_load(frictions, tau_rigid)
-        out = out + np.einsum("nja,ja->nj", extra_columns(frictions, qd, tau_rigid), extra_values(frictions))
+        _needs_position(frictions, q)
+        out = out + np.einsum("nja,ja->nj", extra_columns(frictions, qd, tau_rigid, q), extra_values(frictions))
     return out
 
 
@@ -153,12 +169,13 @@ class Dry:
     coulomb: np.ndarray  # (n,), or (B, n) for a batch whose rows' laws differ (`rows`)
     offset: np.ndarray
     coulomb_velocity: np.ndarray  # v_c, 1 where a sharp sign (see `sharp`)
-    extra: np.ndarray  # (n, 4) or (B, n, 4): EXTRA_KEYS
+    extra: np.ndarray  # (n, e) or (B, n, e): EXTRA_KEYS
     stribeck_velocity: np.ndarray
     frictions: tuple[JointFriction, ...]
     any: bool  # whether it is anything but zero (decided once: it is asked at every step)
     has_extra: bool  # whether a joint has a family's term
     needs_load: bool  # whether a joint's friction depends on its load
+    needs_position: bool  # whether a joint has a spring (its torque depends on its position)
     sharp: np.ndarray | None  # (n,) or (B, n) bool: the joints whose Coulomb term is a sharp sign, None if none
 
     @classmethod
@@ -175,16 +192,20 @@ class Dry:
     @classmethod
     def _made(cls, laws: list[tuple[JointFriction, ...]], pick) -> Dry:
         k = np.stack([values(fr) for fr in laws])  # (L, n, 4)
-        extra = np.stack([extra_values(fr) for fr in laws])  # (L, n, 4)
+        extra = np.stack([extra_values(fr) for fr in laws])  # (L, n, e)
         v_c = np.array([[f.coulomb_velocity for f in fr] for fr in laws]).reshape(k.shape[:2])
         v_s = np.array([[f.stribeck_velocity for f in fr] for fr in laws]).reshape(k.shape[:2])
         return cls(pick(k[..., 2]), pick(k[..., 3]), pick(np.where(v_c > 0, v_c, 1.0)), pick(extra), pick(v_s),
                    tuple(f for fr in laws for f in fr), bool(np.any(k[..., 2:]) or np.any(extra)),
-                   bool(np.any(extra)), bool(np.any(extra[..., 3])), pick(v_c == 0) if np.any(v_c == 0) else None)
+                   bool(np.any(extra)), bool(np.any(extra[..., EXTRA_KEYS.index("load_coulomb")])),
+                   bool(np.any(extra[..., EXTRA_KEYS.index("stiffness")])),
+                   pick(v_c == 0) if np.any(v_c == 0) else None)
 
-    def __call__(self, qd: np.ndarray, tau_rigid: np.ndarray | None = None, load: bool = True) -> np.ndarray:
-        """`load` False: without the load-dependent term (no rigid-body torque needed). coulomb_shape's
-        s, with the division guarded once at construction (it is called at every stage of a step)."""
+    def __call__(self, qd: np.ndarray, tau_rigid: np.ndarray | None = None, load: bool = True,
+                 q: np.ndarray | None = None) -> np.ndarray:
+        """`load` False: without the load-dependent term (no rigid-body torque needed); q the positions,
+        which a spring reads. coulomb_shape's s, with the division guarded once at construction (it is
+        called at every stage of a step)."""
         s = np.tanh(qd / self.coulomb_velocity)
         if self.sharp is not None:
             s = np.where(self.sharp, np.sign(qd), s)
@@ -194,11 +215,14 @@ class Dry:
                 _needs_load(self.frictions, tau_rigid)
             else:
                 tau_rigid = None
-            out = out + np.einsum("...ja,...ja->...j", extra_shapes(qd, s, self.stribeck_velocity, tau_rigid),
+            if self.needs_position and q is None:
+                raise ValueError("a spring (stiffness) needs the joint's position")
+            out = out + np.einsum("...ja,...ja->...j", extra_shapes(qd, s, self.stribeck_velocity, tau_rigid, q),
                                   self.extra)
         return out
 
 
-def dry(frictions: tuple[JointFriction, ...], qd: np.ndarray, tau_rigid: np.ndarray | None = None) -> np.ndarray:
-    """Dry.of(frictions)(qd, tau_rigid)."""
-    return Dry.of(frictions)(qd, tau_rigid)
+def dry(frictions: tuple[JointFriction, ...], qd: np.ndarray, tau_rigid: np.ndarray | None = None,
+        q: np.ndarray | None = None) -> np.ndarray:
+    """Dry.of(frictions)(qd, tau_rigid, q=q)."""
+    return Dry.of(frictions)(qd, tau_rigid, q=q)

@@ -40,8 +40,10 @@ Refused, with a line naming the element: a ball joint with a motor, armature, da
 beside other joints in its body, free joints below the root, a body whose joints
 are apart or have a slide after the first, tendons that are not such drives, tendon and flex
 equalities (a tendon loop), a joint equality of higher degree or of one joint, an equality that starts
-inactive, loops beside drive tendons, joint stiffness (springs) and gravity compensation, which the
-harness's models do not carry.
+inactive, loops beside drive tendons, a ball's stiffness, a tendon spring with a dead band, and gravity
+compensation, which the harness's models do not carry. A hinge's or slide's `stiffness` k at `springref` q_ref
+is the joint's spring: the law's k q with an offset -k q_ref (harness/model/friction.py); a drive tendon's,
+its motor's (k/g^2 and -k L_s/g in motor units).
 """
 
 from __future__ import annotations
@@ -121,8 +123,6 @@ def _read(model, mujoco, path: Path) -> tuple:
                 raise _Refused(f"joint {name!r}: a second floating body (one robot per file)")
             free_root = j
             continue
-        if model.jnt_stiffness[j] != 0:
-            raise _Refused(f"joint {name!r}: stiffness {model.jnt_stiffness[j]:g} (a spring) is not supported")
     data = mujoco.MjData(model)
     data.qpos[:] = 0.0
     balls = [j for j in range(model.njnt) if model.jnt_type[j] == jt.mjJNT_BALL]
@@ -162,8 +162,7 @@ def _read(model, mujoco, path: Path) -> tuple:
             continue
         name, b = _name(model, obj.mjOBJ_JOINT, j), int(model.jnt_bodyid[j])
         dof = model.jnt_dofadr[j]
-        friction = JointFriction(armature=float(model.dof_armature[dof]), viscous=float(model.dof_damping[dof]),
-                                 coulomb=float(model.dof_frictionloss[dof]))
+        friction = _joint_law(model, j, dof, name)
         parent = owner[int(model.body_parentid[b])]
         inner, outer = (_name(model, obj.mjOBJ_BODY, parent) if parent else "world"), _name(model, obj.mjOBJ_BODY, b)
         if j in balls:  # three hinges about the body's axes, two massless carriages between them
@@ -198,6 +197,17 @@ def _read(model, mujoco, path: Path) -> tuple:
     closure = _closure(model, data, mujoco, owner) if model.neq else None
     floating = None if free_root is None else _floating_base(model, data, mujoco, free_root, owner)
     return bodies, joints, limits, efforts, model.opt.gravity.copy(), notes, drives, closure, floating, cones
+
+
+def _joint_law(model, j: int, dof: int, name: str) -> JointFriction:
+    """Joint j's drive as the file gives it: armature, damping, frictionloss (a sharp sign) and its spring,
+    MuJoCo's -k (q - q_ref), the law's k q with an offset f_o = -k q_ref (a polynomial spring refused)."""
+    if np.any(model.jnt_stiffnesspoly[j]):
+        raise _Refused(f"joint {name!r}: a spring's polynomial terms (stiffness beyond its first value) are not "
+                       "supported: a spring is linear, k (q - springref)")
+    k, q_ref = float(model.jnt_stiffness[j]), float(model.qpos_spring[model.jnt_qposadr[j]])
+    return JointFriction(armature=float(model.dof_armature[dof]), viscous=float(model.dof_damping[dof]),
+                         coulomb=float(model.dof_frictionloss[dof]), offset=-k * q_ref if k else 0.0, stiffness=k)
 
 
 def _floating_base(model, data, mujoco, free_root: int, owner: dict):
@@ -240,15 +250,15 @@ BALL_AXES = ("x", "y", "z")  # a ball joint's hinges, `<ball>_x` .. `<ball>_z`, 
 
 def _check_ball(model, mujoco, j: int) -> None:
     """A ball joint read as its three hinges (`_ball_hinges`), else refused in one line: one with a motor, or
-    armature, damping or friction loss (MuJoCo's act on the ball's angular velocity, which is not its hinges'
-    rates: harness/model/cardano.py), one beside other joints in its body, one whose hinges' names the file
-    gives other joints."""
+    armature, damping, friction loss or stiffness (MuJoCo's act on the ball's angular velocity or rotation,
+    which are not its hinges' rates and angles: harness/model/cardano.py), one beside other joints in its
+    body, one whose hinges' names the file gives other joints."""
     obj = mujoco.mjtObj
     name, body = _name(model, obj.mjOBJ_JOINT, j), int(model.jnt_bodyid[j])
     dofs = slice(int(model.jnt_dofadr[j]), int(model.jnt_dofadr[j]) + 3)
     for term, values in (("armature", model.dof_armature), ("damping", model.dof_damping),
-                         ("frictionloss", model.dof_frictionloss)):
-        if np.any(values[dofs] != 0.0):
+                         ("frictionloss", model.dof_frictionloss), ("stiffness", model.jnt_stiffness[j: j + 1])):
+        if np.any(values[dofs if term != "stiffness" else slice(None)] != 0.0):
             raise _Refused(f"ball joint {name!r} has {term} (a ball is read as three hinges about its body's axes, "
                            "on whose rates MuJoCo's ball terms do not act alike): only a ball without them is read")
     driven = [a for a in range(model.nu) if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
@@ -422,15 +432,23 @@ def drive_tendons(model, mujoco) -> dict:
         rows.append({_name(model, obj.mjOBJ_JOINT, int(model.wrap_objid[adr + i])): g * float(model.wrap_prm[adr + i])
                      for i in range(num)})
         motors.append(name)
+        # the tendon's spring, -k (L - L_s) along it, is the motor's k/g^2 q_m - k L_s/g (q_m = g L)
+        stiffness, (low, high) = float(model.tendon_stiffness[k]), model.tendon_lengthspring[k]
+        if np.any(model.tendon_stiffnesspoly[k]):
+            raise _Refused(f"tendon {name!r}: a spring's polynomial terms are not supported (a spring is linear)")
+        if stiffness and low != high:
+            raise _Refused(f"tendon {name!r}: a spring with a dead band (springlength {low:g} to {high:g}) is not "
+                           "supported")
         laws.append(JointFriction(armature=float(model.tendon_armature[k]) / g**2,
                                   viscous=float(model.tendon_damping[k]) / g**2,
-                                  coulomb=float(model.tendon_frictionloss[k]) / abs(g)))
+                                  coulomb=float(model.tendon_frictionloss[k]) / abs(g),
+                                  offset=-stiffness * float(low) / g if stiffness else 0.0, stiffness=stiffness / g**2))
     for j in range(model.njnt):
         dof = model.jnt_dofadr[j]
-        if model.dof_armature[dof] or model.dof_damping[dof] or model.dof_frictionloss[dof]:
+        if model.dof_armature[dof] or model.dof_damping[dof] or model.dof_frictionloss[dof] or model.jnt_stiffness[j]:
             raise _Refused(f"tendon {motors[0]!r} is read as a motor's drive (a fixed tendon: "
                            f"harness/model/drives.py), and joint {_name(model, obj.mjOBJ_JOINT, j)!r} has armature, "
-                           "damping or frictionloss of its own beside it: the drives carry them")
+                           "damping, frictionloss or stiffness of its own beside it: the drives carry them")
     return {"motors": motors, "rows": rows, "laws": laws}
 
 
@@ -459,6 +477,8 @@ def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "", floati
         j = ms.joint(joint.name)
         if spec.transmission is None:
             j.frictionloss = joint.friction.coulomb
+            j.stiffness = [joint.friction.stiffness, 0.0, 0.0]  # linear, at springref 0: the law's k q (its
+            # offset has no place)
         lo, hi = (spec.limits or {}).get(joint.name, (-np.inf, np.inf))
         if np.isfinite(lo) and np.isfinite(hi):
             j.range = [lo, hi]
@@ -487,9 +507,10 @@ def write_mjcf(spec: RobotSpec, gravity_W: np.ndarray, comment: str = "", floati
 _ATTRIBUTES = {"body": {"pos": "pos", "quat": "quat"},
                "inertial": {"pos": "ipos", "quat": "iquat", "mass": "mass", "diaginertia": "inertia"},
                "joint": {"pos": "pos", "axis": "axis", "range": "range", "armature": "armature",
-                         "damping": "damping", "frictionloss": "frictionloss"},
+                         "damping": "damping", "frictionloss": "frictionloss", "stiffness": "stiffness"},
                "general": {"gear": "gear", "forcerange": "forcerange"},
-               "fixed": {"armature": "armature", "damping": "damping", "frictionloss": "frictionloss"},
+               "fixed": {"armature": "armature", "damping": "damping", "frictionloss": "frictionloss",
+                         "stiffness": "stiffness"},
                "option": {"gravity": "gravity"},
                "site": {"pos": "pos", "quat": "quat"}}
 

@@ -130,12 +130,15 @@ def add_drives(ms: mujoco.MjSpec, spec: RobotSpec, frictionloss: bool = False) -
     """A fixed tendon per motor of the spec's transmission, named after the motor, over the joints in
     its row of N with N's entries as coefficients, carrying the motor's rotor inertia (`armature`) and
     viscous friction (`damping`), and with `frictionloss` its Coulomb friction (MuJoCo's dry friction,
-    a sharp sign: for a file others simulate, not for the bench, which applies the smooth law itself)."""
+    a sharp sign) and its spring (`stiffness` at length 0): for a file others simulate, not for the bench,
+    which applies the smooth law and the spring itself."""
     t = spec.transmission
     tendons = []
     for k, (motor, law) in enumerate(zip(t.motors, spec.frictions, strict=True)):
         tendon = ms.add_tendon(name=motor, armature=law.armature, damping=law.viscous,
                                frictionloss=law.coulomb if frictionloss else 0.0)
+        if frictionloss and law.stiffness:
+            tendon.stiffness, tendon.springlength = [law.stiffness, 0.0, 0.0], [0.0, 0.0]
         for j, joint in enumerate(spec.joints):
             if t.N[k, j] != 0.0:
                 tendon.wrap_joint(joint.name, float(t.N[k, j]))

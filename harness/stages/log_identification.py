@@ -170,7 +170,8 @@ def friction_laws(config: FrictionLawConfig, robot, model: LogModel, joints: lis
         try:
             choice = friction_law.choose(rows_of, model.base.independent, model.link_part, tau * measured, qd,
                                          training.t, unmeasured_plain(robot.frictions, model.drives_reached), config,
-                                         training.reach_s, robot.transmission, filtered_columns(training), measured)
+                                         training.reach_s, robot.transmission, filtered_columns(training), measured,
+                                         q)
         except ValueError as exc:
             note = f"friction law not chosen, the model's kept: {exc}"
     laws = choice.laws if choice is not None else tuple(

@@ -171,8 +171,8 @@ class LogModel:
         (N, m): the rigid-body torque of the channels, a load-dependent law's."""
         if self.chain is None:
             rigid = None if rigid is None else self.every_joint(rigid)
-            return self._selected(extra_regressor(laws, qd, rigid, transmission, columns, t), len(self.joints))
-        return self.projected(q, extra_regressor(laws, qd, None, None, columns, t))
+            return self._selected(extra_regressor(laws, qd, rigid, transmission, columns, t, q), len(self.joints))
+        return self.projected(q, extra_regressor(laws, qd, None, None, columns, t, q))
 
     @property
     def n(self) -> int:

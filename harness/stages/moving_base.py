@@ -58,7 +58,8 @@ def free_rows(entry, base: BaseMotion, q: np.ndarray, qd: np.ndarray, qdd: np.nd
                q[:, to_model], qd[:, to_model], qdd[:, to_model], shape=(len(q), 6 + q.shape[1]))
     tau = out[:, 6:][:, back]
     spec = entry.robot
-    return np.concatenate([out[:, :6], tau + drives.torque(spec.frictions, spec.transmission, qd, qdd, tau)], axis=1)
+    return np.concatenate([out[:, :6], tau + drives.torque(spec.frictions, spec.transmission, qd, qdd, tau, q)],
+                          axis=1)
 
 
 def moved(sc, rec, base: BaseMotion, pinocchio_base: np.ndarray, models: tuple,

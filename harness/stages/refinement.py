@@ -140,7 +140,7 @@ def _refit(ctx, li, r: Refinement, laws: tuple[Law, ...], rigid: np.ndarray, q, 
     shaped = robot.with_frictions(tuple(law.shaping(f) for f, law in zip(robot.frictions, laws, strict=True)))
     later, keep = channel_delay.shifted(t, tau, r.delay, sample_step(t))
     W = regressor(build_model(shaped, sc.gravity_W), q[keep], qd[keep], qdd[keep], with_friction=True)
-    E = extra_regressor(laws, qd[keep], rigid[keep], robot.transmission)
+    E = extra_regressor(laws, qd[keep], rigid[keep], robot.transmission, q=q[keep])
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws)])
     fit, frictions = fit_with_laws(W, E, later[keep], laws, li.model.theta, friction_values(robot.frictions),
                                    extra_model, robot.transmission)
@@ -156,7 +156,7 @@ def _judged(ctx, li, chosen: Candidate, identified, refined, largest: float) -> 
     q, qd, qdd = judged.states[span]
     tau, t = judged.measured[span], judged.t[span]
     torque = {name: torque_rel_error(t, qd, qdd, tau, _rigid(spec, sc.gravity_W, q, qd, qdd), spec.frictions,
-                                     laws, lag, largest, spec.transmission)
+                                     laws, lag, largest, spec.transmission, q)
               for name, spec, laws, lag in (("consistent", identified, li.laws.laws, np.zeros(len(joints))),
                                             ("refined", refined, chosen.laws, chosen.delay))}
     simulated = prediction(sc.gravity_W, {"consistent": identified, "refined": refined}, t, q, qd, tau, span, joints,

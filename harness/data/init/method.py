@@ -26,16 +26,27 @@ class Drives:
     def of(cls, robot):
         return None if getattr(robot, "transmission", None) is None else cls(robot)
 
-    def torque(self, qd, qdd, tau_rigid):
-        return self.law.torque(self.robot.frictions, self.robot.transmission, qd, qdd, tau_rigid)
+    def torque(self, qd, qdd, tau_rigid, q=None):
+        """The drives' torque at the joints; tau_rigid read by a load-dependent law, q by a spring."""
+        return self.law.torque(self.robot.frictions, self.robot.transmission, qd, qdd, tau_rigid, q)
+
+
+def springs(robot) -> dict:
+    """{joint: (k, k springref)}: the springs of a robot without drives (an MJCF joint's stiffness), which
+    Pinocchio's parser does not read; with drives they are the drives' (Drives)."""
+    if getattr(robot, "transmission", None) is not None:
+        return {}
+    return {j.name: (j.friction.stiffness, -j.friction.offset) for j in robot.joints if j.friction.stiffness}
 
 
 class LeastSquares:
-    def __init__(self, path, gravity_W, drives=None):
+    def __init__(self, path, gravity_W, drives=None, springs=None):
         self.drives = drives  # known: the fit is of what they leave
         pin = self.pin = _pinocchio()
         self.model, self.data, self.joint_names = robot_model(path, gravity_W)
         self.armature = np.array(self.model.armature)  # known: the regressor holds the links alone
+        spring = [(springs or {}).get(j, (0.0, 0.0)) for j in self.joint_names]  # known: an MJCF joint's spring
+        self.stiffness, self.spring_rest = (np.array([s[i] for s in spring]) for i in (0, 1))
         # theta_W = A theta_J: each body's parameters from its joint frame to world axes at q = 0
         pin.forwardKinematics(self.model, self.data, pin.neutral(self.model))
         n = self.model.njoints - 1
@@ -55,14 +66,14 @@ class LeastSquares:
         F[:, j, j], F[:, j, n + j] = qd, np.sign(qd)
         return np.hstack([W, F.reshape(N * n, 2 * n)])
 
-    def known(self, qd, qdd):
+    def known(self, q, qd, qdd):
         """The torques the method does not fit: the joints' armature and the drives' law (a
         load-dependent law, which reads the rigid bodies' torque, is not known here)."""
-        tau = self.armature * qdd
-        return tau if self.drives is None else tau + self.drives.torque(qd, qdd, None)
+        tau = self.armature * qdd + self.stiffness * q - self.spring_rest
+        return tau if self.drives is None else tau + self.drives.torque(qd, qdd, None, q)
 
     def fit(self, q, qd, qdd, tau):
-        tau = tau - self.known(qd, qdd)
+        tau = tau - self.known(q, qd, qdd)
         W, y = self.regressor(q, qd, qdd), tau.reshape(-1)
         # W = U diag(s) V^T, kept to its numerical rank (numpy's and lstsq's cut-off): the minimum-norm
         # solution theta = V diag(1/s) U^T y, exact on the base parameters, and its covariance
@@ -86,7 +97,7 @@ class Fitted:
         self.covariance = cov_W
 
     def inverse_dynamics(self, q, qd, qdd):
-        return (self.method.regressor(q, qd, qdd) @ self.theta).reshape(q.shape) + self.method.known(qd, qdd)
+        return (self.method.regressor(q, qd, qdd) @ self.theta).reshape(q.shape) + self.method.known(q, qd, qdd)
 
 
 def _pinocchio():
@@ -129,4 +140,5 @@ def _rotate_parameters(R, theta):
 
 
 def make_method(robot, gravity_W, parameters):
-    return LeastSquares(Path(__file__).parent / parameters.get("robot_file", ROBOT_FILE), gravity_W, Drives.of(robot))
+    return LeastSquares(Path(__file__).parent / parameters.get("robot_file", ROBOT_FILE), gravity_W, Drives.of(robot),
+                        springs(robot))

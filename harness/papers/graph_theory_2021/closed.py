@@ -102,7 +102,7 @@ def closed_chain_inverse(spec: RobotSpec, model: GraphModel, q: np.ndarray, qd: 
     act = [spec.joint_names.index(j) for j in spec.actuated]
     passive = [k for k in range(len(spec.joints)) if k not in act]
     T_p = t[passive].transpose(1, 0, 2)  # (N, n_p, rows)
-    f = friction.torque(spec.frictions, qd, qdd, tau0.T).T  # (n, N): each joint's law, zero where it has none
+    f = friction.torque(spec.frictions, qd, qdd, tau0.T, q).T  # (n, N): each joint's law, zero where it has none
     lam = -(np.linalg.pinv(T_p, rcond=1e-9) @ (tau0[passive] + f[passive]).T[:, :, None])[:, :, 0]  # (N, rows)
     tau = tau0 + f + np.einsum("jnr,nr->jn", t, lam)
     tau[passive] = 0.0  # what the least squares leaves there is round-off (tests)

@@ -40,7 +40,7 @@ class GraphTheoryModel:
         tau = self.solve(q, qd, qdd).tau
         if self.spec.loops:
             return tau[:, [self.joint_names.index(a) for a in self.actuated_joints]]
-        return tau + friction.torque(self.spec.frictions, qd, qdd, tau)
+        return tau + friction.torque(self.spec.frictions, qd, qdd, tau, q)
 
     def joint_wrenches(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         out = self.solve(q, qd, qdd)

@@ -25,19 +25,23 @@ ROBOT_FILE = "robot.urdf"  # your robot: a URDF or an MJCF file (Pinocchio reads
 
 
 class RobotModel:
-    def __init__(self, path, gravity_W, drives=None, free_joint=None):
+    def __init__(self, path, gravity_W, drives=None, free_joint=None, springs=None):
         self.pin = _pinocchio()
         self.model, self.data, self.joint_names = robot_model(path, gravity_W)
         self.drives = drives  # your model file's drives (Drives, below), or None
         self.path, self.gravity_W, self.free_joint = path, gravity_W, free_joint  # a floating base's joint
+        # an MJCF joint's spring, k (q - springref), which Pinocchio's parser does not read: {joint: (k, k springref)}
+        spring = [(springs or {}).get(j, (0.0, 0.0)) for j in self.joint_names]
+        self.stiffness, self.spring_rest = (np.array([s[i] for s in spring]) for i in (0, 1))
 
     def inverse_dynamics(self, q, qd, qdd):
         tau = np.array([self.pin.rnea(self.model, self.data, a, b, c)
                         for a, b, c in zip(configuration(self.model, q), qd, qdd, strict=True)])
         if self.drives is not None:
-            return tau + self.drives.torque(qd, qdd, tau)
-        # the URDF's <dynamics damping friction>, an MJCF joint's damping and frictionloss
-        return tau + self.model.damping * qd + self.model.friction * np.sign(qd)
+            return tau + self.drives.torque(qd, qdd, tau, q)
+        # the URDF's <dynamics damping friction>, an MJCF joint's damping, frictionloss and spring
+        return (tau + self.model.damping * qd + self.model.friction * np.sign(qd)
+                + self.stiffness * q - self.spring_rest)
 
     def mass_matrix(self, q):
         out = []
@@ -62,6 +66,6 @@ class RobotModel:
 
 def make_model(robot, gravity_W, parameters):
     return RobotModel(Path(__file__).parent / parameters.get("robot_file", ROBOT_FILE), gravity_W, Drives.of(robot),
-                      None if robot.floating is None else robot.floating.joint)
+                      None if robot.floating is None else robot.floating.joint, springs(robot))
 
 
