@@ -217,7 +217,7 @@ def _torques(pm, q, qd, qdd) -> np.ndarray:
     from harness.model import friction
 
     data = pm.model.createData()
-    tau = friction.torque(pm.frictions, qd, qdd)
+    tau = friction.torque(pm.frictions, qd, qdd, q=q)
     for k in range(len(q)):
         tau[k] += pin.rnea(pm.model, data, q[k], qd[k], qdd[k])
     return tau

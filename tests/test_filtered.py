@@ -95,7 +95,7 @@ def test_the_law_search_with_a_filter_that_passes_everything_is_the_search_witho
     W = regressor(model.pm, q, qd, qdd, with_friction=True)
     passing = FilteredColumns(PASS_ALL, ((qd, np.arange(len(qd))),), rec.t, 1e9)
     found = [choose(W, model.base.independent, model.link_part, tau, qd, rec.t, sc.robot.frictions,
-                    FrictionLawConfig(), 0.0, None, columns) for columns in (None, passing)]
+                    FrictionLawConfig(), 0.0, None, columns, q=q) for columns in (None, passing)]
     assert found[0].laws == found[1].laws
     assert found[1].chosen_error == pytest.approx(found[0].chosen_error, rel=1e-9)
 

@@ -111,7 +111,7 @@ class FreeBaseDrive:
             applied[:] = 0.0
             if dry.any:  # the rigid-body torque: the computed torque less the rotor inertia's part
                 rigid = (tau + d.qfrc_bias)[vadr] - rotors(qacc_cmd[vadr]) if dry.needs_load else None
-                applied[vadr] = -dry(d.qvel[vadr], rigid, q=d.qpos[qadr])
+                applied[vadr] = -dry(d.qvel[vadr], rigid, q=d.qpos[qadr] if dry.needs_position else None)
             full = tau + d.qfrc_bias - d.qfrc_passive - applied
             if standing:  # the held contacts balance the base's rows as far as they can (module docstring)
                 J = d.efc_J[: d.nefc * m.nv].reshape(d.nefc, m.nv)[d.efc_type[: d.nefc] == equality]

@@ -482,7 +482,7 @@ class _ComputedTorque:
             mujoco.mj_mulM(m, d, tau, qacc_cmd)
             if dry.any:  # the rigid-body torque: the computed torque less the rotors' part, N^T I_m N q''
                 rigid = (tau + qfrc_bias)[vadr] - rotors @ qacc_cmd[vadr] if dry.needs_load else None
-                qfrc_applied[:] = -dry(qvel[vadr], rigid, q=qpos[vadr])[order]
+                qfrc_applied[:] = -dry(qvel[vadr], rigid, q=qpos[vadr] if dry.needs_position else None)[order]
             tau[:] = tau + qfrc_bias - qfrc_passive - qfrc_applied
             ctrl[:] = tau if to_ctrl is None else tau[to_ctrl]
             if captured[1]:

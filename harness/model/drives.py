@@ -162,7 +162,7 @@ class Dry:
         """frictions: each motor's law, or a batch's (friction.Dry.rows)."""
         self.law = frictions if isinstance(frictions, friction.Dry) else friction.Dry.of(frictions)
         self.transmission = transmission
-        self.any, self.needs_load = self.law.any, self.law.needs_load
+        self.any, self.needs_load, self.needs_position = self.law.any, self.law.needs_load, self.law.needs_position
 
     def __call__(self, qd: np.ndarray, tau_rigid: np.ndarray | None = None, load: bool = True,
                  q: np.ndarray | None = None) -> np.ndarray:
