@@ -131,7 +131,7 @@ class FrictionChoice:
                      for f, law in zip(model, self.laws, strict=True))
 
 
-def _positions(q: np.ndarray | None, tried: bool, laws) -> np.ndarray | None:
+def spring_positions(q: np.ndarray | None, tried: bool, laws) -> np.ndarray | None:
     """q, refused where a spring's column would need it and it is not given (a spring `tried`, or a law's)."""
     if q is None and (tried or any("stiffness" in law.terms for law in laws)):
         raise ValueError("a spring's column needs the joints' positions")
@@ -154,7 +154,7 @@ def extra_regressor(laws: tuple[Law, ...], qd: np.ndarray, tau_rigid: np.ndarray
     out = np.zeros((N, n, len(terms)))
     if not terms:
         return out.reshape(N * n, 0)
-    qd, q = drives.at_drives(transmission, qd, _positions(q, False, laws))
+    qd, q = drives.at_drives(transmission, qd, spring_positions(q, False, laws))
     if transmission is not None:
         tau_rigid = None if tau_rigid is None else transmission.motor_torques(tau_rigid)
     if columns is None:
@@ -370,7 +370,7 @@ def choose(W, independent: np.ndarray, link_part: tuple[np.ndarray, np.ndarray],
     def at_motor(x: np.ndarray) -> np.ndarray:  # a joint torque as its motors' share
         return x if transmission is None else transmission.motor_torques(x)
 
-    qd, q = drives.at_drives(transmission, qd, _positions(q, "spring" in config.families, laws))
+    qd, q = drives.at_drives(transmission, qd, spring_positions(q, "spring" in config.families, laws))
     columns_of = _LawColumns(qd, t[order], transmission, columns, q)
     moving = _searched(qd, reached := drives_reaching(measured, transmission))
     rigid = np.zeros((N, n))
@@ -462,6 +462,8 @@ class _LawColumns:
             np.median(np.abs(np.gradient(qd, t, axis=0)), axis=0) / (2 * np.pi * columns.cutoff_hz))
 
     def term(self, j: int, law: Law, term: str) -> np.ndarray:
+        if term == "stiffness":  # the positions themselves, as the linear columns are: no filter, no cache
+            return self.q[:, j]
         key = (j, "coulomb" if term == "load_coulomb" else term,
                *(() if term == "viscous_asymmetry" else (law.coulomb_velocity,)),
                *((law.stribeck_velocity,) if term == "stribeck" else ()))
@@ -476,8 +478,7 @@ class _LawColumns:
     def __call__(self, j: int, law: Law, rigid_j: np.ndarray) -> np.ndarray:
         if self.columns is None:
             return _columns(law, self.qd[:, j], rigid_j, None if self.q is None else self.q[:, j])
-        extra = [self.q[:, j] if k == "stiffness" else self.term(j, law, k) * (np.abs(rigid_j) if k == "load_coulomb"
-                                                                              else 1.0) for k in law.terms]
+        extra = [self.term(j, law, k) * (np.abs(rigid_j) if k == "load_coulomb" else 1.0) for k in law.terms]
         return np.column_stack([self.qd[:, j], self.term(j, law, "coulomb"), *extra])
 
 

@@ -49,8 +49,8 @@ from harness.base.numerics import (
 from harness.base.series import room
 from harness.engines.rollout import log_drives, rollouts
 from harness.identify import delay as channel_delay
-from harness.identify.friction_law import Law
-from harness.model.drives import Transmission
+from harness.identify.friction_law import Law, spring_positions
+from harness.model.drives import Transmission, at_drives
 from harness.model.friction import (
     BOUNDED_BY,
     EXTRA_KEYS,
@@ -204,12 +204,10 @@ def torque_rel_error(t: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.nda
     stretch's ends (the same rows whatever the lags). With a transmission the motors' laws reach the
     joints through N (no lags). q (N, n), the positions, a spring's."""
     rows = _inner(t, largest)
-    if q is None and any("stiffness" in law.terms for law in laws):
-        raise ValueError("a spring's torque needs the joints' positions")
+    q = spring_positions(q, False, laws)
     if transmission is not None:
-        qd_m, qdd_m, rigid_m = (transmission.motor_rates(qd), transmission.motor_rates(qdd),
-                                transmission.motor_torques(rigid))
-        q_m = None if q is None else transmission.motor_positions(q)
+        (qd_m, q_m), qdd_m, rigid_m = (at_drives(transmission, qd, q), transmission.motor_rates(qdd),
+                                       transmission.motor_torques(rigid))
         drive = np.column_stack([_columns(qd_m[rows, k], qdd_m[rows, k], rigid_m[rows, k], f.coulomb_velocity,
                                           f.stribeck_velocity, law.terms, None if q_m is None else q_m[rows, k])[0]
                                  @ np.array([getattr(f, key) for key in (*IDENTIFIED_KEYS, *law.terms)])

@@ -92,8 +92,8 @@ def torque(frictions: tuple[JointFriction, ...], transmission: Transmission | No
         return friction.torque(frictions, qd, qdd, tau_rigid, q)
     t = transmission
     rigid_m = None if tau_rigid is None else t.motor_torques(tau_rigid)
-    q_m = None if q is None else t.motor_positions(q)
-    return t.joint_torques(friction.torque(frictions, t.motor_rates(qd), t.motor_rates(qdd), rigid_m, q_m))
+    qd_m, q_m = at_drives(t, qd, q)
+    return t.joint_torques(friction.torque(frictions, qd_m, t.motor_rates(qdd), rigid_m, q_m))
 
 
 def at_drives(transmission: Transmission | None, qd: np.ndarray, q: np.ndarray | None = None
@@ -171,4 +171,5 @@ class Dry:
         if t is None:
             return self.law(qd, tau_rigid, load, q)
         rigid_m = None if tau_rigid is None else t.motor_torques(tau_rigid)
-        return t.joint_torques(self.law(t.motor_rates(qd), rigid_m, load, None if q is None else t.motor_positions(q)))
+        qd_m, q_m = at_drives(t, qd, q)
+        return t.joint_torques(self.law(qd_m, rigid_m, load, q_m))

@@ -39,14 +39,19 @@ def springs(robot) -> dict:
     return {j.name: (j.friction.stiffness, -j.friction.offset) for j in robot.joints if j.friction.stiffness}
 
 
+def spring_terms(springs, joint_names) -> tuple[np.ndarray, np.ndarray]:
+    """(k, k springref), each (n,) in the order of `joint_names`, of `springs` (`springs(robot)`, or None)."""
+    spring = [(springs or {}).get(j, (0.0, 0.0)) for j in joint_names]
+    return np.array([s[0] for s in spring]), np.array([s[1] for s in spring])
+
+
 class LeastSquares:
     def __init__(self, path, gravity_W, drives=None, springs=None):
         self.drives = drives  # known: the fit is of what they leave
         pin = self.pin = _pinocchio()
         self.model, self.data, self.joint_names = robot_model(path, gravity_W)
         self.armature = np.array(self.model.armature)  # known: the regressor holds the links alone
-        spring = [(springs or {}).get(j, (0.0, 0.0)) for j in self.joint_names]  # known: an MJCF joint's spring
-        self.stiffness, self.spring_rest = (np.array([s[i] for s in spring]) for i in (0, 1))
+        self.stiffness, self.spring_rest = spring_terms(springs, self.joint_names)  # known: an MJCF joint's spring
         # theta_W = A theta_J: each body's parameters from its joint frame to world axes at q = 0
         pin.forwardKinematics(self.model, self.data, pin.neutral(self.model))
         n = self.model.njoints - 1

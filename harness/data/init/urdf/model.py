@@ -30,9 +30,8 @@ class RobotModel:
         self.model, self.data, self.joint_names = robot_model(path, gravity_W)
         self.drives = drives  # your model file's drives (Drives, below), or None
         self.path, self.gravity_W, self.free_joint = path, gravity_W, free_joint  # a floating base's joint
-        # an MJCF joint's spring, k (q - springref), which Pinocchio's parser does not read: {joint: (k, k springref)}
-        spring = [(springs or {}).get(j, (0.0, 0.0)) for j in self.joint_names]
-        self.stiffness, self.spring_rest = (np.array([s[i] for s in spring]) for i in (0, 1))
+        # an MJCF joint's spring, k (q - springref), which Pinocchio's parser does not read (spring_terms, below)
+        self.stiffness, self.spring_rest = spring_terms(springs, self.joint_names)
 
     def inverse_dynamics(self, q, qd, qdd):
         tau = np.array([self.pin.rnea(self.model, self.data, a, b, c)
