@@ -611,7 +611,8 @@ def test_a_closed_chains_base_parameters_come_from_g_t_y(name, request):
     the project); the parallelogram arm's closed chain has fewer than its tree. From noise-free actuated
     torques at random consistent states (Pinocchio's RNEA projected, not the regressor), the base
     parameters are recovered and another set of states' torques predicted to 1e-9."""
-    from harness.identify.torque_id import identify_from_torques, structural_base
+    from harness.identify.torque_fit import identify_from_torques
+    from harness.identify.torque_id import structural_base
 
     chain = request.getfixturevalue(name)
     spec = chain.spec

@@ -11,7 +11,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from harness.engines.pinocchio import build_model
 from harness.identify import filtered
-from harness.identify.friction_law import Law, extra_regressor
+from harness.identify.laws import Law, extra_regressor
 from harness.identify.span_rows import span_regressor
 from harness.identify.torque_id import regressor
 from harness.model.load import load_spec

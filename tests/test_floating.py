@@ -538,8 +538,8 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     results.json says which rows were read and how many base parameters the robot bolted down would have.
     With 1 % noise on that wrench ([measurement.noise.base_wrench]) the fit reads the noisy rows. With the
     joints' torques too, a hip's Coulomb friction is found on its own row. A validation that does not move
-    the base, rows on a fixed base, friction from the base rows, and noise on a base wrench no bench moved
-    are each refused in one line."""
+    the base, rows on a fixed base, friction from the base rows, a friction family's terms (which that fit
+    has no columns for) and noise on a base wrench no bench moved are each refused in one line."""
     import json
 
     from harness.base.tomlio import InputError
@@ -549,6 +549,8 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     (tmp_path / "robot.xml").write_text(DOG.replace('<joint name="a2" type="hinge" axis="0 0 1"/>', ""))
     (tmp_path / "m.toml").write_text('[mjcf]\nfile = "robot.xml"\n')
     (tmp_path / "f.toml").write_text('[mjcf]\nfile = "robot.xml"\n[joints.hip]\ncoulomb = 0.2\n')
+    (tmp_path / "sf.toml").write_text('[mjcf]\nfile = "robot.xml"\n[joints.hip]\ncoulomb = 0.2\nstribeck = 0.1\n'
+                                      'stribeck_velocity = 0.05\n')
 
     def motion(scale):
         joints = "".join(f'[motion.{j}]\ntype = "sinusoids"\noffset = 0.1\nsin = [[0.5, {w * scale}], [0.2, {3 * w}]]\n'
@@ -594,7 +596,9 @@ def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged
     for model, table, key, said in (("m.toml", '[torque_identification]\nvalidation = "still.toml"\n',
                                      "torque_identification", "neither"),
                                     ("f.toml", fit.format("fv.toml", "base") + "friction = true\n",
-                                     "torque_identification.friction", "never reach the base rows")):
+                                     "torque_identification.friction", "never reach the base rows"),
+                                    ("sf.toml", fit.format("fv.toml", "all"), "torque_identification.friction",
+                                     "not a friction family's terms: hip (stribeck)")):
         (tmp_path / "s.toml").write_text(head.format(model) + motion(1.0) + table + gate)
         with pytest.raises(InputError) as err:
             load_scenario(tmp_path / "s.toml")

@@ -15,7 +15,7 @@ import pytest
 
 from harness.cli import main
 from harness.engines.pinocchio import build_model, rnea
-from harness.identify.friction_law import Law, extra_regressor
+from harness.identify.laws import Law, extra_regressor
 from harness.model import friction
 from harness.model.mjcf import write_mjcf
 from tests.conftest import SCENARIOS, bench_log, log_scenario, mujoco_inverse

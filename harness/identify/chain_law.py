@@ -17,7 +17,8 @@ from scipy.optimize import minimize_scalar
 
 from harness.base.numerics import blocked_folds, column_scale, fit_residual, relative_residual_of_sums, sample_step
 from harness.identify import filtered
-from harness.identify.friction_law import VELOCITY_GRID, FrictionChoice, Law
+from harness.identify.friction_law import VELOCITY_GRID, FrictionChoice
+from harness.identify.laws import Law
 from harness.identify.torque_id import drive_column, links_weights
 from harness.model import friction
 

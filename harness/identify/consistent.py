@@ -48,7 +48,7 @@ import numpy as np
 
 from harness.base.numerics import PARAMETER_FLOOR, SideBySide, column_scale, relative_residual, triangle
 from harness.base.tomlio import in_one_line
-from harness.identify.friction_law import Law, extra_terms
+from harness.identify.laws import Law, extra_terms
 from harness.identify.torque_id import SAMPLES_AT_A_TIME
 from harness.model import drives
 from harness.model.drives import Transmission

@@ -94,7 +94,7 @@ class LeastSquaresModel(ExportedModel):
 
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         from harness.engines.pinocchio import build_model
-        from harness.identify.friction_law import Law, extra_regressor
+        from harness.identify.laws import Law, extra_regressor
         from harness.identify.torque_id import regressor
 
         q, qd, qdd = self.states(q, qd, qdd)
@@ -111,6 +111,6 @@ class LeastSquaresModel(ExportedModel):
 
 
 def extra_terms_names(laws, names) -> list[str]:
-    from harness.identify.friction_law import extra_terms
+    from harness.identify.laws import extra_terms
 
     return [f"{names[k]}.{key}" for k, key in extra_terms(laws)]

@@ -49,7 +49,7 @@ from harness.base.numerics import (
 from harness.base.series import room
 from harness.engines.rollout import log_drives, rollouts
 from harness.identify import delay as channel_delay
-from harness.identify.friction_law import Law, spring_positions
+from harness.identify.laws import Law, spring_positions
 from harness.model.drives import Transmission, at_drives
 from harness.model.friction import (
     BOUNDED_BY,

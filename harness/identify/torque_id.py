@@ -317,32 +317,12 @@ class TorqueIdentification:
     validation_error: np.ndarray | None  # (N_val, n) predicted - recorded torques, validation trajectory
     validation_scale: np.ndarray | None = None  # (n,) joint loads L_J of the validation recording
     torque_joints: list[str] | None = None  # the torques' joints where they are not every joint (a closed chain's)
+    families: tuple[str, ...] = ()  # the friction families' coefficients after the base parameters ("joint.key")
 
-
-def identify_from_torques(pm: PinocchioModel, joints: list[str], q, qd, qdd, tau,
-                          validation: tuple | None = None, base: BaseParameters | None = None,
-                          chain=None) -> TorqueIdentification:
-    """Least squares of the base parameters (default: the structural ones of `pm`) from joint torques;
-    of a closed chain (`chain`), from its actuated joints' torques tau (N, n_a) through G^T Y."""
-    base = base or structural_base(pm, chain=chain)
-
-    def rows(q, qd, qdd):
-        if chain is None:
-            return regressor(pm, q, qd, qdd, base.with_friction)
-        return chain_regressor(pm, chain, q, qd, qdd, base.with_friction)
-
-    W1 = rows(q, qd, qdd)[:, base.independent]
-    # the model's own values: the magnitudes of the parameters
-    beta_model = base.of(true_parameters(pm, base.with_friction))
-    fit = with_structure(fit_base(W1, tau, beta_model), base)
-    err = None
-    if validation is not None:
-        qv, qdv, qddv, tauv = validation
-        pred = (rows(qv, qdv, qddv)[:, base.independent] @ fit.beta).reshape(tauv.shape)
-        err = pred - tauv
-    names = parameter_names(joints, base.with_friction)
-    return TorqueIdentification(names, base, beta_model, fit.beta, fit.condition_number, fit.std, fit.ci_half_width,
-                                fit.sensitivity, fit.weak, err)
+    def expression(self, k: int) -> str:
+        """Column k of the fit: a base parameter as the combination it stands for, or a family's coefficient."""
+        r = len(self.base.independent)
+        return describe_base(self.names, self.base, k) if k < r else self.families[k - r]
 
 
 def fit_base(W1: np.ndarray | SideBySide, tau: np.ndarray, beta_model: np.ndarray) -> Estimate:

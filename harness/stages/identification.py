@@ -19,19 +19,19 @@ from harness.base.plugins import PluginError, Stage, inverse_dynamics
 from harness.engines.pinocchio import build_model
 from harness.identify.floating_id import ROWS
 from harness.identify.lstsq import WEAK_RATIO
+from harness.identify.torque_fit import identify_from_torques
 from harness.identify.torque_id import (
     COEFFICIENT_FLOOR,
     STRUCTURAL_STATES,
     WEAK_STRUCTURE,
     TorqueIdentification,
     describe_base,
-    identify_from_torques,
 )
 from harness.identify.trials import over_trials
 from harness.model import friction
 from harness.stages.metrics import joint_load_scale
 from harness.stages.plugin_fits import BaseMap, BaseTable, SkippedMethod, base_map, base_table, fit_method
-from harness.stages.shared import TorqueConfig, chain_of, structural_base_of, torque_config
+from harness.stages.shared import TorqueConfig, chain_of, families_of, structural_base_of, torque_config
 
 
 def configure_torque(t, scenario) -> TorqueConfig:
@@ -52,6 +52,9 @@ def configure_torque(t, scenario) -> TorqueConfig:
         return TorqueConfig(validation, t.boolean("friction", default=declared))
     rows = t.string("rows", default="all", choices=ROWS)
     fit_friction = t.boolean("friction", default=declared and rows == "all")
+    if fit_friction and (families := families_of(scenario.robot)):
+        raise t.error("friction", "a floating base's fit identifies each drive's rotor inertia, viscous and Coulomb "
+                                  f"friction and offset, not a friction family's terms: {', '.join(families)}")
     if fit_friction and rows == "base":
         raise t.error("friction", "the joints' friction and rotor inertia never reach the base rows: rows = \"all\" "
                                   "identifies them on the joints' own")
@@ -112,12 +115,12 @@ class BuiltinIdentification:
                                "collinear with the others (harness/identify/torque_id.py, structurally_weak); its "
                                "error is reported apart from max_rel_error",
             "max_rel_error": float(rel[~weak].max(initial=0.0)),
-            "max_rel_parameter": (describe_base(ti.names, ti.base, int(np.flatnonzero(~weak)[np.argmax(rel[~weak])]))
+            "max_rel_parameter": (ti.expression(int(np.flatnonzero(~weak)[np.argmax(rel[~weak])]))
                                   if (~weak).any() else None),
-            "weakly_identifiable": [describe_base(ti.names, ti.base, k) for k in np.flatnonzero(weak)],
+            "weakly_identifiable": [ti.expression(k) for k in np.flatnonzero(weak)],
             "max_rel_error_weak": float(rel[weak].max()) if weak.any() else None,
             "coverage_ci95": float(np.mean(np.abs(ti.beta - ti.beta_true) <= ti.ci_half_width)),
-            "base": [{"expression": describe_base(ti.names, ti.base, k), "true": float(ti.beta_true[k]),
+            "base": [{"expression": ti.expression(k), "true": float(ti.beta_true[k]),
                       "identified": float(ti.beta[k]),
                       "rel_error": float(rel[k]), "std": finite_or_null(ti.std[k]),
                       "ci95": [finite_or_null(ti.beta[k] - ti.ci_half_width[k]),
@@ -143,20 +146,23 @@ class BuiltinIdentification:
 
     def friction_terms(self) -> dict:
         """Each joint's friction and rotor inertia: identified where it is a base parameter on its own,
-        else the base parameter it enters (a vertical first joint's armature adds to its link's I_zz)."""
+        else the base parameter it enters (a vertical first joint's armature adds to its link's I_zz); a
+        friction family's coefficients (Stribeck, asymmetries, load, spring) after them, each its own."""
         ti = self.fit
-        alone = {ti.base.independent[k]: k for k in range(len(ti.beta))
+        r = len(ti.base.independent)
+        alone = {ti.base.independent[k]: k for k in range(r)
                  if not np.any(np.abs(ti.base.combination[k]) > COEFFICIENT_FLOOR)}
+        alone |= {c: r + i for i, c in enumerate(range(len(ti.names), len(ti.names) + len(ti.families)))}
         joints: dict[str, dict] = {}
         errors, where = [], []
-        for c, name in enumerate(ti.names):
+        for c, name in enumerate([*ti.names, *ti.families]):
             joint, term = name.rsplit(".", 1)
-            if term not in friction.IDENTIFIED_KEYS:
+            if term not in friction.IDENTIFIED_KEYS + friction.EXTRA_KEYS:
                 continue
             k = alone.get(c)
             true = float(ti.beta_true[k]) if k is not None else None
             if k is None:
-                entry = {"in": next((describe_base(ti.names, ti.base, b) for b in range(len(ti.beta))
+                entry = {"in": next((describe_base(ti.names, ti.base, b) for b in range(r)
                                      if ti.base.independent[b] == c or c in ti.base.dependent[
                                          np.abs(ti.base.combination[b]) > COEFFICIENT_FLOOR]), None)}
             else:

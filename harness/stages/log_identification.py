@@ -39,7 +39,8 @@ from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
 from harness.engines.pinocchio import build_model, joint_torques
 from harness.identify import chain_law, consistent, delay, filtered, friction_law, scale
-from harness.identify.friction_law import FrictionLawConfig, Law, extra_terms
+from harness.identify.friction_law import FrictionLawConfig
+from harness.identify.laws import Law, extra_terms
 from harness.identify.ls_model import LeastSquaresFit, extra_terms_names
 from harness.identify.lstsq import Estimate
 from harness.identify.repeat import Repeatability, repeat

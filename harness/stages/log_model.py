@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.engines.pinocchio import PinocchioModel, build_model, joint_torques
-from harness.identify.friction_law import Law, drives_reaching, extra_regressor
+from harness.identify.friction_law import drives_reaching
+from harness.identify.laws import Law, extra_regressor
 from harness.identify.span_rows import RowsOnDemand, span_regressor
 from harness.identify.torque_id import (
     BaseParameters,

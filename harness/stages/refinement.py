@@ -27,7 +27,7 @@ from harness.base.plugins import Stage
 from harness.engines.pinocchio import build_model, joint_torques
 from harness.identify import delay as channel_delay
 from harness.identify.consistent import fit_with_laws
-from harness.identify.friction_law import Law, extra_regressor, extra_terms
+from harness.identify.laws import Law, extra_regressor, extra_terms
 from harness.identify.refine import (
     ADJUSTABLE,
     TORQUE_SLACK,

@@ -33,6 +33,13 @@ def with_friction(scenario) -> bool:
     return config is not None and config.friction
 
 
+def families_of(robot) -> list[str]:
+    """The drives whose law has a friction family's terms (harness/model/friction.py, FAMILIES), as
+    "drive (family)": what a fit of the plain law's four terms alone cannot identify."""
+    return [f"{d} ({f.family})" for d, f in zip(robot.drive_names, robot.frictions, strict=True)
+            if f.family != "viscous_coulomb"]
+
+
 def structural_base_of(ctx):
     """The scenario's structural base parameters (harness/identify/torque_id.py), found once per run."""
     sc = ctx.scenario
