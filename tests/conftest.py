@@ -27,17 +27,16 @@ BLAS_THREADS = threadpool_limits(1, user_api="blas")
 os.environ["OPENBLAS_NUM_THREADS"] = "1"  # and the processes a test starts (`harness` run fresh), from their start
 
 
-# The modules that take longest (over 1.5 s each, measured), started first: each of the two workers takes
+# The modules that take longest (over 1 s each, measured), started first: each of the two workers takes
 # the next module when it is done with its own, and one of a few seconds taken last leaves the other idle
 # at the end (6 s of 63 by the count of tests, xdist's own order). A scheduling hint: the rest keep
 # their order, and a module named here and gone changes nothing.
-LONGEST_FIRST = ("test_verdict.py", "test_closed_chains.py", "test_log_inputs.py", "test_workers.py",
-                 "test_closed_chain_log_channels.py", "test_log_unmeasured.py", "test_contacts.py",
-                 "test_floating_log.py", "test_cli.py", "test_suite_and_gates.py", "test_closed_chain_log.py",
-                 "test_log_guards.py",
-                 "test_closed_chain_log_laws.py", "test_plugins.py", "test_drives.py", "test_run_folder.py",
-                 "test_report_html.py", "test_robustness.py", "test_log_read.py", "test_torques.py",
-                 "test_bad_input_catalogue.py", "test_friction_law.py", "test_span_rows.py", "test_estimators.py")
+LONGEST_FIRST = ("test_floating_log.py", "test_log_inputs.py", "test_suite_and_gates.py", "test_verdict.py",
+                 "test_closed_chains.py", "test_drives.py", "test_contacts.py", "test_log_guards.py",
+                 "test_run_folder.py", "test_friction_law.py", "test_plugins.py", "test_torques.py", "test_urdf.py",
+                 "test_robustness.py", "test_log_read.py", "test_bad_input_catalogue.py", "test_workers.py",
+                 "test_closed_chain_log_laws.py", "test_cli.py", "test_lagrange.py", "test_identification.py",
+                 "test_floating.py", "test_estimators.py", "test_ball_joints.py")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -158,6 +158,7 @@ def test_the_built_in_delta_turns_its_platform_on_a_ball_and_the_graph_theory_mo
     assert np.abs(graph - actuated).max() <= 1e-12 * np.abs(actuated).max()
 
 
+@pytest.mark.slow  # a ball-jointed arm's identification run (1.3 s)
 def test_a_balls_carriages_have_no_parameters_to_identify(delta):
     """The two massless bodies between a ball's hinges carry nothing: their ten parameters each are known
     zeros, in no base parameter of the delta's G^T Y (harness/identify/torque_id.py), whose count is then

@@ -191,6 +191,7 @@ def test_scenarios_that_name_each_other_are_refused_as_a_cycle(tmp_path, capsys)
                     out)
 
 
+@pytest.mark.slow  # three processes started and timed (3.5 s)
 def test_the_start_up_is_counted_from_the_harnesss_own_start_not_its_processs(tmp_path):
     """A process that waits 2 s before it starts the harness (a shell that had just run pip read 54 s):
     run.timings' first entry is the harness's imports alone (about 0.3 s here), not the process's age."""

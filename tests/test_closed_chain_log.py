@@ -117,6 +117,7 @@ def exact_run(exact, tmp_path_factory):
     return code, results, out
 
 
+@pytest.mark.slow  # a closed chain's log identified whole (the module's exact_run: 4 s)
 def test_the_passive_joints_close_the_loops_as_mujoco_reads_the_model(exact, exact_run):
     """data.csv (the conditioned log as the fit read it) holds every joint: at its rows MuJoCo's own
     equality residual is zero and its constraint Jacobian annihilates the velocities (to 1e-9 of the
@@ -137,6 +138,7 @@ def test_the_passive_joints_close_the_loops_as_mujoco_reads_the_model(exact, exa
         assert np.abs(J @ qd[k]).max() <= 1e-9 * np.linalg.norm(J) * np.linalg.norm(qd[k])
 
 
+@pytest.mark.slow  # reads exact_run (a closed chain's log identified whole)
 def test_the_passive_joints_are_the_consistent_motion_the_log_was_made_from(exact, exact_run):
     """Every joint's q and q' at the conditioned rows equal the motion the log was made from (1e-10
     rad, 1e-9 rad/s), and q'' within 1e-3 of its largest (the harness differences q' at 500 Hz:
@@ -156,6 +158,7 @@ def test_the_passive_joints_are_the_consistent_motion_the_log_was_made_from(exac
         (exact_run[2] / "report.html").read_text()
 
 
+@pytest.mark.slow  # reads exact_run (a closed chain's log identified whole)
 def test_an_exact_closed_chain_log_is_identified_to_its_truth(exact_run):
     """From exact torques (no noise, rigid loops), the fit through G^T Y predicts the truth's torques
     on the span it never saw within 1e-4 (the differenced accelerations' error, 1e-5 of the largest);
@@ -173,6 +176,7 @@ def test_an_exact_closed_chain_log_is_identified_to_its_truth(exact_run):
     assert li["friction_law"]["chosen"] and li["consistent"]["inconsistent_links"] == 0
 
 
+@pytest.mark.slow  # reads exact_run (a closed chain's log identified whole)
 def test_the_models_are_forward_simulated_from_the_log_s_states_with_their_loops(exact_run):
     """From 20 states of the span no fit saw, under the log's actuated torques: the truth (the robot
     that made the log) follows the motion within 2e-6 rad at 0.2 s (the torques are read between
@@ -188,6 +192,7 @@ def test_the_models_are_forward_simulated_from_the_log_s_states_with_their_loops
     assert all(h["diverged"] == 0 for runs in p["models"].values() for h in runs.values())
 
 
+@pytest.mark.slow  # reads exact_run (a closed chain's log identified whole)
 def test_the_identified_closed_chain_is_exported_as_mjcf_with_its_loop(exact_run):
     """identified/robot.xml reads back as the same closed chain (its connect loop, its three actuated
     joints) with the identified inertials: its G^T rnea equals the consistent fit's torques."""
@@ -339,6 +344,7 @@ def unmeasured_runs(exact, tmp_path_factory):
     return runs
 
 
+@pytest.mark.slow  # two closed-chain log runs (2 s)
 def test_a_closed_chain_log_without_a_channel_is_identified_from_the_others(unmeasured_runs, exact_run):
     """Declared unmeasured (the column absent, or reading 0: the same fit, to the bit), the fit through
     the turret's and the shoulder's rows of G^T Y predicts the truth's torques of those two channels on

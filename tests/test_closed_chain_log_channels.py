@@ -11,6 +11,7 @@ from .conftest import MODELS, write_frame
 from .test_closed_chain_log import DURATION, RATE, SINES, TRUTH, _exact_log, _run, _scenario_text
 
 
+@pytest.mark.slow  # a closed-chain log run (1.4 s)
 def test_a_closed_chain_s_torque_channels_behind_its_encoders_are_found_and_corrected(tmp_path):
     """The exact log with every actuated torque 6 ms behind the encoders (three samples at 500 Hz), `delay
     = "correct"`: each channel's lag is estimated on its rows of G^T Y within 1 ms (measured 5.3 to 6.5:
@@ -43,6 +44,7 @@ def _currents(path, torques, factor: float = 1.1) -> None:
     write_frame(log, path)
 
 
+@pytest.mark.slow  # closed-chain log runs (1.4 to 1.8 s each)
 @pytest.mark.parametrize("fixed_by", ["model", "payload"])
 def test_a_closed_chain_s_motor_currents_become_torques_through_constants_it_identifies(tmp_path, fixed_by):
     """The exact log's actuated torques logged as motor currents, i = tau / (1.1 k_t N) (every drive's

@@ -11,6 +11,7 @@ from .conftest import MODELS
 from .test_closed_chain_log import DURATION, RATE, SINES, TRUTH, _exact_log, _run, _scenario_text
 
 
+@pytest.mark.slow  # a filtered closed-chain log run (1.1 s)
 def test_a_filtered_log_s_friction_columns_are_filtered_as_its_torques_every_joint_s(tmp_path):
     """A 10 Hz zero-phase low-pass on the exact log: the measured torques' Coulomb turns are spread by the
     filter, and so are every joint's Coulomb columns, the passive joints' from their full-rate velocities

@@ -375,7 +375,8 @@ def test_a_weld_closes_as_mujoco_reads_it(tmp_path, weld):
 # --- torques -------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper", "delta"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper",
+                                  pytest.param("delta", marks=pytest.mark.slow)])  # the delta: 1.2 s of loop solves
 def test_two_engines_agree_on_the_actuated_torques_and_raw_torques_are_not_them(name, request):
     """G^T rnea (Pinocchio) and G^T qfrc_inverse (MuJoCo, with the loop as an equality constraint) at
     200 random consistent states: to 1e-9 of the largest (round-off is ~1e-15; above 1e-9 is a bug).
@@ -604,7 +605,8 @@ def test_friction_on_a_closed_chain_is_simulated_judged_and_identified(tmp_path)
     assert err.value.key == "joints.crank.load_coulomb" and "depend on the load" in str(err.value)
 
 
-@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper", "delta"])
+@pytest.mark.parametrize("name", ["fourbar", "parallelogram", "gripper",
+                                  pytest.param("delta", marks=pytest.mark.slow)])  # the delta: 2 s of loop solves
 def test_a_closed_chains_base_parameters_come_from_g_t_y(name, request):
     """The actuated-torque regressor G^T Y: the four-bar's 30 standard parameters leave 9 base
     parameters with every joint driven and 8 as a closed chain (the figures the issue measured outside
@@ -765,6 +767,7 @@ def test_the_graph_theory_models_forward_run_agrees_with_pinocchios_rigid_loops(
     assert np.all(np.abs(q[0] - q_ref).max(axis=0) <= 1e-8 * span)
 
 
+@pytest.mark.slow  # a forward run of a stiff loop (3.5 s)
 def test_a_spatial_four_bar_whose_passive_joint_does_not_move_passes_its_forward_gate(tmp_path):
     """A spatial four-bar (tests/data/models/spatial_fourbar.xml: the coupler on a universal joint of two
     hinges) whose motion leaves the passive joint u2 still (its range over the run is round-off): the
@@ -785,6 +788,7 @@ def test_a_spatial_four_bar_whose_passive_joint_does_not_move_passes_its_forward
     assert forward["max_rel_range"] <= 1e-6 and forward["per_joint"]["u2"] <= 1e-6
 
 
+@pytest.mark.slow  # two forward runs (1.1 s)
 def test_a_model_whose_rocker_is_heavier_by_a_ten_thousandth_is_seen_by_its_forward_run(fourbar):
     """The scenario's gate (1e-6 of a joint's range) can fail: a model whose rocker is 0.01 % heavier, run
     0.1 s from the motion's state under the true torques, leaves it by more than 1e-5 of the rocker's

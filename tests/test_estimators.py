@@ -190,6 +190,7 @@ def test_least_squares_from_the_regressors_triangle_is_numpys_on_the_whole(dupli
     np.testing.assert_allclose(est.std, std / s, rtol=1e-8)
 
 
+@pytest.mark.slow  # a long regressor's memory traced (1.1 s)
 def test_the_least_squares_of_a_long_regressor_copies_it_at_most_twice():
     """fit_base (the log's least squares: ols, the scaled singular values, the sensitivities) on a
     regressor of 64 MiB allocates at most 2.5 times its size beyond it (tracemalloc: numpy reports its

@@ -531,6 +531,7 @@ def _exact(spec, s: tuple, rows: str) -> tuple:
     return (*s, floating_id.measured(ref.base, ref.tau, rows))
 
 
+@pytest.mark.slow  # four floating-base runs (1.4 s)
 def test_a_moving_base_s_torque_identification_reads_the_base_rows_and_is_judged_on_another_motion(tmp_path):
     """`[torque_identification] rows = "base"` beside [base_motion]: the bench's recorded wrench on the base
     alone (no joint torque) identifies the trunk's base parameters, and the validation motion's wrench is

@@ -165,6 +165,7 @@ def _run(path, out) -> tuple[int, dict]:
     return code, json.loads((out / "results.json").read_text())
 
 
+@pytest.mark.slow  # a floating log identified whole (1.7 s)
 def test_an_exact_floating_log_identifies_the_robot_that_made_it(standing, tmp_path):
     """A noise-free log: the start check finds nothing; the model as given (the truth) is the log within 1e-3 of
     each row's size (2e-4 measured: the accelerations' central differences at 200 Hz); the least squares from
@@ -311,6 +312,7 @@ coulomb_velocity = 0.05
 """ for leg in ("FL", "FR", "HL", "HR"))
 
 
+@pytest.mark.slow  # a floating log with drives identified whole (2.4 s)
 def test_a_floating_log_of_a_robot_with_drives_is_judged_with_their_laws(tmp_path):
     """Solo12 with rotor inertia, viscous and Coulomb friction and an offset on its knees, standing on the bench
     (1 s): its exact log's model as given is the log within 1e-3 (3.0e-4 measured: its drives' laws are in its
@@ -579,6 +581,7 @@ def test_a_floating_log_is_judged_on_another_log_of_the_same_robot(standing, tmp
     assert {"base[qw]", "base[wdz]", "contact[FL_foot][Fz]", "contact[HR_foot][x]"} <= set(header)
 
 
+@pytest.mark.slow  # a floating log identified whole (1.2 s); the kernel is tests/test_log_unmeasured.py's
 def test_joints_without_a_torque_channel_keep_their_motion_and_leave_their_rows_unread(standing, tmp_path):
     """`[data] unmeasured`: two joints' torque columns absent from the log (FL_HAA's and HR_KFE's): their motion
     stays in every row, their own rows are neither read nor judged (results.json lists them), and from the feet's
@@ -716,6 +719,7 @@ def _from_bag(text: str, log: str, bag: str) -> str:
     return re.sub(r'force = \["(\w+)_fx", "\w+", "\w+"\]', r'topic = "/\1/wrench"', text)
 
 
+@pytest.mark.slow  # a floating log written to a bag and identified (1 to 1.5 s each)
 @pytest.mark.parametrize("kind", ["ros2", "ros1"])
 def test_a_floating_log_in_a_ros_bag_reads_as_its_csv(standing, tmp_path, kind):
     """The log as a ROS bag (`_write_bag`: joint states, the base's odometry with one message more and row 150's

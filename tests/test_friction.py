@@ -97,6 +97,7 @@ def test_mujoco_applies_each_term_as_the_law_says(run_scenario):
     np.testing.assert_allclose(tau - tau_rigid, law, rtol=0, atol=1e-9 * np.max(np.abs(tau)))
 
 
+@pytest.mark.slow  # a built-in scenario whole (its gates run in .ci/run; this reads beyond them)
 def test_three_sources_agree_with_friction_and_the_identification_finds_it(run_scenario):
     """Ideal data: the torques agree three ways to 1e-9 of the joint loads (measured ~1e-14), and every
     friction term and rotor inertia that is a base parameter on its own comes back to 1e-8

@@ -78,6 +78,7 @@ def reference(si_log, tmp_path_factory):
     return results
 
 
+@pytest.mark.slow  # two log runs (1.2 s)
 def test_a_log_in_degrees_with_its_units_gives_the_fit_of_the_log_in_radians(si_log, reference, tmp_path):
     df = si_log[1].copy()
     for c in df.columns:
@@ -172,6 +173,7 @@ def test_a_velocity_column_of_the_wrong_sign_is_refused_naming_it(si_log, tmp_pa
     assert key == "qd3" and "opposite sign" in err
 
 
+@pytest.mark.slow  # the Panda's whole log read and differentiated (1.4 s)
 def test_on_a_real_log_every_joints_velocity_is_its_positions_rate_of_change(si_log):
     """The check's slope is 1 in a consistent log: 1.000 on the bench log, and within 3 % on the real
     Panda log (its velocities are the robot's own estimate), every joint moving."""

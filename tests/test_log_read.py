@@ -89,6 +89,7 @@ def test_a_header_without_rows_is_a_log_without_rows(tmp_path):
         read.read_raw(sc.data, sc.robot)
 
 
+@pytest.mark.slow  # a long log's memory traced (1.3 s)
 def test_reading_a_log_allocates_its_columns_and_little_more(tmp_path):
     """A log of 100,000 rows with 8 columns the scenario does not read beside its 22: what reading it
     allocates at its peak (traced) is at most 1.75 times the columns it keeps (1.45 measured: every

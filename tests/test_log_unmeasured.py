@@ -117,6 +117,7 @@ def _run(folder, name: str, file: str, extra: str, tau: str = '"tau{j}"') -> tup
     return status, json.loads((folder / name / "results.json").read_text())
 
 
+@pytest.mark.slow  # two log runs (5 s); a dead channel's count and message: tests/test_log_channels.py
 def test_dead_channels_declared_unmeasured_identify_the_robot_and_read_as_measured_do_not(logs, capsys):
     """The wrists' channels 0 on every row. Declared unmeasured (columns there or absent: the same fit, to
     the bit), the consistent fit predicts the truth's torques of the other four joints on the held-out

@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 import re
 
+import pytest
+
 from harness.cli import main
 from harness.report import render_report
 from harness.report.html import DASH, code, esc, mark, num, page, table
@@ -48,6 +50,7 @@ def test_a_scenarios_own_text_is_escaped_once_in_its_report(fast_run, tmp_path):
     assert not DOUBLE.findall((fast_run / "report.html").read_text())
 
 
+@pytest.mark.slow  # a sweep of runs (2.3 s)
 def test_a_sweep_page_has_nothing_escaped_twice(tmp_path):
     assert main(["sweep", "kr500_noise", "--trials", "2", "--out", str(tmp_path / "sweep")]) == 0
     assert not DOUBLE.findall((tmp_path / "sweep" / "sweep.html").read_text())

@@ -59,6 +59,7 @@ def test_a_span_regressor_over_the_size_held_whole_is_made_on_demand(monkeypatch
     assert isinstance(span_regressor(pm, q, qd, qdd), RowsOnDemand)
 
 
+@pytest.mark.slow  # a long regressor's memory traced (1.6 s)
 def test_a_least_squares_fit_on_rows_on_demand_is_the_fit_on_the_whole_and_its_memory_does_not_grow_with_it(
         monkeypatch):
     """The UR5 with friction at 2,500 and 5,000 random samples (10 and 20 MiB of regressor), its rows

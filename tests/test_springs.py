@@ -138,6 +138,7 @@ def test_a_wrists_spring_is_found_by_the_search_that_may_choose_it_and_not_given
     assert reloaded.joint("wrist_2_joint").friction.stiffness == pytest.approx(3.0, rel=1e-2)
 
 
+@pytest.mark.slow  # harness init and its project's run (2.7 s)
 def test_init_on_an_mjcf_file_with_springs_passes_out_of_the_box(tmp_path):
     """`harness init --mjcf` on the sprung arm: the placeholder model (Pinocchio's parser, which reads no
     spring) and the template's method take the file's springs as the harness read them (k q less k q_ref),

@@ -312,6 +312,7 @@ def _sweep_json(folder: Path) -> dict:
     return out
 
 
+@pytest.mark.slow  # a sweep run three ways (1.7 s)
 def test_sweep_monte_carlos_a_users_method_the_same_wherever_the_trials_run(tmp_path, capsys):
     """The example method (least squares, 1 % torque noise, 100 trials): unbiased (every |bias| within 3
     standard errors of the mean over the trials, as least squares on a regressor of noise-free states
@@ -396,6 +397,7 @@ def test_a_users_method_swept_on_dask_gives_the_same_file(tmp_path):
     assert _sweep_json(tmp_path / "here") == _sweep_json(tmp_path / "dask")
 
 
+@pytest.mark.slow  # harness init and its project's run (1.8 s)
 def test_init_from_a_urdf_whose_model_file_states_coupled_drives_passes_with_them(tmp_path):
     """`harness init --urdf` with the TX40's URDF, then its coupled drives and every motor's law written
     into the project's model file (harness/data/models/tx40.toml's transmission): the bench carries
@@ -457,7 +459,8 @@ def test_init_reads_a_urdfs_mimic_joints_as_its_own_and_refuses_other_couplings(
     assert "a closed chain (loop 'fingers')" in capsys.readouterr().err and not (tmp_path / "q").exists()
 
 
-@pytest.mark.parametrize("flag", ["--mjcf", "--urdf", "--robot"])
+@pytest.mark.parametrize("flag", ["--mjcf", pytest.param("--urdf", marks=pytest.mark.slow),
+                                  pytest.param("--robot", marks=pytest.mark.slow)])  # each an init and a run: 1 s
 def test_init_from_an_mjcf_file_passes_with_its_armature_damping_and_frictionloss(tmp_path, capsys, flag):
     """An MJCF arm written as MJCF files are (tests/test_mjcf.py's: defaults, degrees, a joint `ref`, a
     slide, armature, damping, frictionloss, a geared motor, gravity of its own), started with any of the
@@ -479,6 +482,7 @@ def test_init_from_an_mjcf_file_passes_with_its_armature_damping_and_frictionlos
     assert "other.xml" in err and flag in err and "<sdf>" in err and "\n" not in err and not (tmp_path / "q").exists()
 
 
+@pytest.mark.slow  # harness init and its project's run (1.3 s)
 def test_init_from_an_mjcf_file_with_a_floating_base_fixes_it_where_the_harness_does(tmp_path):
     """The same arm on a free joint: the harness fixes the base where the file puts it, and so does the
     placeholder (Pinocchio's MJCF parser builds the free joint; it is locked at MuJoCo's qpos0, the

@@ -158,6 +158,7 @@ def _made_at_run_time(state: dict, task: int) -> tuple:
     return (lambda x: scale * x), type(f"Made{task}", (), {"k": task}), np.full(3, float(task))
 
 
+@pytest.mark.slow  # a dask cluster started (2.7 s)
 def test_a_dask_trial_may_return_functions_and_classes_made_at_run_time_and_arrays_come_back_equal():
     """A chunk's results go back pickled whole, from the trial's thread (harness/base/workers.py,
     _dask_chunk): what Dask itself would have sent, a function or class made at run time included,
@@ -177,6 +178,7 @@ def _pid_trial(state: int, task: int) -> tuple[int, int]:
     return os.getpid(), state + task
 
 
+@pytest.mark.slow  # a dask cluster started (1.1 s)
 def test_within_an_opened_block_every_map_runs_on_the_same_workers_and_shared_data_is_sent_once(monkeypatch):
     """`Workers.opened()`: the local cluster started once for two maps (the worker processes of the
     second are those of the first) and an object both maps share scattered once; after the block,
@@ -283,6 +285,7 @@ def _takes_the_held_lock(state: dict, task: int) -> bool:
     return taken
 
 
+@pytest.mark.slow  # a local dask cluster started (3 s)
 def test_a_local_clusters_workers_do_not_inherit_the_locks_this_process_holds():
     """The local cluster's workers start from a process without threads (multiprocessing's fork
     server), not as forks of this one: a fork copies every lock as it is at that instant, and a
