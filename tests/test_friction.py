@@ -4,6 +4,7 @@ and the joint-torque identification finding it again on the bench where the trut
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
@@ -63,12 +64,32 @@ def test_a_urdf_dynamics_tag_is_read_as_viscous_and_coulomb_and_the_model_file_a
     assert f == JointFriction(armature=0.2, viscous=damping, coulomb=1.5, offset=0.0, coulomb_velocity=0.01)
 
 
+@pytest.mark.parametrize("v_c", [0.02, 0.0])
+def test_a_drive_torque_gives_back_the_rigid_torque_its_law_was_added_to(v_c):
+    """friction.rigid_torque inverts the law: tau = tau_R + every term, the load term f_l |tau_R| s (of either
+    sign of f_l, |f_l| < 1) included, gives tau_R back to round-off (1e-12 of the largest), with a smooth or
+    a sharp Coulomb shape, a Stribeck term, an asymmetry and a spring beside it; the law forward is
+    friction.torque, written independently of the inverse."""
+    fr = (JointFriction(0.2, 1.0, 3.0, 0.4, v_c, load_coulomb=0.3, stribeck=1.0, stribeck_velocity=0.1),
+          JointFriction(0.1, 2.0, 1.0, -0.2, v_c, load_coulomb=-0.6, viscous_asymmetry=0.5, stiffness=4.0),
+          JointFriction(0.0, 0.5, 0.0, 0.0, v_c))
+    q, qd, qdd = rng.normal(size=(3, 500, 3))
+    tau_R = rng.normal(scale=20.0, size=(500, 3))
+    tau = tau_R + friction.torque(fr, qd, qdd, tau_R, q)
+    np.testing.assert_allclose(friction.rigid_torque(fr, tau, qd, qdd, q), tau_R, rtol=0, atol=1e-12 * 60.0)
+    # without the load term the inverse is the plain difference
+    plain = tuple(dataclasses.replace(f, load_coulomb=0.0) for f in fr)
+    np.testing.assert_array_equal(friction.rigid_torque(plain, tau, qd, qdd, q),
+                                  tau - friction.torque(plain, qd, qdd, q=q))
+
+
 @pytest.mark.parametrize(("text", "message"), [
     ('[joints.panda_joint9]\nviscous = 1.0\n', "no joint 'panda_joint9' in the URDF"),
     ('[joints.panda_joint1]\nviscous = -1.0\n', "viscous"),
     ('[joints.panda_joint1]\nstiction = 1.0\n', "stiction"),
     ('[joints.panda_joint1]\nstribeck = 1.0\n', "stribeck_velocity"),
     ('[joints.panda_joint1]\nstribeck_velocity = -0.1\n', "stribeck_velocity"),
+    ('[joints.panda_joint1]\ncoulomb = 1.0\nload_coulomb = -1.0\n', "load_coulomb"),
 ])
 def test_a_bad_friction_declaration_is_refused_in_one_line(tmp_path, capsys, text, message):
     (tmp_path / "p.toml").write_text('[urdf]\nrobot = "panda"\n\n' + text)

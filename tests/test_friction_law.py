@@ -245,31 +245,83 @@ def test_a_joint_that_never_moves_keeps_the_models_law(tmp_path):
     assert all("declared" in law["per_joint"][j] for j in law["per_joint"] if j != "wrist_3_joint")
 
 
-def test_every_engine_simulates_every_family_alike_and_the_identification_finds_every_term(tmp_path):
+def test_the_joint_torque_fit_finds_every_familys_coefficient_from_pinocchios_torques(tmp_path):
+    """The kernel of the bench's [torque_identification] (harness/identify/torque_fit.py) on the UR5 with a
+    Stribeck, a load-dependent, an asymmetric and a spring joint: torques from Pinocchio's RNEA with the whole
+    law (its load term at RNEA's rigid-body torque) at 300 random states; every base parameter and family
+    coefficient back to 1e-8 of its size (3e-10 measured: round-off through a condition of the regressor's,
+    and the load term's fixed point, 1e-13), another 100 states' torques predicted to 1e-9 of their largest
+    (2e-15). Without the family columns the same fit misses them by more than 1e-3 of their largest (0.13)."""
+    from harness.base.numerics import parameter_scale
+    from harness.engines.pinocchio import build_model, joint_torques
+    from harness.identify import torque_fit
+    from harness.identify.torque_id import structural_base
+    from harness.model.states import random_states
+
+    spec = load_spec(tmp_path / _families_model(tmp_path))
+    pm = build_model(spec, np.array([0.0, 0.0, -9.80665]))
+    n = len(spec.joints)
+    train, other = (random_states(-np.pi * np.ones(n), np.pi * np.ones(n), np.ones(n), 3.0 * np.ones(n), count, seed)
+                    for count, seed in ((300, 1), (100, 2)))
+    tau, tau_other = joint_torques(pm, *train), joint_torques(pm, *other)
+    fit = torque_fit.identify_from_torques(pm, spec.joint_names, *train, tau, (*other, tau_other),
+                                           structural_base(pm, spec.limits, with_friction=True))
+    assert set(fit.families) == {f"{j}.{line.split(' = ')[0]}" for j, (_, terms) in FAMILY_TERMS.items()
+                                 for line in terms.splitlines() if not line.startswith("stribeck_velocity")}
+    assert np.max(np.abs(fit.beta - fit.beta_true) / parameter_scale(fit.beta_true)) <= 1e-8
+    assert np.max(np.abs(fit.validation_error)) <= 1e-9 * np.max(np.abs(tau_other))
+    plain = dataclasses.replace(torque_fit.TorqueRows.of(pm, fit.base, spec.joint_names), laws=(), terms=())
+    beta = plain.fit(*train, tau, fit.beta_true[: len(fit.base.independent)]).beta
+    assert np.max(np.abs(plain.predict(beta, *other) - tau_other.ravel())) > 1e-3 * np.max(np.abs(tau_other))
+
+
+def test_every_engine_simulates_every_family_alike(tmp_path):
     """The UR5 with a Stribeck, a load-dependent, an asymmetric and a spring joint on ur5_friction's motion:
     the drive torques MuJoCo records (the law applied at every stage of every step, the load term from its
     rigid-body torque, the spring's from the joint's position), Pinocchio's RNEA with the law and the graph
-    model's agree within 1e-9 of the joint loads (round-off is 1e-13: above 1e-9 is a bug). The joint-torque
+    model's agree within 1e-9 of the
+    joint loads (round-off is 1e-13: above 1e-9 is a bug)."""
+    _families_model(tmp_path)
+    text = (SCENARIOS / "ur5_friction.toml").read_text()
+    motion = text[text.index("[motion.shoulder_pan_joint]"): text.index("# Gates beyond")]
+    (tmp_path / "s.toml").write_text(
+        '[scenario]\nmodel = "families.toml"\nduration = 1.0\noutput_steps = 50\n'
+        '[model_under_test]\nname = "graph"\nplugin = "graph_theory_2021"\n'
+        '[simulation]\nintegrator = "RK4"\ntimestep = 0.0005\ntracking_bandwidth = 20.0\n' + motion
+        + "".join(f'[[gates]]\nmetric = "torques.{pair}.max_rel_error"\nlimit = 1e-9\n'
+                  for pair in ("pinocchio_vs_mujoco", "graph_vs_mujoco", "graph_vs_pinocchio")))
+    assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    r = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert r["torques"]["pinocchio_vs_mujoco"]["max_rel_error"] <= 1e-9
+
+
+@pytest.mark.slow  # a bench, its validation motion, the graph model and the study (3 s); the kernels are fast above
+def test_the_benchs_identification_and_the_study_read_every_family(tmp_path):
+    """The same robot and motion, 1.5 s, beside another motion: the engines agree as above; the joint-torque
     identification of MuJoCo's recording finds every family's coefficient, as each base parameter, to 1e-8
     (exact data: round-off and the load term's fixed point, 1e-13), and predicts another motion's torques
-    to 1e-8 of its loads: without the families' columns, the same fit misses by more than 1e-3. The estimators'
+    to 1e-8 of its loads: without the families' columns, the same fit misses by more than 1e-3. The study's
+    Eq. 111 reproduces the recorded accelerations and reactions to 1e-9 (2e-14 measured), the bodies' torques
+    read off the drive torques through the load term (friction.rigid_torque; without it, 0.17). The estimators'
     fits, which have no family columns, are refused in one line."""
     _families_model(tmp_path)
     motion = {}
     for name in ("ur5_friction", "ur5_friction_validation"):
         text = (SCENARIOS / f"{name}.toml").read_text()
         motion[name] = text[text.index("[motion.shoulder_pan_joint]"): text.index("# Gates beyond")]
-    head = ('[scenario]\nmodel = "families.toml"\nduration = 1.5\noutput_steps = 60\n'
+    head = ('[scenario]\nmodel = "families.toml"\nduration = 1.5\noutput_steps = 60\nsample_times = "all"\n'
             '[simulation]\nintegrator = "RK4"\ntimestep = 0.0005\ntracking_bandwidth = 20.0\n')
     engines = '[[gates]]\nmetric = "torques.pinocchio_vs_mujoco.max_rel_error"\nlimit = 1e-9\n'
     (tmp_path / "v.toml").write_text(head + motion["ur5_friction_validation"] + engines)
     (tmp_path / "s.toml").write_text(
         head + '[model_under_test]\nname = "graph"\nplugin = "graph_theory_2021"\n'
-        '[torque_identification]\nvalidation = "v.toml"\n' + motion["ur5_friction"]
+        '[studies.graph_theory_2021]\n[torque_identification]\nvalidation = "v.toml"\n' + motion["ur5_friction"]
         + "".join(f'[[gates]]\nmetric = "torques.{pair}.max_rel_error"\nlimit = 1e-9\n'
                   for pair in ("pinocchio_vs_mujoco", "graph_vs_mujoco", "graph_vs_pinocchio"))
         + "".join(f'[[gates]]\nmetric = "torque_identification.{m}"\nlimit = 1e-8\n'
-                  for m in ("max_rel_error", "validation.max_rel_error", "friction.max_rel_error")))
+                  for m in ("max_rel_error", "validation.max_rel_error", "friction.max_rel_error"))
+        + "".join(f'[[gates]]\nmetric = "lagrange.formulations.normal.{m}_check_max_rel_error"\nlimit = 1e-9\n'
+                  for m in ("acceleration", "reaction")))
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     r = json.loads((tmp_path / "out" / "results.json").read_text())
     assert r["torques"]["pinocchio_vs_mujoco"]["max_rel_error"] <= 1e-9

@@ -19,12 +19,15 @@ from harness.model.spec import Joint
 def read_friction(t: Table, base: JointFriction = NO_FRICTION) -> JointFriction:
     """The optional keys of a joint's table (harness/model/friction.py): armature, viscous, coulomb,
     coulomb_velocity, stribeck_velocity and stiffness non-negative; offset, viscous_asymmetry,
-    coulomb_asymmetry, stribeck and load_coulomb of any sign. Keys not given keep `base` (a URDF's
-    <dynamics>, an MJCF joint's own)."""
+    coulomb_asymmetry and stribeck of any sign, load_coulomb too but under 1 in size. Keys not given keep
+    `base` (a URDF's <dynamics>, an MJCF joint's own)."""
     values = {k: t.number(k, default=getattr(base, k), nonnegative=k in NONNEGATIVE) for k in FRICTION_KEYS
               if t.has(k) or getattr(base, k)}
     if values.get("stribeck") and not values.get("stribeck_velocity"):
         raise t.error("stribeck_velocity", "a Stribeck term needs its velocity (> 0)")
+    if abs(values.get("load_coulomb", 0.0)) >= 1.0:  # friction.rigid_torque reads the load back only below 1
+        raise t.error("load_coulomb", f"{values['load_coulomb']:g}: a load-dependent term is a fraction of the load "
+                                      "(|f_l| < 1), or the friction would outgrow the torque it depends on")
     return JointFriction(**values)
 
 

@@ -25,7 +25,7 @@ v_c and v_s are chosen. The law is written once, here; every engine and model ta
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -157,6 +157,20 @@ def torque(frictions: tuple[JointFriction, ...], qd: np.ndarray, qdd: np.ndarray
         _needs_position(frictions, q)
         out = out + np.einsum("nja,ja->nj", extra_columns(frictions, qd, tau_rigid, q), extra_values(frictions))
     return out
+
+
+def rigid_torque(frictions: tuple[JointFriction, ...], tau: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                 q: np.ndarray | None = None) -> np.ndarray:
+    """(N, n): the rigid-body torque tau_R a drive torque tau (N, n) leaves the bodies, the law (`torque`)
+    inverted: tau = tau_R + f(q, q', q'') + f_l |tau_R| s, f every term but the load's; with r = tau - f,
+    tau_R (1 + f_l s sign(tau_R)) = r, and since |f_l s| < 1 (a model's |f_l| is under 1:
+    harness/model/drive_tables.py) tau_R has r's sign: tau_R = r / (1 + f_l s sign(r))."""
+    load = np.array([f.load_coulomb for f in frictions])
+    r = tau - torque(tuple(replace(f, load_coulomb=0.0) for f in frictions), qd, qdd, q=q)
+    if not np.any(load):
+        return r
+    s = coulomb_shape(qd, np.array([f.coulomb_velocity for f in frictions]))
+    return r / (1.0 + load * s * np.sign(r))
 
 
 @dataclass(frozen=True, eq=False)

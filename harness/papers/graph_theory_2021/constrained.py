@@ -219,8 +219,9 @@ def solve_constrained(spec: RobotSpec, model: GraphModel, constraints: Constrain
     phi_dot = np.where(ok[:, None], np.einsum("nmk,nk->nm", Phi_q, state.q_dot), np.nan)
     M = generalized_mass(model, s.theta)
     cols = [rec.joint_index(j) for j in spec.joint_names]
-    # the drives' friction and rotor inertia act between motor and joint: the bodies get the rest
-    tau = rec.tau[:, cols] - friction.torque(spec.frictions, rec.qd[:, cols], rec.qdd[:, cols], q=rec.q[:, cols])
+    # the drives' friction and rotor inertia act between motor and joint: the bodies get the rest (a
+    # load-dependent term read back from the drive torque: friction.rigid_torque)
+    tau = friction.rigid_torque(spec.frictions, rec.tau[:, cols], rec.qd[:, cols], rec.qdd[:, cols], rec.q[:, cols])
     F_a, M_a = active_wrenches(spec, model, tau, s.A, state.r, rec.q[:, cols])
     Q = generalized_forces(model, s.theta, thd, s.A, F_a, M_a)
     K = kkt_matrix(M, Phi_q)
