@@ -91,46 +91,53 @@ class TorqueRows:
     def load(self) -> np.ndarray:
         return np.array([key == "load_coulomb" for _, key in self.terms], dtype=bool)
 
-    def rows(self, q, qd, qdd, beta: np.ndarray | None = None) -> np.ndarray:
-        """(N n, r + e): the base parameters' columns, then the families' (a load term's from the rigid
-        torque of the fit `beta`; zero where none is given)."""
-        pm, base, chain = self.pm, self.base, self.chain
-        W = (regressor(pm, q, qd, qdd, base.with_friction) if chain is None else
-             chain_regressor(pm, chain, q, qd, qdd, base.with_friction))[:, base.independent]
-        if not self.terms:
-            return W
-        rigid = None if beta is None or not self.load.any() else self.rigid_torque(beta, q, qd, qdd)
+    def base_rows(self, q, qd, qdd) -> np.ndarray:
+        """(N n, r): the base parameters' columns (a closed chain's actuated rows, through G^T)."""
+        pm, base = self.pm, self.base
+        W = (regressor(pm, q, qd, qdd, base.with_friction) if self.chain is None else
+             chain_regressor(pm, self.chain, q, qd, qdd, base.with_friction))
+        return W[:, base.independent]
+
+    def family_rows(self, q, qd, W: np.ndarray, beta: np.ndarray | None = None) -> np.ndarray:
+        """(N n, e): the families' columns at the states whose base rows are W, a load term's from the
+        rigid-body torque of the fit `beta` (zero where none is given). A load term is a tree's: a closed
+        chain's law cannot depend on the load (harness/model/load.py)."""
+        rigid = None
+        if beta is not None and self.load.any():
+            r = len(self.base.independent)
+            rigid = (W @ links_weights(beta[:r], self.link_part)).reshape(qd.shape)
         N, n = qd.shape
-        E = extra_regressor(self.laws, qd, rigid, pm.transmission, q=q)
-        if chain is not None:
-            from harness.model.closure import projection
+        E = extra_regressor(self.laws, qd, rigid, self.pm.transmission, q=q)
+        if self.chain is None:
+            return E
+        from harness.model.closure import projection
 
-            E = np.einsum("nja,nje->nae", projection(chain, q), E.reshape(N, n, -1)).reshape(len(W), -1)
-        return np.hstack([W, E])
+        return np.einsum("nja,nje->nae", projection(self.chain, q), E.reshape(N, n, -1)).reshape(len(W), -1)
 
-    def rigid_torque(self, beta: np.ndarray, q, qd, qdd) -> np.ndarray:
-        """(N, n) every joint's rigid-body torque of the fit beta (the tree's, a closed chain's too)."""
-        W = regressor(self.pm, q, qd, qdd, self.base.with_friction)[:, self.base.independent]
-        r = len(self.base.independent)
-        return (W @ links_weights(beta[:r], self.link_part)).reshape(qd.shape)
+    def rows(self, q, qd, qdd, beta: np.ndarray | None = None) -> np.ndarray:
+        """(N n, r + e): the base parameters' columns, then the families'."""
+        W = self.base_rows(q, qd, qdd)
+        return np.hstack([W, self.family_rows(q, qd, W, beta)]) if self.terms else W
 
     def predict(self, beta: np.ndarray, q, qd, qdd) -> np.ndarray:
         return self.rows(q, qd, qdd, beta) @ beta
 
     def fit(self, q, qd, qdd, tau, beta_model: np.ndarray) -> Estimate:
-        """fit_base of the rows; with load-dependent terms, the fixed point of the class docstring."""
-        A = self.rows(q, qd, qdd)
+        """fit_base of the rows; with load-dependent terms, the fixed point of the class docstring (the base
+        rows made once, the families' columns again at each step)."""
+        W = self.base_rows(q, qd, qdd)
         if not self.load.any():
-            return fit_base(A, tau, beta_model)
-        keep = np.concatenate([np.ones(len(self.base.independent), dtype=bool), ~self.load])
-        first = fit_base(A[:, keep], tau, beta_model[keep])
+            return fit_base(np.hstack([W, self.family_rows(q, qd, W)]) if self.terms else W, tau, beta_model)
+        r = len(self.base.independent)
+        keep = np.concatenate([np.ones(r, dtype=bool), ~self.load])
+        fit = fit_base(np.hstack([W, self.family_rows(q, qd, W)])[:, keep], tau, beta_model[keep])
         beta = np.zeros(len(beta_model))
-        beta[keep] = first.beta
-        rigid = self.rigid_torque(beta, q, qd, qdd)
+        beta[keep] = fit.beta
         for _ in range(FIXED_POINT_ITERATIONS):
-            fit = fit_base(self.rows(q, qd, qdd, beta), tau, beta_model)
-            beta, before = fit.beta, rigid
-            rigid = self.rigid_torque(beta, q, qd, qdd)
-            if np.max(np.abs(rigid - before)) <= FIXED_POINT_TOL * np.max(np.abs(rigid)):
+            rigid = W @ links_weights(beta[:r], self.link_part)
+            fit = fit_base(np.hstack([W, self.family_rows(q, qd, W, beta)]), tau, beta_model)
+            beta = fit.beta
+            moved = W @ links_weights(beta[:r], self.link_part) - rigid
+            if np.max(np.abs(moved)) <= FIXED_POINT_TOL * np.max(np.abs(rigid + moved)):
                 break
         return fit
