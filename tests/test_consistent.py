@@ -50,11 +50,8 @@ def _fit(problem, monkeypatch, solvers):
 
 
 def _physical(fit, theta_model) -> bool:
-    """Every link's pseudo-inertia at least MARGIN of its own model's largest eigenvalue from singular, and
-    the drives' rotor inertia, viscous and Coulomb terms non-negative."""
-    return (all(np.linalg.eigvalsh(pseudo_inertia(t))[0]
-                >= consistent.MARGIN * np.max(np.linalg.eigvalsh(pseudo_inertia(t0))) * (1 - 1e-6)
-                for t, t0 in zip(fit.theta, theta_model, strict=True))
+    eps = consistent.MARGIN * max(np.max(np.linalg.eigvalsh(pseudo_inertia(t))) for t in theta_model)
+    return (all(np.linalg.eigvalsh(pseudo_inertia(t))[0] >= eps * (1 - 1e-6) for t in fit.theta)
             and np.all(fit.friction[:, :3] >= -1e-9))
 
 
@@ -171,8 +168,7 @@ def test_a_link_on_the_margin_or_far_from_the_model_is_consistent_and_its_warnin
     held, heavy = nearest_physical(past, margin), body * 9.0
     assert not consistent.consistency(past)["consistent"]
     assert consistent.consistency(held)["consistent"] and consistent.consistency(heavy)["consistent"]
-    p = consistent.plausibility(np.stack([held, heavy]), np.stack([body, body]), ["j1", "j2"],
-                                np.array([margin, 9.0 * margin]))
+    p = consistent.plausibility(np.stack([held, heavy]), np.stack([body, body]), ["j1", "j2"], margin)
     assert p["on_margin"] == ["j1"] and p["implausible"] == ["j2"]
     said = consistent.plausibility_warnings(p)
     assert "j2 (mass x9" in said[0] and "physically consistent all the same" in said[0]
@@ -259,24 +255,3 @@ def test_drive_terms_the_data_push_past_physical_are_held_where_bounded_least_sq
     assert got[:3].min() >= -1e-9 and abs(got[4]) <= got[1] * (1 + 1e-7)
     assert max(abs(reference[0]), abs(reference[2])) < 1e-9 and abs(reference[4]) == pytest.approx(reference[1])  # held
     assert np.abs(got - reference).max() <= 1e-6 * np.abs(reference).max()
-
-
-def test_a_light_link_beside_a_heavy_one_is_held_to_its_own_margin_and_comes_back():
-    """A 10 kg link and a 1 g one (a finger beside an arm) seen by an orthonormal random regressor (600 rows),
-    the model the truth, the torques exact: the light link's smallest pseudo-inertia eigenvalue (2.5e-6)
-    is under MARGIN of the heavy link's scale (about 1e-5) but far over MARGIN of its own (about 1e-9). Each
-    link held to its own margin, both come back to 1e-6 of their own parameters' scale (the solver stops
-    within 1e-7 of the optimum); a margin from the heaviest link would move the light one by its own size."""
-    rng = np.random.default_rng(8)
-    W = np.sqrt(600) * np.linalg.qr(rng.standard_normal((600, 28)))[0]
-    links = np.stack([_link(10.0), _link(1e-3)])
-    friction = np.array([[0.01, 0.1, 0.2, 0.0], [0.001, 0.01, 0.02, 0.0]])
-    tau = W @ np.concatenate([links.ravel(), friction.ravel()])
-    scale = np.concatenate([kind_scale(links[0]), kind_scale(links[1]), np.ones(8)])
-    light = np.linalg.eigvalsh(pseudo_inertia(links[1]))
-    heavy = np.linalg.eigvalsh(pseudo_inertia(links[0]))
-    assert consistent.MARGIN * light[-1] < light[0] < consistent.MARGIN * heavy[-1]  # the case the test is for
-    fit = consistent.fit(W, tau, links, friction, scale)
-    for got, truth in zip(fit.theta, links, strict=True):
-        assert np.max(np.abs(got - truth) / kind_scale(truth)) <= 1e-6
-    np.testing.assert_allclose(fit.margin, consistent.MARGIN * np.array([heavy[-1], light[-1]]), rtol=1e-12)
