@@ -98,16 +98,17 @@ class TorqueRows:
              chain_regressor(pm, self.chain, q, qd, qdd, base.with_friction))
         return W[:, base.independent]
 
-    def family_rows(self, q, qd, W: np.ndarray, beta: np.ndarray | None = None) -> np.ndarray:
+    def rigid_torque(self, W: np.ndarray, beta: np.ndarray) -> np.ndarray:
+        """(N n,) the rigid-body torque of the fit beta at the states whose base rows are W: the base
+        parameters that hold a link's inertia, less the drive's share (links_weights)."""
+        return W @ links_weights(beta[: len(self.base.independent)], self.link_part)
+
+    def family_rows(self, q, qd, W: np.ndarray, rigid: np.ndarray | None = None) -> np.ndarray:
         """(N n, e): the families' columns at the states whose base rows are W, a load term's from the
-        rigid-body torque of the fit `beta` (zero where none is given). A load term is a tree's: a closed
-        chain's law cannot depend on the load (harness/model/load.py)."""
-        rigid = None
-        if beta is not None and self.load.any():
-            r = len(self.base.independent)
-            rigid = (W @ links_weights(beta[:r], self.link_part)).reshape(qd.shape)
+        rigid-body torque `rigid` (`rigid_torque`; zero where none is given). A load term is a tree's: a
+        closed chain's law cannot depend on the load (harness/model/load.py)."""
         N, n = qd.shape
-        E = extra_regressor(self.laws, qd, rigid, self.pm.transmission, q=q)
+        E = extra_regressor(self.laws, qd, None if rigid is None else rigid.reshape(N, n), self.pm.transmission, q=q)
         if self.chain is None:
             return E
         from harness.model.closure import projection
@@ -115,9 +116,13 @@ class TorqueRows:
         return np.einsum("nja,nje->nae", projection(self.chain, q), E.reshape(N, n, -1)).reshape(len(W), -1)
 
     def rows(self, q, qd, qdd, beta: np.ndarray | None = None) -> np.ndarray:
-        """(N n, r + e): the base parameters' columns, then the families'."""
+        """(N n, r + e): the base parameters' columns, then the families' (a load term's at the rigid torque
+        of the fit `beta`)."""
         W = self.base_rows(q, qd, qdd)
-        return np.hstack([W, self.family_rows(q, qd, W, beta)]) if self.terms else W
+        if not self.terms:
+            return W
+        rigid = None if beta is None or not self.load.any() else self.rigid_torque(W, beta)
+        return np.hstack([W, self.family_rows(q, qd, W, rigid)])
 
     def predict(self, beta: np.ndarray, q, qd, qdd) -> np.ndarray:
         return self.rows(q, qd, qdd, beta) @ beta
@@ -128,16 +133,14 @@ class TorqueRows:
         W = self.base_rows(q, qd, qdd)
         if not self.load.any():
             return fit_base(np.hstack([W, self.family_rows(q, qd, W)]) if self.terms else W, tau, beta_model)
-        r = len(self.base.independent)
-        keep = np.concatenate([np.ones(r, dtype=bool), ~self.load])
+        keep = np.concatenate([np.ones(W.shape[1], dtype=bool), ~self.load])
         fit = fit_base(np.hstack([W, self.family_rows(q, qd, W)])[:, keep], tau, beta_model[keep])
         beta = np.zeros(len(beta_model))
         beta[keep] = fit.beta
+        rigid = self.rigid_torque(W, beta)
         for _ in range(FIXED_POINT_ITERATIONS):
-            rigid = W @ links_weights(beta[:r], self.link_part)
-            fit = fit_base(np.hstack([W, self.family_rows(q, qd, W, beta)]), tau, beta_model)
-            beta = fit.beta
-            moved = W @ links_weights(beta[:r], self.link_part) - rigid
-            if np.max(np.abs(moved)) <= FIXED_POINT_TOL * np.max(np.abs(rigid + moved)):
+            fit = fit_base(np.hstack([W, self.family_rows(q, qd, W, rigid)]), tau, beta_model)
+            rigid, before = self.rigid_torque(W, fit.beta), rigid
+            if np.max(np.abs(rigid - before)) <= FIXED_POINT_TOL * np.max(np.abs(rigid)):
                 break
         return fit

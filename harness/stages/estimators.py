@@ -28,7 +28,7 @@ from harness.identify.torque_id import parameter_names, regressor, true_paramete
 from harness.identify.trials import over_trials
 from harness.sources.measurement import Measurement, measure, savgol
 from harness.stages.metrics import joint_load_scale
-from harness.stages.shared import families_of, structural_base_of, torque_config
+from harness.stages.shared import families_refused, structural_base_of, torque_config
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,9 +112,8 @@ def configure(t, scenario) -> EstimatorsConfig:
     if torque_config(scenario) is None:
         raise t.error("methods", "estimators are judged on a validation trajectory: give "
                                  "[torque_identification] validation = ...")
-    if torque_config(scenario).friction and (families := families_of(scenario.robot)):
-        raise t.error("methods", "the estimators fit each drive's rotor inertia, viscous and Coulomb friction and "
-                                 f"offset, not a friction family's terms: {', '.join(families)}")
+    if torque_config(scenario).friction and (why := families_refused(scenario.robot, "the estimators fit")):
+        raise t.error("methods", why)
     config = EstimatorsConfig(tuple(t.strings("methods", choices=tuple(ESTIMATORS), default=list(ESTIMATORS))),
                               t.integer("trials", default=200, minimum=2))
     if config.trials > MAX_TRIALS:

@@ -31,7 +31,7 @@ from harness.identify.trials import over_trials
 from harness.model import friction
 from harness.stages.metrics import joint_load_scale
 from harness.stages.plugin_fits import BaseMap, BaseTable, SkippedMethod, base_map, base_table, fit_method
-from harness.stages.shared import TorqueConfig, chain_of, families_of, structural_base_of, torque_config
+from harness.stages.shared import TorqueConfig, chain_of, families_refused, structural_base_of, torque_config
 
 
 def configure_torque(t, scenario) -> TorqueConfig:
@@ -52,9 +52,8 @@ def configure_torque(t, scenario) -> TorqueConfig:
         return TorqueConfig(validation, t.boolean("friction", default=declared))
     rows = t.string("rows", default="all", choices=ROWS)
     fit_friction = t.boolean("friction", default=declared and rows == "all")
-    if fit_friction and (families := families_of(scenario.robot)):
-        raise t.error("friction", "a floating base's fit identifies each drive's rotor inertia, viscous and Coulomb "
-                                  f"friction and offset, not a friction family's terms: {', '.join(families)}")
+    if fit_friction and (why := families_refused(scenario.robot, "a floating base's fit identifies")):
+        raise t.error("friction", why)
     if fit_friction and rows == "base":
         raise t.error("friction", "the joints' friction and rotor inertia never reach the base rows: rows = \"all\" "
                                   "identifies them on the joints' own")
@@ -152,7 +151,7 @@ class BuiltinIdentification:
         r = len(ti.base.independent)
         alone = {ti.base.independent[k]: k for k in range(r)
                  if not np.any(np.abs(ti.base.combination[k]) > COEFFICIENT_FLOOR)}
-        alone |= {c: r + i for i, c in enumerate(range(len(ti.names), len(ti.names) + len(ti.families)))}
+        alone |= {len(ti.names) + i: r + i for i in range(len(ti.families))}  # each family coefficient its own
         joints: dict[str, dict] = {}
         errors, where = [], []
         for c, name in enumerate([*ti.names, *ti.families]):

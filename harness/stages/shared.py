@@ -33,11 +33,14 @@ def with_friction(scenario) -> bool:
     return config is not None and config.friction
 
 
-def families_of(robot) -> list[str]:
-    """The drives whose law has a friction family's terms (harness/model/friction.py, FAMILIES), as
-    "drive (family)": what a fit of the plain law's four terms alone cannot identify."""
-    return [f"{d} ({f.family})" for d, f in zip(robot.drive_names, robot.frictions, strict=True)
-            if f.family != "viscous_coulomb"]
+def families_refused(robot, fit: str) -> str | None:
+    """Why `fit` (a fit with the plain law's four drive columns alone, "the estimators fit") cannot take this
+    robot: its drives whose law has a friction family's terms (harness/model/friction.py, FAMILIES), as
+    "drive (family)"; None where none has."""
+    families = [f"{d} ({f.family})" for d, f in zip(robot.drive_names, robot.frictions, strict=True)
+                if f.family != "viscous_coulomb"]
+    return (f"{fit} each drive's rotor inertia, viscous and Coulomb friction and offset, not a friction family's "
+            f"terms: {', '.join(families)}") if families else None
 
 
 def structural_base_of(ctx):
