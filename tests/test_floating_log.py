@@ -281,18 +281,28 @@ def test_a_fixed_base_robot_s_log_has_no_base_to_read(tmp_path):
     assert err.value.key == "data.base" and "no floating base" in str(err.value)
 
 
+SHIPPED_TOL = 1e-8  # of a column's largest value: a processor's last bits carried through 10 s of contacts
+
+
 @pytest.mark.slow  # the benches' 10 s: about 25 s for the quadruped, 55 s for the humanoid
 @pytest.mark.parametrize("bench", [BENCH, BENCH.parent / "g1_standing_bench"], ids=["solo12", "g1"])
 def test_the_shipped_log_is_its_bench_measured(tmp_path, bench):
     """harness/data/logs/solo12_standing_bench/log.csv (and g1_standing_bench's, the humanoid on its soles) is
-    its bench.toml's recording, measured and written as the README says: remade here, every value to the last
-    bit."""
+    its bench.toml's recording, measured and written as the README says: remade here, the same columns and
+    rows, every column within SHIPPED_TOL of its largest value. Not to the last bit: MuJoCo's arithmetic
+    differs in its last bits between processors (its vector paths), and 10 s of contacts carry that to
+    4.5e-10 of a sole's force (the shipped files made on an AMD EPYC, remade on an Intel Xeon); a change of
+    the bench's model, motion or noise moves them by many orders more."""
     from harness.sources.bench import write_log
     from harness.sources.measurement import measure
 
     sc = load_scenario(bench / "bench.toml")
     write_log(measure(record(sc), sc.measurement), sc.robot.joint_names, tmp_path / "log.csv")
-    assert (tmp_path / "log.csv").read_bytes() == (bench / "log.csv").read_bytes()
+    made, shipped = (pd.read_csv(path) for path in (tmp_path / "log.csv", bench / "log.csv"))
+    assert list(made.columns) == list(shipped.columns) and len(made) == len(shipped)
+    scale = shipped.abs().max().replace(0.0, 1.0)
+    worst = ((made - shipped).abs().max() / scale).sort_values()
+    assert worst.iloc[-1] <= SHIPPED_TOL, worst.tail(3)
 
 
 FRICTION = """[model]
