@@ -4,7 +4,9 @@ minutes; FIGAROH's rows need `pip install -e ".[figaroh]"`, else they say why no
 
 1. `harness run` of the built-in scenario, each in a fresh process: as shipped (panda_gaz2019: the data's
    README's conditioning, a 10 Hz low-pass and every 10th sample, set by hand), at the harness's
-   defaults (a copy without `rate`, `cutoff`, `filter_order` and `decimate`: the data choose), and the
+   defaults (a copy without `rate`, `cutoff`, `filter_order` and `decimate`: the data choose; the same with
+   gravity as the scenario declares it, `tilt = "declared"`, where the defaults read its direction off the
+   torques: harness/identify/gravity.py), and the
    shipped one at each cut-off of CUTOFFS, and the defaults with the logged velocities used as logged
    (`velocities = "used"`: the harness realigns a column whose lag behind the positions' rate of change
    explains their disagreement; the Panda's 2 to 9 ms lags do not, so this run is the defaults'): the hand tuning,
@@ -18,7 +20,8 @@ minutes; FIGAROH's rows need `pip install -e ".[figaroh]"`, else they say why no
 3. On the test rows, the relative torque error ||tau_model - tau_measured|| / ||tau_measured|| over all
    samples and joints of: each run's exported models (`harness.identified_model`, its consistent fit
    and its least squares); the plain least squares of plain_lstsq.py (Pinocchio's regressor, per joint
-   rotor inertia, viscous, tanh(q'/0.03) Coulomb and offset); FIGAROH's least squares and physical fit
+   rotor inertia, viscous, tanh(q'/0.03) Coulomb and offset), at the declared gravity and again told the
+   gravity the harness's defaults found; FIGAROH's least squares and physical fit
    through harness/adapters/figaroh.py on the same training rows.
 Writes reports/panda.json and prints a table.
 """
@@ -58,6 +61,9 @@ def variants(folder: Path) -> dict[str, Path]:
     used = [line if not line.startswith("validation = ") else 'velocities = "used"\n' + line for line in defaults]
     (folder / "velocities_used.toml").write_text("\n".join(used) + "\n")
     out["defaults, velocities as logged"] = folder / "velocities_used.toml"
+    level = [line if not line.startswith("validation = ") else 'tilt = "declared"\n' + line for line in defaults]
+    (folder / "gravity_declared.toml").write_text("\n".join(level) + "\n")
+    out["defaults, gravity as declared"] = folder / "gravity_declared.toml"
     head = shipped.split("[[identification]]")[0]  # [scenario] and [data]: no FIGAROH, no refinement
     gate = '[[gates]]\nname = "held out"\nmetric = "log_identification.validation_rel_error.consistent"\nlimit = 1\n'
     for cutoff in CUTOFFS:
@@ -77,6 +83,7 @@ def harness_runs(folder: Path) -> dict:
                                  str(into), "--quiet"], cwd=ROOT, capture_output=True).returncode
         results = json.loads((into / "results.json").read_text())
         out[name] = {"folder": into, "exit": status, "seconds": time.perf_counter() - t0,
+                     "gravity": results["log_identification"]["gravity"]["used"],
                      "own_validation_rel_error": results["log_identification"]["validation_rel_error"]["consistent"],
                      "conditioning_defaults": {k: v for k, v in (results["data"]["conditioning"]["defaults"] or {})
                                                .items() if k in ("cutoff_hz", "decimate")} or None}
@@ -97,6 +104,10 @@ def main() -> None:
     model, data = plain_lstsq.panda_model()
     theta = np.linalg.lstsq(plain_lstsq.regressor(model, data, q1, qd1, qdd1), tau1.ravel(), rcond=None)[0]
     rows["plain least squares"] = rel((plain_lstsq.regressor(model, data, q2, qd2, qdd2) @ theta).reshape(-1, 7), tau2)
+    model.gravity.linear = np.array(runs["defaults"]["gravity"])  # told the gravity the harness's defaults found
+    theta = np.linalg.lstsq(plain_lstsq.regressor(model, data, q1, qd1, qdd1), tau1.ravel(), rcond=None)[0]
+    rows["plain least squares at the defaults' gravity"] = rel(
+        (plain_lstsq.regressor(model, data, q2, qd2, qdd2) @ theta).reshape(-1, 7), tau2)
     fits = figaroh_fits(ROOT / "harness" / "data" / "models" / "panda_arm.toml", GRAVITY, q1, qd1, qdd1, tau1)
     for kind, fitted in fits.items():
         rows[f"FIGAROH {kind}"] = fitted if isinstance(fitted, str) else \

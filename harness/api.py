@@ -132,10 +132,12 @@ class IdentifiedModel(ExportedModel):
 
 def identified_model(folder: str | Path, fit: str = "consistent"):
     """The model a `harness run` of a measured log exported: `folder` is the run's output folder (with
-    results.json, whose scenario gives the gravity) or its `identified/` folder, read from its model
+    results.json) or its `identified/` folder, read from its model
     file (identified/robot.toml: the URDF with the drives' or joints' laws). A folder whose files are not
     all one run's, as it wrote them (identified/manifest.json; results.json's run id beside it), is
-    refused (InputError). `fit = "least squares"`:
+    refused (InputError). The gravity is the one the fits were made at (least_squares.toml's `gravity`: a
+    base off level read off the torques, harness/identify/gravity.py), else the scenario's in results.json,
+    else standard gravity along -z. `fit = "least squares"`:
     the least-squares fit of the base parameters (identified/least_squares.toml, evaluated with that
     model file's kinematics and laws; harness/identify/ls_model.py), with the same `joint_names` and
     `inverse_dynamics`."""
@@ -153,6 +155,10 @@ def identified_model(folder: str | Path, fit: str = "consistent"):
         raise InputError(model, "", "no identified model file here: a log run of a robot read from a URDF writes it "
                                     "(identified/robot.toml)")
     run = verify(here).run  # every file of one run, as it wrote them
+    from harness.identify.ls_model import LeastSquaresFit, LeastSquaresModel
+
+    path = here / LEAST_SQUARES_FILE
+    ls = LeastSquaresFit.read(path) if path.is_file() else None
     gravity = (0.0, 0.0, -9.80665)
     results = here.parent / "results.json"
     if results.is_file():
@@ -161,14 +167,12 @@ def identified_model(folder: str | Path, fit: str = "consistent"):
             raise InputError(results, "run.id", f"{written.get('run', {}).get('id')!r}, where {here.name}/ is run "
                                                 f"{run!r}'s: the two are not one run's")
         gravity = written.get("scenario", {}).get("gravity", gravity)
+    if ls is not None and ls.gravity_W is not None:  # the gravity the fits were made at (a base off level)
+        gravity = ls.gravity_W
     if fit == "consistent":
         return IdentifiedModel(load_spec(model), np.asarray(gravity, dtype=float))
-    from harness.identify.ls_model import LeastSquaresFit, LeastSquaresModel
-
-    path = here / LEAST_SQUARES_FILE
-    if not path.is_file():
+    if ls is None:
         raise InputError(path, "", "no least-squares fit here: a log run writes it (identified/least_squares.toml)")
-    ls = LeastSquaresFit.read(path)
     return LeastSquaresModel(ls, load_spec(here / ls.model), np.asarray(gravity, dtype=float))
 
 

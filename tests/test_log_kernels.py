@@ -105,7 +105,7 @@ def test_the_refinements_second_pass_starts_from_the_first_pass_delays(monkeypat
     judged = SimpleNamespace(t={"training": None}, states={"training": (None, None, None)},
                              measured={"training": None})
     li = SimpleNamespace(joints=["a", "b"][:n], judged=judged, fit=SimpleNamespace(theta=None), frictions=(),
-                         laws=SimpleNamespace(laws=()))
+                         laws=SimpleNamespace(laws=()), gravity=SimpleNamespace(gravity_W=None))
     ctx = SimpleNamespace(done={"log_identification": li}, scenario=SimpleNamespace(robot=None, gravity_W=None),
                           progress=lambda *a: None)
     refinement.run(ctx, RefineConfig(passes=3))

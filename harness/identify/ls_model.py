@@ -33,6 +33,7 @@ class LeastSquaresFit:
     link: np.ndarray  # (r,) bool: holds a link's inertial parameter
     share: np.ndarray  # (r,) the drive terms' share in it (subtracted for the rigid-body torque)
     families: list[str]  # (e,) "drive.term", in extra_terms order
+    gravity_W: np.ndarray | None = None  # (3,) m/s^2 the fit was made at (base axes); None in a file without it
 
     def to_toml(self, description: str) -> str:
         import tomli_w
@@ -41,6 +42,7 @@ class LeastSquaresFit:
         comment = "".join(f"# {line}\n" for line in description.splitlines())
         return comment + "\n" + tomli_w.dumps({"least_squares": {
             "format": FORMAT, "model": self.model,
+            **({"gravity": [float(x) for x in self.gravity_W]} if self.gravity_W is not None else {}),
             "parameter": [{"expression": self.expressions[k], "value": float(self.beta[k]),
                            **({"std": float(self.std[k])} if np.isfinite(self.std[k]) else {}),
                            **({"column": int(self.columns[k]), "link": bool(self.link[k]),
@@ -64,7 +66,8 @@ class LeastSquaresFit:
                    [str(p["expression"]) for p in rows], np.array([float(p["value"]) for p in rows]),
                    np.array([float(p.get("std", np.nan)) for p in rows]),
                    np.array([bool(p["link"]) for p in base]), np.array([float(p["drive_share"]) for p in base]),
-                   [str(p["family"]) for p in extra])
+                   [str(p["family"]) for p in extra],
+                   np.asarray(t["gravity"], dtype=float) if "gravity" in t else None)
 
 
 class ExportedModel:

@@ -38,7 +38,7 @@ from harness.base.numerics import SideBySide, fit_residual
 from harness.base.plugins import Stage
 from harness.base.series import TimeSeries
 from harness.engines.pinocchio import build_model, joint_torques
-from harness.identify import chain_law, consistent, delay, filtered, friction_law, scale
+from harness.identify import chain_law, consistent, delay, filtered, friction_law, gravity, scale
 from harness.identify.friction_law import FrictionLawConfig
 from harness.identify.laws import Law, extra_terms
 from harness.identify.ls_model import LeastSquaresFit, extra_terms_names
@@ -50,6 +50,7 @@ from harness.identify.torque_id import (
     fit_base,
     links_weights,
     parameter_names,
+    structural_base,
     with_structure,
 )
 from harness.model.export import (
@@ -285,12 +286,13 @@ class Judged:
 
 
 def judge(sc, model: LogModel, spans: dict[str, TimeSeries], fitted: Fitted, laws: tuple[Law, ...],
-          identified, given_training: np.ndarray) -> Judged:
+          identified, given_training: np.ndarray, tilt: gravity.Tilt) -> Judged:
     """Each span predicted by the least-squares fit, the consistent fit (`identified`, a RobotSpec)
     and the model as given (on the training span `given_training`, as the start check computed it)."""
     r = len(model.base.independent)
-    pm_truth = build_model(sc.truth, sc.gravity_W) if sc.truth is not None else None
-    pm_identified = build_model(identified, sc.gravity_W)
+    pm_truth = build_model(sc.truth, tilt.declared_W) if sc.truth is not None else None
+    pm_identified = build_model(identified, tilt.gravity_W)
+    pm_given = build_model(sc.robot, tilt.declared_W)  # the model and the gravity the scenario states
     out = Judged({}, {}, {}, {}, {}, None)
     for name, series in spans.items():
         q, qd, qdd, tau = model.data(series)
@@ -303,7 +305,7 @@ def judge(sc, model: LogModel, spans: dict[str, TimeSeries], fitted: Fitted, law
         out.predictions[name] = {"least squares": (W_span @ fitted.ls.beta).reshape(tau.shape),
                                  "consistent": model.torques(pm_identified, q, qd, qdd),
                                  "model as given": given_training if name == "training" else
-                                 model.torques(model.pm, q, qd, qdd)}
+                                 model.torques(pm_given, q, qd, qdd)}
         if name == "validation":  # the model class's floor there: its least squares on that span itself
             floor = fit_residual(W_span, tau.ravel())  # its residual, from its rows' QR
             out = _with_floor(out, floor / float(np.linalg.norm(tau)))
@@ -326,28 +328,30 @@ class Exported:
     refused: str | None
 
 
-def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], theta: np.ndarray,
+def export_model(sc, gravity_W: np.ndarray, robot, identified, frictions: tuple[JointFriction, ...], theta: np.ndarray,
                  training: TrainingSpan, W: np.ndarray | RowsOnDemand, ls: LeastSquaresFit) -> Exported:
     """A closed chain's friction mapping is judged against each joint's torque in the identified tree
     (rnea at the training span's states: what each joint carries, the loops' forces included, its
     drive's or its bearing's), a passive joint having no measured torque of its own."""
     q, qd, qdd, tau = training.joint_data(robot.joint_names)
+    g = ", ".join(f"{x:.17g}" for x in gravity_W)
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
-                   "physically consistent inertial parameters, friction and rotor inertia")
+                   f"physically consistent inertial parameters, friction and rotor inertia, at gravity [{g}] m/s^2 "
+                   "in the base's axes")
     files = export(robot, theta, frictions, description)
     files[f"identified/{LEAST_SQUARES_FILE}"] = ls.to_toml(
         f"{robot.name}: the least-squares fit of its base parameters from {sc.data.file.name} by harness (scenario "
         f"{sc.name}).\nFormat: docs/reference.md, 'The least-squares fit'; harness.identified_model(folder, "
         "fit=\"least squares\") evaluates it.")
     if robot.loops or sc.data.unmeasured:  # every joint's torque in the identified model
-        mapping = coulomb_mapping(identified, qd, joint_torques(build_model(identified, sc.gravity_W), q, qd, qdd))
+        mapping = coulomb_mapping(identified, qd, joint_torques(build_model(identified, gravity_W), q, qd, qdd))
     else:
         mapping = coulomb_mapping(identified, qd, tau, links_torque(W, theta, tau.shape))
     worst = max(mapping, key=lambda j: mapping[j]["rms"])
     refused = None
     try:  # MuJoCo's compiler has checks of its own: what it refuses is said, not a crash
         files[f"identified/{MJCF_FILE}"] = write_mjcf(
-            identified, sc.gravity_W,
+            identified, gravity_W,
             f"{description}.\nCoulomb friction as MuJoCo's frictionloss (dry friction, a sharp sign) instead of "
             f"f_c tanh(q'/v_c), and no torque offset: at the training span's velocities, up to "
             f"{mapping[worst]['rms']:.3g} of the RMS torque (joint {worst}; per joint in README.md). Rotor inertia, "
@@ -360,13 +364,14 @@ def export_model(sc, robot, identified, frictions: tuple[JointFriction, ...], th
 
 
 def least_squares_fit(model: LogModel, fitted: Fitted, names: list[str], laws: tuple[Law, ...],
-                      drives: list[str]) -> LeastSquaresFit:
+                      drives: list[str], gravity_W: np.ndarray) -> LeastSquaresFit:
     """Step 8's least-squares file: the fit, its columns and what each parameter stands for."""
     base, r = model.base, len(model.base.independent)
     families = extra_terms_names(laws, drives)
     link, share = model.link_part
     return LeastSquaresFit(MODEL_FILE, base.independent, [describe_base(names, base, k) for k in range(r)] + families,
-                           fitted.ls.beta, np.asarray(fitted.ls.std, dtype=float), link, share, families)
+                           fitted.ls.beta, np.asarray(fitted.ls.std, dtype=float), link, share, families,
+                           np.asarray(gravity_W, dtype=float))
 
 
 @dataclass(frozen=True, eq=False)
@@ -389,6 +394,7 @@ class LogIdentification:
     prediction: dict  # results.json's `prediction` (log_judge.prediction)
     exported: Exported
     start: Start  # the model as given against the log as read (log_judge.start)
+    gravity: gravity.Tilt  # the gravity the fits, the judging and the exports use
     warnings: list[str] = field(default_factory=list)  # what the terminal is told
 
     @property
@@ -425,6 +431,11 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
 
     started = start(given, model.data(delayed.training)[3], model.torque_joints, weightless,
                     sc.data.counterbalanced)
+    if sc.data.tilt != "declared":
+        ctx.progress("gravity's direction in the base's axes (cross-validated within the training span)", None)
+    tilt = gravity_of(sc.data.tilt, robot, sc.gravity_W, model, *model.data(fits_on(scaled.training)))
+    if tilt.chosen:  # every fit and the exports at the torques' gravity, with its base parameters
+        model = log_model(robot, tilt.gravity_W, sc.data.unmeasured, sc.data.counterbalanced)
     config = config or FrictionLawConfig()
     if config.choose:
         ctx.progress("the friction law of every joint (cross-validated within the training span)", None)
@@ -432,7 +443,7 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     # make theirs (one training regressor is held at a time)
     delayed = dataclasses.replace(delayed, W=None)
     laws = friction_laws(config, robot, model, joints, scaled.training)
-    fitted = least_squares(robot, sc.gravity_W, model, joints, scaled.training, laws, sc.data.repeat)
+    fitted = least_squares(robot, tilt.gravity_W, model, joints, scaled.training, laws, sc.data.repeat)
     ctx.progress("physically consistent parameters (semidefinite program)", None)
     tau = model.data(scaled.training)[3]
     fit, frictions = consistent.fit_with_laws(fitted.W, fitted.E, tau, laws.laws, model.theta,
@@ -444,22 +455,43 @@ def run(ctx, config: FrictionLawConfig | None) -> LogIdentification | None:
     validation = as_fitted(ctx.validation.get(VALIDATION_SPAN), delayed.lags if delayed.corrected else None,
                            None if scaled.scales is None else scaled.scales.factor, model.torque_joints)
     spans = {"training": scaled.training, **({"validation": validation} if validation is not None else {})}
-    judged = judge(sc, model, spans, fitted, laws.laws, identified, given)
+    judged = judge(sc, model, spans, fitted, laws.laws, identified, given, tilt)
     ctx.progress("the models forward-simulated under the measured torques", None)
     span = "validation" if "validation" in spans else "training"
     q, qd, _ = judged.states[span]
     models = {"consistent": identified, "model as given": robot, **({"truth": sc.truth} if sc.truth else {})}
-    predicted = prediction(sc.gravity_W, models, judged.t[span], q, qd, judged.measured[span], span, joints,
+    gravities = {name: tilt.gravity_W if name == "consistent" else tilt.declared_W for name in models}
+    predicted = prediction(gravities, models, judged.t[span], q, qd, judged.measured[span], span, joints,
                            not_made=_not_driven(sc.data, model), plan=sc.data.prediction)
     names = parameter_names(joints, True, robot.drive_names)
-    exported = export_model(sc, robot, identified, frictions, fit.theta, scaled.training, fitted.W,
-                            least_squares_fit(model, fitted, names, laws.laws, robot.drive_names))
+    exported = export_model(sc, tilt.gravity_W, robot, identified, frictions, fit.theta, scaled.training, fitted.W,
+                            least_squares_fit(model, fitted, names, laws.laws, robot.drive_names, tilt.gravity_W))
     plausible = consistent.plausibility(fit.theta, model.theta, joints, fit.margin)
     li = LogIdentification(joints, robot.drive_names, names, model,
                            delayed, scaled, laws, fitted, fit,
-                           frictions, plausible, judged, predicted, exported, started)
+                           frictions, plausible, judged, predicted, exported, started, tilt)
     li.warnings.extend(warnings(li, sc.data.delay))
     return li
+
+
+def gravity_of(mode: str, robot, gravity_W: np.ndarray, model: LogModel, q: np.ndarray, qd: np.ndarray,
+               qdd: np.ndarray, tau: np.ndarray) -> gravity.Tilt:
+    """The gravity the fits use (harness/identify/gravity.py) from the training span's states and torques: its
+    regressor at gravity 0 and along each axis, a chunk of samples at a time, on the base parameters' columns
+    of gravity in no special direction (gravity.GENERIC_TURN): a turned gravity reaches parameters the declared
+    one does not (a first link's first moment about a vertical first axis)."""
+    if mode == "declared":
+        return gravity.declared(gravity_W)
+    generic = structural_base(build_model(robot, gravity.turned(gravity_W, gravity.GENERIC_TURN)), robot.limits,
+                              with_friction=True, chain=model.chain, channels=model.channels,
+                              weightless=model.weightless)
+    pms = {None: build_model(robot, np.zeros(3)), **{i: build_model(robot, np.eye(3)[i]) for i in range(3)}}
+
+    def rows(i: int | None, sl: slice) -> np.ndarray:
+        W = model.rows(pms[i], q[sl], qd[sl], qdd[sl])
+        return W.whole() if isinstance(W, RowsOnDemand) else W
+
+    return gravity.tilt(mode, gravity_W, rows, tau, generic.independent, len(robot.joints))
 
 
 def _not_driven(data, model: LogModel) -> str | None:
@@ -488,6 +520,12 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
         out.append("counterbalanced channels ([data] counterbalanced) fitted without their joints' gravity: "
                    f"{', '.join(li.joints[k] for k in li.model.weightless)}; the exported model has no counterweight "
                    "or spring (a simulation of it needs one at those joints); no forward prediction")
+    if li.gravity.chosen:
+        g = li.gravity.gravity_W
+        out.append(f"gravity as the torques give it, {li.gravity.reason}: [{g[0]:.4g}, {g[1]:.4g}, {g[2]:.4g}] "
+                   "m/s^2 in the base's axes (the base mounted off level?); the fits, the consistent model's "
+                   "prediction and the exports use it (identified/robot.xml's <option gravity>; a URDF cannot hold "
+                   "it), [data] tilt = \"declared\" keeps the declared one (log_identification.gravity)")
     out += consistent.plausibility_warnings(li.plausible)
     out += consistent.band_warnings(li.fit, li.joints, li.model.theta)
     out += delay_warnings(lags, li.model.torque_joints, mode)

@@ -37,7 +37,7 @@ def prediction_starts(t: np.ndarray, reach: float, count: int) -> np.ndarray:
     return usable[evenly_spaced(len(usable), count)]
 
 
-def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
+def prediction(gravity_W: np.ndarray | dict, models: dict, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
                tau: np.ndarray, span: str, joints: list[str], delays: dict | None = None,
                not_made: str | None = None, plan: Prediction | None = None) -> dict:
     """Each model forward-simulated in MuJoCo from `plan.starts` measured states of a span (t (N,), q,
@@ -45,8 +45,11 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
     delays[model] (n,) s later where given: at each of `plan.horizons` the RMS and largest position and
     velocity error. Not made where the log's torques cannot drive the models (`not_made` says why:
     joints without a torque, a counterweight the models lack) or no start is asked for, said. `plan`:
-    [data] prediction's (harness/sources/log/schema.py, Prediction; None, its defaults)."""
+    [data] prediction's (harness/sources/log/schema.py, Prediction; None, its defaults). `gravity_W`: one
+    for every model, or each model's by name (a log's identified models at the gravity the torques give,
+    the model as given at the declared one: harness/identify/gravity.py)."""
     plan = plan or Prediction()
+    gravity_W = gravity_W if isinstance(gravity_W, dict) else dict.fromkeys(models, gravity_W)
     horizons = plan.horizons
     starts = prediction_starts(t, horizons[-1], plan.starts)
     out = {"definition": f"from {len(starts)} measured states along the {span} span, each model forward-simulated "
@@ -66,7 +69,7 @@ def prediction(gravity_W: np.ndarray, models: dict, t: np.ndarray, q: np.ndarray
         out["definition"] = CHAIN_PREDICTION + out["definition"].split("; at each horizon", 1)[1]
         chains = predict_chains(chains, gravity_W, t, q, qd, tau, starts, horizons)
     for name, spec in models.items():
-        q_err, qd_err = chains[name] if spec.loops else predict(spec, gravity_W, t, q, qd, tau, starts, horizons,
+        q_err, qd_err = chains[name] if spec.loops else predict(spec, gravity_W[name], t, q, qd, tau, starts, horizons,
                                                                 delay=(delays or {}).get(name))
         per = {}
         for h, horizon in enumerate(horizons):
@@ -131,7 +134,7 @@ def _stacked(pms: list, owners: np.ndarray):
     return TreeInverseDynamics(torques)
 
 
-def predict_chains(specs: dict, gravity_W: np.ndarray, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
+def predict_chains(specs: dict, gravity_W: dict, t: np.ndarray, q: np.ndarray, qd: np.ndarray,
                    tau_a: np.ndarray, starts: np.ndarray, horizons: tuple[float, ...],
                    timestep: float = PREDICTION_TIMESTEP) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """`predict` of closed chains, per model: from each start row every joint's measured (q, q')
@@ -157,7 +160,7 @@ def predict_chains(specs: dict, gravity_W: np.ndarray, t: np.ndarray, q: np.ndar
     out = {}
     for names in groups.values():
         chain = ClosedChain.of(specs[names[0]])
-        pms = [build_model(specs[name], gravity_W) for name in names]
+        pms = [build_model(specs[name], gravity_W[name]) for name in names]
         act = list(chain.actuated)
         model_of = np.repeat(np.arange(len(names)), B)  # rollout r: model model_of[r], start r % B
         q_h, qd_h = (np.full((len(names) * B, len(steps), n), np.nan) for _ in range(2))

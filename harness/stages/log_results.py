@@ -43,6 +43,7 @@ def serialise(li, ctx, config) -> dict:
                   for span, t in li.judged.t.items()},
         "errors": errors,
         "start": li.start.as_dict(),
+        "gravity": li.gravity.describe(),
         "validation_rel_error": {m: e["rel_error"] for m, e in headline.items()},
         **({"validation_cannot_see": CURRENTS_BLIND} if ctx.scenario.data.units["tau"] == "current" else {}),
         "validation_floor": None if floor is None else {"definition": FLOOR_DEFINITION, "rel_error": floor},

@@ -139,7 +139,7 @@ def _refit(ctx, li, r: Refinement, laws: tuple[Law, ...], rigid: np.ndarray, q, 
     laws = tuple(law.at_velocities_of(f) for law, f in zip(laws, r.frictions, strict=True))
     shaped = robot.with_frictions(tuple(law.shaping(f) for f, law in zip(robot.frictions, laws, strict=True)))
     later, keep = channel_delay.shifted(t, tau, r.delay, sample_step(t))
-    W = regressor(build_model(shaped, sc.gravity_W), q[keep], qd[keep], qdd[keep], with_friction=True)
+    W = regressor(build_model(shaped, li.gravity.gravity_W), q[keep], qd[keep], qdd[keep], with_friction=True)
     E = extra_regressor(laws, qd[keep], rigid[keep], robot.transmission, q=q[keep])
     extra_model = np.array([getattr(robot.frictions[k], key) for k, key in extra_terms(laws)])
     fit, frictions = fit_with_laws(W, E, later[keep], laws, li.model.theta, friction_values(robot.frictions),
@@ -155,12 +155,12 @@ def _judged(ctx, li, chosen: Candidate, identified, refined, largest: float) -> 
     span = "validation" if "validation" in judged.states else "training"
     q, qd, qdd = judged.states[span]
     tau, t = judged.measured[span], judged.t[span]
-    torque = {name: torque_rel_error(t, qd, qdd, tau, _rigid(spec, sc.gravity_W, q, qd, qdd), spec.frictions,
+    torque = {name: torque_rel_error(t, qd, qdd, tau, _rigid(spec, li.gravity.gravity_W, q, qd, qdd), spec.frictions,
                                      laws, lag, largest, spec.transmission, q)
               for name, spec, laws, lag in (("consistent", identified, li.laws.laws, np.zeros(len(joints))),
                                             ("refined", refined, chosen.laws, chosen.delay))}
-    simulated = prediction(sc.gravity_W, {"consistent": identified, "refined": refined}, t, q, qd, tau, span, joints,
-                           {"refined": chosen.delay}, plan=sc.data.prediction)
+    simulated = prediction(li.gravity.gravity_W, {"consistent": identified, "refined": refined}, t, q, qd, tau, span,
+                           joints, {"refined": chosen.delay}, plan=sc.data.prediction)
     return {"span": span, "torque_rel_error": torque,
             "torque_rel_error_change": torque["refined"] - torque["consistent"], "prediction": simulated}
 
@@ -174,13 +174,13 @@ def run(ctx, config: RefineConfig | None) -> RefinementResult | None:
     robot, n = sc.robot, len(li.joints)
     t, (q, qd, qdd), tau = li.judged.t["training"], li.judged.states["training"], li.judged.measured["training"]
     identified = identified_spec(robot, li.fit.theta, li.frictions)
-    rigid = _rigid(identified, sc.gravity_W, q, qd, qdd)
+    rigid = _rigid(identified, li.gravity.gravity_W, q, qd, qdd)
     spec, theta, frictions, laws, lag = identified, li.fit.theta, li.frictions, li.laws.laws, np.zeros(n)
     passes, candidates = [], []
     for k in range(config.passes):
         ctx.progress(f"refinement by forward simulation, pass {k + 1} of {config.passes} (MuJoCo rollouts)", None)
         try:
-            r = refine(spec, sc.gravity_W, t, q, qd, qdd, tau, rigid, laws, config, lag)
+            r = refine(spec, li.gravity.gravity_W, t, q, qd, qdd, tau, rigid, laws, config, lag)
         except ValueError as exc:
             if not passes:
                 return RefinementResult((), (), 0, "", f"nothing refined: {exc}", {}, _beside(ctx),
@@ -195,8 +195,8 @@ def run(ctx, config: RefineConfig | None) -> RefinementResult | None:
         theta, frictions, laws = _refit(ctx, li, r, laws, rigid, q, qd, qdd, tau, t)
         lag = r.delay
         spec = identified_spec(robot, theta, frictions)
-        rigid = _rigid(spec, sc.gravity_W, q, qd, qdd)
-        cost, torque = judge(spec, sc.gravity_W, t, q, qd, qdd, tau, rigid, laws, lag, config)
+        rigid = _rigid(spec, li.gravity.gravity_W, q, qd, qdd)
+        cost, torque = judge(spec, li.gravity.gravity_W, t, q, qd, qdd, tau, rigid, laws, lag, config)
         candidates.append(Candidate(f"pass {k + 1}: refitted", theta, frictions, laws, lag, cost, torque))
     chosen, reason = choose(candidates)
     c = candidates[chosen]

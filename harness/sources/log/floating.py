@@ -260,6 +260,9 @@ def refuse_on_floating(t: Table, source, root: Table, fl: FloatingLog) -> Floati
                        ("counterbalanced", bool(source.counterbalanced))):
         if given:
             raise t.error(key, why)
+    if t.has("tilt"):
+        raise t.error("tilt", "a floating base's log measures the base's orientation: gravity is read in the world's "
+                              "axes as declared")
     for table in ("identification", "friction_law", "refinement"):
         if root.has(table):
             raise root.error(table, "reads a fixed base's log: not beside [data.base]")

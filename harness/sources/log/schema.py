@@ -22,6 +22,7 @@ UNITS = {"q": ("rad", "deg"), "qd": ("rad/s", "deg/s"), "tau": ("N m", "current"
 SI = {"q": "rad", "qd": "rad/s", "tau": "N m", "t": "s"}
 SECONDS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}  # what one unit of a time column is
 DELAY_CHOICES = ("estimate", "correct", "none")
+TILT_CHOICES = ("chosen", "declared", "identified")  # harness/identify/gravity.py
 MAX_REPEAT = 100
 
 
@@ -92,6 +93,8 @@ class DataSource:
     prediction: Prediction = field(default_factory=Prediction)  # the judging's forward simulation
     unmeasured_motors: tuple[str, ...] = ()  # a motor-side log's motors without a channel (`unmeasured`: the
     # joints they reach, `with_unmeasured_motors`)
+    tilt: str = "chosen"  # gravity's direction in the base's axes: the torques' where they demand it
+    # ("chosen"), always ("identified"), or as declared ("declared"; harness/identify/gravity.py)
     floating: Any = None  # a floating base's channels, [data.base] and [[data.contacts]]
     # (harness/sources/log/floating.py, FloatingLog); None for a fixed base
 
@@ -117,6 +120,7 @@ class DataSource:
                 "validation_from": self.validation_from,
                 "validation_file": str(self.validation_file) if self.validation_file else None,
                 "truth": str(self.truth) if self.truth else None, "bag_topic": self.topic, "delay": self.delay,
+                "tilt": self.tilt,
                 "identify_torque_constants": self.identify_constants, "repeat_segments": self.repeat,
                 "payload_log": None if self.payload is None else {
                     "file": str(self.payload.file), "body": self.payload.body, "mass": self.payload.mass,
@@ -185,6 +189,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
     limits_check = t.boolean("limits_check", default=True)
     truth = _file(t, "truth", scenario_file) if t.has("truth") else None
     delay = t.string("delay", default="estimate", choices=DELAY_CHOICES)
+    tilt = t.string("tilt", default="chosen", choices=TILT_CHOICES)
     payload = None
     if t.has("payload"):
         if t.has("torque_file") or joined:
@@ -233,7 +238,7 @@ def read_source(t: Table, scenario_file: Path, joints: int | None = None,
     return DataSource(file, columns, cutoff, order, rate, decimate, trim, v_from, v_file, units, units_given, constant,
                       ratio, gap, limits_check, truth, topic, delay, payload, identify_constants, repeat, torque_file,
                       sample_rate, side, window, decimate_given, joint_map, velocities, counterbalanced, unmeasured,
-                      joined, prediction, unmeasured_motors)
+                      joined, prediction, unmeasured_motors, tilt=tilt)
 
 
 def _prediction(t: Table) -> Prediction:
