@@ -147,3 +147,20 @@ def test_a_tilt_the_harness_cannot_read_is_refused_in_one_line_naming_the_key(tm
     with pytest.raises(InputError) as err:
         load_scenario(path)
     assert err.value.key == "data.tilt" and said in str(err.value) and "\n" not in str(err.value), str(err.value)
+
+
+def test_the_report_says_which_gravity_the_fits_used_and_why():
+    """The report's section of results.json's log_identification.gravity: the declared, identified and used
+    vectors with the folds' errors and the reason; nothing where the direction was not looked for."""
+    from harness.report.html import num
+    from harness.report.log_sections import gravity as section
+
+    spec = load_spec(MODELS / "ur5_friction.toml")
+    said = json.loads(json.dumps(gravity_of("chosen", spec, G_W, *_torques(spec, gravity.turned(G_W, TURN)))
+                                 .describe()))
+    html = section(said)
+    assert "Gravity's direction in the base's axes" in html and "Taken: turned 0.286 degrees" in html
+    for name in ("declared", "identified", "used"):
+        assert "[" + ", ".join(str(num(x)) for x in said[name]) + "]" in html, name
+    assert str(num(said["folds_rel_error"]["declared"])) in html
+    assert section(gravity.declared(G_W).describe()) == ""

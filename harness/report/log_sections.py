@@ -75,7 +75,7 @@ def log_identification(r: dict, log) -> str:
                      f"{esc(floor['definition'])}.</p>")
     if li.get("validation_cannot_see"):
         headline += f"<p><strong>What this figure cannot see</strong>: {esc(li['validation_cannot_see'])}.</p>"
-    extra = delays(li.get("delays") or {})
+    extra = gravity(li.get("gravity")) + delays(li.get("delays") or {})
     pred = li.get("prediction") or {}
     if pred.get("models"):
         hs = list(next(iter(pred["models"].values())))
@@ -255,6 +255,23 @@ def log_methods(r: dict) -> str:
         "pseudo-inertia is not positive semidefinite, and negative rotor inertia, viscous or Coulomb coefficients. "
         "Seconds: each method's fit; the harness's steps are timed in 'How the run was made'.</p>"
         + table(header, rows, "wrap"))
+
+
+def gravity(g: dict | None) -> str:
+    """Gravity's direction in the base's axes as the log's torques give it (results.json's
+    `log_identification.gravity`), where it was looked for; else nothing."""
+    if not g or not g.get("folds_rel_error"):
+        return ""
+    return ("<h3>Gravity's direction in the base's axes</h3>"
+            f"<p>{esc(g['definition'])}. {'Taken' if g['chosen'] else 'Not taken'}: {esc(g['reason'])}.</p>"
+            + table(["gravity", "m/s^2, base axes", "folds' held-out error", "training error"],
+                    [[esc(name), _vector(g[name]), num(g["folds_rel_error"][name]), num(g["training_rel_error"][name])]
+                     for name in ("declared", "identified")]
+                    + [[esc("used"), _vector(g["used"]), DASH, DASH]]))
+
+
+def _vector(v) -> str:
+    return "[" + ", ".join(str(num(x)) for x in v) + "]"
 
 
 def delays(lags: dict) -> str:
