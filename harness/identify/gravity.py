@@ -18,8 +18,10 @@ angles of omega searched by Gauss-Newton from the declared direction).
 Which gravity the fits use (`[data] tilt`): "declared" keeps the scenario's; "identified" takes the
 torques' direction; "chosen" (the default) takes it only where the data demand it: on FOLDS contiguous
 folds of the training span, each fold's torques predicted by the least squares of the others, with the
-direction those others give, are DEMAND (relative) better than with the declared direction, and the turn is
-at most MAX_TILT. The validation span is never read. Floating bases are not turned here: their log
+direction those others give, are DEMAND (relative) better than with the declared direction, the turn is
+at most MAX_TILT, and at least SPREADS times its jackknife standard error (the turns the folds' others give
+agree: an effect the model lacks, a channel's delay, can lower the folds' error with a turn that each part of
+the span puts elsewhere). The validation span is never read. Floating bases are not turned here: their log
 measures the base's orientation (harness/stages/floating_log.py).
 """
 
@@ -30,10 +32,11 @@ from itertools import pairwise
 
 import numpy as np
 
-from harness.base.numerics import relative_residual_of_sums
+from harness.base.numerics import finite_or_null, relative_residual_of_sums
 
 FOLDS = 5  # contiguous folds of the training span for the choice
 DEMAND = 0.01  # the turned direction's folds' held-out relative error this much lower than the declared one's
+SPREADS = 2.0  # the turn at least this many times its jackknife standard error over the folds: the data tell it
 MAX_TILT = np.radians(5.0)  # a larger turn is not a mounting off level: the declared direction is kept, said
 MIN_FOLD = 20  # samples: a fold of fewer is no test of a fit
 SAMPLES_AT_A_TIME = 2048  # samples whose four regressors are made at once (a long log's rows never whole)
@@ -54,6 +57,7 @@ class Tilt:
     folds_error: dict[str, float]  # "declared", "identified": the folds' held-out relative torque error
     training_error: dict[str, float]  # the same fitted and judged on the whole training span
     reason: str
+    spread: float = float("nan")  # rad: the jackknife's standard error of the turn over the folds
 
     @property
     def gravity_W(self) -> np.ndarray:
@@ -69,14 +73,16 @@ class Tilt:
         return {"mode": self.mode, "used": [float(x) for x in self.gravity_W],
                 "declared": [float(x) for x in self.declared_W],
                 "identified": [float(x) for x in self.identified_W], "turned_deg": float(np.degrees(self.angle)),
-                "chosen": self.chosen, "folds_rel_error": self.folds_error,
+                "chosen": self.chosen, "turn_spread_deg": finite_or_null(float(np.degrees(self.spread))),
+                "folds_rel_error": self.folds_error,
                 "training_rel_error": self.training_error, "reason": self.reason,
                 "definition": "the direction of gravity in the base's axes the training span's torques give (the "
                               "least squares of the base parameters at each direction, the declared magnitude); "
                               f"'chosen' takes it where {FOLDS} contiguous folds of the training span, each "
                               "predicted by a fit on the others, are "
                               f"{100 * DEMAND:g} % better with it and the turn is within "
-                              f"{np.degrees(MAX_TILT):g} degrees"}
+                              f"{np.degrees(MAX_TILT):g} degrees and at least {SPREADS:g} times its spread over the "
+                              "folds (the jackknife's standard error of the turns each fold's others give)"}
 
 
 def declared(gravity_W: np.ndarray, mode: str = "declared", reason: str = "as the scenario states it") -> Tilt:
@@ -226,17 +232,21 @@ class _Folds:
                 break
         return omega
 
-    def held_out(self, g0: np.ndarray, turn: np.ndarray | None) -> float:
+    def held_out(self, g0: np.ndarray, turn: np.ndarray | None) -> tuple[float, np.ndarray]:
         """The folds' held-out relative error: each fold predicted by the fit on the others, at g0 (`turn`
-        None) or at the direction the others give (with the tilt-only columns), searched from `turn`."""
+        None) or at the direction the others give (with the tilt-only columns), searched from `turn`; and
+        those directions (folds, 2), each the others' (none without a turn)."""
         e2 = ref2 = 0.0
         every = range(len(self.T))
+        omegas = []
         for k in every:
             others = [j for j in every if j != k]
-            g = g0 if turn is None else turned(g0, self.direction(others, g0, turn))
+            if turn is not None:
+                omegas.append(self.direction(others, g0, turn))
+            g = g0 if turn is None else turned(g0, omegas[-1])
             e, ref = self.squared([k], g, self.fit(others, g, turn is not None), turn is not None)
             e2, ref2 = e2 + e, ref2 + ref
-        return relative_residual_of_sums(e2, ref2)
+        return relative_residual_of_sums(e2, ref2), np.array(omegas).reshape(-1, 2)
 
 
 def _lstsq(B: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -266,18 +276,26 @@ def tilt(mode: str, gravity_W: np.ndarray, rows, tau: np.ndarray, independent: n
     g = turned(g0, omega)
     training = {name: relative_residual_of_sums(*folds.squared(every, x, folds.fit(every, x, turn), turn))
                 for name, x, turn in (("declared", g0, False), ("identified", g, True))}
-    held = {"declared": folds.held_out(g0, None), "identified": folds.held_out(g0, omega)}
-    t = Tilt(mode, g0, g, False, held, training, "")
+    held = {"declared": folds.held_out(g0, None)[0]}
+    held["identified"], others = folds.held_out(g0, omega)
+    # the jackknife's standard error of the turn: the spread of the turns each fold's others give
+    spread = float(np.sqrt((FOLDS - 1) / FOLDS * np.sum((others - others.mean(axis=0)) ** 2)))
+    t = Tilt(mode, g0, g, False, held, training, "", spread)
     degrees = np.degrees(t.angle)
     if mode == "identified":
         return Tilt(mode, g0, g, True, held, training, f"identified ([data] tilt = \"identified\"): turned "
-                                                        f"{degrees:.3g} degrees")
+                                                        f"{degrees:.3g} degrees", spread)
     if t.angle > MAX_TILT:
         return Tilt(mode, g0, g, False, held, training, f"the torques' direction is {degrees:.3g} degrees off the "
-                    f"declared one, more than a mounting off level ({np.degrees(MAX_TILT):g}): declared kept")
+                    f"declared one, more than a mounting off level ({np.degrees(MAX_TILT):g}): declared kept", spread)
+    if t.angle < SPREADS * spread:
+        return Tilt(mode, g0, g, False, held, training, f"declared kept: turned {degrees:.3g} degrees, less than "
+                    f"{SPREADS:g} times the turn's spread over the folds ({np.degrees(spread):.3g} degrees): the data "
+                    "do not tell it", spread)
     if held["identified"] < (1.0 - DEMAND) * held["declared"]:
-        return Tilt(mode, g0, g, True, held, training, f"turned {degrees:.3g} degrees: the folds' held-out error "
-                    f"{100 * held['identified']:.4g} % against {100 * held['declared']:.4g} % declared")
+        return Tilt(mode, g0, g, True, held, training, f"turned {degrees:.3g} degrees (+-{np.degrees(spread):.2g} "
+                    f"over the folds): the folds' held-out error {100 * held['identified']:.4g} % against "
+                    f"{100 * held['declared']:.4g} % declared", spread)
     return Tilt(mode, g0, g, False, held, training, f"declared kept: turned {degrees:.3g} degrees, the folds' "
                 f"held-out error {100 * held['identified']:.4g} % against {100 * held['declared']:.4g} % (not "
-                f"{100 * DEMAND:g} % better)")
+                f"{100 * DEMAND:g} % better)", spread)

@@ -491,7 +491,10 @@ def gravity_of(mode: str, robot, gravity_W: np.ndarray, model: LogModel, q: np.n
         W = model.rows(pms[i], q[sl], qd[sl], qdd[sl])
         return W.whole() if isinstance(W, RowsOnDemand) else W
 
-    return gravity.tilt(mode, gravity_W, rows, tau, generic.independent, len(robot.joints))
+    try:
+        return gravity.tilt(mode, gravity_W, rows, tau, generic.independent, len(robot.joints))
+    except (np.linalg.LinAlgError, ValueError) as exc:  # a search that fails is no verdict: the declared one kept
+        return gravity.declared(gravity_W, mode, f"declared kept: the search failed ({exc})")
 
 
 def _not_driven(data, model: LogModel) -> str | None:
