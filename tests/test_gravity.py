@@ -164,3 +164,20 @@ def test_the_report_says_which_gravity_the_fits_used_and_why():
         assert "[" + ", ".join(str(num(x)) for x in said[name]) + "]" in html, name
     assert str(num(said["folds_rel_error"]["declared"])) in html
     assert section(gravity.declared(G_W).describe()) == ""
+
+
+@pytest.mark.parametrize(("turn", "spread", "held", "taken"), [
+    (0.273, 0.093, (1.320, 1.062), True),  # the Panda's log at its defaults
+    (0.684, 1.51, (3.749, 3.586), False),  # a bench log whose channels lag 1 to 10 ms: the folds 4 % better
+    (0.272, 0.05, (1.758, 1.783), False),  # the UR5's level bench log: the folds worse with its noise's turn
+    (5.23, 0.5, (6.8, 5.0), False),  # beyond a mounting off level
+    (0.3, 0.1, (1.0, 0.995), False)],  # told apart but not 1 % better
+    ids=["panda", "late channels", "level bench", "beyond 5 degrees", "under 1 % better"])
+def test_a_turn_is_taken_where_the_folds_predict_better_with_it_and_agree_on_it(turn, spread, held, taken):
+    """The rule on the figures measured on the shipped and bench logs (degrees, percent): a turn the folds'
+    others put in different places (its jackknife spread over half of it) is not taken however much the folds
+    like it; one they agree on is taken where it makes them 1 % better, and within 5 degrees."""
+    chosen, reason = gravity.choice("chosen", np.radians(turn), np.radians(spread),
+                                    {"declared": held[0] / 100, "identified": held[1] / 100})
+    assert chosen is taken and ("declared kept" in reason or "more than a mounting" in reason) is not taken, reason
+    assert gravity.choice("identified", np.radians(turn), np.radians(spread), {})[0]

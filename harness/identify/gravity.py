@@ -280,22 +280,25 @@ def tilt(mode: str, gravity_W: np.ndarray, rows, tau: np.ndarray, independent: n
     held["identified"], others = folds.held_out(g0, omega)
     # the jackknife's standard error of the turn: the spread of the turns each fold's others give
     spread = float(np.sqrt((FOLDS - 1) / FOLDS * np.sum((others - others.mean(axis=0)) ** 2)))
-    t = Tilt(mode, g0, g, False, held, training, "", spread)
-    degrees = np.degrees(t.angle)
+    chosen, reason = choice(mode, Tilt(mode, g0, g, False, held, training, "", spread).angle, spread, held)
+    return Tilt(mode, g0, g, chosen, held, training, reason, spread)
+
+
+def choice(mode: str, angle: float, spread: float, held: dict[str, float]) -> tuple[bool, str]:
+    """Whether the fits take the turned gravity, and why (module docstring): `angle` the turn (rad), `spread`
+    its jackknife standard error over the folds, `held` the folds' held-out errors ("declared", "identified")."""
+    degrees = np.degrees(angle)
     if mode == "identified":
-        return Tilt(mode, g0, g, True, held, training, f"identified ([data] tilt = \"identified\"): turned "
-                                                        f"{degrees:.3g} degrees", spread)
-    if t.angle > MAX_TILT:
-        return Tilt(mode, g0, g, False, held, training, f"the torques' direction is {degrees:.3g} degrees off the "
-                    f"declared one, more than a mounting off level ({np.degrees(MAX_TILT):g}): declared kept", spread)
-    if t.angle < SPREADS * spread:
-        return Tilt(mode, g0, g, False, held, training, f"declared kept: turned {degrees:.3g} degrees, less than "
-                    f"{SPREADS:g} times the turn's spread over the folds ({np.degrees(spread):.3g} degrees): the data "
-                    "do not tell it", spread)
+        return True, f"identified ([data] tilt = \"identified\"): turned {degrees:.3g} degrees"
+    if angle > MAX_TILT:
+        return False, (f"the torques' direction is {degrees:.3g} degrees off the declared one, more than a mounting "
+                       f"off level ({np.degrees(MAX_TILT):g}): declared kept")
+    if not angle >= SPREADS * spread:
+        return False, (f"declared kept: turned {degrees:.3g} degrees, less than {SPREADS:g} times the turn's spread "
+                       f"over the folds ({np.degrees(spread):.3g} degrees): the data do not tell it")
     if held["identified"] < (1.0 - DEMAND) * held["declared"]:
-        return Tilt(mode, g0, g, True, held, training, f"turned {degrees:.3g} degrees (+-{np.degrees(spread):.2g} "
-                    f"over the folds): the folds' held-out error {100 * held['identified']:.4g} % against "
-                    f"{100 * held['declared']:.4g} % declared", spread)
-    return Tilt(mode, g0, g, False, held, training, f"declared kept: turned {degrees:.3g} degrees, the folds' "
-                f"held-out error {100 * held['identified']:.4g} % against {100 * held['declared']:.4g} % (not "
-                f"{100 * DEMAND:g} % better)", spread)
+        return True, (f"turned {degrees:.3g} degrees (+-{np.degrees(spread):.2g} over the folds): the folds' held-out "
+                      f"error {100 * held['identified']:.4g} % against {100 * held['declared']:.4g} % declared")
+    return False, (f"declared kept: turned {degrees:.3g} degrees, the folds' held-out error "
+                   f"{100 * held['identified']:.4g} % against {100 * held['declared']:.4g} % (not {100 * DEMAND:g} % "
+                   "better)")
