@@ -32,7 +32,7 @@ from itertools import pairwise
 
 import numpy as np
 
-from harness.base.numerics import finite_or_null, relative_residual_of_sums
+from harness.base.numerics import column_scale, finite_or_null, relative_residual_of_sums
 
 FOLDS = 5  # contiguous folds of the training span for the choice
 DEMAND = 0.01  # the turned direction's folds' held-out relative error this much lower than the declared one's
@@ -66,8 +66,7 @@ class Tilt:
     @property
     def angle(self) -> float:
         """rad: between the declared and the identified directions."""
-        a, b = self.declared_W, self.identified_W
-        return float(np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b))
+        return angle_between(self.declared_W, self.identified_W)
 
     def describe(self) -> dict:
         return {"mode": self.mode, "used": [float(x) for x in self.gravity_W],
@@ -90,9 +89,15 @@ def declared(gravity_W: np.ndarray, mode: str = "declared", reason: str = "as th
     return Tilt(mode, g, g, False, {}, {}, reason)
 
 
+def angle_between(a: np.ndarray, b: np.ndarray) -> float:
+    """rad: the angle between two vectors (atan2 of |a x b| and a . b: exact near 0 and pi)."""
+    return float(np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b))
+
+
 def turned(gravity_W: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """g = exp([k]) g_W, k = omega_1 u_1 + omega_2 u_2 (u_1, u_2 orthonormal, perpendicular to g_W): by
-    Rodrigues' formula with k . g_W = 0, g_W cos|k| + (k / |k|) x g_W sin|k|."""
+    Rodrigues' formula with k . g_W = 0, g_W cos|k| + (k / |k|) x g_W sin|k| (written out: the search calls it
+    hundreds of times, where scipy's Rotation cost a third of the search)."""
     u1, u2 = _perpendicular(gravity_W)
     k = omega[0] * u1 + omega[1] * u2
     angle = float(np.linalg.norm(k))
@@ -151,8 +156,7 @@ class _Folds:
         from scipy.linalg import qr
 
         B0 = self._combined(self._stacked(list(range(len(triangles)))), g0)
-        scale = np.linalg.norm(B0, axis=0)
-        _, R, pivots = qr(B0 / np.where(scale > 0, scale, 1.0), mode="economic", pivoting=True)
+        _, R, pivots = qr(B0 / column_scale(B0), mode="economic", pivoting=True)
         diagonal = np.abs(np.diag(R))
         rank = int(np.sum(diagonal > TILT_ONLY_RANK * diagonal[0])) if diagonal.size and diagonal[0] > 0 else 0
         dependent = set(pivots[rank:].tolist())
@@ -180,11 +184,14 @@ class _Folds:
 
     def _combined(self, T: np.ndarray, g: np.ndarray) -> np.ndarray:
         """T's columns at gravity g: Y_0 + sum_i g_i D_i on the base parameters' columns."""
-        r, m = self.r, len(self.moved)
-        B = T[:, :r].copy()
-        for i in range(3):
-            B[:, self.moved] += g[i] * T[:, r + i * m: r + (i + 1) * m]
+        B = T[:, : self.r].copy()
+        B[:, self.moved] += self._gravity_part(T, g)
         return B
+
+    def _gravity_part(self, T: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """sum_i g_i D_i on the `moved` columns: what gravity g adds to them (linear in g)."""
+        r, m = self.r, len(self.moved)
+        return sum(g[i] * T[:, r + i * m: r + (i + 1) * m] for i in range(3))
 
     def fit(self, parts: list[int], g: np.ndarray, turned: bool = True) -> np.ndarray:
         return self.solved(parts, g, turned)[0]
@@ -215,7 +222,9 @@ class _Folds:
             r = B @ theta - t
             dg = [(turned(g0, omega + h * e) - turned(g0, omega - h * e)) / (2 * h) for e in np.eye(2)]
             base = theta[: self.r]  # the tilt-only columns do not turn with the gravity
-            J = np.column_stack([(self._combined(T, d) - self._combined(T, np.zeros(3))) @ base for d in dg])
+            J = np.zeros((len(B), 2))
+            for k, d in enumerate(dg):
+                J[:, k] = self._gravity_part(T, d) @ base[self.moved]
             J -= B @ _lstsq(B, J)  # P_perp: the parameters follow the turn
             step = -np.linalg.lstsq(J, r, rcond=None)[0]
             for _ in range(30):
@@ -250,10 +259,9 @@ class _Folds:
 
 
 def _lstsq(B: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """numpy's minimum-norm least squares of B x = y with B's columns scaled to unit norm (a column that
-    is zero left as it is)."""
-    scale = np.linalg.norm(B, axis=0)
-    scale[scale == 0] = 1.0
+    """numpy's minimum-norm least squares of B x = y with B's columns scaled to unit norm (numerics.column_scale:
+    a column of round-off left as it is)."""
+    scale = column_scale(B)
     x = np.linalg.lstsq(B / scale, y, rcond=None)[0]
     return x / (scale if x.ndim == 1 else scale[:, None])
 
@@ -280,7 +288,7 @@ def tilt(mode: str, gravity_W: np.ndarray, rows, tau: np.ndarray, independent: n
     held["identified"], others = folds.held_out(g0, omega)
     # the jackknife's standard error of the turn: the spread of the turns each fold's others give
     spread = float(np.sqrt((FOLDS - 1) / FOLDS * np.sum((others - others.mean(axis=0)) ** 2)))
-    chosen, reason = choice(mode, Tilt(mode, g0, g, False, held, training, "", spread).angle, spread, held)
+    chosen, reason = choice(mode, angle_between(g0, g), spread, held)
     return Tilt(mode, g0, g, chosen, held, training, reason, spread)
 
 
