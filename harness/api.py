@@ -41,7 +41,8 @@ from harness.identify.ls_model import ExportedModel
 from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate
-from harness.runner.scenario import DataScenario, PluginEntry, Scenario, judged, judging_metrics, scenario_from_dict
+from harness.runner.judging import judged, judging_metrics
+from harness.runner.scenario import DataScenario, PluginEntry, Scenario, scenario_from_dict
 from harness.runner.scenario import load_scenario as _load_scenario
 
 

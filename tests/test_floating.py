@@ -434,7 +434,7 @@ def test_the_graph_theory_model_with_its_base_as_a_six_dof_joint_agrees_with_bot
 def test_a_gate_on_a_model_s_floating_figures_judges_it(metric):
     """A model under test judged only with its base free is judged (a scenario refuses one no gate judges)."""
     from harness.runner.gates import Gate
-    from harness.runner.scenario import judged
+    from harness.runner.judging import judged
 
     assert judged("model_under_test", "mine", (Gate("g", metric, 1e-9),))
     assert not judged("model_under_test", "other", (Gate("g", metric, 1e-9),))

@@ -43,7 +43,10 @@ CONTINUATION_BLOCK = 8  # stations closed by one Newton's method, each predicted
 
 
 class ClosureError(ValueError):
-    """The loop cannot be closed, or the actuated joints do not determine the passive ones."""
+    """The loop cannot be closed, or the actuated joints do not determine the passive ones. `closed`: where a
+    motion was followed, the configurations closed before it stopped (harness/model/charts.py reads them)."""
+
+    closed: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,8 +235,12 @@ def positions(chain: ClosedChain, q_a: np.ndarray, q_start: np.ndarray) -> np.nd
     solved = _follow(chain, np.asarray(q_start, dtype=float), stations, sample)
     nearest = np.clip(np.searchsorted(stations_travel, travel[1:], side="right") - 1, 0, len(stations) - 1)
     guess = solved[nearest]
-    J = jacobian(chain.spec, chain.loops, guess)
-    return close(chain, predicted(chain, guess, J, pinv_passive(chain, J, "sample"), q_a))
+    try:
+        J = jacobian(chain.spec, chain.loops, guess)
+        return close(chain, predicted(chain, guess, J, pinv_passive(chain, J, "sample"), q_a))
+    except ClosureError as exc:
+        exc.closed = solved  # every station was followed
+        raise
 
 
 def _follow(chain: ClosedChain, q_start: np.ndarray, stations: np.ndarray, sample: np.ndarray) -> np.ndarray:
@@ -247,23 +254,27 @@ def _follow(chain: ClosedChain, q_start: np.ndarray, stations: np.ndarray, sampl
     q, J = close_with_jacobian(chain, q_start, "the starting configuration", numbered=False)
     solved = np.empty((len(stations), chain.n))
     s = 0
-    while s < len(stations):
-        block = stations[s: s + CONTINUATION_BLOCK]
-        kept = _block(chain, q, J, block) if len(block) > 1 else None
-        if kept is not None:
-            solved[s: s + len(block)], q, J = kept[0], kept[0][-1:], kept[1][-1:]
-            s += len(block)
-            continue
-        for target in block:
-            where = (f"sample {sample[s]} of the motion (q_a = {np.array2string(target, precision=4)}, reached "
-                     "from the one before)")
-            P = pinv_passive(chain, J, where, numbered=False)
-            J_before = J
-            q, J = close_with_jacobian(chain, predicted(chain, q, J, P, target[None]), where, numbered=False)
-            if _folded(chain, J_before, J)[0]:
-                raise _fold_error(chain, where)
-            solved[s] = q[0]
-            s += 1
+    try:
+        while s < len(stations):
+            block = stations[s: s + CONTINUATION_BLOCK]
+            kept = _block(chain, q, J, block) if len(block) > 1 else None
+            if kept is not None:
+                solved[s: s + len(block)], q, J = kept[0], kept[0][-1:], kept[1][-1:]
+                s += len(block)
+                continue
+            for target in block:
+                where = (f"sample {sample[s]} of the motion (q_a = {np.array2string(target, precision=4)}, reached "
+                         "from the one before)")
+                P = pinv_passive(chain, J, where, numbered=False)
+                J_before = J
+                q, J = close_with_jacobian(chain, predicted(chain, q, J, P, target[None]), where, numbered=False)
+                if _folded(chain, J_before, J)[0]:
+                    raise _fold_error(chain, where)
+                solved[s] = q[0]
+                s += 1
+    except ClosureError as exc:
+        exc.closed = solved[:s]  # the stations followed before it stopped
+        raise
     return solved
 
 

@@ -7,6 +7,7 @@ this module only chains them, times them and gathers the results.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Iterator
 from contextlib import nullcontext
@@ -19,6 +20,7 @@ from harness.base.plugins import Stage, guard
 from harness.base.series import TimeSeries
 from harness.base.workers import IN_PROCESS, Workers
 from harness.identify.excitation import optimise as optimise_excitation
+from harness.model.spec import RobotSpec
 from harness.runner.scenario import DataScenario, Scenario
 from harness.sources.bench import record
 from harness.sources.measurement import measure
@@ -108,6 +110,8 @@ class Sourced:
     validation: dict[str, TimeSeries]
     written: TimeSeries
     payload: TimeSeries | None = None
+    robot: RobotSpec | None = None  # the scenario's robot as the source read it (a closed chain's log: its
+    # passive balls' charts turned to the training span, harness/sources/log/closed.py); None: as it was
 
 
 def from_bench(scenario: Scenario, timed: _Timed) -> Sourced:
@@ -129,17 +133,17 @@ def from_log(scenario: DataScenario, timed: _Timed) -> Sourced:
     """A measured log (harness/sources/log/) read, conditioned and split once; a known-payload log
     beside it conditioned the same way."""
     from harness.sources.log import load, load_payload
-    from harness.sources.log.closed import closed, logged
+    from harness.sources.log.closed import charted, closed, logged
 
     timed("reading and conditioning the log", None)
-    robot = scenario.robot
-    split = load(scenario.data, logged(robot))  # a closed chain's log: its actuated joints, the others from its loops
+    split = load(scenario.data, logged(scenario.robot))  # a closed chain's log: its actuated joints, the others
+    robot = charted(split.training, scenario.robot, scenario.data.file)  # from its loops
     training, validation_span, whole = (closed(s, robot, scenario.data.file)
                                         for s in (split.training, split.validation, split.whole))
     validation = {} if validation_span is None else {VALIDATION_SPAN: validation_span}
     payload = split.source.payload
     loaded = None if payload is None else closed(load_payload(split.source, logged(robot)), robot, payload.file)
-    return Sourced(None, training, validation, whole, loaded)
+    return Sourced(None, training, validation, whole, loaded, None if robot is scenario.robot else robot)
 
 
 def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
@@ -152,6 +156,11 @@ def run(scenario: Scenario | DataScenario, progress: Progress = _quiet,
     excitation = None
     if isinstance(scenario, DataScenario):
         data = from_log(scenario, timed)
+        if data.robot is not None:  # the log's passive balls in charts of its motion: the truth read in them too
+            from harness.model.charts import carried
+
+            truth = None if scenario.truth is None else carried(scenario.truth, data.robot)
+            scenario = dataclasses.replace(scenario, robot=data.robot, truth=truth)
     else:
         if scenario.excitation is not None:
             timed("optimising the excitation (Fourier series)", None)

@@ -44,6 +44,7 @@ from harness.model.contacts import read_contacts
 from harness.model.load import load_spec
 from harness.model.spec import RobotSpec
 from harness.runner.gates import Gate, read_gates
+from harness.runner.judging import check_names
 from harness.sources.base_motion import read_scenario_base_motion, refuse_fixed_base_tables
 from harness.sources.log import DataSource, check_columns, read_source
 from harness.sources.log.channels import logged, supported
@@ -324,7 +325,7 @@ def _load_data(root: Table, path: Path, text: str) -> DataScenario:
         if t.has("validation"):
             raise t.error("validation", "a method on a log is judged on the log's validation span ([data] validation)")
         methods.append(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod))
-    _check_names(path, "identification", methods, gates, on_log=True)
+    check_names(path, "identification", methods, gates, on_log=True)
     if methods and source.units["tau"] == "current" and source.identify_constants:
         raise root.error("identification", "the methods are given joint torques, and this log's currents become "
                                            "torques only in the harness's own fit (identify_torque_constants)")
@@ -388,13 +389,14 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     scenario = Scenario(path.stem, description, path, robot, gravity, duration, output_steps,
                         np.asarray(sample_times), motion, simulation, measurement, gates, text, excitation)
     if robot.loops:  # the loops followed along the motion now: a singular or unreachable motion is bad input
+        scenario = _charted(scenario)
         scenario.prescribed(np.linspace(0.0, duration, output_steps + 1))
     models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
                    for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
     methods = tuple(_read_plugin(t, path, scenario, METHOD_GROUP, IdentificationMethod)
                     for t in (root.one_or_many("identification") if root.has("identification") else ()))
     for kind, entries in (("model_under_test", models), ("identification", methods)):
-        _check_names(path, kind, entries, gates)
+        check_names(path, kind, entries, gates)
     from harness.stages import LOG_TABLES, core_stages
 
     scenario = _configured(root, scenario, core_stages())
@@ -410,6 +412,22 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
     if contacts:  # the stance followed along the motion now: a point out of reach is bad input
         scenario.prescribed(scenario.t_out)
     return scenario
+
+
+def _charted(scenario: Scenario) -> Scenario:
+    """The closed chain's passive ball joints in charts that keep the motion (its output rows, from q = 0)
+    away from their locks (harness/model/charts.py); the scenario itself where the file's charts do."""
+    from harness.model.charts import fitted
+    from harness.model.closure import ClosedChain, ClosureError
+
+    chain = ClosedChain.of(scenario.robot)
+    q_a = scenario._given(np.concatenate([[0.0], scenario.t_out]))[0]
+    try:
+        turned = fitted(chain, q_a).spec
+    except ClosureError as exc:
+        raise InputError(scenario.source, "motion", f"the motion of the actuated joints cannot be followed: "
+                                                    f"{exc}") from None
+    return scenario if turned is chain.spec else dataclasses.replace(scenario, robot=turned)
 
 
 # a closed chain's scenario judges its actuated torques, its loops and its joint-torque identification
@@ -468,57 +486,6 @@ def _read_studies(root: Table, scenario: Scenario, path: Path) -> list:
             table.finish()
         st.finish()
     return studies
-
-
-RESERVED_NAMES = ("mujoco", "pinocchio", "harness_least_squares", "harness_consistent")
-
-
-def _check_names(path: Path, kind: str, entries, gates: tuple[Gate, ...], on_log: bool = False) -> None:
-    """Each plugin's name used once, naming no reference engine, and judged by a gate."""
-    names = [e.name for e in entries]
-    for i, n in enumerate(names):
-        if n in names[:i] or n in RESERVED_NAMES:
-            raise InputError(path, f"{kind}.name", f"{n!r} is used twice, or names a reference engine or the "
-                                                   "harness's own fit")
-        unjudged(path, kind, n, gates, on_log)
-
-
-def judging_metrics(kind: str, name: str, on_log: bool = False) -> tuple[str, ...]:
-    """The metrics a gate can judge a model under test or an identification method by (`on_log`: a
-    method on a measured log, judged on its validation span)."""
-    if on_log:
-        return (f"identification_methods.{name}.validation_rel_error",
-                f"identification_methods.{name}.physical.inconsistent_links",
-                f"identification_methods.{name}.truth.validation_rel_error (a bench log with its truth)")
-    if kind == "model_under_test":
-        return (f"torques.{name}_vs_mujoco.max_rel_error", f"torques.{name}_vs_pinocchio.max_rel_error",
-                f"torques.{name}_random_vs_pinocchio.max_rel_error",
-                f"torques.mass_matrix.{name}_vs_pinocchio.max_rel_error",
-                f"torques.reactions.{name}_vs_mujoco.force.max_rel_error",
-                f"torques.reactions.{name}_vs_mujoco.moment.max_rel_error",
-                f"torques.floating.{name}_vs_pinocchio_max_rel_error (a floating base)",
-                f"torques.floating.base_wrench_{name}_vs_mujoco_max_rel_error (a floating base the bench moves)")
-    return (f"identification_methods.{name}.base_parameters.max_rel_error",
-            f"identification_methods.{name}.validation.max_rel_error",
-            f"identification_methods.{name}.validation.rms_rel_error")
-
-
-def judged(kind: str, name: str, gates: tuple[Gate, ...]) -> bool:
-    """Whether a gate judges the model under test or identification method `name`."""
-    prefixes = ({f"torques.{name}_vs_", f"torques.{name}_random_vs_", f"torques.mass_matrix.{name}_vs_",
-                 f"torques.reactions.{name}_vs_", f"torques.floating.{name}_vs_",
-                 f"torques.floating.base_wrench_{name}_vs_"} if kind == "model_under_test"
-                else {f"identification_methods.{name}."})
-    return any(g.metric.startswith(p) for g in gates for p in prefixes)
-
-
-def unjudged(path: Path, kind: str, name: str, gates: tuple[Gate, ...], on_log: bool = False) -> None:
-    """A model under test or identification method that no gate judges would pass whatever it
-    computes: refused, naming the metrics a gate could use."""
-    if not judged(kind, name, gates):
-        metrics = ", ".join(judging_metrics(kind, name, on_log))
-        raise InputError(path, f"{kind}.name", f"{name!r} is judged by no gate, so it would pass whatever it "
-                                               f"computes: add [[gates]] on {metrics}")
 
 
 def _read_all_gates(root: Table, gate_files: list[Path]) -> tuple[Gate, ...]:

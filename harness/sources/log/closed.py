@@ -50,6 +50,23 @@ def logged(robot: RobotSpec) -> RobotSpec:
                                loops=(), actuated=())
 
 
+def charted(training: ConditionedLog, robot: RobotSpec, file) -> RobotSpec:
+    """The robot with its passive ball joints' charts turned to the training span's motion where it takes
+    one near its file chart's lock (harness/model/charts.py): from the training span alone, as every choice
+    the fit makes; the validation span is followed in that chart. A motion no chart frees is refused,
+    naming the file."""
+    if not robot.loops:
+        return robot
+    from harness.model.charts import fitted
+
+    chain = ClosedChain.of(robot)
+    try:
+        return fitted(chain, training.q[:, [training.joint_index(name) for name in robot.actuated]]).spec
+    except ClosureError as exc:
+        raise InputError(file, "columns", f"the actuated joints' logged motion cannot be followed by the loops: "
+                                          f"{exc}") from None
+
+
 def closed(series: ConditionedLog | None, robot: RobotSpec, file) -> ConditionedLog | None:
     """A conditioned span of the actuated joints' channels with every joint's (q, q', q'') from the
     loops, in the robot's joint order; the passive joints' torques zero. A row the loops cannot reach
