@@ -20,6 +20,7 @@ from harness.model.kinematics import forward_kinematics
 from harness.model.load import load_spec, spec_from_data
 
 from .conftest import BUILTIN, DATA, MODELS
+from .test_closed_chain_log import _scenario_text
 
 SPATIAL = DATA / "models" / "spatial_ballbar.toml"
 FOURBAR = MODELS / "fourbar.xml"
@@ -173,22 +174,9 @@ def test_a_closed_chains_log_reads_its_passive_ball_in_the_chart_of_its_training
 
     bench = load_scenario(DATA / "scenarios" / "spatial_ballbar.toml")
     write_log(record(bench), list(bench.robot.actuated), tmp_path / "log.csv")
-    model = (DATA / "models" / "spatial_ballbar.toml").as_posix()
-    (tmp_path / "s.toml").write_text(f"""[scenario]
-description = "the spatial four-bar's bench log"
-model = "{model}"
-
-[data]
-file = "log.csv"
-columns = {{ t = "t", q = "q{{j}}", qd = "qd{{j}}", tau = "tau{{j}}" }}
-units = {{ q = "rad", qd = "rad/s", tau = "N m" }}
-truth = "{model}"
-validation = {{ from = 0.7 }}
-
-[[gates]]
-metric = "log_identification.truth.validation_rel_error.measured"
-limit = 1e-4
-""")
+    measured = '[[gates]]\nmetric = "log_identification.truth.validation_rel_error.measured"\nlimit = 1e-4\n'
+    (tmp_path / "s.toml").write_text(_scenario_text(tmp_path / "log.csv", extra=measured, model=SPATIAL,
+                                                    truth=SPATIAL))
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     results = json.loads((tmp_path / "out" / "results.json").read_text())
     assert sum("turned to the chart" in n for n in results["scenario"]["model_notes"]) == 1

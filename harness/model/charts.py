@@ -204,5 +204,5 @@ def _near_lock(error, near: list[tuple[Ball, float]]):
     if not near:
         return error
     said = "; ".join(f"{', '.join(b.hinges)} at cos(beta) = {c:.2g}" for b, c in near)
-    return type(error)(f"{error} (passive ball joints near their chart's lock, no chart of "
-                       f"{ATTEMPTS} tried following the motion: {said})")
+    return type(error)(f"{error} (passive ball joints near their chart's lock where it stopped, and no chart "
+                       f"found, of at most {ATTEMPTS} tried, that follows the motion: {said})")
