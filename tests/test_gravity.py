@@ -95,6 +95,21 @@ def test_too_few_samples_for_the_folds_keep_the_declared_gravity_and_say_so():
     assert not tilt.chosen and "too few" in tilt.reason
 
 
+def test_a_search_that_fails_keeps_the_declared_gravity_and_says_why(monkeypatch):
+    """A least squares that does not converge inside the search (made to here; a non-finite torque does
+    it, which the log's checks refuse before) is no verdict and no traceback: the fits keep the declared
+    vector and the reason says the search failed and why."""
+
+    def failing(*args, **kwargs):
+        raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
+
+    monkeypatch.setattr(gravity, "_lstsq", failing)
+    spec = load_spec(MODELS / "ur5_friction.toml")
+    tilt = gravity_of("identified", spec, G_W, *_torques(spec, gravity.turned(G_W, TURN)))
+    assert not tilt.chosen and np.array_equal(tilt.gravity_W, G_W)
+    assert tilt.reason == "declared kept: the search failed (SVD did not converge in Linear Least Squares)"
+
+
 @pytest.mark.slow  # a 4 s bench log through the whole pipeline
 def test_a_bench_log_recorded_off_level_is_identified_at_its_gravity_and_exported_with_it(tmp_path):
     """The UR5 with friction on a bench whose gravity is turned 0.29 degrees, its log read on a scenario that
