@@ -115,19 +115,10 @@ def _identifiable() -> list[str]:
     for name, path in resolve([]).items():
         try:
             if spec_from_data({"urdf": {"file": str(path)}}, path).joints:
-                out.append(pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=MARGIN_BOUND))
-                           if name in HELD_BY_THE_MARGIN else name)
+                out.append(name)
         except InputError:
             pass
     return out
-
-
-HELD_BY_THE_MARGIN = ("alex_psyonic_hands",)
-MARGIN_BOUND = (
-    "the consistent fit holds every link's pseudo-inertia MARGIN (1e-6) of the model's largest eigenvalue above "
-    "singular, above the eigenvalues of this robot's own finger links: its truth lies outside the fit's set, and "
-    "the fit's held-out error is 1.2e-4 with over 20 links on the margin (7.1e-7, none on it, with a margin of "
-    "1e-9); a margin relative to each link's own size is the fix, not yet made")
 
 
 def _selects_slow(config: pytest.Config) -> bool:

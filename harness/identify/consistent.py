@@ -10,9 +10,11 @@ inertial parameter identification", IEEE RA-L 2018):
 
 with I_i the inertia about the link's frame origin and h_i = m_i c_i. J_i >= 0 holds exactly when
 the link is a mass distribution: m >= 0, and the inertia about the centre of mass positive
-semidefinite and satisfying the triangle inequality; J_i >= eps 1 (MARGIN of the model's own
-pseudo-inertia scale) keeps the mass and the principal moments strictly positive. Viscous and
-Coulomb friction and rotor inertia are kept non-negative; the offset is free.
+semidefinite and satisfying the triangle inequality; J_i >= eps_i 1 (MARGIN of the largest eigenvalue
+of the link's own pseudo-inertia in the model, `margins`) keeps the mass and the principal moments
+strictly positive, at a scale of each link's own (one margin for all, of the model's largest link, would
+hold a hand's finger links, whose pseudo-inertia can be 1.5e-4 of the arm's, above their own bodies).
+Viscous and Coulomb friction and rotor inertia are kept non-negative; the offset is free.
 
 The objective is the torque residual plus a small pull towards the model's own values,
 
@@ -70,7 +72,7 @@ SOLVERS = ((cp.CLARABEL, SOLVER_TOLERANCES), (cp.SCS, {"eps_abs": 1e-9, "eps_rel
 FALLBACKS = ("solved by Clarabel to its tolerances", "solved by SCS, or short of the solver's tolerances",
              "no solver succeeded: the unconstrained minimum, each link moved to the nearest physical one")
 RESIDUAL_FLOOR = 1e-6  # of ||tau||: the least-squares residual taken as at least this (see `fit`)
-MARGIN = 1e-6  # J_i >= MARGIN * (model's largest pseudo-inertia eigenvalue) 1: strictly physical
+MARGIN = 1e-6  # J_i >= MARGIN * (the link's largest pseudo-inertia eigenvalue in the model) 1: strictly physical
 MASS_BAND = (0.1, 10.0)  # each link's identified mass within these times its model's, unless the data demand more
 DEMAND = 0.01  # the fit free of the band explains the training torques this much (relative residual) better:
 # the data demand a mass beyond it (more freedom always explains a little more; a hundredth is not noise's doing)
@@ -120,7 +122,7 @@ class ConsistentFit:
     solver: str = "CLARABEL"  # which gave it, or "projection" (no solver succeeded)
     fallback: int = 0  # 0 Clarabel to its tolerances, 1 SCS or Clarabel inaccurate, 2 projection (FALLBACKS)
     attempts: tuple[str, ...] = ()  # every solver tried and how it ended, in order
-    margin: float = 0.0  # the smallest pseudo-inertia eigenvalue every link was held to
+    margin: np.ndarray | None = None  # (n,) the smallest pseudo-inertia eigenvalue each link was held to (`margins`)
     extra: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the friction families' coefficients (`fit`)
     held_at_band: tuple[int, ...] = ()  # links whose mass the band held at its edge (MASS_BAND)
     beyond_band: tuple[int, ...] = ()  # links whose mass the data demand beyond the band (DEMAND)
@@ -159,8 +161,8 @@ def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, fr
     r0 = max(float(np.linalg.norm(R @ np.linalg.lstsq(R, b, rcond=None)[0] - b) ** 2
                    + norm_tau**2 - float(b @ b)), (RESIDUAL_FLOOR * norm_tau) ** 2, 1e-300)
     objective = cp.sum_squares(R @ z - b) / r0 + PULL * pull
-    eps = MARGIN * max(float(np.max(np.linalg.eigvalsh(pseudo_inertia(t)))) for t in theta_model)
-    constraints = [cp.reshape(PSEUDO_INERTIA_MAP @ x[10 * i: 10 * i + 10], (4, 4), order="C") - eps * np.eye(4) >> 0
+    eps = margins(theta_model)
+    constraints = [cp.reshape(PSEUDO_INERTIA_MAP @ x[10 * i: 10 * i + 10], (4, 4), order="C") - eps[i] * np.eye(4) >> 0
                    for i in range(n)]
     # armature, viscous, Coulomb non-negative; the offset is free
     constraints.append(x[10 * n + (4 * np.arange(n)[:, None] + np.arange(3)).ravel()] >= 0)
@@ -194,7 +196,15 @@ def fit(W: np.ndarray | SideBySide, tau: np.ndarray, theta_model: np.ndarray, fr
     return dataclasses.replace(_result(bounded, n, eps), held_at_band=held, free_residual=free[1])
 
 
-def _result(solved: tuple, n: int, eps: float) -> ConsistentFit:
+def margins(theta_model: np.ndarray) -> np.ndarray:
+    """Each link's margin (n,): MARGIN of the largest eigenvalue of its own pseudo-inertia in the model, so
+    that a small link beside a large one (a finger on an arm) is held as near singular as its own size
+    allows; a link the model gives no mass, MARGIN of the model's largest."""
+    sizes = np.array([float(np.max(np.linalg.eigvalsh(pseudo_inertia(t)))) for t in theta_model])
+    return MARGIN * np.where(theta_model[:, 0] > 0, sizes, np.max(sizes, initial=0.0))
+
+
+def _result(solved: tuple, n: int, eps: np.ndarray) -> ConsistentFit:
     xv, residual, status, solver, fallback, attempts = solved
     return ConsistentFit(xv[: 10 * n].reshape(n, 10), xv[10 * n: 14 * n].reshape(n, 4), status, residual, solver,
                          fallback, tuple(attempts), eps, xv[14 * n:])
@@ -215,7 +225,7 @@ def _band_floor(R: np.ndarray, b: np.ndarray, col: np.ndarray, norm_tau: float, 
 
 
 def _solved(problem: cp.Problem, z: cp.Variable, W, tau: np.ndarray, col: np.ndarray, R: np.ndarray, b: np.ndarray,
-            r0: float, x0: np.ndarray, scale: np.ndarray, eps: float, n: int, extra: tuple, band=None) -> tuple:
+            r0: float, x0: np.ndarray, scale: np.ndarray, eps: np.ndarray, n: int, extra: tuple, band=None) -> tuple:
     """`problem` solved by the first of SOLVERS that gives a solution (a looser one moved onto the
     constraints), or its objective's projection where none does, each mass then within `band` (its links,
     lower and upper masses) where one is given: (x, the training residual, status, solver, fallback,
@@ -258,7 +268,7 @@ def _solved(problem: cp.Problem, z: cp.Variable, W, tau: np.ndarray, col: np.nda
 
 
 def _projected(R: np.ndarray, b: np.ndarray, col: np.ndarray, r0: float, x0: np.ndarray, scale: np.ndarray,
-               eps: float, n: int, extra: tuple = ()) -> np.ndarray:
+               eps: np.ndarray, n: int, extra: tuple = ()) -> np.ndarray:
     """The fit's objective minimised without its constraints (a linear system: the pull makes it
     definite), then each link moved to the nearest physical one and the friction terms but the
     offset clipped at zero."""
@@ -271,11 +281,11 @@ def _projected(R: np.ndarray, b: np.ndarray, col: np.ndarray, r0: float, x0: np.
     return _physical(z / col, eps, n, extra)
 
 
-def _physical(x: np.ndarray, eps: float, n: int, extra: tuple = ()) -> np.ndarray:
-    """Each link's parameters moved to the nearest with every pseudo-inertia eigenvalue at least eps,
+def _physical(x: np.ndarray, eps: np.ndarray, n: int, extra: tuple = ()) -> np.ndarray:
+    """Each link's parameters moved to the nearest with every pseudo-inertia eigenvalue at least its eps,
     the friction terms but the offset clipped at zero, and the families' terms clipped as `fit`
     holds them: the constraints of the fit, made to hold."""
-    theta = np.stack([nearest_physical(t, eps) for t in x[: 10 * n].reshape(n, 10)])
+    theta = np.stack([nearest_physical(t, e) for t, e in zip(x[: 10 * n].reshape(n, 10), eps, strict=True)])
     friction = x[10 * n: 14 * n].reshape(n, 4).copy()
     friction[:, :3] = np.maximum(friction[:, :3], 0.0)
     terms = x[14 * n:].copy()
@@ -353,7 +363,7 @@ PLAUSIBLE = 3.0  # a link's identified mass or inertia more than 3 times, or und
 ON_MARGIN = 1.01  # a link whose smallest pseudo-inertia eigenvalue is within 1 % of the fit's margin sits on it
 
 
-def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], margin: float) -> dict:
+def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], margin: np.ndarray) -> dict:
     """Beside consistency, plausibility: per link (by its joint) the identified mass and the trace of
     the inertia about the centre of mass as ratios to the model's own; the links outside
     [1/PLAUSIBLE, PLAUSIBLE] on either; and the links on the fit's positive-definiteness margin
@@ -374,7 +384,7 @@ def plausibility(theta: np.ndarray, theta_model: np.ndarray, joints: list[str], 
         ratios[j] = r
         if any(np.isfinite(v) and not 1 / PLAUSIBLE <= v <= PLAUSIBLE for v in r.values()):
             outside.append(j)
-        if np.linalg.eigvalsh(pseudo_inertia(theta[k]))[0] <= ON_MARGIN * margin:
+        if np.linalg.eigvalsh(pseudo_inertia(theta[k]))[0] <= ON_MARGIN * margin[k]:
             on_margin.append(j)
     return {"definition": f"per link, identified / model: its mass and the trace of its inertia about the centre "
                           f"of mass; implausible outside [1/{PLAUSIBLE:g}, {PLAUSIBLE:g}]; on_margin: links whose "
