@@ -390,6 +390,7 @@ def _load(data: dict, path: Path, text: str) -> Scenario | DataScenario:
                         np.asarray(sample_times), motion, simulation, measurement, gates, text, excitation)
     if robot.loops:  # the loops followed along the motion now: a singular or unreachable motion is bad input
         scenario = _charted(scenario)
+        robot = scenario.robot  # its passive balls' charts turned to the motion, for every table read after
         scenario.prescribed(np.linspace(0.0, duration, output_steps + 1))
     models = tuple(_read_plugin(t, path, scenario, MODEL_GROUP, ModelUnderTest)
                    for t in (root.one_or_many("model_under_test") if root.has("model_under_test") else ()))
