@@ -136,9 +136,9 @@ def identified_model(folder: str | Path, fit: str = "consistent"):
     results.json) or its `identified/` folder, read from its model
     file (identified/robot.toml: the URDF with the drives' or joints' laws). A folder whose files are not
     all one run's, as it wrote them (identified/manifest.json; results.json's run id beside it), is
-    refused (InputError). The gravity is the one the fits were made at (least_squares.toml's `gravity`: a
-    base off level read off the torques, harness/identify/gravity.py), else the scenario's in results.json,
-    else standard gravity along -z. `fit = "least squares"`:
+    refused (InputError). The gravity is the one the fits were made at (robot.toml's `[model] gravity`, else
+    least_squares.toml's `gravity`: a base off level read off the torques, harness/identify/gravity.py), else
+    the scenario's in results.json, else standard gravity along -z. `fit = "least squares"`:
     the least-squares fit of the base parameters (identified/least_squares.toml, evaluated with that
     model file's kinematics and laws; harness/identify/ls_model.py), with the same `joint_names` and
     `inverse_dynamics`."""
@@ -170,8 +170,11 @@ def identified_model(folder: str | Path, fit: str = "consistent"):
         gravity = written.get("scenario", {}).get("gravity", gravity)
     if ls is not None and ls.gravity_W is not None:  # the gravity the fits were made at (a base off level)
         gravity = ls.gravity_W
+    spec = load_spec(model)
+    if spec.gravity_W is not None:  # the model file states it ([model] gravity: every run since it could)
+        gravity = spec.gravity_W
     if fit == "consistent":
-        return IdentifiedModel(load_spec(model), np.asarray(gravity, dtype=float))
+        return IdentifiedModel(spec, np.asarray(gravity, dtype=float))
     if ls is None:
         raise InputError(path, "", "no least-squares fit here: a log run writes it (identified/least_squares.toml)")
     return LeastSquaresModel(ls, load_spec(here / ls.model), np.asarray(gravity, dtype=float))

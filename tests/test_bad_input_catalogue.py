@@ -32,6 +32,7 @@ MODEL_EDITS = {name: edit for name, (edit, _, _) in BAD_MODELS.items()} | {
     "mass as text": _sub('shape = "cylinder"\nlength = 0.3\nradius = 0.3\ndensity = 7801.0',
                          'shape = "explicit"\nmass = "heavy"\ninertia = [29.8, 19.9, 19.9]'),
     "no [model]": _sub("[model]", "[modelx]"),
+    "gravity of two numbers": _sub("[model]", "[model]\ngravity = [0.0, -9.81]"),
     "huge length": _sub("length = 1.245", "length = 1e200"),
 }
 

@@ -150,3 +150,19 @@ def test_identified_model_reads_a_runs_folder_and_refuses_one_that_mixes_two_run
     (out / "results.json").write_text(json.dumps(results))
     with pytest.raises(InputError, match=r"results.json: run.id: '0{32}', where identified/ is run '[0-9a-f]{32}'"):
         identified_model(out / "identified")
+
+
+def test_the_model_file_states_the_gravity_the_fit_used_and_a_scenario_on_it_takes_it(exported, tmp_path):
+    """robot.toml's [model] gravity is log_identification.gravity.used to the last bit (tomli-w writes every
+    float exactly), as robot.xml's <option gravity> is; a scenario on robot.toml that states no gravity of its
+    own simulates at it, and one that states its own keeps that."""
+    identified, spec, mjcf_spec, _, results = exported
+    used = np.array(results["log_identification"]["gravity"]["used"])
+    assert np.array_equal(spec.gravity_W, used) and np.array_equal(mjcf_spec.gravity_W, used)
+    model = (identified / "robot.toml").as_posix()
+    base = {"scenario": {"model": model, "duration": 0.1, "output_steps": 10},
+            "motion": {j: {"type": "locked"} for j in spec.joint_names},
+            "gates": [{"metric": "recording.rows", "limit": 100}]}
+    assert np.array_equal(load_scenario(base, folder=tmp_path).gravity_W, used)
+    base["scenario"]["gravity"] = [0.0, 0.0, -9.0]
+    assert np.array_equal(load_scenario(base, folder=tmp_path).gravity_W, [0.0, 0.0, -9.0])

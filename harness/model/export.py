@@ -155,15 +155,21 @@ def joints_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...]) -> str:
     return tomli_w.dumps(_joints_table(frictions, spec.joint_names))
 
 
-def model_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...], description: str) -> str:
-    """A model file that `harness run` loads: the exported URDF and each joint's friction."""
+def model_toml(spec: RobotSpec, frictions: tuple[JointFriction, ...], description: str,
+               gravity_W: np.ndarray | None = None) -> str:
+    """A model file that `harness run` loads: the exported URDF, each joint's friction and, where given,
+    the gravity the parameters were identified at ([model] gravity: a base off level, which a URDF cannot
+    hold)."""
     comment = "".join(f"# {line}\n" for line in description.splitlines())
-    return comment + "\n" + tomli_w.dumps({"model": {"name": f"{spec.name}_identified"}, "urdf": {"file": URDF_FILE},
+    model = {"name": f"{spec.name}_identified"}
+    if gravity_W is not None:
+        model["gravity"] = [float(g) for g in gravity_W]
+    return comment + "\n" + tomli_w.dumps({"model": model, "urdf": {"file": URDF_FILE},
                                            **_drive_tables(spec, frictions)})
 
 
 def export(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, ...],
-           description: str) -> dict[str, str]:
+           description: str, gravity_W: np.ndarray | None = None) -> dict[str, str]:
     """{relative path: text} of the exported model: theta (n, 10) each joint's body, `frictions` each
     joint's whole friction law. The MJCF file and the README are added by the caller
     (harness/model/mjcf.py writes MJCF; `readme`)."""
@@ -171,7 +177,7 @@ def export(spec: RobotSpec, theta: np.ndarray, frictions: tuple[JointFriction, .
              {f"identified/{DRIVES_FILE}": tomli_w.dumps(drives_table(spec, frictions))})
     if spec.urdf is not None:
         files[f"identified/{URDF_FILE}"] = write_urdf(spec, theta, frictions)
-        files[f"identified/{MODEL_FILE}"] = model_toml(spec, frictions, description)
+        files[f"identified/{MODEL_FILE}"] = model_toml(spec, frictions, description, gravity_W)
     return files
 
 

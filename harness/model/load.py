@@ -51,6 +51,7 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     model = root.table("model", default={}) if default_name else root.table("model")
     name = model.string("name", default=default_name) if default_name else model.string("name")
     description = model.string("description", default="")
+    stated = model.vector("gravity") if model.has("gravity") else None  # m/s^2, world: over an MJCF's <option>
     model.finish()
     dh = limits = urdf_path = drive_limits = gravity = mjcf_path = tendons = closure = floating = cones = None
     fixed: tuple[str, ...] = ()
@@ -122,8 +123,8 @@ def spec_from_data(data: dict, path: Path) -> RobotSpec:
     if urdf_path or mjcf_path:
         notes = notes + _degenerate(bodies, "the URDF" if urdf_path else "the MJCF file")
     spec = _assemble(RobotSpec(name, description, path, tuple(bodies), tuple(joints), dh, limits, urdf_path, fixed,
-                               drive_limits, gravity, mjcf_path, notes, floating=floating, cones=cones),
-                     body_tables, joint_tables)
+                               drive_limits, gravity if stated is None else stated, mjcf_path, notes, floating=floating,
+                               cones=cones), body_tables, joint_tables)
     if root.has("mjcf") and tendons is not None:
         if drives is not None:
             raise drives.error("", f"{mjcf_path} states its drives (tendons): give them there or here, not both")

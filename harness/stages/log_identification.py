@@ -338,7 +338,7 @@ def export_model(sc, gravity_W: np.ndarray, robot, identified, frictions: tuple[
     description = (f"{robot.name} identified from {sc.data.file.name} by harness (scenario {sc.name}): "
                    f"physically consistent inertial parameters, friction and rotor inertia, at gravity [{g}] m/s^2 "
                    "in the base's axes")
-    files = export(robot, theta, frictions, description)
+    files = export(robot, theta, frictions, description, gravity_W)
     files[f"identified/{LEAST_SQUARES_FILE}"] = ls.to_toml(
         f"{robot.name}: the least-squares fit of its base parameters from {sc.data.file.name} by harness (scenario "
         f"{sc.name}).\nFormat: docs/reference.md, 'The least-squares fit'; harness.identified_model(folder, "
@@ -527,8 +527,8 @@ def warnings(li: LogIdentification, mode: str) -> list[str]:
         g = li.gravity.gravity_W
         out.append(f"gravity as the torques give it, {li.gravity.reason}: [{g[0]:.4g}, {g[1]:.4g}, {g[2]:.4g}] "
                    "m/s^2 in the base's axes (the base mounted off level?); the fits, the consistent model's "
-                   "prediction and the exports use it (identified/robot.xml's <option gravity>; a URDF cannot hold "
-                   "it), [data] tilt = \"declared\" keeps the declared one (log_identification.gravity)")
+                   "prediction and the exports use it (identified/robot.xml's <option gravity>, robot.toml's [model] "
+                   "gravity), [data] tilt = \"declared\" keeps the declared one (log_identification.gravity)")
     out += consistent.plausibility_warnings(li.plausible)
     out += consistent.band_warnings(li.fit, li.joints, li.model.theta)
     out += delay_warnings(lags, li.model.torque_joints, mode)
