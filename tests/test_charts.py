@@ -23,7 +23,6 @@ from .conftest import BUILTIN, DATA, MODELS
 from .test_closed_chain_log import _scenario_text
 
 SPATIAL = DATA / "models" / "spatial_ballbar.toml"
-FOURBAR = MODELS / "fourbar.xml"
 
 
 def _crank(t: np.ndarray) -> np.ndarray:
@@ -32,30 +31,10 @@ def _crank(t: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def ballbar(tmp_path_factory):
-    """The built-in planar four-bar with its coupler on a ball at the crank instead of a hinge, and the
-    rocker on the coupler's far end, pinned to the ground by two connects along y at the rocker's pivot
-    D: the same mechanism, the ball turning about y alone, which is its file chart's middle axis."""
-    text = FOURBAR.read_text()
-    tree = """<body name="crank">
-      <joint name="crank" type="hinge" axis="0 1 0"/>
-      <geom type="capsule" fromto="0 0 0 0.06 0 0.08" size="0.012" mass="0.5"/>
-      <body name="coupler" pos="0.06 0 0.08">
-        <joint name="knuckle" type="ball"/>
-        <geom type="capsule" fromto="0 0 0 0.24 0 0.12" size="0.01" mass="1.2"/>
-        <body name="rocker" pos="0.24 0 0.12">
-          <joint name="rocker" type="hinge" axis="0 1 0"/>
-          <geom type="capsule" fromto="0 0 0 0.05 0 -0.2" size="0.01" mass="0.8"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>"""
-    text = text[:text.index('<body name="crank">')] + tree + text[text.index("</worldbody>") + len("</worldbody>"):]
-    loops = ('<connect name="front" body1="rocker" anchor="0.05 0.05 -0.2"/>'
-             '<connect name="back" body1="rocker" anchor="0.05 -0.05 -0.2"/>')
-    text = text[:text.index("<connect")] + loops + text[text.index("/>", text.index("<connect")) + 2:]
-    path = tmp_path_factory.mktemp("ballbar") / "ballbar.xml"
-    path.write_text(text)
+def ballbar():
+    """The built-in planar four-bar with its coupler on a ball at the crank (tests/data/models/ballbar.xml):
+    the same mechanism, the ball turning about y alone, its file chart's middle axis."""
+    path = DATA / "models" / "ballbar.xml"
     return closure.ClosedChain.of(spec_from_data({"mjcf": {"file": path.name}}, path.with_suffix(".toml")))
 
 

@@ -75,8 +75,9 @@ def rotations_W(spec: RobotSpec, ball: Ball, q: np.ndarray) -> np.ndarray:
 
 
 def cos_beta(W: np.ndarray, R_W: np.ndarray) -> np.ndarray:
-    """cos(beta) (N,) of the rotations R_W (N, 3, 3) in the chart W: 1 at its centre's axes, 0 at its lock."""
-    s = np.einsum("i,nij,j->n", W[:, 0], R_W, W[:, 2])
+    """cos(beta) (..., N) of the rotations R_W (N, 3, 3) in the charts W (..., 3, 3): 1 at a chart's centre's
+    axes, 0 at its lock."""
+    s = np.einsum("...i,nij,...j->...n", W[..., :, 0], R_W, W[..., :, 2])
     return np.sqrt(np.clip(1.0 - s * s, 0.0, 1.0))
 
 
@@ -100,8 +101,7 @@ def chart_for(R_W: np.ndarray, W0: np.ndarray) -> np.ndarray:
         starts += [np.column_stack([other[0], other[1], k]), np.column_stack([k, other[0], other[1]])]
     starts = np.array([W if np.linalg.det(W) > 0 else W * np.array([1.0, 1.0, -1.0]) for W in starts])
     starts = np.concatenate([starts, Rotation.random(SPREAD, random_state=SEED).as_matrix()])
-    s = np.einsum("ki,nij,kj->kn", starts[:, :, 0], R_W, starts[:, :, 2])
-    ranked = starts[np.argsort(np.max(s * s, axis=1), kind="stable")[:STARTS]]
+    ranked = starts[np.argsort(-np.min(cos_beta(starts, R_W), axis=1), kind="stable")[:STARTS]]
 
     def cost(phi: np.ndarray, W_start: np.ndarray) -> float:
         return -float(np.min(cos_beta(W_start @ Rotation.from_rotvec(phi).as_matrix(), R_W)))
@@ -127,12 +127,11 @@ def turned(spec: RobotSpec, ball: Ball, W: np.ndarray) -> RobotSpec:
 
 def carried(spec: RobotSpec, charted: RobotSpec) -> RobotSpec:
     """`spec` (another model of the same robot: a log's truth) with its ball joints in the charts of
-    `charted`'s balls of the same hinges, so that both read one log's coordinates alike."""
-    axes = {h: ball.W[:, k] for ball in balls(charted) for k, h in enumerate(ball.hinges)}
-    if not any(j.name in axes and not np.array_equal(j.axis_W0, axes[j.name]) for j in spec.joints):
-        return spec
-    return dataclasses.replace(spec, joints=tuple(dataclasses.replace(j, axis_W0=axes[j.name].copy())
-                                                  if j.name in axes else j for j in spec.joints))
+    `charted`'s balls of the same hinges (`turned`), so that both read one log's coordinates alike."""
+    for ball in balls(charted):
+        if set(ball.hinges) <= set(spec.joint_names):
+            spec = turned(spec, ball, ball.W)
+    return spec
 
 
 def note(ball: Ball, before: float, after: float, complete: bool) -> str:

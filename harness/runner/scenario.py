@@ -148,8 +148,7 @@ class Scenario:
         try:  # joints' motions are given and the passive joints' follow from the loops
             return along(ClosedChain.of(self.robot), t, self._given)
         except ClosureError as exc:
-            raise InputError(self.source, "motion", f"the motion of the actuated joints cannot be followed: "
-                                                    f"{exc}") from None
+            raise _unfollowed(self.source, exc) from None
 
     def _given(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The [motion] tables' (q, q', q''), each (len(t), joints with a motion), in their order."""
@@ -426,9 +425,13 @@ def _charted(scenario: Scenario) -> Scenario:
     try:
         turned = fitted(chain, q_a).spec
     except ClosureError as exc:
-        raise InputError(scenario.source, "motion", f"the motion of the actuated joints cannot be followed: "
-                                                    f"{exc}") from None
+        raise _unfollowed(scenario.source, exc) from None
     return scenario if turned is chain.spec else dataclasses.replace(scenario, robot=turned)
+
+
+def _unfollowed(source: Path, exc: Exception) -> InputError:
+    """A closed chain's motion its loops cannot follow (closure.ClosureError), as the scenario's bad input."""
+    return InputError(source, "motion", f"the motion of the actuated joints cannot be followed: {exc}")
 
 
 # a closed chain's scenario judges its actuated torques, its loops and its joint-torque identification

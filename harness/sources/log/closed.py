@@ -63,8 +63,12 @@ def charted(training: ConditionedLog, robot: RobotSpec, file) -> RobotSpec:
     try:
         return fitted(chain, training.q[:, [training.joint_index(name) for name in robot.actuated]]).spec
     except ClosureError as exc:
-        raise InputError(file, "columns", f"the actuated joints' logged motion cannot be followed by the loops: "
-                                          f"{exc}") from None
+        raise _unfollowed(file, exc) from None
+
+
+def _unfollowed(file, exc: Exception) -> InputError:
+    """The logged motion its loops cannot follow (closure.ClosureError), as the log's bad input."""
+    return InputError(file, "columns", f"the actuated joints' logged motion cannot be followed by the loops: {exc}")
 
 
 def closed(series: ConditionedLog | None, robot: RobotSpec, file) -> ConditionedLog | None:
@@ -79,8 +83,7 @@ def closed(series: ConditionedLog | None, robot: RobotSpec, file) -> Conditioned
         q = positions(chain, series.q[:, order], np.zeros(chain.n))
         m = motion(chain, q, series.qd[:, order], series.qdd[:, order])
     except ClosureError as exc:
-        raise InputError(file, "columns", f"the actuated joints' logged motion cannot be followed by the loops: "
-                                          f"{exc}") from None
+        raise _unfollowed(file, exc) from None
     tau = np.zeros_like(m.q)
     tau[:, list(chain.actuated)] = series.tau[:, order]
     full_rate = None if series.full_rate is None else _every_joint(series.full_rate, order, m.G)
