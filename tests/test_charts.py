@@ -140,11 +140,12 @@ def test_a_ball_no_chart_frees_is_refused_naming_its_hinges(ballbar, monkeypatch
         charts.fitted(ballbar, _crank(np.linspace(0.0, 2.0, 401)))
 
 
-def test_a_closed_chains_log_reads_its_passive_ball_in_the_chart_of_its_training_span(tmp_path):
+def test_a_closed_chains_log_reads_its_passive_ball_in_the_chart_of_its_training_span(tmp_path, monkeypatch):
     """The spatial four-bar's bench (MuJoCo, its crank's channels alone) read as a log: the ball's chart
-    is turned to the training span's motion, said in results.json, the truth read in the same chart,
-    and on the span the fit never saw the logged torque is the truth's G^T rnea there to the loops'
-    compliance (MuJoCo's soft loops: 1.5e-5 measured, 1e-4 allowed)."""
+    is turned to the training span's motion (its rows alone: the validation span's do not choose it), said
+    in results.json, the truth read in the same chart, and on the span the fit never saw the logged torque
+    is the truth's G^T rnea there to the loops' compliance (MuJoCo's soft loops: 1.5e-5 measured, 1e-4
+    allowed)."""
     import json
 
     from harness.cli import main
@@ -156,9 +157,13 @@ def test_a_closed_chains_log_reads_its_passive_ball_in_the_chart_of_its_training
     measured = '[[gates]]\nmetric = "log_identification.truth.validation_rel_error.measured"\nlimit = 1e-4\n'
     (tmp_path / "s.toml").write_text(_scenario_text(tmp_path / "log.csv", extra=measured, model=SPATIAL,
                                                     truth=SPATIAL))
+    rows = []
+    fitted = charts.fitted
+    monkeypatch.setattr(charts, "fitted", lambda chain, q_a: rows.append(len(q_a)) or fitted(chain, q_a))
     assert main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out"), "--quiet"]) == 0
     results = json.loads((tmp_path / "out" / "results.json").read_text())
     assert sum("turned to the chart" in n for n in results["scenario"]["model_notes"]) == 1
+    assert rows == [results["log_identification"]["spans"]["training"]["samples"]]
 
 
 def test_only_a_frictionless_right_handed_triad_of_hinges_without_limits_of_its_own_is_a_ball():
